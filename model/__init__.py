@@ -1,0 +1,29 @@
+"""flexopt.model: SPACAR-style 3D flexure model in CasADi, stroke equilibrium and natural frequencies."""
+
+from .analysis import Analysis, frequency_curve
+from .errors import EquilibriumError, FlexoptError, KernelBuildError, ModelSizeError, SceneError
+from .io import load_scene, scene_from_dict
+from .results import Failure, FrequencyCurve
+from .scene import Scene
+from .structure import MAX_DOFS, compile_scene
+from .templates import TEMPLATES, template, template_parameters
+
+__all__ = [
+    "Analysis",
+    "frequency_curve",
+    "FlexoptError",
+    "SceneError",
+    "ModelSizeError",
+    "EquilibriumError",
+    "KernelBuildError",
+    "load_scene",
+    "scene_from_dict",
+    "Failure",
+    "FrequencyCurve",
+    "Scene",
+    "MAX_DOFS",
+    "compile_scene",
+    "TEMPLATES",
+    "template",
+    "template_parameters",
+]

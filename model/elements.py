@@ -1,0 +1,180 @@
+"""The one place that creates element symbols: the SPACAR spatial beam and the truss, in CasADi.
+
+Configuration and increments
+----------------------------
+Every element end is a node carried by a *master* (the node itself, or a rigid body). A master's state
+is a position ``x`` and a rotation matrix ``R`` (no angles are stored, so nothing is singular at any
+stroke). Increments are taken in the exponential chart at the current state:
+
+    x_node(d) = x* + u + (exp(psi) - I) r,       R_node(d) = exp(psi) R*,
+
+with ``u`` the master's translation, ``psi`` its *spatial* rotation vector (so ``d psi / dt`` is the
+angular velocity) and ``r`` the node's current offset from its master. Kernels return values and exact
+derivatives at ``d = 0``; the solver then updates ``R <- expm(psi) R`` exactly. Because only derivatives
+at ``d = 0`` up to third order are needed, ``exp(psi)`` is replaced by its cubic Taylor polynomial, which
+has the same first, second and third derivatives at 0 and keeps the expressions free of ``sqrt(psi.psi)``.
+
+Deformations (seed 002, eq. 2; Jonker and Meijaard 2009)
+-------------------------------------------------------
+``eps1`` elongation, ``eps2`` torsion, ``eps3, eps4`` bending about local y, ``eps5, eps6`` bending about
+local z, with second-order terms and the torsion-elongation coupling ``c_t = (Iy + Iz)/A``.
+
+Constitutive stiffness (Jonker and Meijaard; shared/PHYSICS.md)
+--------------------------------------------------------------
+``sigma = S eps`` with ``S11 = EA/l0``, ``S22 = GJ/l0^3``, ``S[3:5,3:5] = EIy/l0^3 [[4,-2],[-2,4]]``,
+``S[5:7,5:7] = EIz/l0^3 [[4,-2],[-2,4]]``; a circular arc of curvature kappa gives eps3 = eps4 =
+kappa l0^2/2 and energy EI kappa^2 l0/2. The element energy is the Lagrangian
+
+    L = 1/2 (m * eps)^T S (m * eps) + lambda^T ((1 - m) * eps),
+
+with ``m`` the mask of flexible deformations and ``lambda`` the multipliers (generalised stresses) of the
+rigid ones, so a rigid deformation is an exact constraint, not a penalty.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import casadi as ca
+
+__all__ = ["KernelSpec", "beam_spec", "truss_spec", "BEAM_CONST", "TRUSS_CONST"]
+
+# Layout of a beam's packed input vector.
+BEAM_STATE = 30  # xp(3) Rp(9, column-major) rp(3) xq(3) Rq(9) rq(3)
+BEAM_CONST = 21  # l0, E0 (9, columns ex ey ez of the local frame in node axes), k1 k2 ky kz, ct, mask(6)
+TRUSS_STATE = 12  # xp(3) rp(3) xq(3) rq(3)
+TRUSS_CONST = 3  # l0, k1, mask
+
+
+@dataclass(frozen=True)
+class KernelSpec:
+    """A CasADi function of one element with a flat input and a flat output.
+
+    The main kernel takes ``a = [state, const, lam]`` and returns ``[g(12), H(144, column-major), e(ne),
+    De(ne*12)]``; the third-derivative kernel takes ``[state, const, lam, v]`` and returns ``dH`` (144),
+    the directional derivative of ``H`` along the increment direction ``v`` (used by modal derivatives).
+    """
+
+    name: str
+    function: ca.Function
+    n_in: int
+    n_out: int
+    n_def: int  # deformation parameters per element
+    n_state: int
+    n_const: int
+
+
+def _skew(v: ca.SX) -> ca.SX:
+    return ca.vertcat(
+        ca.horzcat(0, -v[2], v[1]),
+        ca.horzcat(v[2], 0, -v[0]),
+        ca.horzcat(-v[1], v[0], 0),
+    )
+
+
+def _expm3(psi: ca.SX) -> ca.SX:
+    """Cubic Taylor polynomial of the rotation exponential: exact derivatives at 0 up to third order."""
+    S = _skew(psi)
+    S2 = S @ S
+    return ca.SX.eye(3) + S + S2 / 2 + (S2 @ S) / 6
+
+
+def _end(x0: ca.SX, R0: ca.SX | None, r: ca.SX, u: ca.SX, psi: ca.SX) -> tuple[ca.SX, ca.SX]:
+    E = _expm3(psi)
+    x = x0 + u + (E - ca.SX.eye(3)) @ r
+    R = E @ R0 if R0 is not None else None
+    return x, R
+
+
+def _beam_deformations(xp, Rp, xq, Rq, l0, E0, ct) -> ca.SX:
+    """The six deformation parameters of seed 002, eq. 2."""
+    dx = xq - xp
+    l = ca.sqrt(ca.dot(dx, dx))
+    el = dx / l
+    tp = Rp @ E0
+    tq = Rq @ E0
+    eyp, ezp = tp[:, 1], tp[:, 2]
+    eyq, ezq = tq[:, 1], tq[:, 2]
+    b1 = l - l0
+    b2 = l0 * (ca.dot(ezp, eyq) - ca.dot(eyp, ezq)) / 2
+    b3 = -l0 * ca.dot(el, ezp)
+    b4 = l0 * ca.dot(el, ezq)
+    b5 = l0 * ca.dot(el, eyp)
+    b6 = -l0 * ca.dot(el, eyq)
+    e1 = (
+        b1
+        + (2 * b3**2 + b3 * b4 + 2 * b4**2 + 2 * b5**2 + b5 * b6 + 2 * b6**2) / (30 * l0)
+        + ct * b2**2 / (2 * l0**3)
+    )
+    e2 = b2 + (-b3 * b6 + b4 * b5) / l0
+    e3 = b3 + b2 * (b5 + b6) / (6 * l0)
+    e4 = b4 - b2 * (b5 + b6) / (6 * l0)
+    e5 = b5 - b2 * (b3 + b4) / (6 * l0)
+    e6 = b6 + b2 * (b3 + b4) / (6 * l0)
+    return ca.vertcat(e1, e2, e3, e4, e5, e6)
+
+
+def _beam_energy(e: ca.SX, k: ca.SX, mask: ca.SX, lam: ca.SX) -> ca.SX:
+    k1, k2, ky, kz = k[0], k[1], k[2], k[3]
+    f = mask * e
+    U = 0.5 * (
+        k1 * f[0] ** 2
+        + k2 * f[1] ** 2
+        + ky * (4 * f[2] ** 2 - 4 * f[2] * f[3] + 4 * f[3] ** 2)
+        + kz * (4 * f[4] ** 2 - 4 * f[4] * f[5] + 4 * f[5] ** 2)
+    )
+    return U + ca.dot(lam, (1 - mask) * e)
+
+
+def _finish(name: str, a: ca.SX, d: ca.SX, v: ca.SX, L: ca.SX, e: ca.SX, n_def: int, n_state: int,
+            n_const: int) -> tuple[KernelSpec, KernelSpec]:
+    g = ca.gradient(L, d)
+    H = ca.jacobian(g, d)
+    De = ca.jacobian(e, d)
+    zero = ca.DM.zeros(12)
+    out = ca.substitute(ca.vertcat(g, ca.vec(H), e, ca.vec(De)), d, zero)  # needed at d = 0 only
+    dH = ca.substitute(ca.vec(ca.jtimes(H, d, v)), d, zero)
+    f = ca.Function(name, [a], [out], ["a"], ["out"])
+    av = ca.vertcat(a, v)
+    f3 = ca.Function(name + "_d3", [av], [dH], ["a"], ["out"])
+    return (
+        KernelSpec(name, f, a.numel(), out.numel(), n_def, n_state, n_const),
+        KernelSpec(name + "_d3", f3, av.numel(), 144, n_def, n_state, n_const),
+    )
+
+
+@lru_cache(maxsize=None)
+def beam_spec() -> tuple[KernelSpec, KernelSpec]:
+    """The spatial beam kernels (main input: state 30, const 21, lam 6; third-derivative input adds v 12)."""
+    a = ca.SX.sym("a", BEAM_STATE + BEAM_CONST + 6)
+    v = ca.SX.sym("v", 12)
+    d = ca.SX.sym("d", 12)
+    s, c = a[:BEAM_STATE], a[BEAM_STATE : BEAM_STATE + BEAM_CONST]
+    lam = a[BEAM_STATE + BEAM_CONST : BEAM_STATE + BEAM_CONST + 6]
+    xp0, Rp0, rp = s[0:3], ca.reshape(s[3:12], 3, 3), s[12:15]
+    xq0, Rq0, rq = s[15:18], ca.reshape(s[18:27], 3, 3), s[27:30]
+    l0, E0 = c[0], ca.reshape(c[1:10], 3, 3)
+    k, ct, mask = c[10:14], c[14], c[15:21]
+    xp, Rp = _end(xp0, Rp0, rp, d[0:3], d[3:6])
+    xq, Rq = _end(xq0, Rq0, rq, d[6:9], d[9:12])
+    e = _beam_deformations(xp, Rp, xq, Rq, l0, E0, ct)
+    L = _beam_energy(e, k, mask, lam)
+    return _finish("flexopt_beam", a, d, v, L, e, 6, BEAM_STATE, BEAM_CONST)
+
+
+@lru_cache(maxsize=None)
+def truss_spec() -> tuple[KernelSpec, KernelSpec]:
+    """The truss kernels: elongation ``l - l0`` with stiffness ``EA/l0`` (state 12, const 3, lam 1; + v 12)."""
+    a = ca.SX.sym("a", TRUSS_STATE + TRUSS_CONST + 1)
+    v = ca.SX.sym("v", 12)
+    d = ca.SX.sym("d", 12)
+    s, c = a[:TRUSS_STATE], a[TRUSS_STATE : TRUSS_STATE + TRUSS_CONST]
+    lam = a[TRUSS_STATE + TRUSS_CONST]
+    xp, _ = _end(s[0:3], None, s[3:6], d[0:3], d[3:6])
+    xq, _ = _end(s[6:9], None, s[9:12], d[6:9], d[9:12])
+    dx = xq - xp
+    e = ca.sqrt(ca.dot(dx, dx)) - c[0]
+    mask = c[2]
+    L = 0.5 * c[1] * (mask * e) ** 2 + lam * (1 - mask) * e
+    return _finish("flexopt_truss", a, d, v, L, e, 1, TRUSS_STATE, TRUSS_CONST)

@@ -1,0 +1,108 @@
+"""Result of a frequency-curve analysis and its public (JSON and CSV) forms."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+__all__ = ["FrequencyCurve", "Failure"]
+
+
+@dataclass(frozen=True)
+class Failure:
+    """Where and why the curve stops before the requested range ends."""
+
+    reason: str  # "divergence" (Newton failed: limit point, snap-through) or "unstable" (bifurcation)
+    stroke: float  # estimated stroke at which equilibrium was lost (stroke unit)
+    last_converged: float  # last converged, stable stroke value (stroke unit)
+    message: str
+
+
+@dataclass(frozen=True)
+class FrequencyCurve:
+    """Stroke-dependent natural frequencies of a scene.
+
+    Only converged, stable equilibria appear; when the continuation stops early, ``status`` is
+    ``"truncated"`` and ``failures`` says at which stroke and why (one entry per direction from 0).
+    """
+
+    scene: str
+    method: str
+    stroke: np.ndarray  # (p,) stroke values in stroke_unit, ascending
+    stroke_unit: str
+    stroke_kind: str
+    modes_hz: np.ndarray  # (p, k) tracked modes, branch order = frequency order at stroke 0
+    mode_labels: np.ndarray  # (p, k) "parasitic" | "intended" | "drive"
+    parasitic_hz: np.ndarray  # (p,) first parasitic frequency
+    drive_reaction: np.ndarray  # (p,) actuator moment [N m] or force [N] along the drive axis
+    drive_reaction_unit: str
+    max_von_mises: dict[str, np.ndarray]  # member -> (p,) largest von Mises stress [Pa]
+    allowable_stress: dict[str, float]  # member -> allowable stress of its material [Pa]
+    status: str  # "complete" | "truncated"
+    failures: tuple[Failure, ...] = ()
+    conventions: dict[str, str] = field(default_factory=dict)
+    solver: dict[str, float] = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        """A JSON-ready dict (lists instead of arrays)."""
+        def clean(a: np.ndarray) -> list:
+            return [None if not np.isfinite(v) else float(v) for v in np.ravel(a)]
+
+        return {
+            "scene": self.scene,
+            "method": self.method,
+            "stroke": clean(self.stroke),
+            "stroke_unit": self.stroke_unit,
+            "stroke_kind": self.stroke_kind,
+            "parasitic_hz": clean(self.parasitic_hz),
+            "modes_hz": [clean(row) for row in self.modes_hz],
+            "mode_labels": [list(map(str, row)) for row in self.mode_labels],
+            "drive_reaction": clean(self.drive_reaction),
+            "drive_reaction_unit": self.drive_reaction_unit,
+            "max_von_mises": {k: clean(v) for k, v in self.max_von_mises.items()},
+            "allowable_stress": dict(self.allowable_stress),
+            "status": self.status,
+            "failures": [asdict(f) for f in self.failures],
+            "conventions": dict(self.conventions),
+            "solver": dict(self.solver),
+        }
+
+    def to_json(self, indent: int | None = 2) -> str:
+        """The result as a JSON string."""
+        return json.dumps(self.to_dict(), indent=indent)
+
+    def to_csv(self) -> str:
+        """One row per stroke point: stroke, parasitic, each mode, drive reaction, stresses."""
+        buf = io.StringIO()
+        w = csv.writer(buf)
+        k = self.modes_hz.shape[1]
+        members = list(self.max_von_mises)
+        w.writerow([f"stroke_{self.stroke_unit}", "parasitic_hz", *[f"mode{i + 1}_hz" for i in range(k)],
+                    f"drive_reaction_{self.drive_reaction_unit.replace(' ', '')}",
+                    *[f"von_mises_{m}_Pa" for m in members]])
+        for i in range(len(self.stroke)):
+            w.writerow([f"{self.stroke[i]:.10g}", f"{self.parasitic_hz[i]:.10g}",
+                        *[f"{v:.10g}" for v in self.modes_hz[i]], f"{self.drive_reaction[i]:.10g}",
+                        *[f"{self.max_von_mises[m][i]:.10g}" for m in members]])
+        return buf.getvalue()
+
+    def table(self) -> str:
+        """A readable fixed-width table."""
+        k = self.modes_hz.shape[1]
+        head = f"{'stroke [' + self.stroke_unit + ']':>14} {'parasitic Hz':>13} " + " ".join(
+            f"{'mode ' + str(i + 1):>10}" for i in range(k)) + f" {'reaction':>11} {'max VM [MPa]':>13}"
+        lines = [head]
+        for i in range(len(self.stroke)):
+            vm = max((v[i] for v in self.max_von_mises.values()), default=float("nan"))
+            lines.append(
+                f"{self.stroke[i]:14.4f} {self.parasitic_hz[i]:13.4f} "
+                + " ".join(f"{v:10.3f}" for v in self.modes_hz[i])
+                + f" {self.drive_reaction[i]:11.4g} {vm / 1e6:13.3f}"
+            )
+        for f in self.failures:
+            lines.append(f"# truncated: {f.message}")
+        return "\n".join(lines)

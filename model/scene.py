@@ -1,0 +1,414 @@
+"""The scene: a flexure design as JSON (pydantic v2 schema only; no CasADi here).
+
+Units are SI (m, kg, s, N, Pa) in every description; any *consistent* set works as well (e.g. mm, tonne,
+s, N, MPa), since frequencies in Hz do not depend on the length and mass units.
+
+A scene holds materials, nodes, rigid bodies, flexible elements (spatial beams and trusses), supports,
+the stroke (the driven coordinate and its range) and, optionally, the support directions used to label
+parasitic modes. Cross-references are names (strings), checked in one after-validator so that an error
+names the field and the fix.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Literal, Union
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+__all__ = [
+    "SCENE_FORMAT",
+    "SCENE_VERSION",
+    "MODE_NAMES",
+    "Material",
+    "Node",
+    "RectangularSection",
+    "GeneralSection",
+    "Section",
+    "Beam",
+    "Truss",
+    "Element",
+    "RigidBody",
+    "Support",
+    "Stroke",
+    "SupportDirections",
+    "Scene",
+    "expand_modes",
+]
+
+SCENE_FORMAT = "flexopt.scene"
+SCENE_VERSION = 1
+
+#: Names of the six deformation parameters of the spatial beam (seed 002, eq. 2), and groups of them.
+MODE_NAMES: dict[str, tuple[int, ...]] = {
+    "elongation": (0,),
+    "torsion": (1,),
+    "bending_y": (2, 3),  # eps3, eps4: bending about local y (deflection along local z), EI_y
+    "bending_z": (4, 5),  # eps5, eps6: bending about local z (deflection along local y), EI_z
+    "eps1": (0,),
+    "eps2": (1,),
+    "eps3": (2,),
+    "eps4": (3,),
+    "eps5": (4,),
+    "eps6": (5,),
+}
+
+DeformationName = Literal[
+    "elongation", "torsion", "bending_y", "bending_z", "eps1", "eps2", "eps3", "eps4", "eps5", "eps6"
+]
+
+Pos = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+NonNeg = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+Real = Annotated[float, Field(allow_inf_nan=False)]
+Vec3 = Annotated[tuple[Real, Real, Real], Field(description="a 3-vector (x, y, z)")]
+Name = Annotated[str, Field(min_length=1, max_length=100, pattern=r"^[^#\s]+$")]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Material(_Strict):
+    """An isotropic linear-elastic material."""
+
+    name: Name
+    E: Pos = Field(description="Young's modulus [Pa]")
+    G: Pos = Field(description="shear modulus [Pa]")
+    density: Pos = Field(description="mass density [kg/m^3]")
+    allowable_stress: Pos = Field(description="allowable von Mises stress [Pa]")
+
+
+class Node(_Strict):
+    """A nodal point. Its orientation at the reference configuration is the global frame."""
+
+    name: Name
+    position: Vec3 = Field(description="reference position [m]")
+
+
+class RectangularSection(_Strict):
+    """A solid rectangle: ``width`` along the local y axis, ``thickness`` along the local z axis.
+
+    For a leaf spring the thickness is the small dimension, so bending about local y (eps3, eps4) is the
+    weak, compliant bending.
+    """
+
+    kind: Literal["rectangular"] = "rectangular"
+    width: Pos = Field(description="extent along local y [m]")
+    thickness: Pos = Field(description="extent along local z [m]")
+    warping: Literal["free", "one_end", "both_ends"] = Field(
+        "free",
+        description="torsion assumption: free warping (St Venant, default) or warping constrained at one "
+        "or both clamped ends of the element (Vlasov correction on GJ, see model.sections)",
+    )
+
+
+class GeneralSection(_Strict):
+    """A section given by its properties. Fibre distances are needed only for stresses."""
+
+    kind: Literal["general"] = "general"
+    A: Pos = Field(description="area [m^2]")
+    Iy: Pos = Field(description="second moment about local y [m^4] (resists deflection along local z)")
+    Iz: Pos = Field(description="second moment about local z [m^4] (resists deflection along local y)")
+    J: Pos = Field(description="St Venant torsion constant [m^4]")
+    cy: Pos | None = Field(None, description="largest fibre distance along local y [m] (for stress)")
+    cz: Pos | None = Field(None, description="largest fibre distance along local z [m] (for stress)")
+    torsion_stress_factor: Pos | None = Field(
+        None, description="max shear stress per unit torque [1/m^3] (for stress); thin rectangle: t/J"
+    )
+
+
+Section = Annotated[Union[RectangularSection, GeneralSection], Field(discriminator="kind")]
+
+
+class Beam(_Strict):
+    """A SPACAR spatial beam (seed 002, eq. 2) between two nodes, meshed into ``segments`` elements."""
+
+    kind: Literal["beam"] = "beam"
+    name: Name
+    nodes: tuple[Name, Name] = Field(description="end nodes (p, q)")
+    material: Name
+    section: Section
+    y_axis: Vec3 = Field(
+        description="direction of the section's local y axis (the width direction of a rectangle); "
+        "its part perpendicular to the beam axis is used, so it must not be parallel to the beam"
+    )
+    segments: int = Field(1, ge=1, le=1000, description="number of beam elements along the member")
+    rigid: tuple[DeformationName, ...] = Field(
+        (),
+        description="deformation modes held rigid (zero), e.g. ['elongation'] for a wire flexure, "
+        "['elongation', 'bending_z'] for a sheet whose in-plane bending is rigid",
+    )
+
+
+class Truss(_Strict):
+    """A truss (elongation only) between two nodes."""
+
+    kind: Literal["truss"] = "truss"
+    name: Name
+    nodes: tuple[Name, Name]
+    material: Name
+    area: Pos = Field(description="cross-section area [m^2]")
+    segments: int = Field(
+        1, ge=1, le=1, description="always 1: a truss has no bending stiffness, so interior nodes would be "
+        "free mechanisms"
+    )
+    rigid: tuple[Literal["elongation", "eps1"], ...] = Field((), description="['elongation'] for a rigid bar")
+
+
+Element = Annotated[Union[Beam, Truss], Field(discriminator="kind")]
+
+
+class RigidBody(_Strict):
+    """A rigid body that carries nodes; its mass properties are given about its centre of mass."""
+
+    name: Name
+    mass: NonNeg = Field(0.0, description="mass [kg]")
+    center_of_mass: Vec3 = Field(description="centre of mass at the reference configuration [m]")
+    inertia: tuple[Vec3, Vec3, Vec3] = Field(
+        ((0.0, 0.0, 0.0),) * 3, description="inertia tensor about the centre of mass, global axes [kg m^2]"
+    )
+    nodes: tuple[Name, ...] = Field((), description="nodes rigidly attached to the body")
+
+    @field_validator("inertia")
+    @classmethod
+    def _inertia_physical(cls, v: tuple[Vec3, Vec3, Vec3]) -> tuple[Vec3, Vec3, Vec3]:
+        J = np.array(v, dtype=float)
+        if not np.allclose(J, J.T, rtol=1e-9, atol=1e-300 + 1e-12 * np.abs(J).max()):
+            raise ValueError("inertia tensor must be symmetric; fix: set inertia[i][j] == inertia[j][i]")
+        w = np.linalg.eigvalsh(J)
+        tol = 1e-12 * max(abs(w).max(), 1e-300)
+        if w.min() < -tol:
+            raise ValueError("inertia tensor must be positive semidefinite; fix the principal moments")
+        a, b, c = sorted(w)
+        if c > a + b + tol * 10:
+            raise ValueError(
+                "inertia tensor violates the triangle inequality (I1 <= I2 + I3); no real body has it"
+            )
+        return v
+
+
+DofName = Literal["x", "y", "z", "rx", "ry", "rz"]
+
+
+class Support(_Strict):
+    """A support: fixes coordinates of a node, or grounds a whole body."""
+
+    node: Name | None = Field(None, description="supported node")
+    body: Name | None = Field(None, description="grounded body (all six coordinates fixed)")
+    dofs: tuple[DofName, ...] = Field(
+        ("x", "y", "z", "rx", "ry", "rz"), description="fixed coordinates of the node (default: all)"
+    )
+
+    @model_validator(mode="after")
+    def _one_target(self) -> "Support":
+        if (self.node is None) == (self.body is None):
+            raise ValueError("give exactly one of 'node' or 'body'")
+        if not self.dofs:
+            raise ValueError("'dofs' is empty; list the fixed coordinates or remove the support")
+        return self
+
+
+class Stroke(_Strict):
+    """The driven coordinate and its range.
+
+    A rotation stroke is a spin about the fixed ``axis``: the stroke value is the twist angle about that
+    axis of the target's orientation (swing-twist decomposition), the actuator exerts a moment about the
+    axis only, and locking the drive in the eigen analysis removes only the incremental spin about it
+    (delta_omega . axis = 0); see model.statics. A translation stroke is the displacement along ``axis``.
+    """
+
+    kind: Literal["rotation", "translation"] = "rotation"
+    node: Name | None = Field(None, description="driven node")
+    body: Name | None = Field(None, description="driven body")
+    axis: Vec3 = Field(description="fixed drive axis (normalised internally)")
+    start: Real | None = Field(None, description="first stroke value (default -45 deg for rotations)")
+    stop: Real | None = Field(None, description="last stroke value (default +45 deg for rotations)")
+    points: int = Field(91, ge=2, le=100001, description="number of stroke points")
+    unit: Literal["deg", "rad", "m"] | None = Field(
+        None, description="stroke unit: deg (default) or rad for rotations, m (scene length) for translations"
+    )
+    drive: Literal["locked", "free"] = Field(
+        "locked", description="eigen analysis with the actuator holding the drive (locked) or not (free)"
+    )
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "Stroke":
+        if (self.node is None) == (self.body is None):
+            raise ValueError("give exactly one of 'node' or 'body' as the driven target")
+        if not np.linalg.norm(self.axis) > 0:
+            raise ValueError("axis is the zero vector; give the drive direction, e.g. [0, 0, 1]")
+        if self.kind == "rotation" and self.unit == "m":
+            raise ValueError("a rotation stroke has unit 'deg' or 'rad', not 'm'")
+        if self.kind == "translation":
+            if self.unit in ("deg", "rad"):
+                raise ValueError("a translation stroke has unit 'm' (the scene's length unit)")
+            if self.start is None or self.stop is None:
+                raise ValueError("a translation stroke needs 'start' and 'stop' (in the scene's length unit)")
+        if self.start is not None and self.stop is not None and not self.stop > self.start:
+            raise ValueError(f"stop ({self.stop}) must be greater than start ({self.start})")
+        return self
+
+    @property
+    def resolved_unit(self) -> str:
+        """The unit of the stroke values."""
+        return self.unit or ("deg" if self.kind == "rotation" else "m")
+
+    def values(self) -> np.ndarray:
+        """The stroke values in ``resolved_unit`` (linearly spaced, ``points`` of them)."""
+        default = 45.0 if self.resolved_unit == "deg" else math.radians(45.0)
+        start = self.start if self.start is not None else -default
+        stop = self.stop if self.stop is not None else default
+        if not stop > start:
+            raise ValueError(f"stroke stop ({stop}) must be greater than start ({start})")
+        return np.linspace(start, stop, self.points)
+
+    def to_internal(self, s: np.ndarray | float) -> np.ndarray:
+        """Stroke values in radians (rotations) or length units (translations)."""
+        return np.radians(s) if self.resolved_unit == "deg" else np.asarray(s, dtype=float)
+
+
+class SupportDirections(_Strict):
+    """Directions that count as *support* (parasitic) motion, for labelling modes by participation.
+
+    A mode is parasitic when more than half of its kinetic energy lies in these translation directions
+    and rotation axes (global frame). Without them, every mode with the drive locked is parasitic.
+    """
+
+    translations: tuple[Vec3, ...] = ()
+    rotations: tuple[Vec3, ...] = ()
+
+
+class Scene(_Strict):
+    """A flexure design: the whole input of an analysis."""
+
+    format: Literal["flexopt.scene"] = SCENE_FORMAT
+    version: Literal[1] = SCENE_VERSION
+    name: str = "scene"
+    materials: tuple[Material, ...] = Field(min_length=1)
+    nodes: tuple[Node, ...] = Field(min_length=2)
+    bodies: tuple[RigidBody, ...] = ()
+    elements: tuple[Element, ...] = Field(min_length=1)
+    supports: tuple[Support, ...] = Field(min_length=1)
+    stroke: Stroke
+    support_directions: SupportDirections | None = None
+    modes: int = Field(6, ge=1, le=50, description="number of modes reported per stroke point")
+
+    @model_validator(mode="after")
+    def _references(self) -> "Scene":  # noqa: C901 - one table of checks, read top to bottom
+        errors: list[str] = []
+
+        def unique(kind: str, names: list[str]) -> set[str]:
+            seen: set[str] = set()
+            for i, n in enumerate(names):
+                if n in seen:
+                    errors.append(f"{kind}[{i}].name: duplicate name '{n}'; names must be unique")
+                seen.add(n)
+            return seen
+
+        mats = unique("materials", [m.name for m in self.materials])
+        nodes = unique("nodes", [n.name for n in self.nodes])
+        bodies = unique("bodies", [b.name for b in self.bodies])
+        unique("elements", [e.name for e in self.elements])
+        pos = {n.name: np.array(n.position) for n in self.nodes}
+        extent = max(
+            float(np.ptp(np.array([n.position for n in self.nodes]), axis=0).max()), 1e-300
+        )
+
+        carrier: dict[str, str] = {}
+        for i, b in enumerate(self.bodies):
+            for n in b.nodes:
+                if n not in nodes:
+                    errors.append(f"bodies[{i}].nodes: unknown node '{n}'; define it under 'nodes'")
+                elif n in carrier:
+                    errors.append(
+                        f"bodies[{i}].nodes: node '{n}' is already carried by body '{carrier[n]}'; "
+                        "a node belongs to at most one body"
+                    )
+                else:
+                    carrier[n] = b.name
+
+        for i, e in enumerate(self.elements):
+            where = f"elements[{i}]"
+            for n in e.nodes:
+                if n not in nodes:
+                    errors.append(f"{where}.nodes: unknown node '{n}'; define it under 'nodes' or fix the name")
+            if e.material not in mats:
+                errors.append(f"{where}.material: unknown material '{e.material}'; define it under 'materials'")
+            if all(n in pos for n in e.nodes):
+                p, q = pos[e.nodes[0]], pos[e.nodes[1]]
+                length = float(np.linalg.norm(q - p))
+                if e.nodes[0] == e.nodes[1] or length <= 1e-9 * extent:
+                    errors.append(
+                        f"{where}.nodes: element '{e.name}' has zero length: nodes '{e.nodes[0]}' and "
+                        f"'{e.nodes[1]}' coincide; move one node or remove the element"
+                    )
+                elif isinstance(e, Beam):
+                    ex = (q - p) / length
+                    y = np.array(e.y_axis, dtype=float)
+                    ny = float(np.linalg.norm(y))
+                    if ny == 0 or float(np.linalg.norm(np.cross(ex, y / ny))) < 1e-6:
+                        errors.append(
+                            f"{where}.y_axis: section orientation {tuple(e.y_axis)} is parallel to the axis "
+                            f"of beam '{e.name}'; give a direction across the beam (the width direction)"
+                        )
+            if isinstance(e, Beam) and len(set(i for r in e.rigid for i in MODE_NAMES[r])) == 6:
+                errors.append(
+                    f"{where}.rigid: all six deformations of beam '{e.name}' are rigid; "
+                    "model a rigid connection as a rigid body instead"
+                )
+
+        supported: dict[str, set[str]] = {}
+        grounded: set[str] = set()
+        for i, s in enumerate(self.supports):
+            if s.node is not None:
+                if s.node not in nodes:
+                    errors.append(f"supports[{i}].node: unknown node '{s.node}'")
+                elif s.node in carrier:
+                    if set(s.dofs) != {"x", "y", "z", "rx", "ry", "rz"}:
+                        errors.append(
+                            f"supports[{i}].dofs: node '{s.node}' is carried by body '{carrier[s.node]}'; "
+                            "support it fully or ground the body"
+                        )
+                    grounded.add(carrier[s.node])
+                else:
+                    supported.setdefault(s.node, set()).update(s.dofs)
+            if s.body is not None:
+                if s.body not in bodies:
+                    errors.append(f"supports[{i}].body: unknown body '{s.body}'")
+                grounded.add(s.body)
+
+        st = self.stroke
+        if st.node is not None:
+            if st.node not in nodes:
+                errors.append(f"stroke.node: unknown node '{st.node}'")
+            elif st.node in carrier:
+                errors.append(
+                    f"stroke.node: node '{st.node}' is carried by body '{carrier[st.node]}'; "
+                    f"drive the body instead (stroke.body = '{carrier[st.node]}')"
+                )
+            else:
+                fixed = supported.get(st.node, set())
+                axis = np.array(st.axis) / np.linalg.norm(st.axis)
+                names = ("rx", "ry", "rz") if st.kind == "rotation" else ("x", "y", "z")
+                blocked = [names[k] for k in range(3) if names[k] in fixed and abs(axis[k]) > 1e-12]
+                if blocked:
+                    errors.append(
+                        f"stroke.node: the stroke drives node '{st.node}' along {blocked}, which a support "
+                        "fixes; drive an unsupported node or remove that support"
+                    )
+        if st.body is not None:
+            if st.body not in bodies:
+                errors.append(f"stroke.body: unknown body '{st.body}'")
+            elif st.body in grounded:
+                errors.append(
+                    f"stroke.body: body '{st.body}' is grounded by a support; drive a moving body instead"
+                )
+        if errors:
+            raise ValueError("; ".join(errors))
+        return self
+
+
+def expand_modes(names: tuple[str, ...]) -> tuple[int, ...]:
+    """Indices (0-based, eps1 = 0) of the deformation parameters named in ``names``."""
+    return tuple(sorted({i for n in names for i in MODE_NAMES[n]}))

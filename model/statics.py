@@ -1,0 +1,192 @@
+"""Static equilibrium along the stroke: Newton with the exact tangent, continuation with step control.
+
+Equations at a stroke value ``s`` (drive basis, see model.assembly): the gradient of the Lagrangian
+vanishes in every active DOF except the drive (``g_f = 0``: the actuator exerts a force or moment along
+its axis only), the drive coordinate equals ``s`` (twist about the fixed axis, or displacement along
+it), and every rigid deformation is zero. Newton solves this square system with its exact Jacobian
+
+    [ H_fa   G_f^T ] [dxi ]     [ g_f       ]
+    [ dD_a     0   ] [    ] = - [ D(q) - s  ]
+    [ G_a      0   ] [dlam]     [ c         ]
+
+where ``H`` is the Hessian of the Lagrangian (material plus geometric stiffness, from CasADi) and ``dD``
+the drive gradient. Convergence needs both the Newton increment and the Jacobi-scaled residual below
+``tol`` (translations relative to the structure's length scale, rotations in rad, so the criterion is
+the same in any consistent units); the state accepted is the one at which the residual was evaluated.
+Continuation starts at the stress-free reference (stroke 0) and walks outwards to each requested stroke
+value, with a tangent (and, when available, second-order) predictor and step halving on failure.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .assembly import Assembled, State, System
+
+__all__ = ["NewtonOptions", "Equilibrium", "solve_point", "StepFailure"]
+
+
+@dataclass(frozen=True)
+class NewtonOptions:
+    """Solver settings (dimensionless, see the module docstring)."""
+
+    tol: float = 1e-9
+    max_iter: int = 12
+    max_halvings: int = 12
+
+
+@dataclass
+class Equilibrium:
+    """A converged equilibrium with everything evaluated at it."""
+
+    stroke: float  # internal units (rad or length)
+    state: State
+    ev: Assembled
+    free: np.ndarray  # active DOFs except the drive
+    tangent: np.ndarray  # d(xi)/ds over all DOFs (drive basis)
+    iterations: int
+    residual: float  # Jacobi-scaled residual at the accepted state
+    increment: float  # scaled Newton increment at the accepted state
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def drive_reaction(self) -> float:
+        """Actuator force [N] or moment [N m] along the drive axis (energy gradient of the drive DOF)."""
+        return float(self.ev.g[self.extra["drive_dof"]])
+
+
+class StepFailure(Exception):
+    """Newton did not converge from a predictor (internal; continuation halves the step)."""
+
+
+def _jacobian(sys: System, ev: Assembled, st: State, act: np.ndarray, free: np.ndarray) -> np.ndarray:
+    na, nr = len(act), sys.n_con
+    J = np.zeros((na + nr, na + nr))
+    J[: len(free), :na] = ev.H[np.ix_(free, act)]
+    dd = sys.drive_gradient(st)[act]
+    J[len(free), :na] = dd
+    if nr:
+        Ga = ev.G[:, act]
+        J[: len(free), na:] = ev.G[:, free].T
+        J[len(free) + 1 :, :na] = Ga
+    return J
+
+
+def solve_point(
+    sys: System,
+    start: State,
+    s_target: float,
+    opts: NewtonOptions,
+    theta_near: float,
+) -> Equilibrium:
+    """Newton iterations from ``start`` to the equilibrium at drive value ``s_target``.
+
+    Raises
+    ------
+    StepFailure
+        If the iteration diverges, produces non-finite numbers or exceeds ``max_iter``.
+    """
+    s = sys.s
+    act = np.flatnonzero(s.active)
+    free = act[act != s.drive_dof]
+    na = len(act)
+    scale = s.dof_scale
+    st = start
+    for it in range(opts.max_iter + 1):
+        ev = sys.evaluate(st)
+        if not (np.isfinite(ev.g).all() and np.isfinite(ev.H).all()):
+            raise StepFailure("non-finite residual")
+        dval = sys.drive_value(st, near=theta_near)
+        rhs = np.concatenate([ev.g[free], [dval - s_target], ev.c])
+        J = _jacobian(sys, ev, st, act, free)
+        e_drive = np.zeros(len(rhs))
+        e_drive[len(free)] = 1.0
+        try:
+            sol = np.linalg.solve(J, np.column_stack([-rhs, e_drive]))
+        except np.linalg.LinAlgError as exc:
+            raise StepFailure(f"singular tangent ({exc})") from exc
+        dxi = np.zeros(sys.n)
+        dxi[act] = sol[:na, 0]
+        inc = float(np.max(np.abs(dxi / scale))) if na else 0.0
+        diag = np.abs(np.diag(ev.H))[free]
+        dscale = np.maximum(diag, 1e-12 * max(diag.max(initial=0.0), 1e-300))
+        res = float(np.max(np.abs(ev.g[free]) / (dscale * scale[free]), initial=0.0))
+        res = max(res, abs(dval - s_target) / (1.0 if s.drive_kind == "rotation" else s.length_scale))
+        if sys.n_con:
+            res = max(res, float(np.max(np.abs(ev.c))) / s.length_scale)
+        if not np.isfinite(inc):
+            raise StepFailure("non-finite increment")
+        if inc <= opts.tol and res <= opts.tol:
+            tangent = np.zeros(sys.n)
+            tangent[act] = sol[:na, 1]
+            return Equilibrium(
+                stroke=s_target, state=st, ev=ev, free=free, tangent=tangent, iterations=it,
+                residual=res, increment=inc,
+                extra={"drive_dof": s.drive_dof, "dlam_ds": sol[na:, 1]},
+            )
+        if it > 2 and inc > 1e3 * opts.tol and inc > 0.5:
+            raise StepFailure(f"diverging (increment {inc:.3g})")
+        st = sys.update(st, dxi, sol[na:, 0] if sys.n_con else None)
+    raise StepFailure(f"no convergence in {opts.max_iter} iterations (increment {inc:.3g}, residual {res:.3g})")
+
+
+def predict(sys: System, eq: Equilibrium, ds: float, prev: Equilibrium | None) -> State:
+    """Predictor from a converged point: tangent step, with a second-order term from the previous point."""
+    step = eq.tangent * ds
+    dlam = eq.extra["dlam_ds"] * ds if sys.n_con else None
+    if prev is not None and prev.stroke != eq.stroke:
+        h = eq.stroke - prev.stroke
+        curv = (eq.tangent - prev.tangent) / h
+        step = step + 0.5 * curv * ds * ds
+    return sys.update(eq.state, step, dlam)
+
+
+@dataclass
+class WalkFailure:
+    """Why the continuation stopped before the last requested stroke value."""
+
+    reason: str  # "divergence" | "unstable"
+    stroke: float  # internal units: where equilibrium was lost (estimate)
+    last_converged: float
+    message: str
+
+
+def walk(sys: System, targets: np.ndarray, opts: NewtonOptions, accept) -> WalkFailure | None:
+    """Continue from the reference through ``targets`` (internal units, monotone away from 0).
+
+    ``accept(eq)`` is called at each target and returns ``None`` to go on, or a :class:`WalkFailure` to
+    stop (e.g. the equilibrium became unstable). Returns the failure, or ``None`` when all converged.
+    """
+    cur = solve_point(sys, sys.reference_state(), 0.0, opts, 0.0)
+    prev: Equilibrium | None = None
+    for s_t in targets:
+        h = s_t - cur.stroke
+        halvings = 0
+        full = abs(h) if h != 0 else 1.0
+        while cur.stroke != s_t:
+            remaining = s_t - cur.stroke
+            if abs(h) >= abs(remaining) * (1 - 1e-12):
+                h, s_new = remaining, s_t
+            else:
+                s_new = cur.stroke + h
+            try:
+                new = solve_point(sys, predict(sys, cur, h, prev), s_new, opts, cur.stroke)
+            except StepFailure as exc:
+                halvings += 1
+                h /= 2.0
+                if halvings > opts.max_halvings:
+                    return WalkFailure(
+                        "divergence", cur.stroke + 2 * h, cur.stroke,
+                        f"no equilibrium found beyond stroke {cur.stroke:.6g}: Newton failed with steps down "
+                        f"to {abs(2 * h):.3g} ({exc}); a limit point, snap-through or loss of equilibrium",
+                    )
+                continue
+            prev, cur = cur, new
+            if abs(h) < full:
+                h = np.sign(h) * min(2 * abs(h), full)
+        failure = accept(cur)
+        if failure is not None:
+            return failure
+    return None

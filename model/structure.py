@@ -1,0 +1,320 @@
+"""compile_scene(scene) -> Structure: the numeric form of a scene (meshed, indexed, frozen).
+
+Masters and DOFs
+----------------
+Every node is carried by a *master*: a rigid body (whose master sits at its centre of mass) or the node
+itself. Each master has six increments ``(u, psi)`` in global axes (translation, spatial rotation vector);
+DOF ``6 m + k``. Rotational DOFs of a master that no beam and no body uses are inactive (a truss-only
+node has none), as are supported coordinates. The drive's master block is expressed in a basis whose first
+vector is the drive axis, so the drive is one DOF (``drive_dof``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .elements import BEAM_CONST, TRUSS_CONST
+from .errors import ModelSizeError, SceneError
+from .scene import Beam, Scene, Truss, expand_modes
+from .sections import section_properties, warping_factor
+
+__all__ = ["Structure", "compile_scene", "MAX_DOFS"]
+
+#: Largest number of active degrees of freedom accepted (dense linear algebra; about 500 beam nodes).
+MAX_DOFS = 3000
+
+_DOF_INDEX = {"x": 0, "y": 1, "z": 2, "rx": 3, "ry": 4, "rz": 5}
+
+
+@dataclass(frozen=True)
+class Structure:
+    """A meshed, indexed scene. Array shapes in the comments (nn nodes, nm masters, nb beams, nt trusses)."""
+
+    scene: Scene
+    length_scale: float  # characteristic length: largest extent of the reference geometry
+    node_names: tuple[str, ...]  # (nn,)
+    node_master: np.ndarray  # (nn,) master index of each node
+    node_offset: np.ndarray  # (nn, 3) node position minus master position, reference
+    master_names: tuple[str, ...]  # (nm,)
+    master_pos: np.ndarray  # (nm, 3) reference positions
+    active: np.ndarray  # (6 nm,) bool: DOF is free (not supported, not an unused rotation)
+    # beams
+    beam_nodes: np.ndarray  # (nb, 2) node indices
+    beam_const: np.ndarray  # (nb, BEAM_CONST) packed kernel constants
+    beam_member: np.ndarray  # (nb,) index of the scene element
+    beam_stiff: np.ndarray  # (nb, 6, 6) constitutive matrix S of eq. 2's deformations
+    beam_mask: np.ndarray  # (nb, 6) 1 = flexible, 0 = rigid
+    beam_stress: np.ndarray  # (nb, 7): A, Iy, Iz, cy, cz, tau_per_torque, l0 (nan where unknown)
+    beam_mass: np.ndarray  # (nb,) rho A l0
+    # trusses
+    truss_nodes: np.ndarray  # (nt, 2)
+    truss_const: np.ndarray  # (nt, TRUSS_CONST)
+    truss_member: np.ndarray  # (nt,)
+    truss_area: np.ndarray  # (nt,)
+    truss_mass: np.ndarray  # (nt,)
+    # mass of nodes and bodies
+    node_rot_inertia: np.ndarray  # (nn, 3, 3) rotary inertia lumped at nodes, global axes at reference
+    master_mass: np.ndarray  # (nm,) rigid-body mass at the master (bodies only)
+    master_inertia: np.ndarray  # (nm, 3, 3) rigid-body inertia about the master (bodies), reference axes
+    # rigid deformations (constraints): (kind 0 beam / 1 truss, element index, deformation index)
+    constraints: np.ndarray  # (nr, 3) int
+    # drive
+    drive_master: int
+    drive_kind: str  # "rotation" | "translation"
+    drive_axis: np.ndarray  # (3,)
+    drive_basis: np.ndarray  # (3, 3) columns: axis, two perpendicular directions
+    drive_dof: int  # DOF index of the drive in the rotated basis
+    support_projector: np.ndarray | None  # (6, 6) projector on support directions of a master block
+    member_names: tuple[str, ...] = field(default=())
+    warping: tuple[str, ...] = field(default=())  # per member: the torsion assumption used
+
+    @property
+    def n_dof(self) -> int:
+        """Number of master DOFs (active or not)."""
+        return 6 * len(self.master_names)
+
+    @property
+    def n_beams(self) -> int:
+        """Number of beam elements after meshing."""
+        return len(self.beam_nodes)
+
+    @property
+    def dof_scale(self) -> np.ndarray:
+        """Characteristic size of each DOF: the length scale for translations, 1 rad for rotations."""
+        s = np.ones(self.n_dof)
+        s.reshape(-1, 6)[:, :3] = self.length_scale
+        return s
+
+    def dof_label(self, dof: int) -> str:
+        """Readable name of a DOF, e.g. ``tip.ry``."""
+        m, k = divmod(dof, 6)
+        return f"{self.master_names[m]}.{('x', 'y', 'z', 'rx', 'ry', 'rz')[k]}"
+
+
+def _unit(v) -> np.ndarray:
+    v = np.asarray(v, dtype=float)
+    return v / np.linalg.norm(v)
+
+
+def _basis(a: np.ndarray) -> np.ndarray:
+    """Orthonormal basis with first column ``a``."""
+    t = np.eye(3)[np.argmin(abs(a))]
+    b = _unit(np.cross(a, t))
+    return np.column_stack([a, b, np.cross(a, b)])
+
+
+def compile_scene(scene: Scene) -> Structure:  # noqa: C901 - a straight sequence of table builds
+    """Mesh and index a validated scene.
+
+    Raises
+    ------
+    SceneError
+        For a node that is connected to nothing.
+    ModelSizeError
+        When the meshed model has more than ``MAX_DOFS`` active degrees of freedom.
+    """
+    mats = {m.name: m for m in scene.materials}
+    pos0 = {n.name: np.array(n.position, dtype=float) for n in scene.nodes}
+    carrier = {n: b.name for b in scene.bodies for n in b.nodes}
+    all_pos = np.array(list(pos0.values()))
+    length_scale = float(np.ptp(all_pos, axis=0).max())
+
+    # --- masters: bodies first (at their centre of mass), then free nodes
+    master_names: list[str] = [b.name for b in scene.bodies]
+    master_pos: list[np.ndarray] = [np.array(b.center_of_mass, dtype=float) for b in scene.bodies]
+    body_index = {b.name: i for i, b in enumerate(scene.bodies)}
+    node_names: list[str] = []
+    node_pos: list[np.ndarray] = []
+    node_master: list[int] = []
+    node_index: dict[str, int] = {}
+
+    def add_node(name: str, p: np.ndarray, owner: str | None) -> int:
+        node_index[name] = len(node_names)
+        node_names.append(name)
+        node_pos.append(p)
+        if owner is not None:
+            node_master.append(body_index[owner])
+        else:
+            node_master.append(len(master_names))
+            master_names.append(name)
+            master_pos.append(p)
+        return node_index[name]
+
+    for n in scene.nodes:
+        add_node(n.name, pos0[n.name], carrier.get(n.name))
+
+    # --- elements, meshed
+    beam_rows: list[dict] = []
+    truss_rows: list[dict] = []
+    used = set(carrier)
+    member_names = tuple(e.name for e in scene.elements)
+    warping: list[str] = []
+    for ie, el in enumerate(scene.elements):
+        p_name, q_name = el.nodes
+        used.update(el.nodes)
+        mat = mats[el.material]
+        p, q = pos0[p_name], pos0[q_name]
+        L = float(np.linalg.norm(q - p))
+        if isinstance(el, Truss):
+            warping.append("n/a")
+            truss_rows.append(dict(nodes=(node_index[p_name], node_index[q_name]), member=ie, l0=L,
+                                   k1=mat.E * el.area / L, mask=0.0 if el.rigid else 1.0,
+                                   area=el.area, mass=mat.density * el.area * L))
+            continue
+        assert isinstance(el, Beam)
+        props = section_properties(el.section)
+        warping.append(props.warping)
+        GJ = mat.G * props.J * warping_factor(mat.E, mat.G, props, L, props.warping)
+        ex = (q - p) / L
+        y = np.array(el.y_axis, dtype=float)
+        ey = _unit(y - (y @ ex) * ex)
+        E0 = np.column_stack([ex, ey, np.cross(ex, ey)])
+        n = el.segments
+        chain = [node_index[p_name]]
+        for i in range(1, n):
+            chain.append(add_node(f"{el.name}#{i}", p + (q - p) * i / n, None))
+        chain.append(node_index[q_name])
+        l0 = L / n
+        rigid = expand_modes(el.rigid)
+        mask = np.ones(6)
+        mask[list(rigid)] = 0.0
+        S = np.zeros((6, 6))
+        S[0, 0] = mat.E * props.A / l0
+        S[1, 1] = GJ / l0**3
+        S[2:4, 2:4] = mat.E * props.Iy / l0**3 * np.array([[4.0, -2.0], [-2.0, 4.0]])
+        S[4:6, 4:6] = mat.E * props.Iz / l0**3 * np.array([[4.0, -2.0], [-2.0, 4.0]])
+        const = np.concatenate([[l0], E0.ravel(order="F"),
+                                [S[0, 0], S[1, 1], mat.E * props.Iy / l0**3, mat.E * props.Iz / l0**3,
+                                 props.ct], mask])
+        assert const.size == BEAM_CONST
+        nan = float("nan")
+        stress = [props.A, props.Iy, props.Iz, props.cy or nan, props.cz or nan,
+                  props.tau_per_torque or nan, l0]
+        rot = mat.density * l0 / 2.0 * (E0 @ np.diag([props.Iy + props.Iz, props.Iy, props.Iz]) @ E0.T)
+        for a_, b_ in zip(chain[:-1], chain[1:]):
+            beam_rows.append(dict(nodes=(a_, b_), member=ie, const=const, S=S, mask=mask, stress=stress,
+                                  mass=mat.density * props.A * l0, rot=rot))
+
+    for i, name in enumerate(node_names):
+        if name in pos0 and name not in used:
+            raise SceneError(
+                f"nodes[{i}]", f"node '{name}' is not connected to any element or body; remove it or connect it"
+            )
+
+    nn, nm = len(node_names), len(master_names)
+    node_pos_a = np.array(node_pos)
+    node_master_a = np.array(node_master, dtype=int)
+    master_pos_a = np.array(master_pos)
+    node_offset = node_pos_a - master_pos_a[node_master_a]
+
+    node_rot = np.zeros((nn, 3, 3))
+    rot_used = np.zeros(nm, dtype=bool)
+    rot_used[: len(scene.bodies)] = True
+    for r in beam_rows:
+        for a_ in r["nodes"]:
+            node_rot[a_] += r["rot"]
+            rot_used[node_master_a[a_]] = True
+
+    master_mass = np.zeros(nm)
+    master_inertia = np.zeros((nm, 3, 3))
+    for i, b in enumerate(scene.bodies):
+        master_mass[i] = b.mass
+        master_inertia[i] = np.array(b.inertia, dtype=float)
+
+    active = np.ones(6 * nm, dtype=bool)
+    active.reshape(nm, 6)[~rot_used, 3:] = False
+    for s in scene.supports:
+        if s.body is not None:
+            active[6 * body_index[s.body] : 6 * body_index[s.body] + 6] = False
+        elif s.node in carrier:
+            b = body_index[carrier[s.node]]
+            active[6 * b : 6 * b + 6] = False
+        else:
+            m = node_master_a[node_index[s.node]]
+            for d in s.dofs:
+                active[6 * m + _DOF_INDEX[d]] = False
+
+    st = scene.stroke
+    drive_master = body_index[st.body] if st.body is not None else int(node_master_a[node_index[st.node]])
+    axis = _unit(st.axis)
+    basis = _basis(axis)
+    drive_dof = 6 * drive_master + (3 if st.kind == "rotation" else 0)
+    if st.kind == "rotation" and not rot_used[drive_master]:
+        raise SceneError("stroke.node", f"node '{st.node}' has no rotational stiffness (it joins only "
+                         "trusses); drive it in translation or attach it to a beam")
+    blk = slice(drive_master * 6 + (3 if st.kind == "rotation" else 0),
+                drive_master * 6 + (6 if st.kind == "rotation" else 3))
+    if not active[blk].all():
+        # a partially supported driven block: only the basis directions that stay free are allowed
+        raise SceneError(
+            "stroke", "the driven node has supported coordinates in the drive's block; fix whole nodes or "
+            "drive a node whose translations (or rotations) are all free"
+        )
+
+    n_active = int(active.sum())
+    if n_active > MAX_DOFS:
+        raise ModelSizeError(
+            "elements[].segments",
+            f"the meshed model has {n_active} degrees of freedom, more than the limit of {MAX_DOFS}; "
+            "use fewer segments per beam or model stiff parts as rigid bodies",
+        )
+
+    projector = None
+    if scene.support_directions is not None:
+        sd = scene.support_directions
+        projector = np.zeros((6, 6))
+        for off, dirs in ((0, sd.translations), (3, sd.rotations)):
+            if dirs:
+                Qd, _ = np.linalg.qr(np.array(dirs, dtype=float).T)
+                rank = np.linalg.matrix_rank(np.array(dirs, dtype=float))
+                Qd = Qd[:, :rank]
+                projector[off : off + 3, off : off + 3] = Qd @ Qd.T
+
+    cons: list[tuple[int, int, int]] = []
+    for i, r in enumerate(beam_rows):
+        cons += [(0, i, k) for k in range(6) if r["mask"][k] == 0.0]
+    for i, r in enumerate(truss_rows):
+        if r["mask"] == 0.0:
+            cons.append((1, i, 0))
+
+    def arr(rows, key, shape):
+        return np.array([r[key] for r in rows], dtype=float).reshape(shape) if rows else np.zeros(shape)
+
+    nb, nt = len(beam_rows), len(truss_rows)
+    truss_const = np.array([[r["l0"], r["k1"], r["mask"]] for r in truss_rows]).reshape(nt, TRUSS_CONST)
+    return Structure(
+        scene=scene,
+        length_scale=length_scale,
+        node_names=tuple(node_names),
+        node_master=node_master_a,
+        node_offset=node_offset,
+        master_names=tuple(master_names),
+        master_pos=master_pos_a,
+        active=active,
+        beam_nodes=np.array([r["nodes"] for r in beam_rows], dtype=int).reshape(nb, 2),
+        beam_const=arr(beam_rows, "const", (nb, BEAM_CONST)),
+        beam_member=np.array([r["member"] for r in beam_rows], dtype=int),
+        beam_stiff=arr(beam_rows, "S", (nb, 6, 6)),
+        beam_mask=arr(beam_rows, "mask", (nb, 6)),
+        beam_stress=arr(beam_rows, "stress", (nb, 7)),
+        beam_mass=arr(beam_rows, "mass", (nb,)),
+        truss_nodes=np.array([r["nodes"] for r in truss_rows], dtype=int).reshape(nt, 2),
+        truss_const=truss_const,
+        truss_member=np.array([r["member"] for r in truss_rows], dtype=int),
+        truss_area=arr(truss_rows, "area", (nt,)),
+        truss_mass=arr(truss_rows, "mass", (nt,)),
+        node_rot_inertia=node_rot,
+        master_mass=master_mass,
+        master_inertia=master_inertia,
+        constraints=np.array(cons, dtype=int).reshape(-1, 3),
+        drive_master=drive_master,
+        drive_kind=st.kind,
+        drive_axis=axis,
+        drive_basis=basis,
+        drive_dof=drive_dof,
+        support_projector=projector,
+        member_names=member_names,
+        warping=tuple(warping),
+    )
