@@ -205,6 +205,40 @@ class System:
             G = self.to_basis_mat(G, both=False)
         return Assembled(g, H, c, G, e_beam, e_truss)
 
+    def hessian_derivative(self, st: State, v: np.ndarray) -> np.ndarray:
+        """Directional derivative of the Hessian along ``v`` (drive basis): the exact third derivative of
+        the Lagrangian contracted once, ``dH_ij = sum_k d3L/(dxi_i dxi_j dxi_k) v_k``, from CasADi."""
+        s, n = self.s, self.n
+        self._fill_inputs(st)
+        vg = self.to_global(np.asarray(v, dtype=float))
+        dH = np.zeros(n * n)
+        for kernel_spec, inputs, dofs, flat in (
+            (beam_spec()[1], self.beam_in, self.beam_dofs, self.beam_flat),
+            (truss_spec()[1], self.truss_in, self.truss_dofs, self.truss_flat),
+        ):
+            if not len(inputs):
+                continue
+            out = compiled(kernel_spec)(np.hstack([inputs, vg[dofs]]))
+            dH += np.bincount(flat, out.ravel(), minlength=n * n)
+        return self.to_basis_mat(dH.reshape(n, n))
+
+    def energy(self, st: State) -> float:
+        """The Lagrangian at ``st`` from the kernels' deformations (for checks; not used by solvers)."""
+        ev = self.evaluate(st)
+        s = self.s
+        U = 0.0
+        if s.n_beams:
+            f = ev.e_beam * s.beam_mask
+            U += 0.5 * float(np.einsum("ei,eij,ej->", f, s.beam_stiff, f))
+            k, el, mode = self.con_beam
+            U += float(st.lam[k] @ ev.e_beam[el, mode])
+        if len(s.truss_nodes):
+            mask = s.truss_const[:, 2]
+            U += 0.5 * float(np.sum(s.truss_const[:, 1] * (mask * ev.e_truss) ** 2))
+            k, el = self.con_truss
+            U += float(st.lam[k] @ ev.e_truss[el])
+        return U
+
     # --------------------------------------------------------------- drive
     def drive_value(self, st: State, near: float = 0.0) -> float:
         """Current drive coordinate: twist angle [rad] about the axis, or displacement along it."""

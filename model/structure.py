@@ -239,19 +239,23 @@ def compile_scene(scene: Scene) -> Structure:  # noqa: C901 - a straight sequenc
     st = scene.stroke
     drive_master = body_index[st.body] if st.body is not None else int(node_master_a[node_index[st.node]])
     axis = _unit(st.axis)
-    basis = _basis(axis)
     drive_dof = 6 * drive_master + (3 if st.kind == "rotation" else 0)
     if st.kind == "rotation" and not rot_used[drive_master]:
         raise SceneError("stroke.node", f"node '{st.node}' has no rotational stiffness (it joins only "
                          "trusses); drive it in translation or attach it to a beam")
-    blk = slice(drive_master * 6 + (3 if st.kind == "rotation" else 0),
-                drive_master * 6 + (6 if st.kind == "rotation" else 3))
-    if not active[blk].all():
-        # a partially supported driven block: only the basis directions that stay free are allowed
-        raise SceneError(
-            "stroke", "the driven node has supported coordinates in the drive's block; fix whole nodes or "
-            "drive a node whose translations (or rotations) are all free"
-        )
+    blk = np.arange(drive_dof, drive_dof + 3)
+    fixed_dirs = [np.eye(3)[k] for k in range(3) if not active[blk[k]]]
+    if fixed_dirs:
+        # partially supported driven node: the basis keeps the supported coordinate directions, so the
+        # drive axis must be perpendicular to them (the scene validator already refuses a parallel one)
+        if any(abs(f @ axis) > 1e-12 for f in fixed_dirs):
+            raise SceneError("stroke.axis", "the drive axis is not perpendicular to the supported "
+                             "coordinates of the driven node; align it with a free coordinate axis")
+        f0 = fixed_dirs[0]
+        basis = np.column_stack([axis, f0, np.cross(axis, f0)])
+        active[blk] = [True, False, len(fixed_dirs) < 2]
+    else:
+        basis = _basis(axis)
 
     n_active = int(active.sum())
     if n_active > MAX_DOFS:

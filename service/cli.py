@@ -1,0 +1,142 @@
+"""The ``flexopt`` command line. Imports lazily, so ``flexopt curve`` never loads the web stack.
+
+Exit codes: 0 success, 1 the analysis ran but could not finish the stroke (truncated curve), 2 bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+__all__ = ["main"]
+
+
+def _parse_sets(items: Sequence[str]) -> dict[str, str]:
+    out = {}
+    for item in items:
+        if "=" not in item:
+            raise ValueError(f"--set expects key=value, got '{item}'")
+        k, v = item.split("=", 1)
+        out[k.strip()] = v.strip()
+    return out
+
+
+def _cmd_template(args: argparse.Namespace) -> int:
+    from model import template, template_parameters
+    from model.templates import TEMPLATES
+
+    if args.name is None or args.list:
+        for name in sorted(TEMPLATES):
+            params = ", ".join(f"{k}={v}" for k, v in template_parameters(name).items())
+            print(f"{name}: {params}")
+        return 0
+    scene = template(args.name, **_parse_sets(args.set))
+    print(scene.model_dump_json(indent=2))
+    return 0
+
+
+class _Progress:
+    """A one-line progress indication on stderr for runs longer than a second."""
+
+    def __init__(self, enabled: bool) -> None:
+        import time
+
+        self.enabled = enabled
+        self.t0 = time.perf_counter()
+        self.shown = False
+
+    def __call__(self, done: int, total: int) -> None:
+        import time
+
+        if self.enabled and (self.shown or time.perf_counter() - self.t0 > 1.0):
+            self.shown = True
+            print(f"\rcurve: {done}/{total} stroke points", end="", file=sys.stderr, flush=True)
+
+    def close(self) -> None:
+        if self.shown:
+            print(file=sys.stderr)
+
+
+def _plot(curve, path: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for j in range(curve.modes_hz.shape[1]):
+        ax.plot(curve.stroke, curve.modes_hz[:, j], color="0.75", lw=1, label="tracked modes" if j == 0 else None)
+    ax.plot(curve.stroke, curve.parasitic_hz, color="C3", lw=2, label="first parasitic")
+    ax.set_xlabel(f"stroke [{curve.stroke_unit}]")
+    ax.set_ylabel("natural frequency [Hz]")
+    ax.set_title(f"{curve.scene} ({curve.method})")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def _cmd_curve(args: argparse.Namespace) -> int:
+    from model import Analysis, load_scene, template
+
+    if args.scene is not None and args.template is not None:
+        raise ValueError("give a scene file or --template, not both")
+    scene = load_scene(args.scene) if args.scene is not None else template(args.template or "leaf-spring")
+    progress = _Progress(args.progress or sys.stderr.isatty())
+    curve = Analysis(scene).frequency_curve(progress=progress)
+    progress.close()
+    if args.json:
+        print(curve.to_json())
+    elif args.csv:
+        print(curve.to_csv(), end="")
+    else:
+        print(curve.table())
+    if args.plot:
+        _plot(curve, args.plot)
+        print(f"plot written to {args.plot}", file=sys.stderr)
+    for f in curve.failures:
+        print(f"warning: curve truncated: {f.message}", file=sys.stderr)
+    return 0 if curve.status == "complete" else 1
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="flexopt", description="Large-stroke flexure design: frequency curves "
+                                "over the stroke of SPACAR-style flexure models.")
+    sub = p.add_subparsers(dest="command", required=True)
+    t = sub.add_parser("template", help="print a template scene as JSON (or list templates)")
+    t.add_argument("name", nargs="?", help="template name; omit to list templates and their parameters")
+    t.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a parameter")
+    t.add_argument("--list", action="store_true", help="list templates and parameters")
+    t.set_defaults(func=_cmd_template)
+    c = sub.add_parser("curve", help="stroke-dependent natural frequencies of a scene")
+    c.add_argument("scene", nargs="?", help="scene JSON file (default: the built-in leaf-spring template)")
+    c.add_argument("--template", metavar="NAME", help="use a built-in template with default parameters")
+    fmt = c.add_mutually_exclusive_group()
+    fmt.add_argument("--json", action="store_true", help="print a JSON object")
+    fmt.add_argument("--csv", action="store_true", help="print CSV")
+    c.add_argument("--plot", metavar="FILE.png", help="draw frequency against stroke")
+    c.add_argument("--progress", action="store_true", help="show progress on stderr even when not a terminal")
+    c.set_defaults(func=_cmd_curve)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit code."""
+    parser = _parser()
+    args = parser.parse_args(argv)
+    from model.errors import FlexoptError
+
+    try:
+        return int(args.func(args))
+    except FlexoptError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())
