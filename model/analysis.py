@@ -93,7 +93,7 @@ class Analysis:
         drive_free = s.scene.stroke.drive == "free"
         labels = ["parasitic"] * len(hz)
         if drive_free:
-            dd = s.drive_dof
+            dd = self.system.drive
             frac = modes.phi[dd] * (modes.M[dd] @ modes.phi)
             labels[int(np.argmax(np.abs(frac)))] = "drive"
         if part is not None:

@@ -45,25 +45,66 @@ class Assembled:
 
 
 class System:
-    """Kernels, index arrays and buffers of one structure; evaluates states fast."""
+    """Kernels, index arrays and buffers of one structure; evaluates states fast.
+
+    Vectors and matrices are in *active numbering*: one entry per active DOF (``n`` of them), the driven
+    master's block expressed in the drive basis. Element DOFs are scattered straight into that numbering
+    (inactive DOFs go to a dump slot); the driven block is first assembled in global axes in three extra
+    slots and then rotated into the drive basis, so no full-size matrix is ever formed.
+    """
 
     def __init__(self, structure: Structure) -> None:
         s = structure
         self.s = s
-        n = s.n_dof
-        self.n = n
+        n_full = s.n_dof
+        self.n_full = n_full
         self.beam_kernel = compiled(beam_spec()[0]) if s.n_beams else None
         self.truss_kernel = compiled(truss_spec()[0]) if len(s.truss_nodes) else None
+        # --- numbering: active DOFs 0..n-1; the drive block's three global coordinates n..n+2; dump n+3
+        off = 3 if s.drive_kind == "rotation" else 0
+        blk_full = np.arange(6 * s.drive_master + off, 6 * s.drive_master + off + 3)
+        act_full = np.flatnonzero(s.active)
+        n = len(act_full)
+        self.n = n
+        pos = np.full(n_full, n + 3)
+        pos[act_full] = np.arange(n)
+        self.block_active = np.flatnonzero(s.active[blk_full])  # basis coordinates that are active
+        self.block_pos = pos[blk_full[self.block_active]]  # their active indices
+        self.Q = s.drive_basis
+        self.Qa = self.Q[:, self.block_active]  # (3, nba) basis columns that are active
+        # a drive basis made of global axes (a permutation) needs no staging: scatter straight into place
+        self.direct = bool(np.all((self.Q == 0) | (self.Q == 1)))
+        if self.direct:
+            inv = np.argmax(self.Q, axis=1)  # global coordinate i is basis coordinate inv[i]
+            target = np.full(3, n + 3)
+            target[self.block_active] = self.block_pos
+            pos[blk_full] = target[inv]
+        else:
+            pos[blk_full] = n + np.arange(3)  # global block coordinates go to the staging slots
+        self.pos = pos
+        self.drive = int(self.block_pos[0]) if len(self.block_pos) and self.block_active[0] == 0 else -1
+        assert self.drive >= 0, "the drive coordinate must be active"
+        self.free = np.setdiff1d(np.arange(n), [self.drive])
+        plain = np.setdiff1d(act_full, blk_full)  # active DOFs outside the drive block (global = basis)
+        self.plain_full, self.plain_pos = plain, pos[plain]
+        self.blk_full = blk_full
+        self.scale = s.dof_scale[act_full]
+        self.scale[self.block_pos] = s.dof_scale[blk_full[0]]
+        self.act_full = act_full
+        N = n + 4
+        self.N = N
         blocks = np.arange(6)
 
         def dofs(nodes: np.ndarray) -> np.ndarray:
             m = s.node_master[nodes]  # (ne, 2)
             return (6 * m[:, :, None] + blocks).reshape(len(nodes), 12)
 
-        self.beam_dofs = dofs(s.beam_nodes)
-        self.truss_dofs = dofs(s.truss_nodes)
-        self.beam_flat = (self.beam_dofs[:, :, None] * n + self.beam_dofs[:, None, :]).ravel()
-        self.truss_flat = (self.truss_dofs[:, :, None] * n + self.truss_dofs[:, None, :]).ravel()
+        self.beam_dofs_full = dofs(s.beam_nodes)
+        self.truss_dofs_full = dofs(s.truss_nodes)
+        self.beam_dofs = pos[self.beam_dofs_full]
+        self.truss_dofs = pos[self.truss_dofs_full]
+        self.beam_flat = (self.beam_dofs[:, :, None] * N + self.beam_dofs[:, None, :]).ravel()
+        self.truss_flat = (self.truss_dofs[:, :, None] * N + self.truss_dofs[:, None, :]).ravel()
         nb, nt = s.n_beams, len(s.truss_nodes)
         self.beam_in = np.zeros((nb, 30 + s.beam_const.shape[1] + 6))
         self.beam_in[:, 30 : 30 + s.beam_const.shape[1]] = s.beam_const
@@ -75,33 +116,29 @@ class System:
         ct = s.constraints[s.constraints[:, 0] == 1]
         self.con_beam = (np.flatnonzero(s.constraints[:, 0] == 0), cb[:, 1], cb[:, 2])
         self.con_truss = (np.flatnonzero(s.constraints[:, 0] == 1), ct[:, 1])
-        # drive basis
-        off = 3 if s.drive_kind == "rotation" else 0
-        self.drive_block = np.arange(6 * s.drive_master + off, 6 * s.drive_master + off + 3)
-        self.Q = s.drive_basis
         # mass: the translational mass of elements whose nodes sit on their masters (offset 0) and the
         # bodies' translational mass are constant; the rest is recomputed per state
         self.mcoef = np.array([[2.0, 1.0], [1.0, 2.0]]) / 6.0
-        off = np.linalg.norm(s.node_offset, axis=1) > 0
+        moved = np.linalg.norm(s.node_offset, axis=1) > 0
         self._mvar = []
-        const = np.zeros(n * n)
-        for nodes, mass, flat in ((s.beam_nodes, s.beam_mass, self.beam_dofs),
-                                  (s.truss_nodes, s.truss_mass, self.truss_dofs)):
+        const = np.zeros(N * N)
+        for nodes, mass, flat in ((s.beam_nodes, s.beam_mass, self.beam_flat),
+                                  (s.truss_nodes, s.truss_mass, self.truss_flat)):
             if not len(nodes):
                 continue
-            var = off[nodes].any(axis=1)
-            fl = (flat[:, :, None] * n + flat[:, None, :])
-            zero = np.zeros((len(nodes), 2, 3))
-            const += np.bincount(fl[~var].ravel(), self._trans_mass(zero[~var], nodes[~var] * 0, mass[~var]),
-                                 minlength=n * n)
+            var = moved[nodes].any(axis=1)
+            fl = flat.reshape(len(nodes), 144)
+            const += np.bincount(fl[~var].ravel(), self._trans_mass(np.zeros((int((~var).sum()), 2, 3)),
+                                                                     mass[~var]), minlength=N * N)
             if var.any():
                 self._mvar.append((nodes[var], mass[var], fl[var].ravel()))
         nm = len(s.master_names)
-        for m in range(nm):
-            const[(6 * m + np.arange(3)) * (n + 1)] += s.master_mass[m]
+        diag = pos[(6 * np.arange(nm)[:, None] + np.arange(3)).ravel()]
+        np.add.at(const, diag * (N + 1), np.repeat(s.master_mass, 3))
+        const[(N - 1) * (N + 1)] = 0.0
         self._mass_const = const
-        rb = 6 * np.arange(nm)[:, None, None] + 3 + np.arange(3)[None, :, None]
-        self._rot_flat = (rb * n + (6 * np.arange(nm)[:, None, None] + 3 + np.arange(3)[None, None, :])).ravel()
+        rb = pos[6 * np.arange(nm)[:, None] + 3 + np.arange(3)]  # (nm, 3)
+        self._rot_flat = (rb[:, :, None] * N + rb[:, None, :]).ravel()
         self._has_body_inertia = bool(np.any(s.master_inertia))
 
     # ------------------------------------------------------------------ state
@@ -117,29 +154,61 @@ class System:
         return st.X[m] + r, st.R[m], r
 
     def to_global(self, xi: np.ndarray) -> np.ndarray:
-        """Increment vector from drive-basis DOFs to global-axes DOFs."""
-        out = xi.copy()
-        out[self.drive_block] = self.Q @ xi[self.drive_block]
+        """Increments in active numbering (vector or columns) -> all masters' DOFs in global axes."""
+        xi = np.asarray(xi, dtype=float)
+        out = np.zeros((self.n_full,) + xi.shape[1:])
+        out[self.plain_full] = xi[self.plain_pos]
+        out[self.blk_full] = self.Qa @ xi[self.block_pos]
         return out
 
-    def to_basis_vec(self, v: np.ndarray) -> np.ndarray:
-        """Covector (gradient) from global axes to drive basis."""
-        out = v.copy()
-        out[self.drive_block] = self.Q.T @ v[self.drive_block]
+    def from_global(self, v: np.ndarray) -> np.ndarray:
+        """Covectors (or vectors) in global axes over all masters' DOFs -> active numbering (T^T v)."""
+        v = np.asarray(v, dtype=float)
+        out = np.zeros((self.n,) + v.shape[1:])
+        out[self.plain_pos] = v[self.plain_full]
+        out[self.block_pos] = self.Qa.T @ v[self.blk_full]
         return out
 
-    def to_basis_mat(self, A: np.ndarray, both: bool = True) -> np.ndarray:
-        """Congruence ``T^T A T`` (both) or ``A T`` (columns only) with the drive basis change ``T``."""
-        b = self.drive_block
-        A[:, b] = A[:, b] @ self.Q
-        if both:
-            A[b, :] = self.Q.T @ A[b, :]
-        return A
+    def support_projector(self) -> np.ndarray:
+        """The structure's support-direction projector in active numbering, ``T^T P T`` (cached)."""
+        if getattr(self, "_proj", None) is None:
+            P = self.s.support_projector
+            full = np.kron(np.eye(len(self.s.master_names)), P)
+            self._proj = self.from_global(full @ self.to_global(np.eye(self.n)))
+        return self._proj
+
+    def _reduce_vec(self, ext: np.ndarray) -> np.ndarray:
+        """Extended vector (N) -> active numbering: rotate the staged drive block into the basis."""
+        n = self.n
+        out = ext[:n].copy()
+        if not self.direct:
+            out[self.block_pos] += self.Qa.T @ ext[n : n + 3]
+        return out
+
+    def _reduce_mat(self, ext: np.ndarray, rows: bool = True) -> np.ndarray:
+        """Extended matrix (N x N, or r x N with rows=False) -> active numbering, congruence with T."""
+        n, p, Qa = self.n, self.block_pos, self.Qa
+        if self.direct:
+            return ext[:n, :n] if rows else ext[:, :n]
+        if not rows:
+            out = ext[:, :n].copy()
+            out[:, p] += ext[:, n : n + 3] @ Qa
+            return out
+        out = ext[:n, :n].copy()
+        cols = ext[:n, n : n + 3] @ Qa  # (n, nba)
+        out[:, p] += cols
+        out[p, :] += cols.T
+        out[np.ix_(p, p)] += Qa.T @ ext[n : n + 3, n : n + 3] @ Qa
+        return out
 
     def update(self, st: State, xi: np.ndarray, dlam: np.ndarray | None = None) -> State:
-        """New state after the increment ``xi`` (drive basis): x += u, R <- expm(psi) R, exactly."""
+        """New state after the increment ``xi`` (active numbering): x += u, R <- expm(psi) R, exactly."""
         d = self.to_global(xi).reshape(-1, 6)
-        new = State(st.X + d[:, :3], expm_so3(d[:, 3:]) @ st.R, st.lam.copy())
+        R = st.R.copy()
+        moving = np.flatnonzero(np.any(d[:, 3:] != 0.0, axis=1))
+        if len(moving):
+            R[moving] = expm_so3(d[moving, 3:]) @ st.R[moving]
+        new = State(st.X + d[:, :3], R, st.lam.copy())
         if dlam is not None:
             new.lam += dlam
         return new
@@ -171,18 +240,18 @@ class System:
 
     def evaluate(self, st: State) -> Assembled:
         """Gradient, Hessian and constraint rows at ``st`` (one kernel call per element type)."""
-        s, n = self.s, self.n
+        s, N = self.s, self.N
         self._fill_inputs(st)
-        g = np.zeros(n)
-        Hflat = np.zeros(n * n)
-        G = np.zeros((self.n_con, n))
+        g = np.zeros(N)
+        Hflat = np.zeros(N * N)
+        G = np.zeros((self.n_con, N))
         c = np.zeros(self.n_con)
         e_beam = np.zeros((s.n_beams, 6))
         e_truss = np.zeros(len(s.truss_nodes))
         if s.n_beams:
             out = self.beam_kernel(self.beam_in)
-            g += np.bincount(self.beam_dofs.ravel(), out[:, :12].ravel(), minlength=n)
-            Hflat += np.bincount(self.beam_flat, out[:, 12:156].ravel(), minlength=n * n)
+            g += np.bincount(self.beam_dofs.ravel(), out[:, :12].ravel(), minlength=N)
+            Hflat += np.bincount(self.beam_flat, out[:, 12:156].ravel(), minlength=N * N)
             e_beam = out[:, 156:162]
             k, el, mode = self.con_beam
             if len(k):
@@ -191,36 +260,32 @@ class System:
                 np.add.at(G, (k[:, None], self.beam_dofs[el]), De[el, :, mode])
         if len(s.truss_nodes):
             out = self.truss_kernel(self.truss_in)
-            g += np.bincount(self.truss_dofs.ravel(), out[:, :12].ravel(), minlength=n)
-            Hflat += np.bincount(self.truss_flat, out[:, 12:156].ravel(), minlength=n * n)
+            g += np.bincount(self.truss_dofs.ravel(), out[:, :12].ravel(), minlength=N)
+            Hflat += np.bincount(self.truss_flat, out[:, 12:156].ravel(), minlength=N * N)
             e_truss = out[:, 156]
             k, el = self.con_truss
             if len(k):
                 c[k] = e_truss[el]
                 np.add.at(G, (k[:, None], self.truss_dofs[el]), out[el, 157:169])
-        H = Hflat.reshape(n, n)
-        H = self.to_basis_mat(H)
-        g = self.to_basis_vec(g)
-        if self.n_con:
-            G = self.to_basis_mat(G, both=False)
-        return Assembled(g, H, c, G, e_beam, e_truss)
+        H = self._reduce_mat(Hflat.reshape(N, N))
+        return Assembled(self._reduce_vec(g), H, c, self._reduce_mat(G, rows=False), e_beam, e_truss)
 
     def hessian_derivative(self, st: State, v: np.ndarray) -> np.ndarray:
         """Directional derivative of the Hessian along ``v`` (drive basis): the exact third derivative of
         the Lagrangian contracted once, ``dH_ij = sum_k d3L/(dxi_i dxi_j dxi_k) v_k``, from CasADi."""
-        s, n = self.s, self.n
+        N = self.N
         self._fill_inputs(st)
         vg = self.to_global(np.asarray(v, dtype=float))
-        dH = np.zeros(n * n)
+        dH = np.zeros(N * N)
         for kernel_spec, inputs, dofs, flat in (
-            (beam_spec()[1], self.beam_in, self.beam_dofs, self.beam_flat),
-            (truss_spec()[1], self.truss_in, self.truss_dofs, self.truss_flat),
+            (beam_spec()[1], self.beam_in, self.beam_dofs_full, self.beam_flat),
+            (truss_spec()[1], self.truss_in, self.truss_dofs_full, self.truss_flat),
         ):
             if not len(inputs):
                 continue
             out = compiled(kernel_spec)(np.hstack([inputs, vg[dofs]]))
-            dH += np.bincount(flat, out.ravel(), minlength=n * n)
-        return self.to_basis_mat(dH.reshape(n, n))
+            dH += np.bincount(flat, out.ravel(), minlength=N * N)
+        return self._reduce_mat(dH.reshape(N, N))
 
     def energy(self, st: State) -> float:
         """The Lagrangian at ``st`` from the kernels' deformations (for checks; not used by solvers)."""
@@ -253,9 +318,9 @@ class System:
         s = self.s
         grad = np.zeros(self.n)
         if s.drive_kind == "rotation":
-            grad[self.drive_block] = self.Q.T @ twist_gradient(st.R[s.drive_master], s.drive_axis)
+            grad[self.block_pos] = self.Qa.T @ twist_gradient(st.R[s.drive_master], s.drive_axis)
         else:
-            grad[self.drive_block[0]] = 1.0
+            grad[self.drive] = 1.0
         return grad
 
     # ---------------------------------------------------------------- mass
@@ -267,22 +332,22 @@ class System:
         beam rotary inertia ``rho l0/2 diag(Iy+Iz, Iy, Iz)`` lumped at each end in the element frame,
         rotated with the node; rigid bodies ``diag(m I, R J R^T)`` at their centre of mass.
         """
-        s, n = self.s, self.n
+        s, N = self.s, self.N
         Mflat = self._mass_const.copy()
         if self._mvar:
             _, _, rn = self.node_states(st)
             for nodes, mass, flat in self._mvar:
-                Mflat += np.bincount(flat, self._trans_mass(rn[nodes], nodes, mass), minlength=n * n)
+                Mflat += np.bincount(flat, self._trans_mass(rn[nodes], mass), minlength=N * N)
         Rn = st.R[s.node_master]
         Jn = Rn @ s.node_rot_inertia @ Rn.transpose(0, 2, 1)
         Jm = np.zeros((len(s.master_names), 3, 3))
         np.add.at(Jm, s.node_master, Jn)
         if self._has_body_inertia:
             Jm += st.R @ s.master_inertia @ st.R.transpose(0, 2, 1)
-        Mflat[self._rot_flat] += Jm.ravel()
-        return self.to_basis_mat(Mflat.reshape(n, n))
+        np.add.at(Mflat, self._rot_flat, Jm.ravel())
+        return self._reduce_mat(Mflat.reshape(N, N))
 
-    def _trans_mass(self, r: np.ndarray, nodes: np.ndarray, mass: np.ndarray) -> np.ndarray:
+    def _trans_mass(self, r: np.ndarray, mass: np.ndarray) -> np.ndarray:
         """Flattened 12 x 12 translational mass blocks of elements whose end offsets are ``r`` (ne, 2, 3)."""
         T = np.zeros(r.shape[:2] + (3, 6))
         T[..., :3] = np.eye(3)

@@ -45,7 +45,7 @@ def modes_at(sys: System, eq: Equilibrium, k: int, drive: str = "locked") -> Mod
     """The ``k`` lowest eigenpairs at ``eq`` with the drive ``locked`` or ``free``."""
     s = sys.s
     M = sys.mass(eq.state)
-    dofs = eq.free if drive == "locked" else np.flatnonzero(s.active)
+    dofs = sys.free if drive == "locked" else np.arange(sys.n)
     K = eq.ev.H[np.ix_(dofs, dofs)]
     Mr = M[np.ix_(dofs, dofs)]
     Z = None
@@ -59,7 +59,7 @@ def modes_at(sys: System, eq: Equilibrium, k: int, drive: str = "locked") -> Mod
     try:
         w, V = sla.eigh(K, Mr, subset_by_index=[0, k - 1], check_finite=False)
     except np.linalg.LinAlgError as exc:
-        bad = [s.dof_label(int(d)) for d in dofs[np.diag(M[np.ix_(dofs, dofs)]) <= 0][:5]]
+        bad = [s.dof_label(int(sys.act_full[d])) for d in dofs[np.diag(M[np.ix_(dofs, dofs)]) <= 0][:5]]
         raise FlexoptError(
             "the mass matrix is singular" + (f" (no mass on {', '.join(bad)})" if bad else "")
             + "; give every moving body mass and inertia or attach it to beams"
@@ -75,11 +75,7 @@ def participation(sys: System, modes: Modes) -> np.ndarray | None:
     if P is None:
         return None
     phi = modes.phi
-    b = sys.drive_block
-    g = phi.copy()
-    g[b] = sys.Q @ phi[b]  # to global axes
-    pg = np.einsum("ij,mjk->mik", P, g.reshape(-1, 6, phi.shape[1])).reshape(phi.shape)
-    pg[b] = sys.Q.T @ pg[b]  # back to the drive basis, where M is expressed
+    pg = sys.support_projector() @ phi
     num = np.einsum("ik,ik->k", pg, modes.M @ pg)
     den = np.einsum("ik,ik->k", phi, modes.M @ phi)
     return np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)

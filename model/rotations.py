@@ -6,6 +6,8 @@ vector ``psi``; no angle set is stored, so nothing is singular at any stroke.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 __all__ = ["expm_so3", "quaternion", "twist_angle", "twist_gradient", "skew"]
@@ -46,25 +48,28 @@ def expm_so3(psi: np.ndarray) -> np.ndarray:
     return R
 
 
-def quaternion(R: np.ndarray) -> np.ndarray:
+def quaternion(R: np.ndarray) -> tuple[float, float, float, float]:
     """Unit quaternion ``(w, x, y, z)`` of a rotation matrix (Shepperd's method, stable at any angle)."""
-    t = np.trace(R)
-    d = np.diag(R)
-    k = int(np.argmax([t, *d]))
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R.tolist()
+    t = r00 + r11 + r22
+    k = max(range(4), key=(t, r00, r11, r22).__getitem__)
     if k == 0:
-        w = 0.5 * np.sqrt(1.0 + t)
-        q = [w, (R[2, 1] - R[1, 2]) / (4 * w), (R[0, 2] - R[2, 0]) / (4 * w), (R[1, 0] - R[0, 1]) / (4 * w)]
+        w = 0.5 * math.sqrt(1.0 + t)
+        f = 0.25 / w
+        q = (w, (r21 - r12) * f, (r02 - r20) * f, (r10 - r01) * f)
+    elif k == 1:
+        x = 0.5 * math.sqrt(1.0 + 2 * r00 - t)
+        f = 0.25 / x
+        q = ((r21 - r12) * f, x, (r10 + r01) * f, (r20 + r02) * f)
+    elif k == 2:
+        y = 0.5 * math.sqrt(1.0 + 2 * r11 - t)
+        f = 0.25 / y
+        q = ((r02 - r20) * f, (r10 + r01) * f, y, (r21 + r12) * f)
     else:
-        i = k - 1
-        j, m = (i + 1) % 3, (i + 2) % 3
-        s = 0.5 * np.sqrt(1.0 + 2 * d[i] - t)
-        q = [0.0, 0.0, 0.0, 0.0]
-        q[1 + i] = s
-        q[0] = (R[m, j] - R[j, m]) / (4 * s)
-        q[1 + j] = (R[j, i] + R[i, j]) / (4 * s)
-        q[1 + m] = (R[m, i] + R[i, m]) / (4 * s)
-    q = np.array(q)
-    return q if q[0] >= 0 else -q
+        z = 0.5 * math.sqrt(1.0 + 2 * r22 - t)
+        f = 0.25 / z
+        q = ((r10 - r01) * f, (r20 + r02) * f, (r21 + r12) * f, z)
+    return q if q[0] >= 0 else (-q[0], -q[1], -q[2], -q[3])
 
 
 def twist_angle(R: np.ndarray, axis: np.ndarray, near: float = 0.0) -> float:
@@ -73,9 +78,10 @@ def twist_angle(R: np.ndarray, axis: np.ndarray, near: float = 0.0) -> float:
     With the quaternion ``(w, v)`` of ``R`` the twist is ``2 atan2(v . a, w)``: the rotation angle about
     ``a`` left after removing the swing about an axis perpendicular to ``a``.
     """
-    q = quaternion(R)
-    th = 2.0 * np.arctan2(q[1:] @ axis, q[0])
-    return float(th + 2 * np.pi * np.round((near - th) / (2 * np.pi)))
+    w, x, y, z = quaternion(R)
+    a0, a1, a2 = axis.tolist()
+    th = 2.0 * math.atan2(x * a0 + y * a1 + z * a2, w)
+    return th + 2 * math.pi * round((near - th) / (2 * math.pi))
 
 
 def twist_gradient(R: np.ndarray, axis: np.ndarray) -> np.ndarray:
@@ -84,9 +90,12 @@ def twist_gradient(R: np.ndarray, axis: np.ndarray) -> np.ndarray:
     From ``q <- (1, psi/2) (x) q``: ``dw = -psi.v/2``, ``dv = (w psi + psi x v)/2``, hence
     ``d twist = [w (w a + v x a) + (v.a) v] . psi / (w^2 + (v.a)^2)``; equal to ``a`` when there is no swing.
     """
-    q = quaternion(R)
-    w, v = q[0], q[1:]
-    va = v @ axis
-    vxa = np.array([v[1] * axis[2] - v[2] * axis[1], v[2] * axis[0] - v[0] * axis[2],
-                    v[0] * axis[1] - v[1] * axis[0]])
-    return (w * (w * axis + vxa) + va * v) / (w * w + va * va)
+    w, x, y, z = quaternion(R)
+    a0, a1, a2 = axis.tolist()
+    va = x * a0 + y * a1 + z * a2
+    d = w * w + va * va
+    return np.array([
+        w * (w * a0 + y * a2 - z * a1) + va * x,
+        w * (w * a1 + z * a0 - x * a2) + va * y,
+        w * (w * a2 + x * a1 - y * a0) + va * z,
+    ]) / d

@@ -22,6 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.linalg as sla
 
 from .assembly import Assembled, State, System
 
@@ -61,17 +62,53 @@ class StepFailure(Exception):
     """Newton did not converge from a predictor (internal; continuation halves the step)."""
 
 
-def _jacobian(sys: System, ev: Assembled, st: State, act: np.ndarray, free: np.ndarray) -> np.ndarray:
-    na, nr = len(act), sys.n_con
-    J = np.zeros((na + nr, na + nr))
-    J[: len(free), :na] = ev.H[np.ix_(free, act)]
-    dd = sys.drive_gradient(st)[act]
-    J[len(free), :na] = dd
+def _scaled_residual(sys: System, ev: Assembled, dval: float, s_target: float) -> float:
+    """Largest Jacobi-scaled residual: |g_i| / (|H_ii| l_i), the drive mismatch and rigid deformations."""
+    free = sys.free
+    diag = np.abs(np.diag(ev.H))[free]
+    dscale = np.maximum(diag, 1e-12 * max(diag.max(initial=0.0), 1e-300))
+    res = float(np.max(np.abs(ev.g[free]) / (dscale * sys.scale[free]), initial=0.0))
+    res = max(res, abs(dval - s_target) / sys.scale[sys.drive])
+    if sys.n_con:
+        res = max(res, float(np.max(np.abs(ev.c))) / sys.s.length_scale)
+    return res
+
+
+def _newton_step(sys: System, ev: Assembled, dd: np.ndarray, rhs_drive: float) -> tuple[np.ndarray, np.ndarray,
+                                                                                      np.ndarray, np.ndarray]:
+    """Solve the Newton system for the correction and the path tangent.
+
+    Without rigid deformations and with the drive gradient along the drive DOF only (no swing of the
+    driven node), the system reduces to the symmetric ``H_ff`` (Cholesky); otherwise an LU solve of the
+    full bordered system. Returns (dxi, dlam, tangent, dlam_ds).
+    """
+    n, nr, f, d = sys.n, sys.n_con, sys.free, sys.drive
+    other = np.abs(np.delete(dd, d)).max(initial=0.0)
+    if nr == 0 and other <= 1e-14 * abs(dd[d]):
+        Hff = ev.H[np.ix_(f, f)]
+        Hfd = ev.H[f, d]
+        dxd = -rhs_drive / dd[d]
+        try:
+            cf = sla.cho_factor(Hff, check_finite=False)
+            sol = sla.cho_solve(cf, np.column_stack([-ev.g[f] - Hfd * dxd, -Hfd / dd[d]]), check_finite=False)
+        except np.linalg.LinAlgError:
+            sol = np.linalg.solve(Hff, np.column_stack([-ev.g[f] - Hfd * dxd, -Hfd / dd[d]]))
+        dxi = np.empty(n)
+        tan = np.empty(n)
+        dxi[f], dxi[d] = sol[:, 0], dxd
+        tan[f], tan[d] = sol[:, 1], 1.0 / dd[d]
+        return dxi, np.zeros(0), tan, np.zeros(0)
+    J = np.zeros((n + nr, n + nr))
+    J[: len(f), :n] = ev.H[f, :]
+    J[len(f), :n] = dd
     if nr:
-        Ga = ev.G[:, act]
-        J[: len(free), na:] = ev.G[:, free].T
-        J[len(free) + 1 :, :na] = Ga
-    return J
+        J[: len(f), n:] = ev.G[:, f].T
+        J[len(f) + 1 :, :n] = ev.G
+    rhs = np.concatenate([ev.g[f], [rhs_drive], ev.c])
+    e_drive = np.zeros(len(rhs))
+    e_drive[len(f)] = 1.0
+    sol = np.linalg.solve(J, np.column_stack([-rhs, e_drive]))
+    return sol[:n, 0], sol[n:, 0], sol[:n, 1], sol[n:, 1]
 
 
 def solve_point(
@@ -88,47 +125,30 @@ def solve_point(
     StepFailure
         If the iteration diverges, produces non-finite numbers or exceeds ``max_iter``.
     """
-    s = sys.s
-    act = np.flatnonzero(s.active)
-    free = act[act != s.drive_dof]
-    na = len(act)
-    scale = s.dof_scale
     st = start
+    inc = res = float("nan")
     for it in range(opts.max_iter + 1):
         ev = sys.evaluate(st)
         if not (np.isfinite(ev.g).all() and np.isfinite(ev.H).all()):
             raise StepFailure("non-finite residual")
         dval = sys.drive_value(st, near=theta_near)
-        rhs = np.concatenate([ev.g[free], [dval - s_target], ev.c])
-        J = _jacobian(sys, ev, st, act, free)
-        e_drive = np.zeros(len(rhs))
-        e_drive[len(free)] = 1.0
+        dd = sys.drive_gradient(st)
         try:
-            sol = np.linalg.solve(J, np.column_stack([-rhs, e_drive]))
+            dxi, dlam, tan, dlam_ds = _newton_step(sys, ev, dd, dval - s_target)
         except np.linalg.LinAlgError as exc:
             raise StepFailure(f"singular tangent ({exc})") from exc
-        dxi = np.zeros(sys.n)
-        dxi[act] = sol[:na, 0]
-        inc = float(np.max(np.abs(dxi / scale))) if na else 0.0
-        diag = np.abs(np.diag(ev.H))[free]
-        dscale = np.maximum(diag, 1e-12 * max(diag.max(initial=0.0), 1e-300))
-        res = float(np.max(np.abs(ev.g[free]) / (dscale * scale[free]), initial=0.0))
-        res = max(res, abs(dval - s_target) / (1.0 if s.drive_kind == "rotation" else s.length_scale))
-        if sys.n_con:
-            res = max(res, float(np.max(np.abs(ev.c))) / s.length_scale)
+        inc = float(np.max(np.abs(dxi / sys.scale))) if sys.n else 0.0
+        res = _scaled_residual(sys, ev, dval, s_target)
         if not np.isfinite(inc):
             raise StepFailure("non-finite increment")
         if inc <= opts.tol and res <= opts.tol:
-            tangent = np.zeros(sys.n)
-            tangent[act] = sol[:na, 1]
             return Equilibrium(
-                stroke=s_target, state=st, ev=ev, free=free, tangent=tangent, iterations=it,
-                residual=res, increment=inc,
-                extra={"drive_dof": s.drive_dof, "dlam_ds": sol[na:, 1]},
+                stroke=s_target, state=st, ev=ev, free=sys.free, tangent=tan, iterations=it,
+                residual=res, increment=inc, extra={"drive_dof": sys.drive, "dlam_ds": dlam_ds},
             )
         if it > 2 and inc > 1e3 * opts.tol and inc > 0.5:
             raise StepFailure(f"diverging (increment {inc:.3g})")
-        st = sys.update(st, dxi, sol[na:, 0] if sys.n_con else None)
+        st = sys.update(st, dxi, dlam if sys.n_con else None)
     raise StepFailure(f"no convergence in {opts.max_iter} iterations (increment {inc:.3g}, residual {res:.3g})")
 
 

@@ -99,7 +99,11 @@ def _unit(v) -> np.ndarray:
 
 
 def _basis(a: np.ndarray) -> np.ndarray:
-    """Orthonormal basis with first column ``a``."""
+    """Right-handed orthonormal basis with first column ``a`` (a cyclic permutation of the global axes
+    when ``a`` is a positive coordinate axis, so assembly needs no rotation)."""
+    for k in range(3):
+        if np.array_equal(a, np.eye(3)[k]):
+            return np.eye(3)[:, [k, (k + 1) % 3, (k + 2) % 3]]
     t = np.eye(3)[np.argmin(abs(a))]
     b = _unit(np.cross(a, t))
     return np.column_stack([a, b, np.cross(a, b)])
