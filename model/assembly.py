@@ -85,12 +85,15 @@ class System:
         self.drive = int(self.block_pos[0]) if len(self.block_pos) and self.block_active[0] == 0 else -1
         assert self.drive >= 0, "the drive coordinate must be active"
         self.free = np.setdiff1d(np.arange(n), [self.drive])
+        self.ix_free = np.ix_(self.free, self.free)  # precomputed: the hot path slices H with it
+        self.ix_all = np.ix_(np.arange(n), np.arange(n))
         plain = np.setdiff1d(act_full, blk_full)  # active DOFs outside the drive block (global = basis)
         self.plain_full, self.plain_pos = plain, pos[plain]
         self.blk_full = blk_full
         self.scale = s.dof_scale[act_full]
         self.scale[self.block_pos] = s.dof_scale[blk_full[0]]
         self.act_full = act_full
+        self.scale_free = self.scale[self.free]
         N = n + 4
         self.N = N
         blocks = np.arange(6)
@@ -140,6 +143,8 @@ class System:
         rb = pos[6 * np.arange(nm)[:, None] + 3 + np.arange(3)]  # (nm, 3)
         self._rot_flat = (rb[:, :, None] * N + rb[:, None, :]).ravel()
         self._has_body_inertia = bool(np.any(s.master_inertia))
+        # masters with an active rotational DOF: the only ones an increment can rotate
+        self._rot_masters = np.flatnonzero(s.active.reshape(nm, 6)[:, 3:].any(axis=1))
 
     # ------------------------------------------------------------------ state
     def reference_state(self) -> State:
@@ -205,7 +210,7 @@ class System:
         """New state after the increment ``xi`` (active numbering): x += u, R <- expm(psi) R, exactly."""
         d = self.to_global(xi).reshape(-1, 6)
         R = st.R.copy()
-        moving = np.flatnonzero(np.any(d[:, 3:] != 0.0, axis=1))
+        moving = self._rot_masters
         if len(moving):
             R[moving] = expm_so3(d[moving, 3:]) @ st.R[moving]
         new = State(st.X + d[:, :3], R, st.lam.copy())

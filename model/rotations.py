@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 __all__ = ["expm_so3", "quaternion", "twist_angle", "twist_gradient", "skew"]
 
@@ -24,28 +25,14 @@ def skew(v: np.ndarray) -> np.ndarray:
 
 
 def expm_so3(psi: np.ndarray) -> np.ndarray:
-    """Rodrigues' formula ``exp(skew(psi))`` for rotation vectors ``psi`` (..., 3), exact at any angle."""
+    """``exp(skew(psi))`` for rotation vectors ``psi`` (..., 3), exact at any angle.
+
+    scipy's ``Rotation.from_rotvec`` (Rodrigues through quaternions, with a series near zero) does the
+    work in compiled code: about twice as fast as the same formula in numpy for the handful of
+    masters a Newton update rotates.
+    """
     psi = np.asarray(psi, dtype=float)
-    th2 = np.einsum("...i,...i->...", psi, psi)
-    th = np.sqrt(th2)
-    small = th < 1e-4  # series to O(th^6): below 1e-4 the truncation error is under 1e-26
-    safe = np.where(small, 1.0, th)
-    a = np.where(small, 1.0 - th2 / 6.0 + th2**2 / 120.0, np.sin(safe) / safe)
-    b = np.where(small, 0.5 - th2 / 24.0 + th2**2 / 720.0, (1.0 - np.cos(safe)) / (safe * safe))
-    # R = I + a S + b S^2 with S^2 = psi psi^T - th^2 I
-    R = (b[..., None, None] * psi[..., :, None]) * psi[..., None, :]
-    d = 1.0 - b * th2
-    R[..., 0, 0] += d
-    R[..., 1, 1] += d
-    R[..., 2, 2] += d
-    ax, ay, az = (a * psi[..., 0]), (a * psi[..., 1]), (a * psi[..., 2])
-    R[..., 0, 1] -= az
-    R[..., 1, 0] += az
-    R[..., 0, 2] += ay
-    R[..., 2, 0] -= ay
-    R[..., 1, 2] -= ax
-    R[..., 2, 1] += ax
-    return R
+    return Rotation.from_rotvec(psi.reshape(-1, 3)).as_matrix().reshape(psi.shape[:-1] + (3, 3))
 
 
 def quaternion(R: np.ndarray) -> tuple[float, float, float, float]:

@@ -22,7 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg as sla
+from scipy.linalg import lapack
 
 from .assembly import Assembled, State, System
 
@@ -65,9 +65,9 @@ class StepFailure(Exception):
 def _scaled_residual(sys: System, ev: Assembled, dval: float, s_target: float) -> float:
     """Largest Jacobi-scaled residual: |g_i| / (|H_ii| l_i), the drive mismatch and rigid deformations."""
     free = sys.free
-    diag = np.abs(np.diag(ev.H))[free]
+    diag = np.abs(ev.H.diagonal()[free])
     dscale = np.maximum(diag, 1e-12 * max(diag.max(initial=0.0), 1e-300))
-    res = float(np.max(np.abs(ev.g[free]) / (dscale * sys.scale[free]), initial=0.0))
+    res = float(np.max(np.abs(ev.g[free]) / (dscale * sys.scale_free), initial=0.0))
     res = max(res, abs(dval - s_target) / sys.scale[sys.drive])
     if sys.n_con:
         res = max(res, float(np.max(np.abs(ev.c))) / sys.s.length_scale)
@@ -83,20 +83,27 @@ def _newton_step(sys: System, ev: Assembled, dd: np.ndarray, rhs_drive: float) -
     full bordered system. Returns (dxi, dlam, tangent, dlam_ds).
     """
     n, nr, f, d = sys.n, sys.n_con, sys.free, sys.drive
-    other = np.abs(np.delete(dd, d)).max(initial=0.0)
-    if nr == 0 and other <= 1e-14 * abs(dd[d]):
-        Hff = ev.H[np.ix_(f, f)]
+    dd_d = dd[d]
+    other = float(np.abs(dd).sum()) - abs(dd_d)
+    if nr == 0 and other <= 1e-14 * abs(dd_d):
         Hfd = ev.H[f, d]
-        dxd = -rhs_drive / dd[d]
-        try:
-            cf = sla.cho_factor(Hff, check_finite=False)
-            sol = sla.cho_solve(cf, np.column_stack([-ev.g[f] - Hfd * dxd, -Hfd / dd[d]]), check_finite=False)
-        except np.linalg.LinAlgError:
-            sol = np.linalg.solve(Hff, np.column_stack([-ev.g[f] - Hfd * dxd, -Hfd / dd[d]]))
+        dxd = -rhs_drive / dd_d
+        rhs = np.empty((len(f), 2), order="F")
+        rhs[:, 0] = -ev.g[f] - Hfd * dxd
+        rhs[:, 1] = -Hfd / dd_d
+        # LAPACK directly (Cholesky, then the solve): scipy's cho_factor/cho_solve wrappers cost more
+        # than the 60-DOF factorisation itself on small models
+        c, info = lapack.dpotrf(ev.H[sys.ix_free].T, lower=1, clean=0, overwrite_a=1)
+        if len(f) == 0:
+            sol = rhs
+        elif info == 0:
+            sol, info = lapack.dpotrs(c, rhs, lower=1, overwrite_b=1)
+        else:  # not positive definite (beyond a limit point): an indefinite but regular solve
+            sol = np.linalg.solve(ev.H[sys.ix_free], rhs)
         dxi = np.empty(n)
         tan = np.empty(n)
         dxi[f], dxi[d] = sol[:, 0], dxd
-        tan[f], tan[d] = sol[:, 1], 1.0 / dd[d]
+        tan[f], tan[d] = sol[:, 1], 1.0 / dd_d
         return dxi, np.zeros(0), tan, np.zeros(0)
     J = np.zeros((n + nr, n + nr))
     J[: len(f), :n] = ev.H[f, :]
