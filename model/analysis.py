@@ -17,7 +17,7 @@ from .assembly import System
 from .modal import Modes, modes_at, participation, track
 from .results import Failure, FrequencyCurve
 from .scene import Scene
-from .statics import Equilibrium, NewtonOptions, WalkFailure, walk
+from .statics import Equilibrium, NewtonOptions, WalkFailure, solve_point, walk
 from .structure import Structure, compile_scene
 
 __all__ = ["frequency_curve", "Analysis", "von_mises"]
@@ -118,11 +118,15 @@ class Analysis:
         total = len(values)
         iters = []
 
+        # Branch order is the frequency order at stroke 0 on both sides: tracking starts from the modes of
+        # the reference equilibrium, so a mirror-symmetric design gives the same branches left and right.
+        eq0 = solve_point(self.system, self.system.reference_state(), 0.0, self.options, 0.0)
+        modes0 = modes_at(self.system, eq0, k_track, s.scene.stroke.drive)
         for side in (internal[internal >= 0], internal[internal < 0][::-1]):
             if len(side) == 0:
                 continue
-            prev: list[Modes | None] = [None]
-            prev_w2: list[float] = [float("nan")]
+            prev: list[Modes | None] = [modes0]
+            prev_w2: list[float] = [float(modes0.omega2[0]) if len(modes0.omega2) else float("nan")]
             prev_s: list[float] = [0.0]
 
             def accept(eq: Equilibrium) -> WalkFailure | None:
@@ -150,7 +154,7 @@ class Analysis:
                     progress(len(points), total)
                 return None
 
-            fail = walk(self.system, side, self.options, accept)
+            fail = walk(self.system, side, self.options, accept, start=eq0)
             if fail is not None:
                 conv = spec.resolved_unit == "deg"
                 f = (lambda v: float(np.degrees(v))) if conv else float

@@ -10,9 +10,10 @@ it), and every rigid deformation is zero. Newton solves this square system with 
     [ G_a      0   ] [dlam]     [ c         ]
 
 where ``H`` is the Hessian of the Lagrangian (material plus geometric stiffness, from CasADi) and ``dD``
-the drive gradient. Convergence needs both the Newton increment and the Jacobi-scaled residual below
-``tol`` (translations relative to the structure's length scale, rotations in rad, so the criterion is
-the same in any consistent units); the state accepted is the one at which the residual was evaluated.
+the drive gradient. Convergence needs the Jacobi-scaled residual below ``tol`` and the Newton increment
+below ``polish`` (or below ``tol`` once it stalls at the rounding floor), translations relative to the
+structure's length scale and rotations in rad, so the criterion is the same in any consistent units; the
+state accepted is the one at which the residual was evaluated.
 Continuation starts at the stress-free reference (stroke 0) and walks outwards to each requested stroke
 value, with a tangent (and, when available, second-order) predictor and step halving on failure.
 """
@@ -34,6 +35,12 @@ class NewtonOptions:
     """Solver settings (dimensionless, see the module docstring)."""
 
     tol: float = 1e-9
+    #: Newton increment aimed for. Frequencies of thin leaves are sensitive to the axial force, which an
+    #: increment of 1e-9 L in a stiff direction still changes by about 1e-5 relative; Newton converges
+    #: quadratically, so one more step from 1e-9 costs little and reaches rounding level. A state whose
+    #: increment stalls between ``polish`` and ``tol`` (the rounding floor of a badly scaled model) is
+    #: accepted at ``tol``.
+    polish: float = 1e-12
     max_iter: int = 12
     max_halvings: int = 12
 
@@ -133,7 +140,7 @@ def solve_point(
         If the iteration diverges, produces non-finite numbers or exceeds ``max_iter``.
     """
     st = start
-    inc = res = float("nan")
+    inc = res = prev_inc = float("nan")
     for it in range(opts.max_iter + 1):
         ev = sys.evaluate(st)
         if not (np.isfinite(ev.g).all() and np.isfinite(ev.H).all()):
@@ -148,13 +155,15 @@ def solve_point(
         res = _scaled_residual(sys, ev, dval, s_target)
         if not np.isfinite(inc):
             raise StepFailure("non-finite increment")
-        if inc <= opts.tol and res <= opts.tol:
+        stalled = inc > 0.25 * prev_inc  # False while prev_inc is nan
+        if res <= opts.tol and (inc <= opts.polish or (inc <= opts.tol and stalled)):
             return Equilibrium(
                 stroke=s_target, state=st, ev=ev, free=sys.free, tangent=tan, iterations=it,
                 residual=res, increment=inc, extra={"drive_dof": sys.drive, "dlam_ds": dlam_ds},
             )
         if it > 2 and inc > 1e3 * opts.tol and inc > 0.5:
             raise StepFailure(f"diverging (increment {inc:.3g})")
+        prev_inc = inc
         st = sys.update(st, dxi, dlam if sys.n_con else None)
     raise StepFailure(f"no convergence in {opts.max_iter} iterations (increment {inc:.3g}, residual {res:.3g})")
 
@@ -180,13 +189,16 @@ class WalkFailure:
     message: str
 
 
-def walk(sys: System, targets: np.ndarray, opts: NewtonOptions, accept) -> WalkFailure | None:
+def walk(sys: System, targets: np.ndarray, opts: NewtonOptions, accept,
+         start: Equilibrium | None = None) -> WalkFailure | None:
     """Continue from the reference through ``targets`` (internal units, monotone away from 0).
+
+    ``start`` is the equilibrium at stroke 0 when the caller has it already.
 
     ``accept(eq)`` is called at each target and returns ``None`` to go on, or a :class:`WalkFailure` to
     stop (e.g. the equilibrium became unstable). Returns the failure, or ``None`` when all converged.
     """
-    cur = solve_point(sys, sys.reference_state(), 0.0, opts, 0.0)
+    cur = start if start is not None else solve_point(sys, sys.reference_state(), 0.0, opts, 0.0)
     prev: Equilibrium | None = None
     for s_t in targets:
         h = s_t - cur.stroke
