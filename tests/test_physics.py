@@ -79,12 +79,13 @@ def test_constrained_warping_raises_torsion_frequency(ends, physics_rise):
     assert abs((ratio - 1) - physics_rise) < 0.01
 
 
-@pytest.mark.parametrize("deg, n", [(10.0, 10), (45.0, 10), (90.0, 20)])
+@pytest.mark.parametrize("deg, n", [(10.0, 10), (45.0, 10), (90.0, 20), (-270.0, 40)])
 def test_pure_end_rotation_gives_circular_arc(deg, n):
     """An end rotation with the tip free in translation loads the leaf by a pure end moment: a circular arc
     (Euler's elastica for a pure moment), tip at (L sin th / th, 0, -L (1 - cos th)/th), and the moment is
     M = EI th / L. The tip error of the SPACAR chain is fourth order in th/n (1.6e-6 at 90 deg with 10
-    elements, hence 20 there)."""
+    elements, hence 20 there; 40 at 270 deg). The -270 degree case walks through -180 degrees, where an
+    angle-based orientation (or a rotation vector) would be singular."""
     an = Analysis(_scene(segments=n))
     th = math.radians(deg)
     eq = _equilibrium(an, th)
