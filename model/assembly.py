@@ -13,7 +13,7 @@ import numpy as np
 
 from .elements import beam_spec, truss_spec
 from .kernels import compiled
-from .rotations import expm_so3, skew, twist_angle, twist_gradient
+from .rotations import expm_so3, log_so3, skew, twist_angle, twist_gradient
 from .structure import Structure
 
 __all__ = ["State", "Assembled", "System"]
@@ -42,6 +42,7 @@ class Assembled:
     G: np.ndarray  # (nr, n) their Jacobian
     e_beam: np.ndarray  # (nb, 6) beam deformations
     e_truss: np.ndarray  # (nt,) truss elongations
+    chart: np.ndarray | None = None  # (n, n) -1/2 skew(g) per rotation block: J = H + chart (see evaluate)
 
 
 class System:
@@ -144,7 +145,14 @@ class System:
         self._rot_flat = (rb[:, :, None] * N + rb[:, None, :]).ravel()
         self._has_body_inertia = bool(np.any(s.master_inertia))
         # masters with an active rotational DOF: the only ones an increment can rotate
-        self._rot_masters = np.flatnonzero(s.active.reshape(nm, 6)[:, 3:].any(axis=1))
+        self._rot_masters = rm = np.flatnonzero(s.active.reshape(nm, 6)[:, 3:].any(axis=1))
+        # chart correction C = -1/2 skew(g) of each such master's rotation block: entry (i, j) is
+        # sign * g_k / 2 with (i, j, k, sign) below; positions in the extended numbering
+        rp = pos[6 * rm[:, None] + 3 + np.arange(3)]  # (k, 3)
+        ijks = ((0, 1, 2, 1.0), (1, 0, 2, -1.0), (0, 2, 1, -1.0), (2, 0, 1, 1.0), (1, 2, 0, 1.0), (2, 1, 0, -1.0))
+        self._chart_flat = np.concatenate([rp[:, i] * N + rp[:, j] for i, j, _, _ in ijks])
+        self._chart_src = np.concatenate([6 * rm + 3 + k for _, _, k, _ in ijks])
+        self._chart_sign = np.repeat([0.5 * sg for _, _, _, sg in ijks], len(rm))
 
     # ------------------------------------------------------------------ state
     def reference_state(self) -> State:
@@ -200,9 +208,8 @@ class System:
             out[:, p] += ext[:, n : n + 3] @ Qa
             return out
         out = ext[:n, :n].copy()
-        cols = ext[:n, n : n + 3] @ Qa  # (n, nba)
-        out[:, p] += cols
-        out[p, :] += cols.T
+        out[:, p] += ext[:n, n : n + 3] @ Qa
+        out[p, :] += Qa.T @ ext[n : n + 3, :n]
         out[np.ix_(p, p)] += Qa.T @ ext[n : n + 3, n : n + 3] @ Qa
         return out
 
@@ -217,6 +224,18 @@ class System:
         if dlam is not None:
             new.lam += dlam
         return new
+
+    def difference(self, st: State, base: State) -> np.ndarray:
+        """The increment (active numbering) that takes ``base`` to ``st``: ``update(base, d) == st``.
+
+        Translations ``X - X_base``; rotations the spatial rotation vector ``log(R R_base^T)``.
+        """
+        d = np.zeros((len(self.s.master_names), 6))
+        d[:, :3] = st.X - base.X
+        m = self._rot_masters
+        if len(m):
+            d[m, 3:] = log_so3(st.R[m] @ base.R[m].transpose(0, 2, 1))
+        return self.from_global(d.ravel())
 
     # ------------------------------------------------------------ kernels
     def _fill_inputs(self, st: State) -> None:
@@ -248,6 +267,7 @@ class System:
         s, N = self.s, self.N
         self._fill_inputs(st)
         g = np.zeros(N)
+        g_full = np.zeros(self.n_full)
         Hflat = np.zeros(N * N)
         G = np.zeros((self.n_con, N))
         c = np.zeros(self.n_con)
@@ -256,6 +276,7 @@ class System:
         if s.n_beams:
             out = self.beam_kernel(self.beam_in)
             g += np.bincount(self.beam_dofs.ravel(), out[:, :12].ravel(), minlength=N)
+            g_full += np.bincount(self.beam_dofs_full.ravel(), out[:, :12].ravel(), minlength=self.n_full)
             Hflat += np.bincount(self.beam_flat, out[:, 12:156].ravel(), minlength=N * N)
             e_beam = out[:, 156:162]
             k, el, mode = self.con_beam
@@ -266,6 +287,7 @@ class System:
         if len(s.truss_nodes):
             out = self.truss_kernel(self.truss_in)
             g += np.bincount(self.truss_dofs.ravel(), out[:, :12].ravel(), minlength=N)
+            g_full += np.bincount(self.truss_dofs_full.ravel(), out[:, :12].ravel(), minlength=self.n_full)
             Hflat += np.bincount(self.truss_flat, out[:, 12:156].ravel(), minlength=N * N)
             e_truss = out[:, 156]
             k, el = self.con_truss
@@ -273,7 +295,23 @@ class System:
                 c[k] = e_truss[el]
                 np.add.at(G, (k[:, None], self.truss_dofs[el]), out[el, 157:169])
         H = self._reduce_mat(Hflat.reshape(N, N))
-        return Assembled(self._reduce_vec(g), H, c, self._reduce_mat(G, rows=False), e_beam, e_truss)
+        return Assembled(self._reduce_vec(g), H, c, self._reduce_mat(G, rows=False), e_beam, e_truss,
+                         self._chart_correction(g_full))
+
+    def _chart_correction(self, g_full: np.ndarray) -> np.ndarray:
+        """``-1/2 skew(g_m)`` on each master's rotation block, in active numbering.
+
+        The residual is the gradient in the chart at the *current* state, ``r(psi) = d/d delta
+        L(exp(delta) exp(psi) R)``; by the Baker-Campbell-Hausdorff formula ``log(exp(delta) exp(psi)) =
+        psi + delta + 1/2 delta x psi + ...``, so ``r(psi) = (I + 1/2 skew(psi)) grad f(psi)`` and its exact
+        Jacobian is ``dr/dpsi = H - 1/2 skew(g)``. At an equilibrium ``g`` vanishes except for the actuator's
+        moment, which stays: without this term Newton converges only linearly on a driven body. ``g_full``
+        is the gradient over all masters' DOFs in global axes, reactions of supported rotations included
+        (they multiply the free ones in the cross product).
+        """
+        N = self.N
+        vals = self._chart_sign * g_full[self._chart_src]
+        return self._reduce_mat(np.bincount(self._chart_flat, vals, minlength=N * N).reshape(N, N))
 
     def hessian_derivative(self, st: State, v: np.ndarray) -> np.ndarray:
         """Directional derivative of the Hessian along ``v`` (drive basis): the exact third derivative of

@@ -11,7 +11,7 @@ import math
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-__all__ = ["expm_so3", "quaternion", "twist_angle", "twist_gradient", "skew"]
+__all__ = ["expm_so3", "log_so3", "quaternion", "twist_angle", "twist_gradient", "skew"]
 
 
 def skew(v: np.ndarray) -> np.ndarray:
@@ -33,6 +33,13 @@ def expm_so3(psi: np.ndarray) -> np.ndarray:
     """
     psi = np.asarray(psi, dtype=float)
     return Rotation.from_rotvec(psi.reshape(-1, 3)).as_matrix().reshape(psi.shape[:-1] + (3, 3))
+
+
+def log_so3(R: np.ndarray) -> np.ndarray:
+    """Rotation vectors (..., 3) of rotation matrices (..., 3, 3), the inverse of :func:`expm_so3` for
+    angles below pi (scipy's ``Rotation.as_rotvec``)."""
+    R = np.asarray(R, dtype=float)
+    return Rotation.from_matrix(R.reshape(-1, 3, 3)).as_rotvec().reshape(R.shape[:-2] + (3,))
 
 
 def quaternion(R: np.ndarray) -> tuple[float, float, float, float]:

@@ -85,35 +85,35 @@ def _newton_step(sys: System, ev: Assembled, dd: np.ndarray, rhs_drive: float) -
                                                                                       np.ndarray, np.ndarray]:
     """Solve the Newton system for the correction and the path tangent.
 
-    Without rigid deformations and with the drive gradient along the drive DOF only (no swing of the
-    driven node), the system reduces to the symmetric ``H_ff`` (Cholesky); otherwise an LU solve of the
-    full bordered system. Returns (dxi, dlam, tangent, dlam_ds).
+    The Jacobian of the free rows is ``H + chart`` (the Hessian plus ``-1/2 skew(g)`` on rotation blocks,
+    see ``System._chart_correction``): exact, so Newton converges quadratically even under a large drive
+    moment. Without rigid deformations and with the drive gradient along the drive DOF only (no swing of
+    the driven node), the system reduces to the free block (one LU solve, two right-hand sides);
+    otherwise an LU solve of the full bordered system. Returns (dxi, dlam, tangent, dlam_ds).
     """
     n, nr, f, d = sys.n, sys.n_con, sys.free, sys.drive
+    A = ev.H if ev.chart is None else ev.H + ev.chart
     dd_d = dd[d]
     other = float(np.abs(dd).sum()) - abs(dd_d)
     if nr == 0 and other <= 1e-14 * abs(dd_d):
-        Hfd = ev.H[f, d]
+        Afd = A[f, d]
         dxd = -rhs_drive / dd_d
         rhs = np.empty((len(f), 2), order="F")
-        rhs[:, 0] = -ev.g[f] - Hfd * dxd
-        rhs[:, 1] = -Hfd / dd_d
-        # LAPACK directly (Cholesky, then the solve): scipy's cho_factor/cho_solve wrappers cost more
-        # than the 60-DOF factorisation itself on small models
-        c, info = lapack.dpotrf(ev.H[sys.ix_free].T, lower=1, clean=0, overwrite_a=1)
+        rhs[:, 0] = -ev.g[f] - Afd * dxd
+        rhs[:, 1] = -Afd / dd_d
         if len(f) == 0:
             sol = rhs
-        elif info == 0:
-            sol, info = lapack.dpotrs(c, rhs, lower=1, overwrite_b=1)
-        else:  # not positive definite (beyond a limit point): an indefinite but regular solve
-            sol = np.linalg.solve(ev.H[sys.ix_free], rhs)
+        else:  # LAPACK's dgesv directly: scipy's wrappers cost more than a 60-DOF factorisation
+            _, _, sol, info = lapack.dgesv(A[sys.ix_free], rhs, overwrite_a=1, overwrite_b=1)
+            if info > 0:
+                raise np.linalg.LinAlgError(f"singular tangent stiffness (LAPACK dgesv info {info})")
         dxi = np.empty(n)
         tan = np.empty(n)
         dxi[f], dxi[d] = sol[:, 0], dxd
         tan[f], tan[d] = sol[:, 1], 1.0 / dd_d
         return dxi, np.zeros(0), tan, np.zeros(0)
     J = np.zeros((n + nr, n + nr))
-    J[: len(f), :n] = ev.H[f, :]
+    J[: len(f), :n] = A[f, :]
     J[len(f), :n] = dd
     if nr:
         J[: len(f), n:] = ev.G[:, f].T
@@ -169,13 +169,22 @@ def solve_point(
 
 
 def predict(sys: System, eq: Equilibrium, ds: float, prev: Equilibrium | None) -> State:
-    """Predictor from a converged point: tangent step, with a second-order term from the previous point."""
+    """Predictor from a converged point ``eq`` to the stroke ``eq.stroke + ds``.
+
+    With a previous point, the cubic Hermite extrapolation through both points and both tangents
+    (error O(h^4), so that after one Newton correction the increment is usually at the rounding level
+    and the ``polish`` criterion costs no extra iteration); otherwise the tangent step.
+    """
     step = eq.tangent * ds
     dlam = eq.extra["dlam_ds"] * ds if sys.n_con else None
     if prev is not None and prev.stroke != eq.stroke:
+        # p(s) = x1 + t1 s + a s^2 + b s^3 through (x0, t0) at s = -h and (x1, t1) at s = 0
         h = eq.stroke - prev.stroke
-        curv = (eq.tangent - prev.tangent) / h
-        step = step + 0.5 * curv * ds * ds
+        delta = sys.difference(eq.state, prev.state)
+        t0, t1 = prev.tangent, eq.tangent
+        b = (t0 + t1 - 2.0 * delta / h) / h**2
+        a = (t1 * h - delta) / h**2 + b * h
+        step = step + a * ds**2 + b * ds**3
     return sys.update(eq.state, step, dlam)
 
 
