@@ -25,6 +25,12 @@ import subprocess
 import sys
 import tempfile
 import time
+from pathlib import Path
+
+# measure this checkout, not an installed copy (the children inherit it through PYTHONPATH)
+ROOT = str(Path(__file__).resolve().parents[1])
+sys.path.insert(0, ROOT)
+os.environ["PYTHONPATH"] = os.pathsep.join([ROOT, os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep)
 
 CASES = [
     ("leaf-spring, 10 elements", "leaf-spring", {"segments": 10}),
