@@ -1,6 +1,7 @@
 """flexopt.model: SPACAR-style 3D flexure model in CasADi, stroke equilibrium and natural frequencies."""
 
 from .analysis import Analysis, frequency_curve
+from .constraints import ConstraintDiagnosis, diagnose
 from .errors import EquilibriumError, FlexoptError, KernelBuildError, ModelSizeError, SceneError
 from .io import load_scene, scene_from_dict
 from .results import Failure, FrequencyCurve
@@ -11,6 +12,8 @@ from .templates import TEMPLATES, template, template_parameters
 __all__ = [
     "Analysis",
     "frequency_curve",
+    "ConstraintDiagnosis",
+    "diagnose",
     "FlexoptError",
     "SceneError",
     "ModelSizeError",

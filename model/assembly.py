@@ -56,6 +56,12 @@ class System:
 
     def __init__(self, structure: Structure) -> None:
         s = structure
+        if s.drive_kind == "none":
+            from .errors import SceneError
+
+            raise SceneError("stroke", f"scene '{s.scene.name}' has no stroke (stroke: null), which only the "
+                             "exact-constraint diagnosis accepts; a frequency curve or equilibrium needs a "
+                             "driven coordinate: add a 'stroke'")
         self.s = s
         n_full = s.n_dof
         self.n_full = n_full

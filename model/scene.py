@@ -139,6 +139,18 @@ class Beam(_Strict):
         description="deformation modes held rigid (zero), e.g. ['elongation'] for a wire flexure, "
         "['elongation', 'bending_z'] for a sheet whose in-plane bending is rigid",
     )
+    generalised: tuple[DeformationName, ...] = Field(
+        (),
+        description="deformation modes taken as generalised (independent) coordinates e(m) in the "
+        "exact-constraint diagnosis (seed 002, eq. 4), e.g. ['eps5'] for one sheet of a folded sheet "
+        "flexure (section 4.2); needs segments = 1",
+    )
+    kinematic_rigid: tuple[DeformationName, ...] | None = Field(
+        None,
+        description="deformation modes held rigid in a *kinematic* diagnosis (Scene.kinematic); default "
+        "derived from the section: a sheet (rectangle with width >= 2 thickness, or Iz >= 4 Iy) keeps "
+        "elongation and in-plane bending (bending_z) rigid, a wire only its elongation",
+    )
 
 
 class Truss(_Strict):
@@ -154,6 +166,13 @@ class Truss(_Strict):
         "free mechanisms"
     )
     rigid: tuple[Literal["elongation", "eps1"], ...] = Field((), description="['elongation'] for a rigid bar")
+    generalised: tuple[Literal["elongation", "eps1"], ...] = Field(
+        (), description="['elongation'] to take the elongation as a generalised coordinate e(m) in the "
+        "exact-constraint diagnosis"
+    )
+    kinematic_rigid: tuple[Literal["elongation", "eps1"], ...] | None = Field(
+        None, description="rigid deformations in a kinematic diagnosis (default: the elongation is rigid)"
+    )
 
 
 Element = Annotated[Union[Beam, Truss], Field(discriminator="kind")]
@@ -290,7 +309,16 @@ class Scene(_Strict):
     bodies: tuple[RigidBody, ...] = ()
     elements: tuple[Element, ...] = Field(min_length=1)
     supports: tuple[Support, ...] = Field(min_length=1)
-    stroke: Stroke
+    stroke: Stroke | None = Field(
+        ...,
+        description="the driven coordinate; null only for a structure without drive (exact-constraint "
+        "diagnosis); a frequency curve needs a stroke",
+    )
+    kinematic: bool = Field(
+        False,
+        description="exact-constraint diagnosis with the kinematic idealisation: every flexure keeps only "
+        "its compliant deformations (see Beam.kinematic_rigid); dynamic analyses ignore it",
+    )
     support_directions: SupportDirections | None = None
     modes: int = Field(6, ge=1, le=50, description="number of modes reported per stroke point")
 
@@ -352,6 +380,17 @@ class Scene(_Strict):
                             f"{where}.y_axis: section orientation {tuple(e.y_axis)} is parallel to the axis "
                             f"of beam '{e.name}'; give a direction across the beam (the width direction)"
                         )
+            both = set(expand_modes(e.rigid)) & set(expand_modes(e.generalised))
+            if both:
+                errors.append(
+                    f"{where}.generalised: deformations {sorted(both)} (0-based) of '{e.name}' are both rigid "
+                    "and generalised; remove them from one of 'rigid' and 'generalised'"
+                )
+            if isinstance(e, Beam) and e.generalised and e.segments != 1:
+                errors.append(
+                    f"{where}.generalised: beam '{e.name}' has {e.segments} segments; generalised "
+                    "deformations need segments = 1 (split the member into separate elements instead)"
+                )
             if isinstance(e, Beam) and len(set(i for r in e.rigid for i in MODE_NAMES[r])) == 6:
                 errors.append(
                     f"{where}.rigid: all six deformations of beam '{e.name}' are rigid; "
@@ -379,7 +418,9 @@ class Scene(_Strict):
                 grounded.add(s.body)
 
         st = self.stroke
-        if st.node is not None:
+        if st is None:
+            pass
+        elif st.node is not None:
             if st.node not in nodes:
                 errors.append(f"stroke.node: unknown node '{st.node}'")
             elif st.node in carrier:
@@ -397,7 +438,7 @@ class Scene(_Strict):
                         f"stroke.node: the stroke drives node '{st.node}' along {blocked}, which a support "
                         "fixes; drive an unsupported node or remove that support"
                     )
-        if st.body is not None:
+        if st is not None and st.body is not None:
             if st.body not in bodies:
                 errors.append(f"stroke.body: unknown body '{st.body}'")
             elif st.body in grounded:

@@ -62,7 +62,7 @@ class Structure:
     constraints: np.ndarray  # (nr, 3) int
     # drive
     drive_master: int
-    drive_kind: str  # "rotation" | "translation"
+    drive_kind: str  # "rotation" | "translation" | "none" (scene without stroke: diagnosis only)
     drive_axis: np.ndarray  # (3,)
     drive_basis: np.ndarray  # (3, 3) columns: axis, two perpendicular directions
     drive_dof: int  # DOF index of the drive in the rotated basis
@@ -241,25 +241,30 @@ def compile_scene(scene: Scene) -> Structure:  # noqa: C901 - a straight sequenc
                 active[6 * m + _DOF_INDEX[d]] = False
 
     st = scene.stroke
-    drive_master = body_index[st.body] if st.body is not None else int(node_master_a[node_index[st.node]])
-    axis = _unit(st.axis)
-    drive_dof = 6 * drive_master + (3 if st.kind == "rotation" else 0)
-    if st.kind == "rotation" and not rot_used[drive_master]:
-        raise SceneError("stroke.node", f"node '{st.node}' has no rotational stiffness (it joins only "
-                         "trusses); drive it in translation or attach it to a beam")
-    blk = np.arange(drive_dof, drive_dof + 3)
-    fixed_dirs = [np.eye(3)[k] for k in range(3) if not active[blk[k]]]
-    if fixed_dirs:
-        # partially supported driven node: the basis keeps the supported coordinate directions, so the
-        # drive axis must be perpendicular to them (the scene validator already refuses a parallel one)
-        if any(abs(f @ axis) > 1e-12 for f in fixed_dirs):
-            raise SceneError("stroke.axis", "the drive axis is not perpendicular to the supported "
-                             "coordinates of the driven node; align it with a free coordinate axis")
-        f0 = fixed_dirs[0]
-        basis = np.column_stack([axis, f0, np.cross(axis, f0)])
-        active[blk] = [True, False, len(fixed_dirs) < 2]
+    if st is None:
+        # no drive (a structure for exact-constraint diagnosis only): System refuses it with a clear error
+        drive_master, axis, drive_dof, basis, drive_kind = -1, np.zeros(3), -1, np.eye(3), "none"
     else:
-        basis = _basis(axis)
+        drive_kind = st.kind
+        drive_master = body_index[st.body] if st.body is not None else int(node_master_a[node_index[st.node]])
+        axis = _unit(st.axis)
+        drive_dof = 6 * drive_master + (3 if st.kind == "rotation" else 0)
+        if st.kind == "rotation" and not rot_used[drive_master]:
+            raise SceneError("stroke.node", f"node '{st.node}' has no rotational stiffness (it joins only "
+                             "trusses); drive it in translation or attach it to a beam")
+        blk = np.arange(drive_dof, drive_dof + 3)
+        fixed_dirs = [np.eye(3)[k] for k in range(3) if not active[blk[k]]]
+        if fixed_dirs:
+            # partially supported driven node: the basis keeps the supported coordinate directions, so the
+            # drive axis must be perpendicular to them (the scene validator already refuses a parallel one)
+            if any(abs(f @ axis) > 1e-12 for f in fixed_dirs):
+                raise SceneError("stroke.axis", "the drive axis is not perpendicular to the supported "
+                                 "coordinates of the driven node; align it with a free coordinate axis")
+            f0 = fixed_dirs[0]
+            basis = np.column_stack([axis, f0, np.cross(axis, f0)])
+            active[blk] = [True, False, len(fixed_dirs) < 2]
+        else:
+            basis = _basis(axis)
 
     n_active = int(active.sum())
     if n_active > MAX_DOFS:
@@ -318,7 +323,7 @@ def compile_scene(scene: Scene) -> Structure:  # noqa: C901 - a straight sequenc
         master_inertia=master_inertia,
         constraints=np.array(cons, dtype=int).reshape(-1, 3),
         drive_master=drive_master,
-        drive_kind=st.kind,
+        drive_kind=drive_kind,
         drive_axis=axis,
         drive_basis=basis,
         drive_dof=drive_dof,

@@ -154,3 +154,147 @@ def template(name: str, **overrides: Any) -> Scene:
     from .io import scene_from_dict
 
     return scene_from_dict(TEMPLATES[name][0](params))
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Scenes of seed 002 (Aarts, van Dijk and Jonker): exact-constraint examples. Appended; the templates above
+# are unchanged.
+
+def _truss12(p: dict) -> dict:
+    """Figure 2 of seed 002: twelve rigid trusses. Supports at (+-a, +-a, 0); top nodes (a, 0, h),
+    (0, a, h), (-a, 0, h), (0, -a, h) (a = ``half_width``, h = ``height``; the paper has a = h = 1), each
+    joined to its two nearest supports and to its two neighbours (the top square). Every elongation rigid;
+    no drive (``stroke: null``): a structure for the exact-constraint diagnosis only."""
+    a, h = p["half_width"], p["height"]
+    sup = {"s_pp": (a, a), "s_mp": (-a, a), "s_mm": (-a, -a), "s_pm": (a, -a)}
+    top = {"t_px": (a, 0.0), "t_py": (0.0, a), "t_mx": (-a, 0.0), "t_my": (0.0, -a)}
+    nodes = [{"name": k, "position": [x, y, 0.0]} for k, (x, y) in sup.items()]
+    nodes += [{"name": k, "position": [x, y, h]} for k, (x, y) in top.items()]
+    legs = [("t_px", "s_pp"), ("t_px", "s_pm"), ("t_py", "s_pp"), ("t_py", "s_mp"),
+            ("t_mx", "s_mp"), ("t_mx", "s_mm"), ("t_my", "s_mm"), ("t_my", "s_pm")]
+    ring = [("t_px", "t_py"), ("t_py", "t_mx"), ("t_mx", "t_my"), ("t_my", "t_px")]
+    elements = [{"kind": "truss", "name": f"{s}-{t}", "nodes": [s, t], "material": "steel", "area": p["area"],
+                 "rigid": ["elongation"]} for s, t in legs + ring]
+    return {"name": "truss12", "materials": [_steel(p)], "nodes": nodes, "elements": elements,
+            "supports": [{"node": k} for k in sup], "stroke": None, "modes": int(p["modes"])}
+
+
+def _box_inertia(m: float, a: float, b: float, c: float) -> list[list[float]]:
+    return [[m * (b * b + c * c) / 12, 0, 0], [0, m * (a * a + c * c) / 12, 0], [0, 0, m * (a * a + b * b) / 12]]
+
+
+def _wire_guide(p: dict, parallel: bool) -> dict:
+    """Figure 3a of seed 002 (geometry reconstructed): a block ``2a x 2b x 2c`` (x, y, z) centred at the
+    origin guided along x by five wire flexures of length ``wire_length``. Three vertical wires (along z)
+    under the block at (-0.8a, -0.75b), (-0.8a, +0.75b), (+0.8a, 0) fix z, rx, ry; two lateral wires (along
+    y) on the face y = -b at x = -0.8a and x = +0.8a fix y and rz. With ``parallel`` the second lateral wire
+    moves to x = -0.8a (above the first, at z = +0.5c): the two lateral wires are parallel and meet the
+    same constraint line pattern, so one constraint is repeated (a self-stress) and the rotation about the
+    vertical axis through x = -0.8a is free (a mechanism). Square wires of side ``wire_diameter``."""
+    a, b, c = p["body_length"] / 2, p["body_width"] / 2, p["body_height"] / 2
+    Lw, d = p["wire_length"], p["wire_diameter"]
+    nodes, elements, supports, carried = [], [], [], []
+
+    def wire(name: str, at: tuple[float, float, float], direction: tuple[float, float, float]) -> None:
+        base = [at[i] - Lw * direction[i] for i in range(3)]
+        nodes.extend([{"name": f"{name}_body", "position": list(at)}, {"name": f"{name}_ground", "position": base}])
+        carried.append(f"{name}_body")
+        supports.append({"node": f"{name}_ground"})
+        elements.append({"kind": "beam", "name": name, "nodes": [f"{name}_ground", f"{name}_body"],
+                         "material": "steel", "section": {"kind": "rectangular", "width": d, "thickness": d},
+                         "y_axis": [1, 0, 0], "segments": int(p["segments"]), "rigid": []})
+
+    wire("wire1", (-0.8 * a, -0.75 * b, -c), (0, 0, 1))
+    wire("wire2", (-0.8 * a, 0.75 * b, -c), (0, 0, 1))
+    wire("wire3", (0.8 * a, 0.0, -c), (0, 0, 1))
+    wire("wire4", (-0.8 * a, -b, -0.5 * c if parallel else 0.0), (0, 1, 0))
+    wire("wire5", (-0.8 * a, -b, 0.5 * c) if parallel else (0.8 * a, -b, 0.0), (0, 1, 0))
+    m = p["body_mass"]
+    return {
+        "name": "wire-guide-parallel" if parallel else "wire-guide-5",
+        "materials": [_steel(p)], "nodes": nodes,
+        "bodies": [{"name": "slider", "mass": m, "center_of_mass": [0, 0, 0],
+                    "inertia": _box_inertia(m, 2 * a, 2 * b, 2 * c), "nodes": carried}],
+        "elements": elements, "supports": supports,
+        "stroke": {"kind": "translation", "body": "slider", "axis": [1, 0, 0], "start": -p["stroke"],
+                   "stop": p["stroke"], "points": int(p["points"]), "unit": "m", "drive": "free"},
+        "kinematic": True, "modes": int(p["modes"]),
+    }
+
+
+def _folded_sheet_guide(p: dict, count: int) -> dict:
+    """Figures 3b (five) and 5b (six) of seed 002, geometry reconstructed from the figures.
+
+    The moving part is a solid cylinder (mass ``body_mass``, radius ``body_radius``, length ``body_length``)
+    on the x axis, guided along x. Each folded sheet flexure is two sheets (``sheet_length`` x
+    ``sheet_width`` x ``sheet_thickness``, one beam each) folded at 90 degrees along a fold line ``f``
+    tangent to the cylinder (perpendicular to x and to the radius ``n`` at its attachment point P on the
+    cylinder's surface): sheet B runs from P along ``(x + n)/sqrt 2`` to the fold F, sheet A from F along
+    ``(x - n)/sqrt 2`` to the support S, which lies at the radius of P, ``sqrt 2 sheet_length`` further
+    along x. The width of both sheets is along ``f``, so the flexure constrains only the translation
+    along ``f`` at F (section 4.2) and its internal mode is a rotation about the fold.
+
+    Five flexures (3b): three at x = -body_length/2 at angles 90, 210, 330 degrees about x (angle 0 = +y,
+    90 = +z) and two at x = +body_length/4 at 30 and 150 degrees (three on one side, two on the other;
+    exactly constrained). Six (5b): the same plus one at 270 degrees on the second side, three on each
+    side; overconstrained with one self-stress of in-plane bending in every sheet, as the paper finds.
+    (Two flexures at 90 and 270 degrees on the second side instead, whose fold lines are parallel, give
+    the under- and overconstrained design of Figure 5a.) In the kinematic diagnosis every sheet keeps
+    elongation and in-plane bending (bending_z) rigid, and one out-of-plane bending of each flexure is a
+    generalised deformation (section 4.2): eps4 of sheet B, measured at the fold (eps3, at the body end,
+    has the rate of sheet A's elongation and would make D_cc singular).
+    """
+    R, Lb, Ls = p["body_radius"], p["body_length"], p["sheet_length"]
+    if count == 5:
+        places = [(-Lb / 2, 90.0), (-Lb / 2, 210.0), (-Lb / 2, 330.0), (Lb / 4, 30.0), (Lb / 4, 150.0)]
+    else:
+        places = [(-Lb / 2, 90.0), (-Lb / 2, 210.0), (-Lb / 2, 330.0), (Lb / 4, 30.0), (Lb / 4, 150.0),
+                  (Lb / 4, 270.0)]
+    s2 = math.sqrt(0.5)
+    nodes, elements, supports, carried = [], [], [], []
+    sec = {"kind": "rectangular", "width": p["sheet_width"], "thickness": p["sheet_thickness"]}
+    for i, (x0, deg) in enumerate(places, start=1):
+        th = math.radians(deg)
+        n = (0.0, math.cos(th), math.sin(th))
+        f = (0.0, -math.sin(th), math.cos(th))
+        P = (x0, R * n[1], R * n[2])
+        b = tuple(s2 * (u + v) for u, v in zip((1.0, 0.0, 0.0), n))
+        a = tuple(s2 * (u - v) for u, v in zip((1.0, 0.0, 0.0), n))
+        F = tuple(P[k] + Ls * b[k] for k in range(3))
+        S = tuple(F[k] + Ls * a[k] for k in range(3))
+        tag = f"flex{i}"
+        nodes += [{"name": f"{tag}_body", "position": list(P)}, {"name": f"{tag}_fold", "position": list(F)},
+                  {"name": f"{tag}_ground", "position": list(S)}]
+        carried.append(f"{tag}_body")
+        supports.append({"node": f"{tag}_ground"})
+        elements.append({"kind": "beam", "name": f"{tag}B", "nodes": [f"{tag}_body", f"{tag}_fold"],
+                         "material": "steel", "section": sec, "y_axis": list(f), "segments": int(p["segments"]),
+                         "generalised": ["eps4"] if int(p["segments"]) == 1 else []})
+        elements.append({"kind": "beam", "name": f"{tag}A", "nodes": [f"{tag}_fold", f"{tag}_ground"],
+                         "material": "steel", "section": sec, "y_axis": list(f), "segments": int(p["segments"])})
+    m = p["body_mass"]
+    Jx = m * R * R / 2
+    Jt = m * (3 * R * R + Lb * Lb) / 12
+    return {
+        "name": f"folded-sheet-guide-{count}",
+        "materials": [_steel(p)], "nodes": nodes,
+        "bodies": [{"name": "cylinder", "mass": m, "center_of_mass": [0, 0, 0],
+                    "inertia": [[Jx, 0, 0], [0, Jt, 0], [0, 0, Jt]], "nodes": carried}],
+        "elements": elements, "supports": supports,
+        "stroke": {"kind": "translation", "body": "cylinder", "axis": [1, 0, 0], "start": -p["stroke"],
+                   "stop": p["stroke"], "points": int(p["points"]), "unit": "m", "drive": "free"},
+        "kinematic": True, "modes": int(p["modes"]),
+    }
+
+
+_WIRE = dict(_COMMON, body_length=0.1, body_width=0.04, body_height=0.03, body_mass=0.3, wire_length=0.05,
+             wire_diameter=1e-3, segments=1, stroke=0.002, points=11)
+_FOLDED = dict(_COMMON, body_radius=0.02, body_length=0.1, body_mass=0.312, sheet_length=0.05,
+               sheet_width=0.02, sheet_thickness=0.2e-3, segments=1, stroke=0.002, points=11)
+TEMPLATES.update({
+    "truss12": (_truss12, dict(_COMMON, half_width=1.0, height=1.0, area=1e-4)),
+    "wire-guide-5": (lambda p: _wire_guide(p, False), dict(_WIRE)),
+    "wire-guide-parallel": (lambda p: _wire_guide(p, True), dict(_WIRE)),
+    "folded-sheet-guide-5": (lambda p: _folded_sheet_guide(p, 5), dict(_FOLDED)),
+    "folded-sheet-guide-6": (lambda p: _folded_sheet_guide(p, 6), dict(_FOLDED)),
+})

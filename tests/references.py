@@ -78,3 +78,21 @@ def warping_factor(ends: str) -> float:
     if ends == "both_ends":
         return aL / (aL - 2 * math.tanh(aL / 2))
     return aL / (aL - math.tanh(aL))
+
+
+# Exact-constraint diagnosis (seed 002, section 3.3, twelve-truss example of Figure 2).
+TRUSS12_SELF_STRESS = Ref(
+    math.sqrt(3) / 6, 1e-9,
+    "seed 002 sec. 3.3: every entry of the last column of U is +-sqrt(3)/6 (twelve equal entries of a unit vector)",
+    "D_cc is an exact 12 x 12 Jacobian with entries of order 1; SVD round-off is about 1e-15, 1e-9 is a margin "
+    "that still fails on any real change of the vector",
+)
+TRUSS12_MOTION = Ref(
+    0.5, 1e-9,
+    "seed 002 eq. 16: each top node moves 0.5 (unit vector of the last column of V), radially, alternating",
+    "exact Jacobian; round-off of the SVD of a 12 x 12 matrix is about 1e-15",
+)
+# Folded sheet guides, seed 002 section 5: first three natural frequencies at zero stroke. Reported, not
+# asserted tightly: the geometry of Figures 3b and 5b is reconstructed (model/templates.py).
+FOLDED5_HZ_PAPER = (8.2, 8.2 * 20, 282.0)  # 8.2 Hz, "about 20 times larger", 282 Hz
+FOLDED6_HZ_PAPER_FIRST = 9.0

@@ -1,0 +1,472 @@
+"""Exact-constraint diagnosis: D_cc, its SVD and the Table-1 classification (seed 002, section 3).
+
+Partitioning (seed 002, eq. 4)
+------------------------------
+Nodal coordinates ``x``: the six increments ``(u, psi)`` of every master (rigid body or free node, see
+model.structure), in global axes. ``x(o)`` are the supported coordinates (and the rotations of masters that
+only trusses join, which nothing can measure), ``x(m)`` the stroke coordinate (the drive-basis direction of
+the driven master; none for a scene with ``stroke: null``) and ``x(c)`` all the others. Rigid bodies carry
+their nodes exactly, so unlike SPACAR (section 4.2, last paragraph) they need no constraint deformations:
+both the extra nodal coordinates and the extra rows are absent, which leaves ``D_cc`` square if it was.
+
+Deformations ``e``: ``e(o)`` the rigid ones, ``e(m)`` the generalised ones (``Beam.generalised``), ``e(c)``
+the rest. In a *kinematic* diagnosis (``Scene.kinematic`` or ``diagnose(kinematic=True)``) the rigid set
+of each element is its ``kinematic_rigid`` field, or else derived from its section: a sheet keeps its
+elongation and in-plane bending rigid, a wire its elongation, a truss is a rigid bar (section 4.2).
+
+Jacobian and scaling
+--------------------
+``D_cc`` (eq. 9) holds the rows ``[e(o); e(m)]`` and the columns ``x(c)`` of ``D_x D``, the exact
+derivative of the deformations from the CasADi element kernels (model.elements), at the reference or at an
+equilibrium on the stroke. Rotations are spatial rotation increments, so a rotation column is the
+deformation rate per unit angular velocity (SPACAR's velocity form).
+
+All deformations have the dimension of length (eps_2..eps_6 are l0 times an angle). A translation column
+is therefore dimensionless and a rotation column has the dimension of length. To make the singular values
+comparable and unit-free we factor ``D_cc = L_c D^ C^-1`` with the characteristic length ``L_c`` (the
+largest distance between two nodes: invariant under rigid motion, proportional to the length unit) and
+``C = diag(L_c for translations, 1 for rotations)``; the SVD (eq. 11) is taken of
+``D^ = D_cc C / L_c``. Its singular values are dimensionless, do not change under a change of units or a
+rigid motion, and its null vectors map back exactly (``x_dot = C v``, ``sigma = u``).
+
+Rank tolerance: ``sigma_i > RANK_RTOL sigma_max`` with ``RANK_RTOL = 1e-8``. At the reference the
+Jacobian is exact to round-off (about 1e-15 relative), and at a stroke point the equilibrium satisfies the
+rigid deformations to the Newton tolerance (1e-10 scaled), which perturbs an exact zero by about that
+much; 1e-8 leaves two orders of margin on either side. A design with ``sigma_min / sigma_max <
+NEAR_RTOL = 1e-4`` is reported as *almost singular*: a geometric imperfection of that relative size could
+make it over- or underconstrained, and its constraint forces grow as 1/sigma_min.
+
+Modes: the columns of V beyond the rank (zero singular values and excess columns, section 3.1) and of U
+beyond the rank (section 3.2), each a unit vector with its largest entry made positive. With more than
+one mode of a kind, the modes span the right space but the basis is LAPACK's (any rotation of it is as
+valid), so compare spaces, not individual vectors, between designs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .elements import beam_spec, truss_spec
+from .errors import SceneError
+from .kernels import compiled
+from .scene import Beam, GeneralSection, RectangularSection, Scene, Truss, expand_modes
+from .structure import Structure, compile_scene
+
+__all__ = ["ConstraintDiagnosis", "diagnose", "kinematic_rigid_set", "RANK_RTOL", "NEAR_RTOL"]
+
+RANK_RTOL = 1e-8
+NEAR_RTOL = 1e-4
+_AXES = ("x", "y", "z", "rx", "ry", "rz")
+
+
+def kinematic_rigid_set(element: Beam | Truss) -> tuple[str, ...]:
+    """The deformations an element keeps rigid in a kinematic analysis (seed 002, section 4.2).
+
+    ``kinematic_rigid`` when given; otherwise a truss is a rigid bar, a sheet (rectangle with width at
+    least twice the thickness, or a general section with one second moment at least four times the other)
+    keeps its elongation and its in-plane (stiff) bending rigid, and any other beam is a wire: only its
+    elongation is rigid.
+    """
+    if element.kinematic_rigid is not None:
+        return tuple(element.kinematic_rigid)
+    if isinstance(element, Truss):
+        return ("elongation",)
+    sec = element.section
+    if isinstance(sec, RectangularSection):
+        iy, iz = sec.width * sec.thickness**3, sec.thickness * sec.width**3  # proportional to Iy, Iz
+    else:
+        assert isinstance(sec, GeneralSection)
+        iy, iz = sec.Iy, sec.Iz
+    if iz >= 4.0 * iy:
+        return ("elongation", "bending_z")  # stiff bending about local z: in-plane deflection along y
+    if iy >= 4.0 * iz:
+        return ("elongation", "bending_y")
+    return ("elongation",)
+
+
+@dataclass(frozen=True)
+class ConstraintDiagnosis:
+    """D_cc of a scene, its SVD and the indeterminate modes (seed 002, eqs. 9, 11, 15 and Table 1).
+
+    Shapes: m rows ``[e(o); e(m)]``, n columns ``x(c)``.
+    """
+
+    scene: str
+    stroke: float | None  # stroke value (stroke unit) of the configuration, None = reference
+    kinematic: bool
+    rows: tuple[str, ...]  # (m,) "element.eps_k" (element "member[i]" for meshed segments)
+    row_kind: tuple[str, ...]  # (m,) "rigid" | "generalised"
+    columns: tuple[str, ...]  # (n,) "master.x" ... "master.rz" (or a drive-basis direction)
+    column_master: tuple[str, ...]  # (n,) master (node or body) of each column
+    column_direction: np.ndarray  # (n, 6) unit direction of each column in its master's (u, psi) block
+    D_cc: np.ndarray  # (m, n) eq. 9, physical units (translations in length units, rotations in rad)
+    D_scaled: np.ndarray  # (m, n) D^ = D_cc C / L_c, dimensionless
+    characteristic_length: float  # L_c
+    singular_values: np.ndarray  # (min(m, n),) of D^, descending
+    U: np.ndarray  # (m, m)
+    V: np.ndarray  # (n, n)
+    rank: int
+    n_generalised_coordinates: int  # x(m): 1 with a stroke, 0 without
+    n_rigid: int  # rows of e(o)
+    kinematic_modes: tuple[dict[str, dict[str, list[float]]], ...] = field(default=())
+    static_modes: tuple[dict[str, dict[str, float]], ...] = field(default=())
+    release_candidates: tuple[tuple[str, ...], ...] = field(default=())
+
+    @property
+    def m(self) -> int:
+        """Number of rows of D_cc (rigid plus generalised deformations)."""
+        return len(self.rows)
+
+    @property
+    def n(self) -> int:
+        """Number of columns of D_cc (dependent nodal coordinates)."""
+        return len(self.columns)
+
+    @property
+    def n_dof(self) -> int:
+        """Nominal degrees of freedom (section 3.1): coordinates minus x(o) minus e(o)."""
+        return self.n + self.n_generalised_coordinates - self.n_rigid
+
+    @property
+    def statically_indeterminate(self) -> int:
+        """Number of self-stress states (m - rank; Table 1)."""
+        return self.m - self.rank
+
+    @property
+    def kinematically_indeterminate(self) -> int:
+        """Number of free motions with e(o), e(m), x(m) held (n - rank; Table 1)."""
+        return self.n - self.rank
+
+    @property
+    def exact_constraint(self) -> bool:
+        """Both statically and kinematically determinate: m = n = rank (section 4)."""
+        return self.statically_indeterminate == 0 and self.kinematically_indeterminate == 0
+
+    @property
+    def smallest_nonzero_singular_value(self) -> float:
+        """The smallest singular value above the rank tolerance (nan if the rank is 0)."""
+        return float(self.singular_values[self.rank - 1]) if self.rank else float("nan")
+
+    @property
+    def condition_number(self) -> float:
+        """sigma_max / smallest non-zero sigma of the scaled D_cc."""
+        return float(self.singular_values[0] / self.smallest_nonzero_singular_value) if self.rank else float("inf")
+
+    @property
+    def almost_singular(self) -> bool:
+        """True when the smallest non-zero singular value is below NEAR_RTOL sigma_max."""
+        return bool(self.rank and self.smallest_nonzero_singular_value < NEAR_RTOL * self.singular_values[0])
+
+    @property
+    def classification(self) -> str:
+        """The Table-1 verdict in words."""
+        st = "statically indeterminate" if self.statically_indeterminate else "statically determinate"
+        kin = "kinematically indeterminate" if self.kinematically_indeterminate else "kinematically determinate"
+        shape = "m = n" if self.m == self.n else ("m > n" if self.m > self.n else "m < n")
+        return f"{shape}, rank {self.rank}: {st}, {kin}" + (" (exact constraint)" if self.exact_constraint else "")
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-ready form (plain lists and numbers)."""
+        sv = [float(v) for v in self.singular_values]
+        return {
+            "scene": self.scene,
+            "stroke": self.stroke,
+            "kinematic": self.kinematic,
+            "rows": list(self.rows),
+            "row_kind": list(self.row_kind),
+            "columns": list(self.columns),
+            "m": self.m,
+            "n": self.n,
+            "rank": self.rank,
+            "n_dof": self.n_dof,
+            "singular_values": sv,
+            "characteristic_length": self.characteristic_length,
+            "rank_tolerance": RANK_RTOL * (sv[0] if sv else 0.0),
+            "smallest_nonzero_singular_value": self.smallest_nonzero_singular_value if self.rank else None,
+            "condition_number": self.condition_number if self.rank else None,
+            "almost_singular": self.almost_singular,
+            "statically_indeterminate": self.statically_indeterminate,
+            "kinematically_indeterminate": self.kinematically_indeterminate,
+            "exact_constraint": self.exact_constraint,
+            "classification": self.classification,
+            "kinematic_modes": [dict(k) for k in self.kinematic_modes],
+            "static_modes": [dict(s) for s in self.static_modes],
+            "release_candidates": [list(r) for r in self.release_candidates],
+            "conventions": {
+                "scaling": "SVD of D_cc C / L_c with C = diag(L_c translations, 1 rotations): singular values "
+                "dimensionless; kinematic modes are unit vectors of that scaled problem (translations in L_c "
+                "per unit time, rotations in rad per unit time), static modes unit vectors of generalised "
+                "stresses; sign: largest entry positive",
+                "rank_rtol": RANK_RTOL,
+                "almost_singular_rtol": NEAR_RTOL,
+            },
+        }
+
+    def report(self) -> str:
+        """A readable report: counts, Table-1 verdict, free motions, self-stresses and what to release."""
+        lines = [
+            f"scene '{self.scene}'"
+            + (f" at stroke {self.stroke:g}" if self.stroke is not None else " at the reference")
+            + (" (kinematic idealisation)" if self.kinematic else ""),
+            f"D_cc: m = {self.m} rows (e(o) {self.n_rigid}, e(m) {self.m - self.n_rigid}), n = {self.n} columns "
+            f"x(c), rank {self.rank}; nominal degrees of freedom n_dof = {self.n_dof}",
+            f"Table 1: {self.classification}",
+        ]
+        if self.rank:
+            lines.append(f"smallest non-zero singular value {self.smallest_nonzero_singular_value:.4g}, "
+                         f"condition number {self.condition_number:.4g} (L_c = {self.characteristic_length:.4g})")
+            if self.almost_singular:
+                lines.append("warning: almost singular: a small imperfection could make the design over- or "
+                             "underconstrained; constraint forces grow as 1/sigma_min")
+        for i, mode in enumerate(self.kinematic_modes):
+            lines.append(f"kinematic mode {i + 1} (free motion):")
+            for name, vel in mode.items():
+                lines.append(f"  {name}: translation {_fmt(vel['translation'])}, rotation {_fmt(vel['rotation'])}")
+        for i, (mode, rel) in enumerate(zip(self.static_modes, self.release_candidates)):
+            lines.append(f"static mode {i + 1} (self-stress, deformations that fight each other):")
+            for name, comps in mode.items():
+                lines.append("  " + name + ": " + ", ".join(f"{k} {v:+.4f}" for k, v in comps.items()))
+            lines.append("  release one of these to remove it: " + ", ".join(rel))
+        return "\n".join(lines)
+
+
+def _fmt(v: list[float]) -> str:
+    return "(" + ", ".join(f"{x:+.4f}" for x in v) + ")"
+
+
+def _sign_fix(v: np.ndarray) -> np.ndarray:
+    """Deterministic sign: the first entry within 1e-9 of the largest magnitude is made positive."""
+    a = np.abs(v)
+    if not a.size or a.max() == 0:
+        return v
+    k = int(np.flatnonzero(a >= a.max() * (1 - 1e-9))[0])
+    return v if v[k] > 0 else -v
+
+
+def _partition(s: Structure, kinematic: bool) -> tuple[list[tuple[int, int, int]], list[str], list[str], int]:
+    """Rows [e(o); e(m)] as (kind 0 beam / 1 truss, element, deformation), their labels and kinds."""
+    scene = s.scene
+    rigid_rows: list[tuple[int, int, int]] = []
+    gen_rows: list[tuple[int, int, int]] = []
+    for kind, member_of in ((0, s.beam_member), (1, s.truss_member)):
+        for i, ie in enumerate(member_of):
+            el = scene.elements[int(ie)]
+            rig = set(expand_modes(kinematic_rigid_set(el) if kinematic else el.rigid))
+            gen = set(expand_modes(el.generalised))
+            both = rig & gen
+            if both:
+                raise SceneError(
+                    f"elements[{ie}].generalised",
+                    f"deformations {sorted(f'eps{k + 1}' for k in both)} of '{el.name}' are rigid in the "
+                    f"{'kinematic' if kinematic else 'declared'} partition and also generalised; set "
+                    "'kinematic_rigid' (or 'rigid') so they are not rigid, or drop them from 'generalised'",
+                )
+            rigid_rows += [(kind, i, k) for k in sorted(rig)]
+            gen_rows += [(kind, i, k) for k in sorted(gen)]
+    labels: list[str] = []
+    index: dict[tuple[int, int], str] = {}
+    for kind, member_of in ((0, s.beam_member), (1, s.truss_member)):
+        per: dict[int, int] = {}
+        tot = np.bincount(member_of, minlength=len(scene.elements)) if len(member_of) else []
+        for i, ie in enumerate(member_of):
+            j = per.get(int(ie), 0)
+            per[int(ie)] = j + 1
+            name = scene.elements[int(ie)].name
+            index[(kind, i)] = name if tot[int(ie)] == 1 else f"{name}[{j}]"
+    for kind, i, k in rigid_rows + gen_rows:
+        labels.append(f"{index[(kind, i)]}.eps{k + 1}")
+    kinds = ["rigid"] * len(rigid_rows) + ["generalised"] * len(gen_rows)
+    return rigid_rows + gen_rows, labels, kinds, len(rigid_rows)
+
+
+def _columns(s: Structure) -> tuple[np.ndarray, list[str], list[str], np.ndarray]:
+    """Columns x(c): (6 nm, n) map T from column velocities to all masters' (u, psi), labels, masters,
+    and a flag per column (True = translation)."""
+    nm = len(s.master_names)
+    cols: list[np.ndarray] = []
+    labels: list[str] = []
+    masters: list[str] = []
+    trans: list[bool] = []
+    drive_blk = s.drive_dof if s.drive_kind != "none" else -10
+    for mi in range(nm):
+        for b in (0, 3):
+            start = 6 * mi + b
+            for k in range(3):
+                dof = start + k
+                if not s.active[dof]:
+                    continue
+                t = np.zeros(6 * nm)
+                if start == drive_blk:
+                    if k == 0:
+                        continue  # x(m): the stroke coordinate
+                    d = s.drive_basis[:, k]
+                    t[start : start + 3] = d
+                    ax = [j for j in range(3) if abs(abs(d[j]) - 1.0) < 1e-14]
+                    lab = ("-" if ax and d[ax[0]] < 0 else "") + _AXES[b + ax[0]] if ax else \
+                        ("u" if b == 0 else "r") + "(" + ",".join(f"{c:.3g}" for c in d) + ")"
+                else:
+                    t[dof] = 1.0
+                    lab = _AXES[b + k]
+                cols.append(t)
+                labels.append(f"{s.master_names[mi]}.{lab}")
+                masters.append(s.master_names[mi])
+                trans.append(b == 0)
+    T = np.array(cols).T if cols else np.zeros((6 * nm, 0))
+    return T, labels, masters, np.array(trans, dtype=bool)
+
+
+def _jacobian_rows(s: Structure, X: np.ndarray, R: np.ndarray, rows: list[tuple[int, int, int]]) -> np.ndarray:
+    """Rows of D_x D (all masters' (u, psi), global axes) for the chosen deformations, from the kernels."""
+    nm = len(s.master_names)
+    m = s.node_master
+    r = np.einsum("nij,nj->ni", R[m], s.node_offset)
+    xn, Rn = X[m] + r, R[m]
+    D = np.zeros((len(rows), 6 * nm))
+    blocks = np.arange(6)
+    De_b = De_t = None
+    if s.n_beams:
+        p, q = s.beam_nodes[:, 0], s.beam_nodes[:, 1]
+        a = np.hstack([xn[p], Rn[p].transpose(0, 2, 1).reshape(-1, 9), r[p], xn[q],
+                       Rn[q].transpose(0, 2, 1).reshape(-1, 9), r[q], s.beam_const, np.zeros((s.n_beams, 6))])
+        out = np.asarray(compiled(beam_spec()[0])(a))
+        De_b = out[:, 162:234].reshape(-1, 12, 6)  # [elem, col, row] (column-major 6 x 12)
+    if len(s.truss_nodes):
+        p, q = s.truss_nodes[:, 0], s.truss_nodes[:, 1]
+        a = np.hstack([xn[p], r[p], xn[q], r[q], s.truss_const, np.zeros((len(p), 1))])
+        out = np.asarray(compiled(truss_spec()[0])(a))
+        De_t = out[:, 157:169]
+    for i, (kind, el, k) in enumerate(rows):
+        nodes = s.beam_nodes[el] if kind == 0 else s.truss_nodes[el]
+        dofs = (6 * m[nodes][:, None] + blocks).ravel()
+        vals = De_b[el, :, k] if kind == 0 else De_t[el]
+        np.add.at(D[i], dofs, vals)
+    return D
+
+
+def _state_at(scene: Scene, at_stroke: float) -> tuple[np.ndarray, np.ndarray]:
+    """Master positions and rotations of the equilibrium at ``at_stroke`` (stroke unit)."""
+    from .analysis import Analysis
+    from .errors import EquilibriumError
+    from .statics import walk
+
+    if scene.stroke is None:
+        raise SceneError("stroke", "a diagnosis at a stroke value needs a 'stroke' in the scene; omit "
+                         "--at-stroke to diagnose the reference configuration")
+    an = Analysis(scene)
+    target = float(scene.stroke.to_internal(at_stroke))
+    got: list = []
+    targets = np.linspace(0.0, target, 9)[1:] if target != 0 else np.array([0.0])
+
+    def accept(eq):  # noqa: ANN001, ANN202 - statics callback
+        got.append(eq)
+        return None
+
+    fail = walk(an.system, targets, an.options, accept)
+    if fail is not None or not got:
+        raise EquilibriumError(f"no equilibrium at stroke {at_stroke:g}: {fail.message if fail else ''}",
+                               stroke=at_stroke, last_converged=float("nan"),
+                               reason=fail.reason if fail else "divergence")
+    st = got[-1].state
+    return st.X, st.R
+
+
+def diagnose(scene: Scene, at_stroke: float | None = None, kinematic: bool | None = None) -> ConstraintDiagnosis:
+    """Exact-constraint diagnosis of a scene (seed 002, section 3).
+
+    Parameters
+    ----------
+    scene
+        A validated scene (``stroke`` may be null: then no x(m)).
+    at_stroke
+        Stroke value (stroke unit) of the equilibrium to diagnose; None = the reference configuration.
+    kinematic
+        Use the kinematic idealisation (section 4.2); None = the scene's ``kinematic`` flag.
+
+    Returns
+    -------
+    ConstraintDiagnosis
+        D_cc (eq. 9), the SVD of its scaled form (eq. 11), the Table-1 counts, kinematic modes from V and
+        static modes from U (eq. 15).
+
+    Raises
+    ------
+    SceneError
+        When the partition has no rows (every deformation released and none generalised) or no columns
+        (every coordinate supported or driven), or a deformation is both rigid and generalised.
+    """
+    kin = scene.kinematic if kinematic is None else bool(kinematic)
+    s = compile_scene(scene)
+    rows, row_labels, row_kind, n_rigid = _partition(s, kin)
+    if not rows:
+        raise SceneError("elements[].rigid", "no rigid and no generalised deformations: D_cc has no rows, so "
+                         "nothing constrains the structure; declare rigid deformations (e.g. "
+                         "rigid: ['elongation'] for a wire) or set 'kinematic': true")
+    T, col_labels, col_masters, trans = _columns(s)
+    if T.shape[1] == 0:
+        raise SceneError("supports", "every nodal coordinate is supported or driven: D_cc has no columns; "
+                         "remove supports from the moving parts")
+    if at_stroke is None:
+        X, R = s.master_pos.copy(), np.tile(np.eye(3), (len(s.master_names), 1, 1))
+    else:
+        X, R = _state_at(scene, at_stroke)
+    Dfull = _jacobian_rows(s, X, R, rows)
+    D = Dfull @ T
+    pos = np.array([n.position for n in scene.nodes], dtype=float)
+    Lc = float(np.sqrt(((pos[:, None, :] - pos[None, :, :]) ** 2).sum(-1).max()))
+    c = np.where(trans, Lc, 1.0)
+    Dh = D * c / Lc
+    U, sv, Vt = np.linalg.svd(Dh)
+    rank = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
+    V = Vt.T
+    mcount, ncount = D.shape
+
+    kin_modes = []
+    dirs = T.T.reshape(ncount, -1, 6)  # (n, nm, 6)
+    for j in range(rank, ncount):
+        v = _sign_fix(V[:, j])
+        blk = np.einsum("c,cmk->mk", v, dirs)
+        mode: dict[str, dict[str, list[float]]] = {}
+        for mi, name in enumerate(s.master_names):
+            if name in col_masters:
+                b = np.where(np.abs(blk[mi]) < 1e-12, 0.0, blk[mi])
+                mode[name] = {"translation": [float(x) for x in b[:3]], "rotation": [float(x) for x in b[3:]]}
+        kin_modes.append(mode)
+    stat_modes = []
+    releases = []
+    for j in range(rank, mcount):
+        u = _sign_fix(U[:, j])
+        mode2: dict[str, dict[str, float]] = {}
+        for lab, val in zip(row_labels, u):
+            el, dname = lab.rsplit(".", 1)
+            if abs(val) >= 1e-12:
+                mode2.setdefault(el, {})[dname] = float(val)
+        stat_modes.append(mode2)
+        order = np.argsort(-np.abs(u), kind="stable")
+        big = [row_labels[i] for i in order if abs(u[i]) >= 0.5 * abs(u[order[0]])]
+        releases.append(tuple(big[:12]))
+    return ConstraintDiagnosis(
+        scene=scene.name,
+        stroke=at_stroke,
+        kinematic=kin,
+        rows=tuple(row_labels),
+        row_kind=tuple(row_kind),
+        columns=tuple(col_labels),
+        column_master=tuple(col_masters),
+        column_direction=np.array([T[6 * s.master_names.index(mn):6 * s.master_names.index(mn) + 6, k]
+                                   for k, mn in enumerate(col_masters)]).reshape(ncount, 6),
+        D_cc=D,
+        D_scaled=Dh,
+        characteristic_length=Lc,
+        singular_values=sv,
+        U=U,
+        V=V,
+        rank=rank,
+        n_generalised_coordinates=0 if s.drive_kind == "none" else 1,
+        n_rigid=n_rigid,
+        kinematic_modes=tuple(kin_modes),
+        static_modes=tuple(stat_modes),
+        release_candidates=tuple(releases),
+    )
