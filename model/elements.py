@@ -178,3 +178,51 @@ def truss_spec() -> tuple[KernelSpec, KernelSpec]:
     mask = c[2]
     L = 0.5 * c[1] * (mask * e) ** 2 + lam * (1 - mask) * e
     return _finish("flexopt_truss", a, d, v, L, e, 1, TRUSS_STATE, TRUSS_CONST)
+
+
+# ----------------------------------------------------------------- fourth-derivative kernel
+def _expm4(psi: ca.SX) -> ca.SX:
+    """Quartic Taylor polynomial of the rotation exponential: exact derivatives at 0 up to fourth order."""
+    S = _skew(psi)
+    S2 = S @ S
+    return ca.SX.eye(3) + S + S2 / 2 + (S2 @ S) / 6 + (S2 @ S2) / 24
+
+
+def _end4(x0: ca.SX, R0: ca.SX | None, r: ca.SX, u: ca.SX, psi: ca.SX) -> tuple[ca.SX, ca.SX | None]:
+    E = _expm4(psi)
+    return x0 + u + (E - ca.SX.eye(3)) @ r, (E @ R0 if R0 is not None else None)
+
+
+def _d4(a: ca.SX, d: ca.SX, v: ca.SX, L: ca.SX, name: str) -> ca.Function:
+    H = ca.hessian(L, d)[0]
+    d2H = ca.jtimes(ca.jtimes(H, d, v), d, v)
+    out = ca.substitute(ca.vec(d2H), d, ca.DM.zeros(12))
+    return ca.Function(name, [ca.vertcat(a, v)], [out])
+
+
+@lru_cache(maxsize=None)
+def beam_d4() -> ca.Function:
+    """Second directional derivative of a beam's Hessian, ``sum_kl d4L/(dxi_i dxi_j dxi_k dxi_l) v_k v_l``."""
+    a = ca.SX.sym("a", BEAM_STATE + BEAM_CONST + 6)
+    v, d = ca.SX.sym("v", 12), ca.SX.sym("d", 12)
+    s, c = a[: BEAM_STATE], a[BEAM_STATE : BEAM_STATE + BEAM_CONST]
+    lam = a[BEAM_STATE + BEAM_CONST :]
+    xp, Rp = _end4(s[0:3], ca.reshape(s[3:12], 3, 3), s[12:15], d[0:3], d[3:6])
+    xq, Rq = _end4(s[15:18], ca.reshape(s[18:27], 3, 3), s[27:30], d[6:9], d[9:12])
+    e = _beam_deformations(xp, Rp, xq, Rq, c[0], ca.reshape(c[1:10], 3, 3), c[14])
+    return _d4(a, d, v, _beam_energy(e, c[10:14], c[15:21], lam), "flexopt_beam_d4")
+
+
+@lru_cache(maxsize=None)
+def truss_d4() -> ca.Function:
+    """Second directional derivative of a truss's Hessian (see :func:`beam_d4`)."""
+    a = ca.SX.sym("a", TRUSS_STATE + TRUSS_CONST + 1)
+    v, d = ca.SX.sym("v", 12), ca.SX.sym("d", 12)
+    s, c = a[: TRUSS_STATE], a[TRUSS_STATE : TRUSS_STATE + TRUSS_CONST]
+    lam = a[TRUSS_STATE + TRUSS_CONST]
+    xp, _ = _end4(s[0:3], None, s[3:6], d[0:3], d[3:6])
+    xq, _ = _end4(s[6:9], None, s[9:12], d[6:9], d[9:12])
+    dx = xq - xp
+    e = ca.sqrt(ca.dot(dx, dx)) - c[0]
+    L = 0.5 * c[1] * (c[2] * e) ** 2 + lam * (1 - c[2]) * e
+    return _d4(a, d, v, L, "flexopt_truss_d4")

@@ -1,0 +1,119 @@
+"""The speed-accuracy ladder of the frequency-curve methods (issue 4), as markdown tables.
+
+For every template: warm time of a 91-point curve (median of ``--repeat`` runs), build time (modal and
+frequency derivatives, for the fast methods), max and RMS relative error of the first parasitic frequency
+against the exact curve over a third, two thirds and all of the stroke (+-15, +-30, +-45 deg for
+rotations), and the stroke range over which each method stays within 1 % and 5 %.
+
+    python bench/bench_methods.py [--repeat 5] [--plot methods.png]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from model import Analysis, template  # noqa: E402
+from model.derivatives import frequency_curve  # noqa: E402
+
+TEMPLATES = ("leaf-spring", "parallel-leaf-spring", "cross-spring-pivot")
+METHODS = ("exact", "fd1", "fd2", "manifold", "reduced")
+
+
+def _range_within(stroke: np.ndarray, err: np.ndarray, tol: float) -> float:
+    """Largest |s| such that every point with |stroke| <= |s| has error <= tol."""
+    order = np.argsort(np.abs(stroke))
+    good = 0.0
+    for i in order:
+        if not (err[i] <= tol):
+            break
+        good = abs(stroke[i])
+    return good
+
+
+def bench_template(name: str, repeat: int) -> tuple[list[str], dict]:
+    """Rows of the markdown table for one template, and the curves (for the plot)."""
+    curves = {}
+    rows = []
+    an = Analysis(template(name))
+    values = an.scene.stroke.values()
+    exact = None
+    for m in METHODS:
+        an_m = Analysis(template(name))
+        t0 = time.perf_counter()
+        c = frequency_curve(an_m, m, stroke=values)  # first call: builds derivatives (and kernels)
+        build = c.solver.get("build_seconds", float("nan"))
+        times = []
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            c = frequency_curve(an_m, m, stroke=values)
+            times.append(time.perf_counter() - t0)
+        curves[m] = c
+        if m == "exact":
+            exact = c
+        err = np.abs(c.parasitic_hz / exact.parasitic_hz - 1.0)
+        smax = np.abs(values).max()
+        cols = []
+        for frac in (1 / 3, 2 / 3, 1.0):
+            sel = np.abs(values) <= frac * smax + 1e-12
+            e = err[sel]
+            cols.append(f"{e.max():.2e} / {np.sqrt(np.mean(e**2)):.2e}")
+        unit = c.stroke_unit
+        r1, r5 = _range_within(values, err, 0.01), _range_within(values, err, 0.05)
+        rows.append(f"| {m} | {statistics.median(times) * 1e3:.2f} | "
+                    f"{'-' if not np.isfinite(build) else f'{build * 1e3:.1f}'} | " + " | ".join(cols)
+                    + f" | +-{r1:.4g} {unit} | +-{r5:.4g} {unit} |")
+    return rows, curves
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Print one markdown table per template."""
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--repeat", type=int, default=5)
+    p.add_argument("--plot", default=None, help="write a PNG of the first parasitic frequency per method")
+    args = p.parse_args(argv)
+    all_curves = {}
+    for name in TEMPLATES:
+        rows, curves = bench_template(name, args.repeat)
+        all_curves[name] = curves
+        unit = curves["exact"].stroke_unit
+        smax = float(np.abs(curves["exact"].stroke).max())
+        thirds = ", ".join(f"+-{f * smax:.3g}" for f in (1 / 3, 2 / 3, 1.0))
+        print(f"\n### {name} (first parasitic at 0: {curves['exact'].parasitic_hz[len(curves['exact'].stroke) // 2]:.2f} Hz)\n")
+        print(f"| method | warm 91-pt [ms] | build [ms] | max / RMS rel. error over {thirds} {unit} (three columns) "
+              "| | | within 1 % | within 5 % |")
+        print("|---|---|---|---|---|---|---|---|")
+        for r in rows:
+            print(r)
+    if args.plot:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, axes = plt.subplots(1, len(TEMPLATES), figsize=(5 * len(TEMPLATES), 4))
+        for ax, name in zip(axes, TEMPLATES):
+            ex = all_curves[name]["exact"]
+            for m, c in all_curves[name].items():
+                ax.plot(c.stroke, c.parasitic_hz, label=m, lw=2 if m == "exact" else 1)
+            lo, hi = np.nanmin(ex.parasitic_hz), np.nanmax(ex.parasitic_hz)
+            ax.set_ylim(0.5 * lo, 1.3 * hi)
+            ax.set_title(name)
+            ax.set_xlabel(f"stroke [{ex.stroke_unit}]")
+            ax.set_ylabel("first parasitic [Hz]")
+            ax.legend(fontsize=7)
+        fig.tight_layout()
+        fig.savefig(args.plot, dpi=120)
+        print(f"\nplot written to {args.plot}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
