@@ -1,3 +1,3 @@
-"""flexopt.service: command line now; HTTP service and client later. Imports nothing heavy at import time."""
+"""flexopt.service: command line, HTTP service (app.py), client (client.py). Imports nothing heavy at import time."""
 
 __all__: list[str] = []

@@ -85,7 +85,12 @@ def _cmd_curve(args: argparse.Namespace) -> int:
         raise ValueError("give a scene file or --template, not both")
     scene = load_scene(args.scene) if args.scene is not None else template(args.template or "leaf-spring")
     progress = _Progress(args.progress or sys.stderr.isatty())
-    curve = Analysis(scene).frequency_curve(progress=progress)
+    if args.method == "exact":
+        curve = Analysis(scene).frequency_curve(progress=progress)
+    else:
+        from model.derivatives import curve_with_method
+
+        curve = curve_with_method(Analysis(scene), args.method, args.tolerance)
     progress.close()
     if args.json:
         print(curve.to_json())
@@ -118,7 +123,15 @@ def _parser() -> argparse.ArgumentParser:
     fmt.add_argument("--csv", action="store_true", help="print CSV")
     c.add_argument("--plot", metavar="FILE.png", help="draw frequency against stroke")
     c.add_argument("--progress", action="store_true", help="show progress on stderr even when not a terminal")
+    c.add_argument("--method", choices=["exact", "fd1", "fd2", "manifold", "reduced", "auto"], default="exact",
+                   help="exact (continuation + eigen), Taylor fd1/fd2, quadratic manifold, reduced, or auto")
+    c.add_argument("--tolerance", type=float, default=0.01,
+                   help="relative error allowed on the first parasitic frequency (for --method auto)")
     c.set_defaults(func=_cmd_curve)
+    from .cli_diagnose import add_parser as _add_diagnose  # exact-constraint diagnosis
+    _add_diagnose(sub)
+    from .cli_serve import add_parser as _add_serve  # HTTP service; uvicorn loads only on run
+    _add_serve(sub)
     return p
 
 

@@ -1,0 +1,142 @@
+"""Wire models of the HTTP API, shared by the server and the client.
+
+Only pydantic here (no model/ import): ``model/__init__`` loads CasADi, and the client must stay light. The
+scene therefore travels as a JSON object (``SceneDocument``); the server validates it against
+``model.scene.Scene`` and its full JSON schema is served at ``GET /v1/scene-schema``. A client may pass a
+``model.Scene`` instance anyway: it is dumped to JSON first.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, FiniteFloat, PositiveFloat
+
+__all__ = [
+    "API_VERSION",
+    "METHODS",
+    "Method",
+    "SceneDocument",
+    "Health",
+    "ParameterInfo",
+    "TemplateInfo",
+    "TemplateSceneRequest",
+    "FrequencyCurveRequest",
+    "FailureOut",
+    "FrequencyCurveOut",
+    "DiagnosisRequest",
+    "FieldError",
+    "Problem",
+]
+
+API_VERSION = "1"
+METHODS = ("exact", "fd1", "fd2", "manifold", "reduced", "auto")
+Method = Literal["exact", "fd1", "fd2", "manifold", "reduced", "auto"]
+
+SceneDocument = Annotated[
+    dict[str, Any],
+    Field(description="a flexopt scene (SI units); schema at GET /v1/scene-schema, examples from "
+                      "POST /v1/templates/{name}/scene"),
+]
+
+
+class _Wire(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class Health(_Wire):
+    """Liveness and version."""
+
+    status: Literal["ok"] = "ok"
+    version: str = Field(description="flexopt package version")
+    api_version: str = API_VERSION
+    methods: list[str] = Field(description="frequency-curve methods this server offers")
+
+
+class ParameterInfo(_Wire):
+    """One template parameter: its default and what values are accepted."""
+
+    name: str
+    type: Literal["number", "integer", "string"]
+    default: float | int | str
+    bounds: str = Field(description="accepted values, derived from the parameter's kind (the templates declare "
+                                    "no numeric ranges; the scene validator has the final word)")
+
+
+class TemplateInfo(_Wire):
+    """A parametric template scene."""
+
+    name: str
+    parameters: list[ParameterInfo]
+
+
+class TemplateSceneRequest(_Wire):
+    """Parameter overrides for a template (omitted parameters keep their defaults)."""
+
+    parameters: dict[str, float | int | str] = Field(default_factory=dict)
+
+
+class FrequencyCurveRequest(_Wire):
+    """A scene, optionally a stroke grid, and the method."""
+
+    scene: SceneDocument
+    stroke: list[FiniteFloat] | None = Field(
+        None, description="stroke values in the scene's stroke unit (default: the scene's own grid)")
+    method: Method = Field("exact", description="exact (continuation + eigen), fd1, fd2, manifold, reduced or auto")
+    tolerance: PositiveFloat = Field(0.01, description="relative error allowed on the first parasitic "
+                                                       "frequency (method auto)")
+
+
+class FailureOut(_Wire):
+    """Where and why the curve stops before the requested range ends."""
+
+    reason: str
+    stroke: float
+    last_converged: float
+    message: str
+
+
+class FrequencyCurveOut(_Wire):
+    """Stroke-dependent natural frequencies (``model.FrequencyCurve.to_dict``); NaN travels as null."""
+
+    scene: str
+    method: str
+    stroke: list[float | None]
+    stroke_unit: str
+    stroke_kind: str
+    parasitic_hz: list[float | None] = Field(description="first parasitic frequency [Hz] per stroke point")
+    modes_hz: list[list[float | None]] = Field(description="tracked modes [Hz], one row per stroke point")
+    mode_labels: list[list[str]]
+    drive_reaction: list[float | None]
+    drive_reaction_unit: str
+    max_von_mises: dict[str, list[float | None]] = Field(description="member -> largest von Mises stress [Pa]")
+    allowable_stress: dict[str, float] = Field(description="member -> allowable stress [Pa]")
+    status: Literal["complete", "truncated"]
+    failures: list[FailureOut]
+    conventions: dict[str, str]
+    solver: dict[str, float]
+
+
+class DiagnosisRequest(_Wire):
+    """A scene to diagnose, at the reference or at a stroke value."""
+
+    scene: SceneDocument
+    at_stroke: FiniteFloat | None = Field(None, description="stroke value (stroke unit); null = reference configuration")
+    kinematic: bool | None = Field(None, description="kinematic diagnosis (null: the scene's own setting)")
+
+
+class FieldError(_Wire):
+    """One invalid input: where (path) and why."""
+
+    loc: list[str | int]
+    msg: str
+
+
+class Problem(BaseModel):
+    """RFC 9457 problem details: every error body of the API."""
+
+    type: str = "about:blank"
+    title: str
+    status: int
+    detail: str
+    errors: list[FieldError] = Field(default_factory=list)

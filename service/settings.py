@@ -1,0 +1,33 @@
+"""Service settings: one BaseSettings read from the environment (prefix ``FLEXOPT_``)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, PositiveFloat, PositiveInt
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+__all__ = ["Settings"]
+
+
+class Settings(BaseSettings):
+    """Limits and options of the HTTP service; every field can be set as ``FLEXOPT_<NAME>``."""
+
+    model_config = SettingsConfigDict(env_prefix="FLEXOPT_", extra="ignore")
+
+    max_body_bytes: PositiveInt = Field(1_000_000, description="largest accepted request body [bytes] (413 past it)")
+    request_timeout: PositiveFloat = Field(30.0, description="time limit of a synchronous computation [s] (504 past it)")
+    max_concurrent: PositiveInt = Field(2, description="heavy computations running at once (429 past it)")
+    executor: Literal["process", "thread"] = Field(
+        "process", description="where computations run: worker processes (parallel on all cores) or threads")
+    max_queued: int = Field(64, ge=0, description="heavy requests waiting for a slot (429 past it)")
+    queue_timeout: float = Field(10.0, ge=0, description="longest wait for a computation slot [s] (429 past it)")
+    retry_after: PositiveInt = Field(1, description="Retry-After sent with 429 [s]")
+    max_stroke_points: PositiveInt = Field(1001, description="largest stroke grid accepted")
+    cache_size: int = Field(256, ge=0, description="entries of the LRU response cache for identical requests (0 = off)")
+    api_keys: str = Field("", description="comma-separated API keys; empty = no authentication")
+    api_key_header: str = Field("X-API-Key", description="header carrying the API key")
+
+    def keys(self) -> frozenset[str]:
+        """The configured API keys (empty: authentication off)."""
+        return frozenset(k.strip() for k in self.api_keys.split(",") if k.strip())
