@@ -10,10 +10,12 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
 from .assembly import System
+from .elements import beam_von_mises
 from .modal import Modes, modes_at, participation, track
 from .results import Failure, FrequencyCurve
 from .scene import Scene
@@ -31,30 +33,39 @@ DRIVE_CONVENTION = {
 }
 
 
+def beam_sigma(structure: Structure, sys: System, eq: Equilibrium) -> np.ndarray:
+    """Generalised stresses of every beam segment (nb, 6): ``S eps`` for flexible deformations, the
+    multipliers for rigid ones."""
+    s = structure
+    sig = np.einsum("eij,ej->ei", s.beam_stiff, eq.ev.e_beam * s.beam_mask)
+    k, el, mode = sys.con_beam
+    sig[el, mode] = eq.state.lam[k]
+    return sig
+
+
+def beam_end_stresses(structure: Structure, sys: System, eq: Equilibrium) -> np.ndarray:
+    """Von Mises bound at both ends of every beam segment (nb, 2) [Pa]."""
+    z = np.hstack([beam_sigma(structure, sys, eq), structure.beam_stress])
+    return np.asarray(_von_mises_map(len(z))(z.T)[0]).T
+
+
+@lru_cache(maxsize=64)
+def _von_mises_map(n: int):
+    return beam_von_mises().map(n)
+
+
 def von_mises(structure: Structure, sys: System, eq: Equilibrium) -> np.ndarray:
     """Largest von Mises stress of every scene element (member) at ``eq`` [Pa].
 
     Generalised stresses ``sigma = S eps`` for flexible deformations and the multipliers for rigid ones;
-    end moments ``l0 sigma_3..6``, torque ``l0 sigma_2``, axial force ``sigma_1``. Per element end the
-    bound ``sqrt((|N|/A + |My| cz/Iy + |Mz| cy/Iz)^2 + 3 (tau)^2)`` adds the extreme normal stresses and
-    the largest torsional shear stress (conservative: they need not occur at the same fibre).
-    Members without fibre distances get NaN.
+    the bound per element end is :func:`model.elements.beam_von_mises` (one formula, also used for the
+    optimiser's stress gradients). Members without fibre distances get NaN.
     """
     s = structure
     out = np.zeros(len(s.member_names))
     st = eq.state
     if s.n_beams:
-        e = eq.ev.e_beam
-        sig = np.einsum("eij,ej->ei", s.beam_stiff, e * s.beam_mask)
-        k, el, mode = sys.con_beam
-        sig[el, mode] = st.lam[k]
-        A, Iy, Iz, cy, cz, tau, l0 = s.beam_stress.T
-        N = np.abs(sig[:, 0]) / A
-        T = np.abs(l0 * sig[:, 1]) * tau
-        vm = np.zeros(len(A))
-        for iy, iz in ((2, 4), (3, 5)):
-            sb = N + np.abs(l0 * sig[:, iy]) * cz / Iy + np.abs(l0 * sig[:, iz]) * cy / Iz
-            vm = np.maximum(vm, np.sqrt(sb**2 + 3 * T**2))
+        vm = beam_end_stresses(s, sys, eq).max(axis=1)
         np.maximum.at(out, s.beam_member, vm)
         out[np.unique(s.beam_member[np.isnan(vm)])] = np.nan
     if len(s.truss_nodes):
@@ -103,9 +114,14 @@ class Analysis:
         return labels, (min(par) if par else float("nan"))
 
     def frequency_curve(
-        self, stroke: np.ndarray | None = None, progress: Callable[[int, int], None] | None = None
+        self, stroke: np.ndarray | None = None, progress: Callable[[int, int], None] | None = None,
+        visit: Callable[[Equilibrium, Modes, list[str]], None] | None = None,
     ) -> FrequencyCurve:
-        """The exact frequency curve at ``stroke`` (stroke unit; default: the scene's stroke grid)."""
+        """The exact frequency curve at ``stroke`` (stroke unit; default: the scene's stroke grid).
+
+        ``visit(eq, modes, labels)``, if given, sees every converged point with its tracked modes and their
+        labels (the design sensitivities of :mod:`model.design` are computed there).
+        """
         t0 = time.perf_counter()
         s = self.structure
         spec = s.scene.stroke
@@ -145,6 +161,8 @@ class Analysis:
                     perm = track(prev[0], modes)
                     modes = Modes(modes.omega2[perm], modes.phi[:, perm], modes.M)
                 labels, par = self._labels(modes)
+                if visit is not None:
+                    visit(eq, modes, labels)
                 vm = von_mises(s, self.system, eq)
                 points[eq.stroke] = _Point(eq.stroke, modes.hz[:n_rep].copy(), labels[:n_rep], par,
                                            eq.drive_reaction, vm, eq.iterations)

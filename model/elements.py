@@ -38,7 +38,8 @@ from functools import lru_cache
 
 import casadi as ca
 
-__all__ = ["KernelSpec", "beam_spec", "truss_spec", "BEAM_CONST", "TRUSS_CONST"]
+__all__ = ["KernelSpec", "beam_spec", "truss_spec", "BEAM_CONST", "TRUSS_CONST", "beam_input_jvp",
+           "beam_segment_design", "beam_von_mises"]
 
 # Layout of a beam's packed input vector.
 BEAM_STATE = 30  # xp(3) Rp(9, column-major) rp(3) xq(3) Rq(9) rq(3)
@@ -144,11 +145,9 @@ def _finish(name: str, a: ca.SX, d: ca.SX, v: ca.SX, L: ca.SX, e: ca.SX, n_def: 
     )
 
 
-@lru_cache(maxsize=None)
-def beam_spec() -> tuple[KernelSpec, KernelSpec]:
-    """The spatial beam kernels (main input: state 30, const 21, lam 6; third-derivative input adds v 12)."""
+def _beam_expr() -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
+    """The beam's packed input ``a``, increment ``d``, Lagrangian ``L(a, d)`` and deformations ``e(a, d)``."""
     a = ca.SX.sym("a", BEAM_STATE + BEAM_CONST + 6)
-    v = ca.SX.sym("v", 12)
     d = ca.SX.sym("d", 12)
     s, c = a[:BEAM_STATE], a[BEAM_STATE : BEAM_STATE + BEAM_CONST]
     lam = a[BEAM_STATE + BEAM_CONST : BEAM_STATE + BEAM_CONST + 6]
@@ -159,7 +158,14 @@ def beam_spec() -> tuple[KernelSpec, KernelSpec]:
     xp, Rp = _end(xp0, Rp0, rp, d[0:3], d[3:6])
     xq, Rq = _end(xq0, Rq0, rq, d[6:9], d[9:12])
     e = _beam_deformations(xp, Rp, xq, Rq, l0, E0, ct)
-    L = _beam_energy(e, k, mask, lam)
+    return a, d, _beam_energy(e, k, mask, lam), e
+
+
+@lru_cache(maxsize=None)
+def beam_spec() -> tuple[KernelSpec, KernelSpec]:
+    """The spatial beam kernels (main input: state 30, const 21, lam 6; third-derivative input adds v 12)."""
+    a, d, L, e = _beam_expr()
+    v = ca.SX.sym("v", 12)
     return _finish("flexopt_beam", a, d, v, L, e, 6, BEAM_STATE, BEAM_CONST)
 
 
@@ -226,3 +232,77 @@ def truss_d4() -> ca.Function:
     e = ca.sqrt(ca.dot(dx, dx)) - c[0]
     L = 0.5 * c[1] * (c[2] * e) ** 2 + lam * (1 - c[2]) * e
     return _d4(a, d, v, L, "flexopt_truss_d4")
+
+
+# ----------------------------------------------------------------- design sensitivities
+@lru_cache(maxsize=None)
+def beam_input_jvp() -> ca.Function:
+    """Directional derivative of a beam's ``g`` (12), ``H`` (144, column-major) and ``e`` (6) at ``d = 0``
+    along a change ``da`` of its whole packed input (state, constants, multipliers).
+
+    The state inputs are absolute (node positions, rotation matrices, offsets), and ``H`` is the Hessian in
+    the chart *at* that state, so one derivative along ``da`` covers both a change of the design (the
+    constants and reference offsets) and a move of the equilibrium, without any change of chart.
+    Input ``[a, da]`` (2 x 57), output ``[dg, dH, de]`` (162).
+    """
+    a, d, L, e = _beam_expr()
+    da = ca.SX.sym("da", a.numel())
+    g = ca.gradient(L, d)
+    out = ca.vertcat(g, ca.vec(ca.jacobian(g, d)), e)
+    dout = ca.substitute(ca.jtimes(out, a, da), d, ca.DM.zeros(12))
+    return ca.Function("flexopt_beam_jvp", [ca.vertcat(a, da)], [dout])
+
+
+#: Layout of :func:`beam_segment_design`'s output: constants (l0, E0 9 column-major, k1, k2, ky, kz, ct),
+#: mass, lumped rotary inertia (9), stress data (A, Iy, Iz, cy, cz, tau per torque, l0).
+SEGMENT_OUT = 15 + 1 + 9 + 7
+#: Continuous inputs of :func:`beam_segment_design`: p (3), q (3), y_axis (3), width, thickness, E, G, density.
+SEGMENT_IN = 14
+
+
+@lru_cache(maxsize=None)
+def beam_segment_design(warping: str) -> ca.Function:
+    """Constants of a rectangular beam segment and their exact Jacobian with respect to the member's
+    geometry, section and material: ``[x (14), n] -> [out (32), d out / d x (32 x 14)]``.
+
+    Built from the same formulas the numeric model uses (:func:`model.sections.rectangular_properties`,
+    :func:`model.sections.beam_segment`) evaluated on symbols, so numbers and derivatives cannot disagree.
+    """
+    from .sections import beam_segment, rectangular_properties
+
+    x = ca.SX.sym("x", SEGMENT_IN)
+    n = ca.SX.sym("n")
+    p, q, y = x[0:3], x[3:6], x[6:9]
+    w, t, E, G, rho = x[9], x[10], x[11], x[12], x[13]
+    props = rectangular_properties(w, t, warping)
+    seg = beam_segment([p[i] for i in range(3)], [q[i] for i in range(3)], [y[i] for i in range(3)], props,
+                       E, G, rho, n)
+    E0 = seg["E0"]
+    rot = seg["rot"]
+    out = ca.vertcat(
+        seg["l0"], *[E0[i][j] for j in range(3) for i in range(3)],
+        seg["k1"], seg["k2"], seg["ky"], seg["kz"], props.ct, seg["mass"],
+        *[rot[i][j] for j in range(3) for i in range(3)],
+        props.A, props.Iy, props.Iz, props.cy, props.cz, props.tau_per_torque, seg["l0"],
+    )
+    assert out.numel() == SEGMENT_OUT
+    return ca.Function("flexopt_segment_" + warping, [x, n], [out, ca.jacobian(out, x)])
+
+
+@lru_cache(maxsize=None)
+def beam_von_mises() -> ca.Function:
+    """Von Mises bound at both ends of a beam segment from its generalised stresses and section data.
+
+    Input ``[sig (6), data (7: A, Iy, Iz, cy, cz, tau per torque, l0)]``; output the two end values and
+    their Jacobian (2 x 13). End moments are ``l0 sig_3..6``, torque ``l0 sig_2``, axial force ``sig_1``;
+    per end ``sqrt((|N|/A + |My| cz/Iy + |Mz| cy/Iz)^2 + 3 tau^2)``: the extreme normal stresses added to
+    the largest torsional shear stress (conservative: they need not occur at the same fibre).
+    """
+    z = ca.SX.sym("z", 13)
+    sig, (A, Iy, Iz, cy, cz, tau, l0) = z[0:6], [z[6 + i] for i in range(7)]
+    N = ca.fabs(sig[0]) / A
+    T = ca.fabs(l0 * sig[1]) * tau
+    ends = [ca.sqrt((N + ca.fabs(l0 * sig[iy]) * cz / Iy + ca.fabs(l0 * sig[iz]) * cy / Iz) ** 2 + 3 * T**2)
+            for iy, iz in ((2, 4), (3, 5))]
+    vm = ca.vertcat(*ends)
+    return ca.Function("flexopt_von_mises", [z], [vm, ca.jacobian(vm, z)])

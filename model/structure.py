@@ -18,7 +18,7 @@ import numpy as np
 from .elements import BEAM_CONST, TRUSS_CONST
 from .errors import ModelSizeError, SceneError
 from .scene import Beam, Scene, Truss, expand_modes
-from .sections import section_properties, warping_factor
+from .sections import beam_segment, section_properties
 
 __all__ = ["Structure", "compile_scene", "MAX_DOFS"]
 
@@ -170,36 +170,32 @@ def compile_scene(scene: Scene) -> Structure:  # noqa: C901 - a straight sequenc
         assert isinstance(el, Beam)
         props = section_properties(el.section)
         warping.append(props.warping)
-        GJ = mat.G * props.J * warping_factor(mat.E, mat.G, props, L, props.warping)
-        ex = (q - p) / L
-        y = np.array(el.y_axis, dtype=float)
-        ey = _unit(y - (y @ ex) * ex)
-        E0 = np.column_stack([ex, ey, np.cross(ex, ey)])
+        seg = beam_segment(p, q, el.y_axis, props, mat.E, mat.G, mat.density, el.segments)
+        E0 = np.array(seg["E0"], dtype=float)
         n = el.segments
         chain = [node_index[p_name]]
         for i in range(1, n):
             chain.append(add_node(f"{el.name}#{i}", p + (q - p) * i / n, None))
         chain.append(node_index[q_name])
-        l0 = L / n
+        l0 = float(seg["l0"])
         rigid = expand_modes(el.rigid)
         mask = np.ones(6)
         mask[list(rigid)] = 0.0
+        k1, k2, ky, kz = (float(seg[k]) for k in ("k1", "k2", "ky", "kz"))
         S = np.zeros((6, 6))
-        S[0, 0] = mat.E * props.A / l0
-        S[1, 1] = GJ / l0**3
-        S[2:4, 2:4] = mat.E * props.Iy / l0**3 * np.array([[4.0, -2.0], [-2.0, 4.0]])
-        S[4:6, 4:6] = mat.E * props.Iz / l0**3 * np.array([[4.0, -2.0], [-2.0, 4.0]])
-        const = np.concatenate([[l0], E0.ravel(order="F"),
-                                [S[0, 0], S[1, 1], mat.E * props.Iy / l0**3, mat.E * props.Iz / l0**3,
-                                 props.ct], mask])
+        S[0, 0] = k1
+        S[1, 1] = k2
+        S[2:4, 2:4] = ky * np.array([[4.0, -2.0], [-2.0, 4.0]])
+        S[4:6, 4:6] = kz * np.array([[4.0, -2.0], [-2.0, 4.0]])
+        const = np.concatenate([[l0], E0.ravel(order="F"), [k1, k2, ky, kz, float(props.ct)], mask])
         assert const.size == BEAM_CONST
         nan = float("nan")
         stress = [props.A, props.Iy, props.Iz, props.cy or nan, props.cz or nan,
                   props.tau_per_torque or nan, l0]
-        rot = mat.density * l0 / 2.0 * (E0 @ np.diag([props.Iy + props.Iz, props.Iy, props.Iz]) @ E0.T)
+        rot = np.array(seg["rot"], dtype=float)
         for a_, b_ in zip(chain[:-1], chain[1:]):
             beam_rows.append(dict(nodes=(a_, b_), member=ie, const=const, S=S, mask=mask, stress=stress,
-                                  mass=mat.density * props.A * l0, rot=rot))
+                                  mass=float(seg["mass"]), rot=rot))
 
     for i, name in enumerate(node_names):
         if name in pos0 and name not in used:

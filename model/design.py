@@ -1,0 +1,405 @@
+"""Design sensitivities: exact derivatives of stroke-point frequencies and stresses with respect to the
+named parameters of a template.
+
+Chain of exact derivatives (no finite differences anywhere):
+
+1. *Template -> scene numbers.* The template function is called with CasADi symbols for the design
+   parameters (templates use casadi's scalar maths, which also accepts floats), and every number of the
+   scene dictionary is differentiated by ``ca.jacobian``: ``dS/dp``, one scene-shaped dictionary per
+   parameter.
+2. *Scene -> structure arrays.* Each beam segment's constants, mass and rotary inertia come from
+   :func:`model.elements.beam_segment_design`, the same formulas ``compile_scene`` evaluates, with their
+   exact Jacobian; node positions are linear in the scene's (interior mesh nodes ``p + (q - p) i/n``).
+3. *Structure -> equilibrium.* At an equilibrium ``g(xi, p) = 0`` with the drive prescribed, the implicit
+   function theorem gives ``(H + C)_ff dxi_f = -dg_f/dp`` (``C`` the chart term of the exact Newton
+   Jacobian, :meth:`model.assembly.System._chart_correction`), where ``dg/dp`` at a fixed state is the
+   derivative of the element gradients along the change of their packed inputs (constants, reference
+   offsets, supported positions), from :func:`model.elements.beam_input_jvp`.
+4. *Equilibrium -> eigenvalues.* The kernels' inputs are absolute (positions, rotation matrices) and their
+   Hessian is taken in the chart at that state, so ``dK/dp`` is one directional derivative of the
+   element Hessians along the *total* input change (design plus the equilibrium's move ``dxi``: node
+   ``dx = u + psi x r``, ``dR = [psi] R``), and ``dM/dp`` differentiates the mass formulas of
+   :meth:`model.assembly.System.mass` term by term. For a mass-normalised mode,
+   ``d lambda = phi^T (dK - lambda dM) phi``. A (nearly) repeated eigenvalue (relative gap below
+   ``cluster_gap``) gets the derivative of the cluster's mean, ``trace(Phi^T (dK - lambda dM) Phi)/k``:
+   exact for the mean, and exact for every member while the pair stays degenerate, as it does by
+   symmetry in the symmetric hinges; never a division by the gap.
+5. *Stresses.* ``d sigma = dS eps + S d eps`` with ``d eps`` from the same directional derivative, through
+   the von Mises bound of :func:`model.elements.beam_von_mises` and its CasADi Jacobian.
+
+Scope: beams with rectangular sections and rigid bodies (what the hinge families are made of), without
+rigid deformations (no multipliers). Other scenes get a clear error.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from . import elements as _el
+from .analysis import beam_sigma
+from .assembly import System
+from .errors import FlexoptError
+from .modal import Modes
+from .rotations import skew
+from .scene import Beam, RectangularSection, Scene
+from .statics import Equilibrium
+from .structure import Structure
+from .templates import TEMPLATES, template
+
+__all__ = ["DesignScene", "trace_template", "StructureDerivative", "structure_derivative", "PointSensitivity",
+           "point_sensitivity"]
+
+
+# ----------------------------------------------------------------------------- 1. template -> scene
+@dataclass(frozen=True)
+class DesignScene:
+    """A template evaluated at a design, with the derivative of its scene numbers."""
+
+    name: str
+    design: tuple[str, ...]  # design parameter names, in gradient order
+    values: np.ndarray  # (np,) their values
+    params: dict  # all template parameters
+    scene: Scene
+    scene_dict: dict  # the template's scene dictionary (numbers)
+    dscene: tuple[dict, ...]  # per design parameter: the scene dictionary's derivative (same shape)
+
+
+def _leaves(obj, out: list) -> None:
+    if isinstance(obj, dict):
+        for v in obj.values():
+            _leaves(v, out)
+    elif isinstance(obj, (list, tuple)):
+        for v in obj:
+            _leaves(v, out)
+    elif isinstance(obj, ca.SX) or (isinstance(obj, (int, float)) and not isinstance(obj, bool)):
+        out.append(obj)
+
+
+def _rebuild(obj, it):
+    if isinstance(obj, dict):
+        return {k: _rebuild(v, it) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_rebuild(v, it) for v in obj]
+    if isinstance(obj, ca.SX) or (isinstance(obj, (int, float)) and not isinstance(obj, bool)):
+        return float(next(it))
+    return obj
+
+
+def trace_template(name: str, params: dict, design: Sequence[str]) -> DesignScene:
+    """Evaluate template ``name`` at ``params`` and differentiate its scene with respect to ``design``.
+
+    Raises
+    ------
+    SceneError
+        Unknown template or parameter, or an invalid scene.
+    """
+    fn, defaults = TEMPLATES[name] if name in TEMPLATES else (None, None)
+    scene = template(name, **params)  # validates names and values with the template's own errors
+    assert fn is not None and defaults is not None
+    full = dict(defaults)
+    full.update(params)
+    for k in design:
+        if k not in full:
+            raise FlexoptError(f"design.{k}: template '{name}' has no parameter '{k}'; "
+                               f"its parameters are {sorted(full)}")
+    sym = ca.SX.sym("p", len(design))
+    traced = dict(full)
+    for i, k in enumerate(design):
+        traced[k] = sym[i]
+    leaves: list = []
+    _leaves(fn(traced), leaves)
+    values = np.array([float(full[k]) for k in design])
+    J = ca.Function("dscene", [sym], [ca.jacobian(ca.vertcat(*[ca.SX(v) for v in leaves]), sym)])(
+        values).full().reshape(len(leaves), len(design))
+    numeric = fn(full)
+    dscene = tuple(_rebuild(numeric, iter(J[:, j])) for j in range(len(design)))
+    return DesignScene(name, tuple(design), values, full, scene, numeric, dscene)
+
+
+# ------------------------------------------------------------------------- 2. scene -> structure
+@dataclass(frozen=True)
+class StructureDerivative:
+    """Derivative of the design-dependent arrays of a :class:`Structure` along one design direction."""
+
+    beam_const: np.ndarray  # (nb, 21); the mask entries are 0
+    beam_mass: np.ndarray  # (nb,)
+    beam_stress: np.ndarray  # (nb, 7)
+    node_rot_inertia: np.ndarray  # (nn, 3, 3)
+    node_offset: np.ndarray  # (nn, 3) reference offsets from the masters
+    master_pos: np.ndarray  # (nm, 3) reference positions of the masters
+    master_mass: np.ndarray  # (nm,)
+    master_inertia: np.ndarray  # (nm, 3, 3)
+
+
+def _check_scope(s: Structure) -> None:
+    bad = [e.name for e in s.scene.elements
+           if not (isinstance(e, Beam) and isinstance(e.section, RectangularSection))]
+    if bad or len(s.constraints):
+        what = (f"elements {bad} are not beams with rectangular sections" if bad
+                else "some deformations are rigid (multipliers)")
+        raise FlexoptError(f"design sensitivities cover beams with rectangular sections and rigid bodies "
+                           f"without rigid deformations; in scene '{s.scene.name}' {what}: optimise a "
+                           "family built from rectangular leaves and bodies")
+
+
+def _segment_input(scene_dict: dict, ie: int, pos: dict, mats: dict) -> tuple[np.ndarray, float, str]:
+    el = scene_dict["elements"][ie]
+    sec = el["section"]
+    m = mats[el["material"]]
+    p, q = el["nodes"]
+    x = np.concatenate([pos[p], pos[q], np.asarray(el["y_axis"], float),
+                        [sec["width"], sec["thickness"], m["E"], m["G"], m["density"]]]).astype(float)
+    return x, float(el.get("segments", 1)), sec.get("warping", "free")
+
+
+def structure_derivative(s: Structure, scene_dict: dict, dscene: dict) -> StructureDerivative:
+    """Derivative of the structure arrays of ``scene_dict`` along ``dscene`` (see :class:`DesignScene`)."""
+    _check_scope(s)
+    pos = {n["name"]: np.asarray(n["position"], float) for n in scene_dict["nodes"]}
+    dpos = {n["name"]: np.asarray(d["position"], float) for n, d in zip(scene_dict["nodes"], dscene["nodes"])}
+    mats = {m["name"]: m for m in scene_dict["materials"]}
+    dmats = {m["name"]: d for m, d in zip(scene_dict["materials"], dscene["materials"])}
+    el_index = {e["name"]: i for i, e in enumerate(scene_dict["elements"])}
+    nb, nn, nm = s.n_beams, len(s.node_names), len(s.master_names)
+
+    # node positions: scene nodes, then interior mesh nodes "element#i" at p + (q - p) i / n
+    dnode = np.zeros((nn, 3))
+    for k, name in enumerate(s.node_names):
+        if name in dpos:
+            dnode[k] = dpos[name]
+        else:
+            el_name, i = name.rsplit("#", 1)
+            el = scene_dict["elements"][el_index[el_name]]
+            a, b = el["nodes"]
+            dnode[k] = dpos[a] + (dpos[b] - dpos[a]) * int(i) / int(el["segments"])
+    bodies = scene_dict.get("bodies", []) or []
+    dbodies = dscene.get("bodies", []) or []
+    dmaster = np.zeros((nm, 3))
+    dmass = np.zeros(nm)
+    dJ = np.zeros((nm, 3, 3))
+    for i, (b, db) in enumerate(zip(bodies, dbodies)):
+        dmaster[i] = np.asarray(db["center_of_mass"], float)
+        dmass[i] = float(db["mass"])
+        dJ[i] = np.asarray(db["inertia"], float)
+    own = s.node_master >= len(bodies)
+    dmaster[s.node_master[own]] = dnode[own]
+    doffset = dnode - dmaster[s.node_master]
+
+    dconst = np.zeros((nb, _el.BEAM_CONST))
+    dbmass = np.zeros(nb)
+    dstress = np.zeros((nb, 7))
+    drot = np.zeros((nb, 3, 3))
+    for ie in np.unique(s.beam_member):
+        rows = np.flatnonzero(s.beam_member == ie)
+        x, n, warping = _segment_input(scene_dict, int(ie), pos, mats)
+        el = dscene["elements"][ie]
+        p, q = scene_dict["elements"][ie]["nodes"]
+        dm = dmats[scene_dict["elements"][ie]["material"]]
+        dx = np.concatenate([dpos[p], dpos[q], np.asarray(el["y_axis"], float),
+                             [el["section"]["width"], el["section"]["thickness"], dm["E"], dm["G"],
+                              dm["density"]]]).astype(float)
+        _, J = _el.beam_segment_design(warping)(x, n)
+        d = np.asarray(J) @ dx
+        dconst[rows, :15] = d[:15]
+        dbmass[rows] = d[15]
+        drot[rows] = d[16:25].reshape(3, 3, order="F")
+        dstress[rows] = d[25:32]
+    dnrot = np.zeros((nn, 3, 3))
+    np.add.at(dnrot, s.beam_nodes[:, 0], drot)
+    np.add.at(dnrot, s.beam_nodes[:, 1], drot)
+    return StructureDerivative(dconst, dbmass, dstress, dnrot, doffset, dmaster, dmass, dJ)
+
+
+# --------------------------------------------------------------------- 3-5. equilibrium, modes, stress
+@dataclass(frozen=True)
+class PointSensitivity:
+    """Derivatives at one equilibrium along each design direction."""
+
+    dlam: np.ndarray  # (np, k) d lambda_i / dp of the given modes [1/s^2 per parameter unit]
+    dvm: np.ndarray  # (np, nb, 2) d(von Mises at each segment end) / dp [Pa per parameter unit]
+    vm: np.ndarray  # (nb, 2) von Mises at each segment end [Pa]
+    dxi: np.ndarray  # (np, n) move of the equilibrium (drive basis)
+    dreaction: np.ndarray  # (np,) derivative of the actuator's force or moment along the drive
+
+
+def _beam_inputs_change(sys: System, st, u: np.ndarray, psi: np.ndarray, dr0: np.ndarray) -> np.ndarray:
+    """Change of the beams' state inputs for master moves ``u``, rotations ``psi`` (nm, 3) and reference
+    offset changes ``dr0`` (nn, 3); positions of prescribed masters are in ``u``."""
+    s = sys.s
+    m = s.node_master
+    Rm = st.R[m]
+    r = np.einsum("nij,nj->ni", Rm, s.node_offset)
+    dr = np.cross(psi[m], r) + np.einsum("nij,nj->ni", Rm, dr0)
+    dx = u[m] + dr
+    dR = skew(psi[m]) @ Rm
+    p, q = s.beam_nodes[:, 0], s.beam_nodes[:, 1]
+    out = np.zeros((s.n_beams, _el.BEAM_STATE))
+    out[:, 0:3], out[:, 12:15], out[:, 15:18], out[:, 27:30] = dx[p], dr[p], dx[q], dr[q]
+    out[:, 3:12] = dR[p].transpose(0, 2, 1).reshape(-1, 9)
+    out[:, 18:27] = dR[q].transpose(0, 2, 1).reshape(-1, 9)
+    return out
+
+
+def _jvp(sys: System, st, da_state: np.ndarray, dconst: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Assembled ``dg`` (n), ``dH`` (n, n) and per-beam ``de`` (nb, 6) along a change of the beam inputs."""
+    s, N = sys.s, sys.N
+    sys._fill_inputs(st)
+    a = sys.beam_in
+    da = np.zeros_like(a)
+    da[:, : _el.BEAM_STATE] = da_state
+    da[:, _el.BEAM_STATE : _el.BEAM_STATE + _el.BEAM_CONST] = dconst
+    out = _jvp_map(s.n_beams)(np.hstack([a, da]).T).full().T
+    g = np.bincount(sys.beam_dofs.ravel(), out[:, :12].ravel(), minlength=N)
+    H = np.bincount(sys.beam_flat, out[:, 12:156].ravel(), minlength=N * N).reshape(N, N)
+    return sys._reduce_vec(g), sys._reduce_mat(H), out[:, 156:162]
+
+
+_JVP_MAPS: dict[int, ca.Function] = {}
+
+
+def _jvp_map(n: int) -> ca.Function:
+    if n not in _JVP_MAPS:
+        _JVP_MAPS[n] = _el.beam_input_jvp().map(n)
+    return _JVP_MAPS[n]
+
+
+def _mass_derivative(sys: System, st, psi: np.ndarray, d: StructureDerivative) -> np.ndarray:
+    """``dM`` for master rotations ``psi`` (nm, 3) and the design change ``d`` (terms of System.mass)."""
+    s, N = sys.s, sys.N
+    m = s.node_master
+    Rm = st.R[m]
+    r = np.einsum("nij,nj->ni", Rm, s.node_offset)
+    dr = np.cross(psi[m], r) + np.einsum("nij,nj->ni", Rm, d.node_offset)
+    out = np.zeros(N * N)
+    if s.n_beams:
+        nodes = s.beam_nodes
+        T = np.zeros((len(nodes), 2, 3, 6))
+        T[..., :3] = np.eye(3)
+        T[..., 3:] = -skew(r[nodes])
+        dT = np.zeros_like(T)
+        dT[..., 3:] = -skew(dr[nodes])
+        blocks = (np.einsum("e,ab,eaik,ebil->eakbl", d.beam_mass, sys.mcoef, T, T)
+                  + np.einsum("e,ab,eaik,ebil->eakbl", s.beam_mass, sys.mcoef, dT, T)
+                  + np.einsum("e,ab,eaik,ebil->eakbl", s.beam_mass, sys.mcoef, T, dT))
+        out += np.bincount(sys.beam_flat, blocks.ravel(), minlength=N * N)
+    nm = len(s.master_names)
+    diag = sys.pos[(6 * np.arange(nm)[:, None] + np.arange(3)).ravel()]
+    np.add.at(out, diag * (N + 1), np.repeat(d.master_mass, 3))
+    dRn = skew(psi[m]) @ Rm
+    dJn = (dRn @ s.node_rot_inertia @ Rm.transpose(0, 2, 1) + Rm @ d.node_rot_inertia @ Rm.transpose(0, 2, 1)
+           + Rm @ s.node_rot_inertia @ dRn.transpose(0, 2, 1))
+    dJm = np.zeros((nm, 3, 3))
+    np.add.at(dJm, m, dJn)
+    dRb = skew(psi) @ st.R
+    dJm += (dRb @ s.master_inertia @ st.R.transpose(0, 2, 1) + st.R @ d.master_inertia @ st.R.transpose(0, 2, 1)
+            + st.R @ s.master_inertia @ dRb.transpose(0, 2, 1))
+    np.add.at(out, sys._rot_flat, dJm.ravel())
+    out[(N - 1) * (N + 1)] = 0.0
+    return sys._reduce_mat(out.reshape(N, N))
+
+
+def _stiffness(k: np.ndarray) -> np.ndarray:
+    """Constitutive matrices (nb, 6, 6) from the stiffness constants ``k1, k2, ky, kz`` (nb, 4)."""
+    S = np.zeros((len(k), 6, 6))
+    S[:, 0, 0], S[:, 1, 1] = k[:, 0], k[:, 1]
+    B = np.array([[4.0, -2.0], [-2.0, 4.0]])
+    S[:, 2:4, 2:4] = k[:, 2, None, None] * B
+    S[:, 4:6, 4:6] = k[:, 3, None, None] * B
+    return S
+
+
+def point_sensitivity(sys: System, eq: Equilibrium, modes: Modes, which: Sequence[int],
+                      dstructs: Sequence[StructureDerivative], cluster_gap: float = 1e-6) -> PointSensitivity:
+    """Exact derivatives of the eigenvalues ``modes.omega2[which]`` (drive locked or free, as the scene says) and of the segment-end
+    von Mises stresses at ``eq`` along each design direction (module docstring, steps 3-5).
+
+    Raises
+    ------
+    FlexoptError
+        When the locked tangent stiffness is singular (the equilibrium is at a limit point).
+    """
+    s = sys.s
+    _check_scope(s)
+    st, ev = eq.state, eq.ev
+    n, f = sys.n, sys.free
+    nm = len(s.master_names)
+    A = ev.H if ev.chart is None else ev.H + ev.chart
+    dd = sys.drive_gradient(st)
+    Jb = np.zeros((len(f) + 1, n))
+    Jb[: len(f)] = A[f]
+    Jb[len(f)] = dd
+    try:
+        lu = np.linalg.inv(Jb)
+    except np.linalg.LinAlgError as exc:
+        raise FlexoptError(f"the tangent stiffness is singular at stroke {eq.stroke:.6g}: the equilibrium is at "
+                           "a limit point, where design derivatives do not exist; shorten the stroke") from exc
+    which = np.asarray(which, dtype=int)
+    locked = s.scene.stroke.drive == "locked"  # the eigenproblem of model.modal.modes_at
+    dofs, ix = (f, sys.ix_free) if locked else (np.arange(n), sys.ix_all)
+    lam = modes.omega2[which]
+    phi = modes.phi[:, which]
+    # clusters of (nearly) repeated eigenvalues among ``which``
+    order = np.argsort(lam)
+    groups: list[list[int]] = []
+    for i in order:
+        if groups and abs(lam[i] - lam[groups[-1][-1]]) <= cluster_gap * max(abs(lam[i]), 1e-300):
+            groups[-1].append(int(i))
+        else:
+            groups.append([int(i)])
+    act = np.zeros((nm, 6), dtype=bool)
+    act.reshape(-1)[sys.act_full] = True
+    sig = beam_sigma(s, sys, eq)
+    z = np.hstack([sig, s.beam_stress])
+    vm_out = _von_mises_jac(len(z))(z.T)
+    vm = vm_out[0].full().T
+    Jvm = vm_out[1].full().T.reshape(len(z), 13, 2).transpose(0, 2, 1)  # (nb, 2, 13)
+    dlam = np.zeros((len(dstructs), len(which)))
+    dvm = np.zeros((len(dstructs), s.n_beams, 2))
+    dxis = np.zeros((len(dstructs), n))
+    dreac = np.zeros(len(dstructs))
+    for j, d in enumerate(dstructs):
+        # prescribed master positions move with the reference (supports; a translation drive below)
+        u_pres = np.where(act[:, :3], 0.0, d.master_pos)
+        da_design = _beam_inputs_change(sys, st, u_pres, np.zeros((nm, 3)), d.node_offset)
+        dg, _, _ = _jvp(sys, st, da_design, d.beam_const)
+        rhs = np.zeros(len(f) + 1)
+        rhs[: len(f)] = -dg[f]
+        if s.drive_kind == "translation":
+            rhs[-1] = float(d.master_pos[s.drive_master] @ s.drive_axis)
+        dxi = lu @ rhs
+        v = sys.to_global(dxi).reshape(nm, 6)
+        da_total = da_design + _beam_inputs_change(sys, st, v[:, :3], v[:, 3:], np.zeros_like(d.node_offset))
+        _, dH, de = _jvp(sys, st, da_total, d.beam_const)
+        dM = _mass_derivative(sys, st, v[:, 3:], d)
+        dK, dMf = dH[ix], dM[ix]
+        pf = phi[dofs]
+        for g_ in groups:
+            P = pf[:, g_]
+            if len(g_) == 1:
+                i = g_[0]
+                dlam[j, i] = P[:, 0] @ (dK - lam[i] * dMf) @ P[:, 0]
+            else:
+                lc = float(np.mean(lam[g_]))
+                dlam[j, g_] = np.trace(P.T @ (dK - lc * dMf) @ P) / len(g_)
+        dS = _stiffness(d.beam_const[:, 10:14])
+        e_m = ev.e_beam * s.beam_mask
+        dsig = np.einsum("eij,ej->ei", dS, e_m) + np.einsum("eij,ej->ei", s.beam_stiff, de * s.beam_mask)
+        dz = np.hstack([dsig, d.beam_stress])
+        dvm[j] = np.einsum("ekz,ez->ek", Jvm, dz)
+        dxis[j] = dxi
+        # reaction = g at the drive DOF: its change at fixed state plus along the equilibrium's move
+        dreac[j] = dg[sys.drive] + A[sys.drive] @ dxi
+    return PointSensitivity(dlam, dvm, vm, dxis, dreac)
+
+
+_VM_JAC: dict[int, ca.Function] = {}
+
+
+def _von_mises_jac(n: int) -> ca.Function:
+    if n not in _VM_JAC:
+        _VM_JAC[n] = _el.beam_von_mises().map(n)
+    return _VM_JAC[n]
