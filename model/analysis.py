@@ -10,12 +10,12 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
 from .assembly import System
-from .elements import beam_von_mises
+from .elements import von_mises_spec
+from .kernels import compiled
 from .modal import Modes, modes_at, participation, track
 from .results import Failure, FrequencyCurve
 from .scene import Scene
@@ -46,12 +46,7 @@ def beam_sigma(structure: Structure, sys: System, eq: Equilibrium) -> np.ndarray
 def beam_end_stresses(structure: Structure, sys: System, eq: Equilibrium) -> np.ndarray:
     """Von Mises bound at both ends of every beam segment (nb, 2) [Pa]."""
     z = np.hstack([beam_sigma(structure, sys, eq), structure.beam_stress])
-    return np.asarray(_von_mises_map(len(z))(z.T)[0]).T
-
-
-@lru_cache(maxsize=64)
-def _von_mises_map(n: int):
-    return beam_von_mises().map(n)
+    return compiled(von_mises_spec())(z)
 
 
 def von_mises(structure: Structure, sys: System, eq: Equilibrium) -> np.ndarray:

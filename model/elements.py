@@ -289,6 +289,16 @@ def beam_segment_design(warping: str) -> ca.Function:
     return ca.Function("flexopt_segment_" + warping, [x, n], [out, ca.jacobian(out, x)])
 
 
+def _von_mises_expr() -> tuple[ca.SX, ca.SX]:
+    z = ca.SX.sym("z", 13)
+    sig, (A, Iy, Iz, cy, cz, tau, l0) = z[0:6], [z[6 + i] for i in range(7)]
+    N = ca.fabs(sig[0]) / A
+    T = ca.fabs(l0 * sig[1]) * tau
+    ends = [ca.sqrt((N + ca.fabs(l0 * sig[iy]) * cz / Iy + ca.fabs(l0 * sig[iz]) * cy / Iz) ** 2 + 3 * T**2)
+            for iy, iz in ((2, 4), (3, 5))]
+    return z, ca.vertcat(*ends)
+
+
 @lru_cache(maxsize=None)
 def beam_von_mises() -> ca.Function:
     """Von Mises bound at both ends of a beam segment from its generalised stresses and section data.
@@ -298,11 +308,12 @@ def beam_von_mises() -> ca.Function:
     per end ``sqrt((|N|/A + |My| cz/Iy + |Mz| cy/Iz)^2 + 3 tau^2)``: the extreme normal stresses added to
     the largest torsional shear stress (conservative: they need not occur at the same fibre).
     """
-    z = ca.SX.sym("z", 13)
-    sig, (A, Iy, Iz, cy, cz, tau, l0) = z[0:6], [z[6 + i] for i in range(7)]
-    N = ca.fabs(sig[0]) / A
-    T = ca.fabs(l0 * sig[1]) * tau
-    ends = [ca.sqrt((N + ca.fabs(l0 * sig[iy]) * cz / Iy + ca.fabs(l0 * sig[iz]) * cy / Iz) ** 2 + 3 * T**2)
-            for iy, iz in ((2, 4), (3, 5))]
-    vm = ca.vertcat(*ends)
+    z, vm = _von_mises_expr()
     return ca.Function("flexopt_von_mises", [z], [vm, ca.jacobian(vm, z)])
+
+
+@lru_cache(maxsize=None)
+def von_mises_spec() -> KernelSpec:
+    """The values of :func:`beam_von_mises` as a compiled kernel (the curve evaluates it at every point)."""
+    z, vm = _von_mises_expr()
+    return KernelSpec("flexopt_von_mises_value", ca.Function("flexopt_von_mises_value", [z], [vm]), 13, 2, 6, 6, 7)
