@@ -132,6 +132,8 @@ def _parser() -> argparse.ArgumentParser:
     _add_diagnose(sub)
     from .cli_serve import add_parser as _add_serve  # HTTP service; uvicorn loads only on run
     _add_serve(sub)
+    from .cli_optimise import add_parser as _add_optimise  # optimisation batch; optim loads only on run
+    _add_optimise(sub)
     return p
 
 

@@ -103,3 +103,29 @@ def test_two_parameter_pivot_optimum_beats_a_grid_search():
                 grid_best = max(grid_best, float(np.min(c.parasitic_hz)))
     assert grid_best > 0
     assert best["verified"]["worst_hz"] >= grid_best * (1 - 5e-3), (best["verified"]["worst_hz"], grid_best)
+
+
+def test_cli_optimise_prints_the_ranking_and_writes_scenes(tmp_path, capsys):
+    import json
+
+    from service.cli import main
+
+    spec = tmp_path / "spec.json"
+    spec.write_text(json.dumps(LEAF))
+    assert main(["optimise", str(spec), "--workers", "1", "--scenes", str(tmp_path / "out"), "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["ranking"][0]["template"] == "leaf-spring"
+    scene = json.loads((tmp_path / "out" / "leaf-spring.json").read_text())
+    assert scene["elements"][0]["section"]["thickness"] == pytest.approx(6e-4, rel=1e-6)
+
+
+def test_cli_optimise_bad_spec_is_one_line_naming_the_field(tmp_path, capsys):
+    import json
+
+    from service.cli import main
+
+    spec = tmp_path / "spec.json"
+    spec.write_text(json.dumps({**LEAF, "samples": 1}))
+    assert main(["optimise", str(spec)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "samples" in err, err

@@ -1,0 +1,117 @@
+"""``flexopt optimise``: maximise the worst-case first parasitic frequency over the stroke (optim/).
+
+Registered by service.cli through :func:`add_parser`; imports optim lazily.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+__all__ = ["add_parser", "plot_result"]
+
+
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Add the ``optimise`` subcommand to an argparse subparsers object."""
+    o = subparsers.add_parser("optimise", help="optimise hinge families for the worst-case parasitic frequency")
+    o.add_argument("spec", help="problem JSON (format flexopt-problem, see optim/problem.py)")
+    o.add_argument("--workers", type=int, default=None, help="local worker processes (default: CPU count)")
+    o.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://host:8786")
+    o.add_argument("--store", metavar="DIR", help="write each finished case here; rerun to resume")
+    o.add_argument("--json", action="store_true", help="print the whole result as JSON")
+    o.add_argument("--plot", metavar="FILE.png", help="frequency against stroke before and after, per family")
+    o.add_argument("--scenes", metavar="DIR", help="write the scene JSON of each family's optimum here")
+    o.set_defaults(func=_cmd_optimise)
+    return o
+
+
+def _first_error(exc: Exception) -> str:
+    errs = getattr(exc, "errors", None)
+    if callable(errs):
+        e = errs()[0]
+        loc = ".".join(str(p) for p in e.get("loc", ()))
+        return f"{loc or 'spec'}: {e.get('msg')}"
+    return str(exc)
+
+
+def _cmd_optimise(args: argparse.Namespace) -> int:
+    from pydantic import ValidationError
+
+    from optim import Problem, optimise
+
+    try:
+        raw = json.loads(Path(args.spec).read_text())
+    except OSError as exc:
+        raise ValueError(f"cannot read '{args.spec}': {exc.strerror}") from exc
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"'{args.spec}' is not JSON: {exc.msg} at line {exc.lineno}") from exc
+    try:
+        prob = Problem.model_validate(raw)
+    except ValidationError as exc:
+        raise ValueError(f"spec.{_first_error(exc)}") from None
+    executor = None
+    if args.scheduler:
+        from optim.batch import dask_executor
+
+        executor = dask_executor(args.scheduler)
+    result = optimise(prob, executor=executor, workers=args.workers, store=args.store)
+    if args.scenes:
+        out = Path(args.scenes)
+        out.mkdir(parents=True, exist_ok=True)
+        for fam in result["families"]:
+            if fam["best"] is not None and "scene" in fam["best"]["verified"]:
+                (out / f"{fam['template']}.json").write_text(json.dumps(fam["best"]["verified"]["scene"], indent=2))
+    if args.plot:
+        plot_result(result, args.plot)
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print(_table(result))
+    return 0 if result["ranking"] else 1
+
+
+def _table(result: dict) -> str:
+    lines = ["rank  family                    worst [Hz]  zero [Hz]  worst/zero  stress/limit  status      design"]
+    ranked = {r["template"]: i + 1 for i, r in enumerate(result["ranking"])}
+    for fam in sorted(result["families"], key=lambda f: ranked.get(f["template"], 99)):
+        b = fam["best"]
+        if b is None:
+            why = "; ".join(f"start {f['start']}: {f['status']} {f['message'] or ''}".strip() for f in fam["failed"])
+            lines.append(f"  -   {fam['template']:<25} no verified design ({why})")
+            continue
+        v = b["verified"]
+        design = ", ".join(f"{k}={val:.4g}" for k, val in b["design"].items())
+        lines.append(f"{ranked[fam['template']]:>4}  {fam['template']:<25} {v['worst_hz']:>10.2f} {v['zero_stroke_hz']:>10.2f}"
+                     f"  {v['ratio']:>10.3f}  {v['stress_ratio']:>12.3f}  {b['status']:<10}  {design}")
+    lines.append(f"verified on {result['problem']['verify_points']} exact stroke points per family; stress limit = "
+                 f"allowable / {result['problem']['safety_factor']}")
+    return "\n".join(lines)
+
+
+def plot_result(result: dict, path: str) -> None:
+    """Frequency against stroke of each family's best start: the starting design and the optimum."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fams = [f for f in result["families"] if f["best"] is not None]
+    fig, axes = plt.subplots(1, max(len(fams), 1), figsize=(4.2 * max(len(fams), 1), 3.4), squeeze=False)
+    for ax, fam in zip(axes[0], fams):
+        b = fam["best"]
+        for key, label, style in (("initial", "start", "--"), ("verified", "optimum", "-")):
+            c = b[key]
+            if c.get("stroke"):
+                ax.plot(c["stroke"], c["parasitic_hz"], style, label=label)
+        ax.set_title(fam["template"], fontsize=9)
+        ax.set_xlabel("stroke")
+        ax.set_ylabel("first parasitic frequency [Hz]")
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    print(f"plot written to {path}", file=sys.stderr)
