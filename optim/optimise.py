@@ -150,6 +150,12 @@ class _Family:
                 rows_g.append((1.0 - abs(r) / prob.max_drive, -np.sign(r) * ps.dreaction * scale / prob.max_drive))
             pts[eq.stroke] = (float(hz[0]), vm)
 
+        if prob.envelope is not None:  # every scene node within a sphere of radius envelope
+            R2 = prob.envelope**2
+            for k, node in enumerate(ds.scene_dict["nodes"]):
+                pos = np.asarray(node["position"], float)
+                dpos = np.array([d["nodes"][k]["position"] for d in ds.dscene], float)  # (np, 3)
+                rows_g.append((1.0 - float(pos @ pos) / R2, -2.0 * (dpos @ pos) * scale / R2))
         curve = an.frequency_curve(stroke=self.samples, visit=visit)
         if curve.status != "complete":
             raise FlexoptError(curve.failures[0].message if curve.failures else "the stroke was not completed")

@@ -67,6 +67,8 @@ class Problem(BaseModel):
                                  "raises the lower bound of every parameter named '*thickness*'")
     max_drive: float | None = Field(default=None, gt=0, description="largest actuation moment [N m] or "
                                     "force [N] along the stroke (optional)")
+    envelope: float | None = Field(default=None, gt=0, description="largest distance of any scene node from "
+                                   "the origin (the hinge centre of the templates) [m] (optional)")
     starts: int = Field(default=4, ge=1, le=64, description="multi-start: starts per family (the first is the "
                         "template's defaults clipped into the bounds, the others a Latin hypercube)")
     seed: int = Field(default=0, ge=0, description="base seed of the Latin hypercube (deterministic)")

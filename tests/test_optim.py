@@ -42,14 +42,14 @@ def test_bad_families_get_a_clear_error(family, words):
 
 
 def test_epigraph_constraint_jacobian_matches_finite_differences():
-    """Every frequency, stress and drive constraint's gradient in the scaled design, against Richardson-
+    """Every frequency, stress, drive and envelope constraint's gradient in the scaled design, against Richardson-
     extrapolated central differences of re-solved designs (steps 4e-3 and 2e-3 of the unit box): the
     truncation error is O(h^4) ~ 1e-9 and the rounding noise of re-solved equilibria and eigenvalues (about
     2e-8 relative) divided by the step stays near 1e-5, so 1e-4 absolute on constraints of order 1 is a
     bound that any missing derivative term (1e-2 or more) exceeds."""
     prob = Problem.model_validate({"families": [{"template": "cross-spring-pivot", "design": {
         "length": [0.03, 0.07], "thickness": [2e-4, 4e-4], "body_offset": [0.0, 0.02]}}],
-        "samples": 5, "max_drive": 1.0})
+        "samples": 5, "max_drive": 1.0, "envelope": 0.06})
     fam = _Family(prob, prob.families[0])
     x = np.array([0.4, 0.5, 0.3])
     ev = fam.evaluate(x)
@@ -129,3 +129,17 @@ def test_cli_optimise_bad_spec_is_one_line_naming_the_field(tmp_path, capsys):
     assert main(["optimise", str(spec)]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "samples" in err, err
+
+
+def test_envelope_limits_the_optimum():
+    """Without an envelope the pivot's best length is the upper bound (bench/bench_optim.py); a 25 mm
+    envelope must stop it at the sphere: the farthest node lies on it (active constraint, to the search
+    tolerance) and never outside."""
+    spec = {"families": [{"template": "cross-spring-pivot",
+                          "design": {"length": [0.03, 0.07], "thickness": [1.5e-4, 4e-4]}}],
+            "starts": 1, "envelope": 0.025}
+    r = run_case(cases(spec)[0])
+    assert r["status"] == "optimal", r["message"]
+    nodes = r["verified"]["scene"]["nodes"]
+    far = max(float(np.linalg.norm(n["position"])) for n in nodes)
+    assert 0.025 * (1 - 1e-3) <= far <= 0.025 * (1 + 1e-6), far
