@@ -7,7 +7,7 @@ from .io import load_scene, scene_from_dict
 from .results import Failure, FrequencyCurve
 from .scene import Scene
 from .structure import MAX_DOFS, compile_scene
-from .templates import TEMPLATES, template, template_parameters
+from .templates import DESIGN_SPACES, TEMPLATES, design_space, template, template_parameters
 
 __all__ = [
     "Analysis",
@@ -29,4 +29,6 @@ __all__ = [
     "TEMPLATES",
     "template",
     "template_parameters",
+    "DESIGN_SPACES",
+    "design_space",
 ]

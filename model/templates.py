@@ -10,10 +10,12 @@ import math
 from collections.abc import Callable
 from typing import Any
 
+import casadi as ca
+
 from .errors import SceneError
 from .scene import Scene
 
-__all__ = ["TEMPLATES", "template", "template_parameters"]
+__all__ = ["TEMPLATES", "DESIGN_SPACES", "design_space", "template", "template_parameters"]
 
 STEEL = dict(E=210e9, G=79e9, density=7800.0, allowable_stress=600e6)
 
@@ -78,18 +80,21 @@ def _parallel_leaf_spring(p: dict) -> dict:
 
 
 def _cross_spring_pivot(p: dict) -> dict:
-    """Two leaves crossing at their midpoints (crossing angle ``angle`` in degrees, symmetric about the
-    y axis) between ground (y < 0) and a moving body (y > 0); the pivot axis is z and the leaves are
-    offset along z by +-(width/2 + gap/2) so they do not intersect. Stroke = body rotation about z."""
-    L, w = p["length"], p["width"]
-    half = math.radians(p["angle"]) / 2.0
+    """Two leaves crossing (crossing angle ``angle`` in degrees, symmetric about the y axis) between ground
+    (y < 0) and a moving body (y > 0); the pivot axis is z through the crossing point, which lies at the
+    fraction ``crossing`` of each leaf's length from its ground end (0.5: the classic pivot crossing at the
+    midpoints; Jensen and Howell's generalised cross-axis pivot varies it). The leaves are offset along z
+    by +-(width/2 + gap/2) so they do not intersect. Stroke = body rotation about z. Traceable (casadi
+    maths on continuous parameters, see model/design.py)."""
+    L, w, lam = p["length"], p["width"], p["crossing"]
+    half = p["angle"] * ca.pi / 360.0
     c = w / 2.0 + p["gap"] / 2.0
-    ux, uy = math.sin(half), math.cos(half)  # leaf A direction (from ground end to body end)
-    a0 = [-ux * L / 2, -uy * L / 2, c]
-    a1 = [ux * L / 2, uy * L / 2, c]
-    b0 = [ux * L / 2, -uy * L / 2, -c]
-    b1 = [-ux * L / 2, uy * L / 2, -c]
-    m, hb = p["body_mass"], uy * L / 2 + p["body_offset"]
+    ux, uy = ca.sin(half), ca.cos(half)  # leaf A direction (from ground end to body end)
+    a0 = [-ux * L * lam, -uy * L * lam, c]
+    a1 = [ux * L * (1 - lam), uy * L * (1 - lam), c]
+    b0 = [ux * L * lam, -uy * L * lam, -c]
+    b1 = [-ux * L * (1 - lam), uy * L * (1 - lam), -c]
+    m, hb = p["body_mass"], uy * L * (1 - lam) + p["body_offset"]
     r = p["body_radius"]
     inertia = [[m * r * r / 2, 0, 0], [0, m * r * r / 2, 0], [0, 0, m * r * r / 2]]
     leaf = lambda name, a, b: {  # noqa: E731
@@ -121,7 +126,7 @@ TEMPLATES: dict[str, tuple[Callable[[dict], dict], dict[str, Any]]] = {
                                                          spacing=0.06, segments=10, body_mass=0.1,
                                                          body_depth=0.01, stroke=0.01)),
     "cross-spring-pivot": (_cross_spring_pivot, dict(_COMMON, length=0.05, width=0.02, thickness=0.3e-3,
-                                                     angle=90.0, gap=0.002, segments=8, body_mass=0.1,
+                                                     angle=90.0, crossing=0.5, gap=0.002, segments=8, body_mass=0.1,
                                                      body_radius=0.02, body_offset=0.01, stroke=45.0)),
 }
 
@@ -298,3 +303,118 @@ TEMPLATES.update({
     "folded-sheet-guide-5": (lambda p: _folded_sheet_guide(p, 5), dict(_FOLDED)),
     "folded-sheet-guide-6": (lambda p: _folded_sheet_guide(p, 6), dict(_FOLDED)),
 })
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Rotational hinge families searched by the optimiser (optim/). All traceable: casadi maths on continuous
+# parameters, so model/design.py can differentiate their scenes. Leaves are steel beams with rectangular
+# sections, width along the hinge axis z; stiff parts are rigid bodies; stroke = rotor rotation about z.
+
+def _rotor(m: float, r: float, com: list, nodes: list[str], name: str = "rotor") -> dict:
+    inertia = [[m * r * r / 2, 0, 0], [0, m * r * r / 2, 0], [0, 0, m * r * r / 2]]
+    return {"name": name, "mass": m, "center_of_mass": com, "inertia": inertia, "nodes": nodes}
+
+
+def _leaf(p: dict, name: str, a: str, b: str, width, segments: int) -> dict:
+    return {"kind": "beam", "name": name, "nodes": [a, b], "material": "steel",
+            "section": {"kind": "rectangular", "width": width, "thickness": p["thickness"], "warping": p["warping"]},
+            "y_axis": [0, 0, 1], "segments": segments}
+
+
+def _hinge(p: dict, name: str, nodes: list, bodies: list, elements: list, supports: list[str]) -> dict:
+    return {"name": name, "materials": [_steel(p)], "nodes": [{"name": k, "position": v} for k, v in nodes],
+            "bodies": bodies, "elements": elements, "supports": [{"node": k} for k in supports],
+            "stroke": {"kind": "rotation", "body": "rotor", "axis": [0, 0, 1], "start": -p["stroke"],
+                       "stop": p["stroke"], "points": int(p["points"])},
+            "modes": int(p["modes"])}
+
+
+def _cartwheel_hinge(p: dict) -> dict:
+    """Cartwheel hinge (monolithic cross-spring pivot; Henein, Aymon, Bottinelli and Clavel, Proc. SPIE 2003,
+    "Fatigue failure of thin wire-electrodischarge machined flexible hinges", and Naves 2017, sec. 2): two
+    leaves of length ``length`` crossing at ``angle`` degrees in one plane (z = 0), rigidly joined at their
+    common midpoint on the hinge axis; the four half-leaves run from the centre to two ground anchors
+    (y < 0) and two rotor anchors (y > 0). Thickness in the plane, width along z."""
+    L, half = p["length"], p["angle"] * ca.pi / 360.0
+    ux, uy = ca.sin(half), ca.cos(half)
+    n = max(int(p["segments"]) // 2, 1)
+    nodes = [("centre", [0.0, 0.0, 0.0]), ("a0", [-ux * L / 2, -uy * L / 2, 0.0]), ("a1", [ux * L / 2, uy * L / 2, 0.0]),
+             ("b0", [ux * L / 2, -uy * L / 2, 0.0]), ("b1", [-ux * L / 2, uy * L / 2, 0.0])]
+    w = p["width"]
+    elements = [_leaf(p, "leafA0", "a0", "centre", w, n), _leaf(p, "leafA1", "centre", "a1", w, n),
+                _leaf(p, "leafB0", "b0", "centre", w, n), _leaf(p, "leafB1", "centre", "b1", w, n)]
+    body = _rotor(p["body_mass"], p["body_radius"], [0, uy * L / 2 + p["body_offset"], 0], ["a1", "b1"])
+    return _hinge(p, "cartwheel-hinge", nodes, [body], elements, ["a0", "b0"])
+
+
+def _three_fold_cross_hinge(p: dict) -> dict:
+    """Three-fold cross hinge (Naves, Brouwer and Aarts, "Building blocks for spatial flexure mechanisms"
+    / Naves 2017, ch. 3): a cross-spring pivot made symmetric along its axis, a middle leaf of width
+    ``2 width`` at z = 0 crossing two outer leaves of width ``width`` at z = +-(1.5 width + gap); the leaves
+    cross at ``angle`` degrees and at the fraction ``crossing`` of their length from the ground end. The
+    symmetry about z = 0 removes the twist coupling of the two-leaf pivot."""
+    L, w, lam, g = p["length"], p["width"], p["crossing"], p["gap"]
+    half = p["angle"] * ca.pi / 360.0
+    ux, uy = ca.sin(half), ca.cos(half)
+    zc = 1.5 * w + g
+    n = int(p["segments"])
+    nodes = [("a0", [-ux * L * lam, -uy * L * lam, 0.0]), ("a1", [ux * L * (1 - lam), uy * L * (1 - lam), 0.0])]
+    for k, z in (("b", zc), ("c", -zc)):
+        nodes += [(k + "0", [ux * L * lam, -uy * L * lam, z]), (k + "1", [-ux * L * (1 - lam), uy * L * (1 - lam), z])]
+    elements = [_leaf(p, "middle", "a0", "a1", 2 * w, n), _leaf(p, "outer1", "b0", "b1", w, n),
+                _leaf(p, "outer2", "c0", "c1", w, n)]
+    body = _rotor(p["body_mass"], p["body_radius"], [0, uy * L * (1 - lam) + p["body_offset"], 0], ["a1", "b1", "c1"])
+    return _hinge(p, "three-fold-cross-hinge", nodes, [body], elements, ["a0", "b0", "c0"])
+
+
+def _double_cross_hinge(p: dict) -> dict:
+    """Two cross-spring pivots in series about one axis, joined by a rigid intermediate body (the principle
+    of the butterfly hinge, Henein et al. 2003: each stage turns half the stroke, and the mirrored second
+    stage cancels the first's centre shift). Stage 1 joins ground (y < 0) to the intermediate body
+    (y > 0) with leaves at z = +-c (c = width/2 + gap/2); stage 2, mirrored, joins the intermediate body
+    (y < 0) to the rotor (y > 0) with leaves at z = +-3c. The intermediate body's own rotation is a real,
+    often the lowest, parasitic mode with the drive locked; its mass is ``mid_mass``."""
+    L, w = p["length"], p["width"]
+    half = p["angle"] * ca.pi / 360.0
+    ux, uy = ca.sin(half), ca.cos(half)
+    c = w / 2.0 + p["gap"] / 2.0
+    n = int(p["segments"])
+    nodes = [("a0", [-ux * L / 2, -uy * L / 2, c]), ("a1", [ux * L / 2, uy * L / 2, c]),
+             ("b0", [ux * L / 2, -uy * L / 2, -c]), ("b1", [-ux * L / 2, uy * L / 2, -c]),
+             ("c0", [ux * L / 2, -uy * L / 2, 3 * c]), ("c1", [-ux * L / 2, uy * L / 2, 3 * c]),
+             ("d0", [-ux * L / 2, -uy * L / 2, -3 * c]), ("d1", [ux * L / 2, uy * L / 2, -3 * c])]
+    elements = [_leaf(p, "stage1A", "a0", "a1", w, n), _leaf(p, "stage1B", "b0", "b1", w, n),
+                _leaf(p, "stage2A", "c0", "c1", w, n), _leaf(p, "stage2B", "d0", "d1", w, n)]
+    mid = _rotor(p["mid_mass"], p["body_radius"], [0.0, 0.0, 0.0], ["a1", "b1", "c0", "d0"], name="intermediate")
+    body = _rotor(p["body_mass"], p["body_radius"], [0, uy * L / 2 + p["body_offset"], 0], ["c1", "d1"])
+    return _hinge(p, "double-cross-hinge", nodes, [mid, body], elements, ["a0", "b0"])
+
+
+_HINGE = dict(_COMMON, length=0.05, width=0.02, thickness=0.3e-3, angle=90.0, gap=0.002, segments=8, body_mass=0.1,
+              body_radius=0.02, body_offset=0.01, stroke=45.0)
+TEMPLATES.update({
+    "cartwheel-hinge": (_cartwheel_hinge, dict(_HINGE)),
+    "three-fold-cross-hinge": (_three_fold_cross_hinge, dict(_HINGE, width=0.01, crossing=0.5)),
+    "double-cross-hinge": (_double_cross_hinge, dict(_HINGE, mid_mass=0.02)),
+})
+
+#: Continuous design parameters of the optimiser's families with physical bounds [m, deg, -]: every design in
+#: the box is a valid scene (leaves never meet, positive dimensions); thickness bounds are raised to the
+#: problem's minimum manufacturable thickness by the optimiser.
+DESIGN_SPACES: dict[str, dict[str, tuple[float, float]]] = {
+    "cross-spring-pivot": {"length": (0.03, 0.07), "thickness": (1e-4, 4e-4), "width": (0.01, 0.04),
+                           "angle": (60.0, 120.0), "crossing": (0.15, 0.85)},
+    "cartwheel-hinge": {"length": (0.03, 0.07), "thickness": (1e-4, 4e-4), "width": (0.01, 0.04),
+                        "angle": (60.0, 120.0)},
+    "three-fold-cross-hinge": {"length": (0.03, 0.07), "thickness": (1e-4, 4e-4), "width": (0.005, 0.02),
+                               "angle": (60.0, 120.0), "crossing": (0.15, 0.85)},
+    "double-cross-hinge": {"length": (0.03, 0.07), "thickness": (1e-4, 4e-4), "width": (0.01, 0.04),
+                           "angle": (60.0, 120.0)},
+}
+
+
+def design_space(name: str) -> dict[str, tuple[float, float]]:
+    """The design parameters of an optimiser family with their bounds."""
+    if name not in DESIGN_SPACES:
+        raise SceneError("template", f"'{name}' is not an optimiser family; choose one of {sorted(DESIGN_SPACES)}")
+    return dict(DESIGN_SPACES[name])

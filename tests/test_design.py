@@ -33,7 +33,9 @@ def _at(name: str, params: dict, design: list[str], s0: float, sens: bool) -> di
     def visit(eq, modes, labels):
         if abs(eq.stroke - target) > 1e-12:
             return
-        which = list(range(min(4, len(modes.omega2))))
+        # the four lowest by value (not by tracked branch: tracking along the stroke may pair crossing
+        # branches differently in the perturbed designs, while the sorted eigenvalues are what changes smoothly)
+        which = list(np.argsort(modes.omega2)[:4])
         out["lam"] = modes.omega2[which].copy()
         out["vm"] = beam_end_stresses(an.structure, an.system, eq)
         out["reaction"] = eq.drive_reaction
