@@ -38,11 +38,13 @@ from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
+import scipy.linalg as sla
 
 from . import elements as _el
 from .analysis import beam_sigma
 from .assembly import System
 from .errors import FlexoptError
+from .kernels import compiled
 from .modal import Modes
 from .rotations import skew
 from .scene import Beam, RectangularSection, Scene
@@ -246,25 +248,16 @@ def _beam_inputs_change(sys: System, st, u: np.ndarray, psi: np.ndarray, dr0: np
 
 def _jvp(sys: System, st, da_state: np.ndarray, dconst: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Assembled ``dg`` (n), ``dH`` (n, n) and per-beam ``de`` (nb, 6) along a change of the beam inputs."""
-    s, N = sys.s, sys.N
+    N = sys.N
     sys._fill_inputs(st)
     a = sys.beam_in
     da = np.zeros_like(a)
     da[:, : _el.BEAM_STATE] = da_state
     da[:, _el.BEAM_STATE : _el.BEAM_STATE + _el.BEAM_CONST] = dconst
-    out = _jvp_map(s.n_beams)(np.hstack([a, da]).T).full().T
+    out = compiled(_el.beam_jvp_spec())(np.hstack([a, da]))
     g = np.bincount(sys.beam_dofs.ravel(), out[:, :12].ravel(), minlength=N)
     H = np.bincount(sys.beam_flat, out[:, 12:156].ravel(), minlength=N * N).reshape(N, N)
     return sys._reduce_vec(g), sys._reduce_mat(H), out[:, 156:162]
-
-
-_JVP_MAPS: dict[int, ca.Function] = {}
-
-
-def _jvp_map(n: int) -> ca.Function:
-    if n not in _JVP_MAPS:
-        _JVP_MAPS[n] = _el.beam_input_jvp().map(n)
-    return _JVP_MAPS[n]
 
 
 def _mass_derivative(sys: System, st, psi: np.ndarray, d: StructureDerivative) -> np.ndarray:
@@ -333,7 +326,9 @@ def point_sensitivity(sys: System, eq: Equilibrium, modes: Modes, which: Sequenc
     Jb[: len(f)] = A[f]
     Jb[len(f)] = dd
     try:
-        lu = np.linalg.inv(Jb)
+        lu = sla.lu_factor(Jb, check_finite=False)
+        if not np.all(np.isfinite(lu[0])) or np.min(np.abs(np.diag(lu[0]))) == 0.0:
+            raise np.linalg.LinAlgError("singular")
     except np.linalg.LinAlgError as exc:
         raise FlexoptError(f"the tangent stiffness is singular at stroke {eq.stroke:.6g}: the equilibrium is at "
                            "a limit point, where design derivatives do not exist; shorten the stroke") from exc
@@ -370,7 +365,7 @@ def point_sensitivity(sys: System, eq: Equilibrium, modes: Modes, which: Sequenc
         rhs[: len(f)] = -dg[f]
         if s.drive_kind == "translation":
             rhs[-1] = float(d.master_pos[s.drive_master] @ s.drive_axis)
-        dxi = lu @ rhs
+        dxi = sla.lu_solve(lu, rhs, check_finite=False)
         v = sys.to_global(dxi).reshape(nm, 6)
         da_total = da_design + _beam_inputs_change(sys, st, v[:, :3], v[:, 3:], np.zeros_like(d.node_offset))
         _, dH, de = _jvp(sys, st, da_total, d.beam_const)

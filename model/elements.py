@@ -253,6 +253,13 @@ def beam_input_jvp() -> ca.Function:
     return ca.Function("flexopt_beam_jvp", [ca.vertcat(a, da)], [dout])
 
 
+@lru_cache(maxsize=None)
+def beam_jvp_spec() -> KernelSpec:
+    """:func:`beam_input_jvp` as a compiled kernel (input 114, output 162)."""
+    f = beam_input_jvp()
+    return KernelSpec("flexopt_beam_jvp", f, f.size1_in(0), f.size1_out(0), 6, BEAM_STATE, BEAM_CONST)
+
+
 #: Layout of :func:`beam_segment_design`'s output: constants (l0, E0 9 column-major, k1, k2, ky, kz, ct),
 #: mass, lumped rotary inertia (9), stress data (A, Iy, Iz, cy, cz, tau per torque, l0).
 SEGMENT_OUT = 15 + 1 + 9 + 7

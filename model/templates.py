@@ -404,7 +404,7 @@ TEMPLATES.update({
 DESIGN_SPACES: dict[str, dict[str, tuple[float, float]]] = {
     "cross-spring-pivot": {"length": (0.03, 0.07), "thickness": (1e-4, 4e-4), "width": (0.01, 0.04),
                            "angle": (60.0, 120.0), "crossing": (0.15, 0.85)},
-    "cartwheel-hinge": {"length": (0.03, 0.07), "thickness": (1e-4, 4e-4), "width": (0.01, 0.04),
+    "cartwheel-hinge": {"length": (0.04, 0.14), "thickness": (5e-5, 4e-4), "width": (0.01, 0.04),
                         "angle": (60.0, 120.0)},
     "three-fold-cross-hinge": {"length": (0.03, 0.07), "thickness": (1e-4, 4e-4), "width": (0.005, 0.02),
                                "angle": (60.0, 120.0), "crossing": (0.15, 0.85)},

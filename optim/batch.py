@@ -60,6 +60,10 @@ def _call(fn: str, case_json: str) -> str:
 def _default_executor(workers: int | None) -> cf.Executor:
     # forkserver: children start from a clean single-threaded server process, so a parent that runs threads
     # (the HTTP service, Dask's client) cannot leave a lock held in a forked child; spawn where unavailable
+    # one BLAS thread per worker: the workers already use every core, and nested BLAS threads on top of
+    # them oversubscribe the machine (measured: a 2-worker topology search ran several times slower)
+    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(var, "1")
     methods = multiprocessing.get_all_start_methods()
     ctx = multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
     return cf.ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1, mp_context=ctx)
@@ -159,7 +163,14 @@ def run_cases(cases: list[dict], fn: str, *, executor: cf.Executor | None = None
             finished, pending = cf.wait(pending, timeout=0.2, return_when=cf.FIRST_COMPLETED)
             for f in finished:
                 cid = futures[f]
-                out = json.loads(f.result())
+                try:
+                    raw = f.result()
+                except cf.process.BrokenProcessPool as exc:
+                    raise RuntimeError(
+                        "a worker process died (out of memory, killed, or a script that starts the batch "
+                        "without an `if __name__ == '__main__':` guard); finished cases are in the store, "
+                        "rerun to resume") from exc
+                out = json.loads(raw)
                 record = dict(out["result"], id=cid) if out["ok"] else {"id": cid, "error": out["error"],
                                                                         "kind": out["kind"]}
                 if root is not None:

@@ -54,6 +54,7 @@ class _Eval:
     max_stress: float
     ok: bool
     message: str = ""
+    strokes: np.ndarray | None = None  # stroke (user unit) of each constraint row; nan for the envelope
 
 
 def _bounds(fam: Family, prob: Problem) -> tuple[list[str], np.ndarray, np.ndarray]:
@@ -125,8 +126,10 @@ class _Family:
         an = Analysis(ds.scene)
         scale = self.hi - self.lo
         dstructs = [structure_derivative(an.structure, ds.scene_dict, d) for d in ds.dscene]
-        rows_f: list[tuple[float, np.ndarray]] = []
-        rows_g: list[tuple[float, np.ndarray]] = []
+        rows_f: list[tuple[float, np.ndarray, float]] = []
+        rows_g: list[tuple[float, np.ndarray, float]] = []
+        unit = ds.scene.stroke.resolved_unit
+        to_user = (lambda v: float(np.degrees(v))) if unit == "deg" else float
         pts: dict[float, tuple[float, float]] = {}
         mats = {m.name: m for m in ds.scene.materials}
         allow = min(mats[e.material].allowable_stress for e in ds.scene.elements) / prob.safety_factor
@@ -141,13 +144,14 @@ class _Family:
             hz = np.sqrt(np.maximum(lam, 0)) / (2 * np.pi)
             for k in range(len(par)):
                 dhz = ps.dlam[:, k] / (8 * np.pi**2 * max(hz[k], 1e-300)) * scale
-                rows_f.append((hz[k], dhz))
+                rows_f.append((hz[k], dhz, to_user(eq.stroke)))
             i = np.unravel_index(np.argmax(ps.vm), ps.vm.shape)
             vm = float(ps.vm[i])
-            rows_g.append((1.0 - vm / allow, -ps.dvm[:, i[0], i[1]] * scale / allow))
+            rows_g.append((1.0 - vm / allow, -ps.dvm[:, i[0], i[1]] * scale / allow, to_user(eq.stroke)))
             if prob.max_drive is not None:
                 r = eq.drive_reaction
-                rows_g.append((1.0 - abs(r) / prob.max_drive, -np.sign(r) * ps.dreaction * scale / prob.max_drive))
+                rows_g.append((1.0 - abs(r) / prob.max_drive, -np.sign(r) * ps.dreaction * scale / prob.max_drive,
+                               to_user(eq.stroke)))
             pts[eq.stroke] = (float(hz[0]), vm)
 
         if prob.envelope is not None:  # every scene node within a sphere of radius envelope
@@ -155,7 +159,7 @@ class _Family:
             for k, node in enumerate(ds.scene_dict["nodes"]):
                 pos = np.asarray(node["position"], float)
                 dpos = np.array([d["nodes"][k]["position"] for d in ds.dscene], float)  # (np, 3)
-                rows_g.append((1.0 - float(pos @ pos) / R2, -2.0 * (dpos @ pos) * scale / R2))
+                rows_g.append((1.0 - float(pos @ pos) / R2, -2.0 * (dpos @ pos) * scale / R2, float("nan")))
         curve = an.frequency_curve(stroke=self.samples, visit=visit)
         if curve.status != "complete":
             raise FlexoptError(curve.failures[0].message if curve.failures else "the stroke was not completed")
@@ -164,16 +168,35 @@ class _Family:
             self.f_ref = float(f.min())
         nx = len(x)
         con, jac = [], []
-        for hz, d in rows_f:  # f / f_ref - t >= 0
+        for hz, d, _ in rows_f:  # f / f_ref - t >= 0
             con.append(hz / self.f_ref)
             jac.append(np.concatenate([d / self.f_ref, [-1.0]]))
-        for v, d in rows_g:
+        for v, d, _ in rows_g:
             con.append(v)
             jac.append(np.concatenate([d, [0.0]]))
         k = int(np.argmin(f))
-        worst_stroke = float(self.samples[k // prob.modes])
+        strokes = np.array([r[2] for r in rows_f] + [r[2] for r in rows_g])
         return _Eval(x.copy(), np.array(con), np.array(jac).reshape(len(con), nx + 1), float(f.min()),
-                     worst_stroke, max(v[1] for v in pts.values()), True)
+                     rows_f[k][2], max(v[1] for v in pts.values()), True, strokes=strokes)
+
+    def reduce_symmetric(self, ev: _Eval) -> bool:
+        """Keep only the non-negative samples when every constraint row at ``-s`` equals the one at ``s``
+        (values and gradients to 1e-6 of their scale: the mirrored equilibria agree to the
+        Newton tolerance, about 1e-8): a design space symmetric in the stroke (a mirror or
+        a 180-degree turn that maps the stroke to its negative) would otherwise give SLSQP pairs of
+        identical constraints, whose linear dependence breaks its least-squares subproblem. The dense
+        verification still covers the whole stroke, so a design that breaks the symmetry is caught."""
+        if not ev.ok or ev.strokes is None or not np.any(self.samples < 0):
+            return False
+        rows = np.column_stack([ev.con, ev.jac])
+        tol = 1e-6 * max(float(np.abs(rows).max()), 1e-300)
+        for s_ in self.samples[self.samples < 0]:
+            a, b = rows[ev.strokes == s_], rows[ev.strokes == -s_]
+            if a.shape != b.shape or np.abs(a - b).max(initial=0.0) > tol:
+                return False
+        self.samples = self.samples[self.samples >= 0]
+        self._last = None
+        return True
 
     # the epigraph's frequency constraints are relative to t, the last variable
     def constraints(self):
@@ -209,10 +232,12 @@ def _verify(fam: _Family, x: np.ndarray, points: int) -> dict:
     ph = curve.parasitic_hz
     i = int(np.argmin(ph))
     zero = float(ph[int(np.argmin(np.abs(curve.stroke)))])
-    stress = max(float(np.nanmax(v)) for v in curve.max_von_mises.values())
+    per_point = np.nanmax(np.array(list(curve.max_von_mises.values())), axis=0)
+    stress = float(per_point.max())
     out.update(worst_hz=float(ph[i]), stroke_at_worst=float(curve.stroke[i]), zero_stroke_hz=zero,
                ratio=float(ph[i] / zero), max_stress=stress, allowable_stress=allow,
                stress_ratio=stress * fam.prob.safety_factor / allow,
+               stroke_at_max_stress=float(curve.stroke[int(np.argmax(per_point))]),
                max_drive=float(np.max(np.abs(curve.drive_reaction))), drive_unit=curve.drive_reaction_unit,
                scene=scene.model_dump(mode="json"))
     return out
@@ -240,6 +265,7 @@ def run_case(case: dict) -> dict:
     status, message = "optimal", ""
     verified: dict = {}
     searched = fam.evaluate(x)
+    symmetric = fam.reduce_symmetric(searched)
     for rnd in range(prob.refine_rounds + 1):
         ev0 = fam.evaluate(x)
         t_start = ev0.worst_hz / fam.f_ref if ev0.ok else 0.0
@@ -261,15 +287,19 @@ def run_case(case: dict) -> dict:
         if verified["status"] != "complete":
             status, message = "failed", "; ".join(verified["failures"])
             break
-        if verified["worst_hz"] >= searched.worst_hz * (1 - prob.tolerance) or rnd == prob.refine_rounds:
-            if verified["worst_hz"] < searched.worst_hz * (1 - prob.tolerance):
+        low = verified["worst_hz"] < searched.worst_hz * (1 - prob.tolerance)
+        stressed = verified["stress_ratio"] > 1 + prob.tolerance
+        if not (low or stressed) or rnd == prob.refine_rounds:
+            if low:
                 status = "unconverged"
                 message = (f"the verified minimum ({verified['worst_hz']:.5g} Hz) is still below the searched one "
                            f"({searched.worst_hz:.5g} Hz) after {prob.refine_rounds} refinement rounds")
             break
-        # the verified minimum lies between the samples: add its stroke and resume
-        fam.samples = np.unique(np.concatenate([fam.samples, [verified["stroke_at_worst"],
-                                                              -verified["stroke_at_worst"]]]))
+        # the verified minimum (or the stress peak) lies between the samples: add its stroke and resume
+        new = [s_ for s_, bad in ((verified["stroke_at_worst"], low), (verified["stroke_at_max_stress"], stressed))
+               if bad]
+        new = [abs(s_) for s_ in new] if symmetric else new + [-s_ for s_ in new]
+        fam.samples = np.unique(np.concatenate([fam.samples, new]))
         fam._last = None
     if status == "optimal":
         if verified.get("stress_ratio", 0) > 1 + prob.tolerance:
@@ -283,7 +313,8 @@ def run_case(case: dict) -> dict:
         "bounds": {k: [float(lo), float(hi)] for k, lo, hi in zip(fam.names, fam.lo, fam.hi)},
         "x0": {k: float(fam.lo[i] + x0[i] * (fam.hi[i] - fam.lo[i])) for i, k in enumerate(fam.names)},
         "searched": {"worst_hz": searched.worst_hz, "stroke_at_worst": searched.stroke_at_worst,
-                     "samples": len(fam.samples), "max_stress": searched.max_stress},
+                     "samples": len(fam.samples), "mirror_symmetric": symmetric,
+                     "max_stress": searched.max_stress},
         "verified": verified, "initial": initial, "history": history,
         "evaluations": fam.evaluations, "seconds": time.perf_counter() - t0,
     }
