@@ -87,7 +87,9 @@ class _Family:
         self.stroke = float(prob.stroke if prob.stroke is not None else defaults.get("stroke", 45.0))
         self.samples = np.linspace(-self.stroke, self.stroke, prob.samples)
         self.f_ref: float | None = None
+        self.keep: np.ndarray | None = None  # constraint rows passed to SLSQP (see dedupe)
         self._last: _Eval | None = None
+        self._good: _Eval | None = None  # the last successful evaluation
         self.evaluations = 0
 
     def params(self, x: np.ndarray) -> dict:
@@ -110,15 +112,20 @@ class _Family:
         except FlexoptError as exc:
             ev = self._failed(x, str(exc))
         self._last = ev
+        if ev.ok:
+            self._good = ev
         return ev
 
     def _failed(self, x: np.ndarray, message: str) -> _Eval:
         # an infeasible point: every frequency constraint violated; the gradient of the last good point
         # (if any) steers SLSQP's line search back
-        n = len(self.samples) * self.prob.modes
-        jac = self._last.jac[:n] if self._last is not None and self._last.ok else np.zeros((n, len(x) + 1))
-        con = -np.ones(n)
-        return _Eval(x.copy(), con, jac, float("nan"), float("nan"), float("nan"), False, message)
+        good = self._good
+        if good is None:  # only the start design can fail without a previous good point: run_case stops
+            n = len(self.samples) * self.prob.modes
+            return _Eval(x.copy(), -np.ones(n), np.zeros((n, len(x) + 1)), float("nan"), float("nan"),
+                         float("nan"), False, message)
+        return _Eval(x.copy(), -np.ones(len(good.con)), good.jac, float("nan"), float("nan"), float("nan"), False,
+                     message, good.strokes)
 
     def _evaluate(self, x: np.ndarray) -> _Eval:
         prob = self.prob
@@ -195,8 +202,22 @@ class _Family:
             if a.shape != b.shape or np.abs(a - b).max(initial=0.0) > tol:
                 return False
         self.samples = self.samples[self.samples >= 0]
-        self._last = None
+        self._last = self._good = None
         return True
+
+    def dedupe(self, ev: _Eval) -> None:
+        """Pass SLSQP each distinct constraint once: rows equal to an earlier one (value and gradient to 1e-9
+        of the scale) at the start design, such as the envelope rows of mirrored nodes, are the same
+        function of the design in a symmetric family, and duplicates make its subproblem singular."""
+        if not ev.ok:
+            return
+        rows = np.column_stack([ev.con, ev.jac])
+        tol = 1e-9 * max(float(np.abs(rows).max()), 1e-300)
+        keep: list[int] = []
+        for i in range(len(rows)):
+            if all(np.abs(rows[i] - rows[j]).max() > tol for j in keep):
+                keep.append(i)
+        self.keep = np.array(keep)
 
     # the epigraph's frequency constraints are relative to t, the last variable
     def constraints(self):
@@ -205,10 +226,11 @@ class _Family:
             c = ev.con.copy()
             nf = len(self.samples) * self.prob.modes
             c[:nf] -= z[-1]
-            return c
+            return c if self.keep is None else c[self.keep]
 
         def jac(z):
-            return self.evaluate(z[:-1]).jac
+            j = self.evaluate(z[:-1]).jac
+            return j if self.keep is None else j[self.keep]
 
         return [{"type": "ineq", "fun": fun, "jac": jac}]
 
@@ -266,8 +288,13 @@ def run_case(case: dict) -> dict:
     verified: dict = {}
     searched = fam.evaluate(x)
     symmetric = fam.reduce_symmetric(searched)
-    for rnd in range(prob.refine_rounds + 1):
+    rounds = prob.refine_rounds + 1
+    res = None
+    if not searched.ok:
+        status, message, rounds = "failed", f"the start design fails: {searched.message}", 0
+    for rnd in range(rounds):
         ev0 = fam.evaluate(x)
+        fam.dedupe(ev0)
         t_start = ev0.worst_hz / fam.f_ref if ev0.ok else 0.0
         res = minimize(
             lambda z: -z[-1], np.concatenate([x, [t_start]]),
@@ -300,7 +327,7 @@ def run_case(case: dict) -> dict:
                if bad]
         new = [abs(s_) for s_ in new] if symmetric else new + [-s_ for s_ in new]
         fam.samples = np.unique(np.concatenate([fam.samples, new]))
-        fam._last = None
+        fam._last = fam._good = None
     if status == "optimal":
         if verified.get("stress_ratio", 0) > 1 + prob.tolerance:
             status, message = "infeasible", "the verified stress exceeds allowable / safety_factor"
