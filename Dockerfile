@@ -1,4 +1,6 @@
 # flexopt HTTP service. Build: docker build -t flexopt .   Run: docker run -p 8000:8000 -v flexopt-data:/data flexopt
+# Jobs: SQLite file /data/jobs.sqlite and each job's finished cases under /data/jobs (the volume); set
+# FLEXOPT_DATABASE_URL (or DATABASE_URL) to use PostgreSQL instead (install a driver, e.g. psycopg).
 FROM python:3.11-slim
 
 # gcc: CasADi kernels are compiled to C on first use (model/kernels.py); without it they run uncompiled (slow).
@@ -10,6 +12,7 @@ ENV PYTHONDONTWRITEBYTECODE=1 \
     PYTHONUNBUFFERED=1 \
     PIP_NO_CACHE_DIR=1 \
     FLEXOPT_CACHE_DIR=/data/kernels \
+    FLEXOPT_DATA_DIR=/data \
     MPLCONFIGDIR=/tmp/matplotlib
 
 WORKDIR /app
@@ -17,7 +20,7 @@ COPY pyproject.toml README.md LICENSE ./
 COPY model ./model
 COPY optim ./optim
 COPY service ./service
-RUN pip install ".[service]"
+RUN pip install ".[service,cluster]"
 
 RUN useradd --create-home --uid 10001 flexopt \
     && mkdir -p /data/kernels \

@@ -2,9 +2,25 @@
 
 ``optimise(problem)`` runs every start of every family as a batch (a local process pool, or a Dask cluster)
 and returns the verified optimum of each family and their ranking; ``Problem`` is the JSON problem.
+The problem schema imports only pydantic; the optimiser (and CasADi) loads on first use, so the HTTP
+client can share the schema without the model.
 """
 
-from .optimise import cases, optimise, run_case, summarise
+from __future__ import annotations
+
+from typing import Any
+
 from .problem import Family, Problem
 
 __all__ = ["optimise", "run_case", "cases", "summarise", "Problem", "Family"]
+
+
+_LAZY = ("optimise", "run_case", "cases", "summarise")
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module("optim.search"), name)
+    raise AttributeError(f"module 'optim' has no attribute {name!r}")

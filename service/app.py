@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from importlib.metadata import PackageNotFoundError, version
 from typing import Any
 
-from fastapi import APIRouter, Depends, FastAPI, Request, Security
+from fastapi import APIRouter, Depends, FastAPI, Header, Query, Request, Security
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, Response
 from fastapi.security import APIKeyHeader
@@ -38,6 +38,9 @@ from .schemas import (
     FrequencyCurveOut,
     FrequencyCurveRequest,
     Health,
+    Job,
+    JobPage,
+    OptimisationProblem,
     ParameterInfo,
     Problem,
     TemplateInfo,
@@ -70,6 +73,8 @@ class Runtime:
     cache: OrderedDict[str, Any] = field(default_factory=OrderedDict)  # canonical request -> result (LRU)
     _slots: asyncio.Semaphore | None = None
     pool: concurrent.futures.ProcessPoolExecutor | None = None
+    jobs: Any = None  # service.jobs.JobStore, opened by start()
+    dispatcher: Any = None  # service.jobs.Dispatcher
 
     def slots(self) -> asyncio.Semaphore:
         """The slot semaphore, created on first use inside the server's event loop."""
@@ -150,9 +155,17 @@ class Runtime:
             ctx = multiprocessing.get_context("spawn")  # never fork the threaded server
             self.pool = concurrent.futures.ProcessPoolExecutor(self.settings.max_concurrent, mp_context=ctx,
                                                                initializer=worker.warm_up)
+        from .jobs import Dispatcher, JobStore
+
+        self.jobs = JobStore(self.settings.job_store_url(), self.settings.data_dir)
+        self.dispatcher = Dispatcher(self.jobs, self.settings.max_jobs, self.settings.job_workers or None)
+        self.dispatcher.start()  # jobs left running by a stopped server are requeued (or failed) first
 
     def stop(self) -> None:
-        """Stop the pool and drop the cache."""
+        """Stop the job dispatcher (running jobs resume at the next start), the pool, and drop the cache."""
+        if self.dispatcher is not None:
+            self.dispatcher.stop()
+            self.dispatcher = None
         if self.pool is not None:
             # Queued work is dropped; running computations (bounded by the time limit) end, then the workers.
             self.pool.shutdown(wait=True, cancel_futures=True)
@@ -372,6 +385,51 @@ def _router(settings: Settings) -> APIRouter:
             scene = _scene(req.scene)
             spec = {"scene": scene.model_dump(mode="json"), "at_stroke": req.at_stroke, "kinematic": req.kinematic}
             return Response(await rt.run(worker.diagnosis, json.dumps(spec)), media_type="application/json")
+
+    def _store(request: Request) -> Any:
+        store = _runtime(request).jobs
+        if store is None:  # pragma: no cover - only before the lifespan started
+            raise HTTPException(503, "the job store is not open yet; retry")
+        return store
+
+    @v1.post("/optimisations", status_code=202, response_model=Job, summary="Submit an optimisation job",
+             responses={422: {"model": Problem}})
+    async def submit_optimisation(spec: OptimisationProblem, request: Request, response: Response,
+                                  idempotency_key: str | None = Header(default=None, max_length=200)) -> Job:
+        from model.errors import FlexoptError
+        from optim.search import _Family
+
+        for i, fam in enumerate(spec.families):  # fail now, not in the job, on a family that cannot run
+            try:
+                _Family(spec, fam)
+            except FlexoptError as exc:
+                raise RequestValidationError([{"loc": ("body", "families", i), "type": "value_error",
+                                               "msg": str(exc)}]) from None
+        job, _ = await asyncio.to_thread(_store(request).submit, spec.model_dump(mode="json"), idempotency_key)
+        response.headers["Location"] = f"/v1/optimisations/{job['id']}"
+        return Job(**job)
+
+    @v1.get("/optimisations/{job_id}", response_model=Job, summary="Status, progress, partial and final results",
+            responses={404: {"model": Problem}})
+    async def get_optimisation(job_id: str, request: Request) -> Job:
+        job = await asyncio.to_thread(_store(request).get, job_id)
+        if job is None:
+            raise HTTPException(404, f"no optimisation job '{job_id}'")
+        return Job(**job)
+
+    @v1.get("/optimisations", response_model=JobPage, summary="Optimisation jobs, newest first")
+    async def list_optimisations(request: Request, offset: int = Query(0, ge=0, le=1_000_000_000),
+                                 limit: int = Query(20, ge=1, le=100)) -> JobPage:
+        items, total = await asyncio.to_thread(_store(request).page, offset, limit)
+        return JobPage(items=[Job(**j) for j in items], total=total, offset=offset, limit=limit)
+
+    @v1.delete("/optimisations/{job_id}", response_model=Job, summary="Cancel a job (queued: at once; running: "
+               "it stops after the cases in progress)", responses={404: {"model": Problem}})
+    async def cancel_optimisation(job_id: str, request: Request) -> Job:
+        job = await asyncio.to_thread(_store(request).cancel, job_id)
+        if job is None:
+            raise HTTPException(404, f"no optimisation job '{job_id}'")
+        return Job(**job)
 
     return v1
 

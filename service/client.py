@@ -27,11 +27,17 @@ from typing import Any, Literal, Self
 
 import httpx
 
-from .schemas import FieldError, FrequencyCurveOut, Health, Problem, TemplateInfo
+import uuid
+from collections.abc import Awaitable, Callable
+
+from .schemas import FieldError, FrequencyCurveOut, Health, Job, JobPage, OptimisationProblem, Problem, TemplateInfo
 
 __all__ = [
     "Client",
     "AsyncClient",
+    "JobHandle",
+    "AsyncJobHandle",
+    "JobFailed",
     "FlexoptClientError",
     "ConnectionFailed",
     "APIError",
@@ -45,6 +51,13 @@ __all__ = [
     "ServiceUnavailable",
     "ComputeTimeout",
 ]
+
+_DONE = frozenset({"succeeded", "failed", "cancelled"})
+
+
+def _spec_json(spec: Any) -> dict[str, Any]:
+    return spec.model_dump(mode="json") if isinstance(spec, OptimisationProblem) else dict(spec)
+
 
 Format = Literal["json", "csv", "png"]
 _ACCEPT = {"json": "application/json", "csv": "text/csv", "png": "image/png"}
@@ -103,6 +116,14 @@ class ServerError(APIError):
 
 class ServiceUnavailable(APIError):
     """503."""
+
+
+class JobFailed(FlexoptClientError):
+    """An optimisation job ended failed or cancelled (``.job`` holds its last state and error)."""
+
+    def __init__(self, job: Job) -> None:
+        super().__init__(f"optimisation job {job.id} {job.status}: {job.error or 'no result'}")
+        self.job = job
 
 
 class ComputeTimeout(APIError):
@@ -229,6 +250,26 @@ class Client(_Base):
         return self._request("POST", "/v1/diagnosis", json={"scene": _scene_json(scene), "at_stroke": at_stroke,
                                                              "kinematic": kinematic}).json()
 
+    def submit_optimisation(self, spec: Any, idempotency_key: str | None = None) -> "JobHandle":
+        """Submit an optimisation (an ``optim.Problem`` or its JSON); one idempotency key for all retries, so
+        a retried submission returns the same job."""
+        key = idempotency_key or str(uuid.uuid4())
+        r = self._request("POST", "/v1/optimisations", json=_spec_json(spec), headers={"Idempotency-Key": key})
+        return JobHandle(self, Job.model_validate(r.json()))
+
+    def optimisation(self, job_id: str) -> Job:
+        """The current state of a job."""
+        return Job.model_validate(self._request("GET", f"/v1/optimisations/{job_id}").json())
+
+    def optimisations(self, offset: int = 0, limit: int = 20) -> JobPage:
+        """A page of jobs, newest first."""
+        return JobPage.model_validate(self._request("GET", "/v1/optimisations",
+                                                    params={"offset": offset, "limit": limit}).json())
+
+    def cancel_optimisation(self, job_id: str) -> Job:
+        """Ask a job to stop."""
+        return Job.model_validate(self._request("DELETE", f"/v1/optimisations/{job_id}").json())
+
 
 class AsyncClient(_Base):
     """Asynchronous client with the same methods as :class:`Client` (``await``-ed)."""
@@ -296,3 +337,84 @@ class AsyncClient(_Base):
         r = await self._request("POST", "/v1/diagnosis", json={"scene": _scene_json(scene), "at_stroke": at_stroke,
                                                                 "kinematic": kinematic})
         return r.json()
+
+    async def submit_optimisation(self, spec: Any, idempotency_key: str | None = None) -> "AsyncJobHandle":
+        """Submit an optimisation; see :meth:`Client.submit_optimisation`."""
+        key = idempotency_key or str(uuid.uuid4())
+        r = await self._request("POST", "/v1/optimisations", json=_spec_json(spec), headers={"Idempotency-Key": key})
+        return AsyncJobHandle(self, Job.model_validate(r.json()))
+
+    async def optimisation(self, job_id: str) -> Job:
+        """The current state of a job."""
+        return Job.model_validate((await self._request("GET", f"/v1/optimisations/{job_id}")).json())
+
+    async def cancel_optimisation(self, job_id: str) -> Job:
+        """Ask a job to stop."""
+        return Job.model_validate((await self._request("DELETE", f"/v1/optimisations/{job_id}")).json())
+
+
+class JobHandle:
+    """A submitted job: ``.status()``, ``.wait(progress=callback)``, ``.cancel()``."""
+
+    def __init__(self, client: Client, job: Job) -> None:
+        self.client, self.job, self.id = client, job, job.id
+
+    def status(self) -> Job:
+        """Refresh and return the job's state."""
+        self.job = self.client.optimisation(self.id)
+        return self.job
+
+    def cancel(self) -> Job:
+        """Ask the job to stop."""
+        self.job = self.client.cancel_optimisation(self.id)
+        return self.job
+
+    def wait(self, progress: Callable[[Job], None] | None = None, poll: float = 0.5,
+             timeout: float | None = None) -> dict[str, Any]:
+        """Poll until the job ends; returns the result, raises :class:`JobFailed` if it failed or was cancelled
+        and ``TimeoutError`` past ``timeout`` seconds. ``progress(job)`` sees every polled state."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            job = self.status()
+            if progress is not None:
+                progress(job)
+            if job.status in _DONE:
+                if job.status != "succeeded" or job.result is None:
+                    raise JobFailed(job)
+                return job.result
+            if deadline is not None and time.monotonic() > deadline:
+                raise TimeoutError(f"optimisation job {self.id} still {job.status} after {timeout} s")
+            time.sleep(poll)
+
+
+class AsyncJobHandle:
+    """The asynchronous counterpart of :class:`JobHandle`."""
+
+    def __init__(self, client: AsyncClient, job: Job) -> None:
+        self.client, self.job, self.id = client, job, job.id
+
+    async def status(self) -> Job:
+        self.job = await self.client.optimisation(self.id)
+        return self.job
+
+    async def cancel(self) -> Job:
+        self.job = await self.client.cancel_optimisation(self.id)
+        return self.job
+
+    async def wait(self, progress: Callable[[Job], Awaitable[None] | None] | None = None, poll: float = 0.5,
+                   timeout: float | None = None) -> dict[str, Any]:
+        """See :meth:`JobHandle.wait`; ``progress`` may be a coroutine function."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            job = await self.status()
+            if progress is not None:
+                out = progress(job)
+                if asyncio.iscoroutine(out):
+                    await out
+            if job.status in _DONE:
+                if job.status != "succeeded" or job.result is None:
+                    raise JobFailed(job)
+                return job.result
+            if deadline is not None and time.monotonic() > deadline:
+                raise TimeoutError(f"optimisation job {self.id} still {job.status} after {timeout} s")
+            await asyncio.sleep(poll)

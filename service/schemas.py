@@ -12,6 +12,8 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, FiniteFloat, PositiveFloat
 
+from optim.problem import Problem as OptimisationProblem  # pydantic only (no CasADi)
+
 __all__ = [
     "API_VERSION",
     "METHODS",
@@ -27,6 +29,9 @@ __all__ = [
     "DiagnosisRequest",
     "FieldError",
     "Problem",
+    "OptimisationProblem",
+    "Job",
+    "JobPage",
 ]
 
 API_VERSION = "1"
@@ -140,3 +145,28 @@ class Problem(BaseModel):
     status: int
     detail: str
     errors: list[FieldError] = Field(default_factory=list)
+
+
+class Job(_Wire):
+    """An optimisation job: status, progress, finished cases so far and the final result."""
+
+    id: str
+    status: Literal["queued", "running", "cancelling", "succeeded", "failed", "cancelled"]
+    progress: dict[str, Any] = Field(description="{'done': cases finished, 'total': cases}")
+    partial: list[dict[str, Any]] = Field(description="summary of every finished case (family, start, verified "
+                                                      "worst-case frequency, design)")
+    result: dict[str, Any] | None = Field(description="optim.optimise's result once succeeded: per family the best "
+                                                      "verified design, curves before and after, the ranking")
+    error: str | None = None
+    attempts: int = Field(description="runs started (a server restart resumes a running job)")
+    created: str
+    updated: str
+
+
+class JobPage(_Wire):
+    """A page of jobs, newest first."""
+
+    items: list[Job]
+    total: int
+    offset: int
+    limit: int

@@ -4,10 +4,18 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field, PositiveFloat, PositiveInt
+import os
+from pathlib import Path
+
+from pydantic import AliasChoices, Field, PositiveFloat, PositiveInt
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 __all__ = ["Settings"]
+
+
+def _default_data_dir() -> Path:
+    """``$XDG_DATA_HOME/flexopt`` (``~/.local/share/flexopt``): a per-user place, not the working directory."""
+    return Path(os.environ.get("XDG_DATA_HOME") or Path.home() / ".local" / "share") / "flexopt"
 
 
 class Settings(BaseSettings):
@@ -27,6 +35,18 @@ class Settings(BaseSettings):
     cache_size: int = Field(256, ge=0, description="entries of the LRU response cache for identical requests (0 = off)")
     api_keys: str = Field("", description="comma-separated API keys; empty = no authentication")
     api_key_header: str = Field("X-API-Key", description="header carrying the API key")
+
+    data_dir: Path = Field(default_factory=lambda: _default_data_dir(), description="where the job database (SQLite) and the jobs' "
+                           "finished cases are kept; mount it as a volume in a container")
+    database_url: str = Field("", validation_alias=AliasChoices("FLEXOPT_DATABASE_URL", "DATABASE_URL"),
+                              description="SQLAlchemy URL of the job store (e.g. postgresql+psycopg://...); "
+                                          "empty = SQLite file in data_dir")
+    max_jobs: PositiveInt = Field(1, description="optimisation jobs running at once (each uses job_workers processes)")
+    job_workers: int = Field(0, ge=0, description="worker processes per optimisation job (0 = CPU count)")
+
+    def job_store_url(self) -> str:
+        """The job store's SQLAlchemy URL."""
+        return self.database_url or f"sqlite:///{(self.data_dir / 'jobs.sqlite').resolve()}"
 
     def keys(self) -> frozenset[str]:
         """The configured API keys (empty: authentication off)."""

@@ -10,7 +10,7 @@ from pydantic import ValidationError
 from model import Analysis, template
 from model.errors import FlexoptError
 from optim import Problem, cases, run_case
-from optim.optimise import _Family
+from optim.search import _Family
 
 LEAF = {"families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]}}], "stroke": 20,
         "samples": 5, "starts": 1, "max_iterations": 10}

@@ -67,11 +67,12 @@ class _Server:
 
 
 @pytest.fixture(scope="module")
-def start() -> Iterator[Callable[..., _Server]]:
-    """Start a server with the given settings (stopped at the end of the module)."""
+def start(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Callable[..., _Server]]:
+    """Start a server with the given settings (stopped at the end of the module); jobs in a temporary dir."""
     servers: list[_Server] = []
 
     def _start(**kw: object) -> _Server:
+        kw.setdefault("data_dir", tmp_path_factory.mktemp("data"))
         s = _Server(Settings(**kw)).__enter__()
         servers.append(s)
         return s

@@ -27,9 +27,10 @@ schema = schemathesis.openapi.from_dict(
 
 
 @pytest.fixture(scope="module")
-def base_url() -> Iterator[str]:
+def base_url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     # Small limits keep the heavy endpoints cheap if a generated scene happens to be valid.
-    with _Server(Settings(request_timeout=5.0, max_stroke_points=11, cache_size=0)) as srv:
+    with _Server(Settings(request_timeout=5.0, max_stroke_points=11, cache_size=0,
+                          data_dir=tmp_path_factory.mktemp("data"))) as srv:
         yield srv.url
 
 

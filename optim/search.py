@@ -385,7 +385,7 @@ def optimise(problem: Problem | dict, *, executor=None, workers: int | None = No
     prob = Problem.model_validate(problem)
     for fam in prob.families:  # fail fast, in the caller, on a bad family
         _Family(prob, fam)
-    results = run_cases(cases(prob), "optim.optimise:run_case", executor=executor, workers=workers, store=store,
+    results = run_cases(cases(prob), "optim.search:run_case", executor=executor, workers=workers, store=store,
                         progress=progress, cancel=cancel)
     return summarise(prob, results)
 
