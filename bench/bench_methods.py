@@ -24,6 +24,7 @@ from model import Analysis, template  # noqa: E402
 from model.derivatives import frequency_curve  # noqa: E402
 
 TEMPLATES = ("leaf-spring", "parallel-leaf-spring", "cross-spring-pivot")
+FAMILIES = ("cartwheel-hinge", "three-fold-cross-hinge", "double-cross-hinge")  # the optimiser's other families
 METHODS = ("exact", "fd1", "fd2", "manifold", "reduced")
 
 
@@ -80,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--plot", default=None, help="write a PNG of the first parasitic frequency per method")
     args = p.parse_args(argv)
     all_curves = {}
-    for name in TEMPLATES:
+    for name in TEMPLATES + FAMILIES:
         rows, curves = bench_template(name, args.repeat)
         all_curves[name] = curves
         unit = curves["exact"].stroke_unit
