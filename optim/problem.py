@@ -71,6 +71,11 @@ class Problem(BaseModel):
                                    "the origin (the hinge centre of the templates) [m] (optional)")
     starts: int = Field(default=4, ge=1, le=64, description="multi-start: starts per family (the first is the "
                         "template's defaults clipped into the bounds, the others a Latin hypercube)")
+    screen: int = Field(default=0, ge=0, le=256, description="fast-method screening: each start first "
+                        "evaluates this many Latin-hypercube candidates of its own with the modal-derivative "
+                        "'auto' method (the cheapest method whose estimated error meets screen_tolerance; exact "
+                        "where none does) and starts from the one with the highest estimated worst case")
+    screen_tolerance: float = Field(default=0.02, gt=0, lt=0.5, description="error tolerance of the screening")
     seed: int = Field(default=0, ge=0, description="base seed of the Latin hypercube (deterministic)")
     max_iterations: int = Field(default=30, ge=1, le=500, description="SLSQP iterations per start and round")
     refine_rounds: int = Field(default=3, ge=0, le=10, description="verification rounds: the stroke of the "

@@ -146,3 +146,14 @@ def test_envelope_limits_the_optimum():
     nodes = r["verified"]["scene"]["nodes"]
     far = max(float(np.linalg.norm(n["position"])) for n in nodes)
     assert 0.025 * (1 - 1e-3) <= far <= 0.025 * (1 + 1e-6), far
+
+
+def test_fast_screening_picks_the_best_estimated_start():
+    """The screening rung evaluates each start's candidates with the 'auto' method (fd2 is within 5 % on the
+    leaf over +-20 deg, so it is used) and starts from the best estimate; the verified optimum is the same
+    upper-bound thickness as without screening."""
+    r = run_case(cases({**LEAF, "screen": 4, "screen_tolerance": 0.05})[0])
+    s = r["screening"]
+    assert s["candidates"] == s["scored"] == 4 and sum(s["methods"].values()) == 4
+    assert set(s["methods"]) <= {"fd1", "fd2", "manifold", "reduced", "exact"} and "exact" not in s["methods"]
+    assert r["design"]["thickness"] == pytest.approx(6e-4, rel=1e-6)
