@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
 import threading
@@ -186,8 +187,8 @@ class Dispatcher:
         for p in self.procs.values():
             p.terminate()
         for p in self.procs.values():
-            try:
-                p.wait(10)
+            try:  # the job finishes the cases in progress (a few seconds each), then exits
+                p.wait(30)
             except subprocess.TimeoutExpired:
                 p.kill()
         self.procs.clear()
@@ -255,12 +256,22 @@ def run_job(job_id: str) -> int:
         store.update(job_id, progress=json.dumps({"done": event["done"], "total": event["total"]}),
                      partial=json.dumps(partial))
 
+    # a stopping server sends SIGTERM: stop the batch cleanly (the worker pool shuts down with this process
+    # instead of being orphaned) and leave the job 'running', so that the next start requeues and resumes it
+    interrupted = threading.Event()
+
+    def on_term(signum: int, frame: Any) -> None:
+        interrupted.set()
+        cancel.set()
+
+    signal.signal(signal.SIGTERM, on_term)
     threading.Thread(target=watch, daemon=True).start()
     workers = int(os.environ["FLEXOPT_JOB_WORKERS"]) if os.environ.get("FLEXOPT_JOB_WORKERS") else None
     try:
         result = optimise(spec, workers=workers, store=case_dir, progress=progress, cancel=cancel)
     except BatchCancelled:
-        store.update(job_id, status="cancelled")
+        if not interrupted.is_set():
+            store.update(job_id, status="cancelled")
         return 0
     except Exception as exc:  # noqa: BLE001 - any failure is recorded on the job with its message
         store.update(job_id, status="failed", error=f"{type(exc).__name__}: {exc}")
