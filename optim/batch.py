@@ -2,10 +2,21 @@
 
 Any ``concurrent.futures.Executor`` runs the cases: a local process pool by default, a Dask cluster's
 executor (:func:`dask_executor`) for scale-out. Workers receive a JSON string and the importable name of
-the case function, never pickled CasADi objects; each worker builds (or loads from the disk cache,
-``model/kernels.py``) its compiled kernels itself. With a ``store`` directory every finished case is
-written there as it completes (temporary file, then an atomic rename), so an interrupted batch resumes
-without redoing finished work. Nothing here imports a scheduler at import time.
+the case function (``"module:function"``), never pickled CasADi objects; each worker imports the function
+itself and builds (or loads from the disk cache, ``model/kernels.py``, ``$FLEXOPT_CACHE_DIR``) its compiled
+kernels. Nothing here imports a scheduler at import time: ``distributed`` loads only in
+:func:`dask_executor`.
+
+Store layout (``store=DIR``): one file ``DIR/<case id>.json`` per finished case, written as the case
+completes (temporary file, ``fsync``, atomic rename), so a crash never leaves a half-written record and an
+interrupted batch resumes without redoing finished work. A record is either the case function's dictionary
+with ``"id"`` added, or a failure record with exactly the keys ``{"id", "error", "kind"}``. One store holds
+the cases of one case function: the case id does not include ``fn``.
+
+What is stored: the result of every case the function returned or raised from. What is not: a case the
+executor could not run (a lost Dask worker, ``KilledWorker``): it is returned as a failure record but not
+stored, so the next run tries it again. A process pool whose worker dies is broken for every case; the
+batch stops with a ``RuntimeError`` (finished cases are stored; rerun to resume).
 """
 
 from __future__ import annotations
@@ -19,168 +30,333 @@ import os
 import sys
 import tempfile
 import threading
+from collections import deque
 from collections.abc import Callable
 from pathlib import Path
 
-import numpy as np
+__all__ = ["BatchCancelled", "case_id", "case_seed", "dask_executor", "run_cases"]
 
-__all__ = ["run_cases", "case_id", "case_seed", "dask_executor", "BatchCancelled"]
+_FAILURE_KEYS = frozenset({"id", "error", "kind"})
+_POLL = 0.2  # seconds between looks at the cancel event while cases run
 
 
 class BatchCancelled(Exception):
-    """The batch was cancelled; ``results`` holds the finished cases (None for the others)."""
+    """The batch was cancelled.
+
+    Attributes
+    ----------
+    results
+        One entry per case, in the order of ``cases``: the record of every finished case (stored ones
+        included), ``None`` for a case that did not run.
+    """
 
     def __init__(self, results: list[dict | None]) -> None:
-        super().__init__(f"cancelled after {sum(r is not None for r in results)} of {len(results)} cases")
+        super().__init__(f"cancelled after {sum(r is not None for r in results)} of {len(results)} cases; "
+                         "rerun with the same store to resume")
         self.results = results
 
 
 def case_id(case: dict) -> str:
-    """Deterministic id of a case: the SHA-256 of its canonical JSON (sorted keys), 20 hex digits."""
-    blob = json.dumps(case, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    """Deterministic id of a case: SHA-256 of its canonical JSON (sorted keys, no spaces), 20 hex digits.
+
+    Key order does not matter; value types do (``1`` and ``1.0`` are different cases). Raises
+    ``ValueError`` for a case that is not strict JSON (NaN, numpy scalars, tuples as keys, ...).
+    """
+    try:
+        blob = json.dumps(case, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"a case must be strict JSON ({exc}): convert numpy values with float() or "
+                         ".tolist() and replace NaN or infinity by null") from None
     return hashlib.sha256(blob.encode()).hexdigest()[:20]
 
 
 def case_seed(case: dict, base_seed: int = 0) -> int:
-    """A 32-bit seed derived from ``base_seed`` and the case id (numpy ``SeedSequence``): the same case gets
-    the same seed on any worker, in any order, on a rerun."""
+    """A 32-bit random seed for one case, the same on any worker, in any order, on any rerun.
+
+    ``numpy.random.SeedSequence([base_seed, int(case_id(case), 16)]).generate_state(1)[0]``: the case id
+    (80 bits) is mixed with ``base_seed`` by numpy's SeedSequence hash, so different cases (or base seeds)
+    get independent streams. Use it as ``numpy.random.default_rng(case_seed(case, base_seed))``.
+    """
+    import numpy as np
+
+    if not isinstance(base_seed, int) or base_seed < 0:
+        raise ValueError(f"base_seed must be a non-negative integer, got {base_seed!r}")
     return int(np.random.SeedSequence([base_seed, int(case_id(case), 16)]).generate_state(1)[0])
 
 
+def _split(fn: str) -> tuple[str, str]:
+    mod, sep, name = fn.partition(":")
+    if not (sep and mod and name and all(p.isidentifier() for p in mod.split(".")) and name.isidentifier()):
+        raise ValueError(f"fn must name an importable function as 'module:function' (e.g. "
+                         f"'optim.search:run_case'), got {fn!r}")
+    return mod, name
+
+
+def _message(exc: BaseException) -> str:
+    # the message only: FlexoptError and ValueError messages already say what is wrong and how to fix it
+    return str(exc) or type(exc).__name__
+
+
 def _call(fn: str, case_json: str) -> str:
-    """Worker side: run ``fn`` ("module:function") on the case; exceptions become a failure record."""
-    mod, _, name = fn.partition(":")
+    """Worker side: import ``fn``, run it on the case, return JSON (a failure record if it raised)."""
+    mod, name = _split(fn)
     try:
-        out = getattr(importlib.import_module(mod), name)(json.loads(case_json))
-        return json.dumps({"ok": True, "result": out}, allow_nan=True)
-    except Exception as exc:  # noqa: BLE001 - every failure is reported as a record, with its type and message
-        return json.dumps({"ok": False, "error": str(exc) or type(exc).__name__, "kind": type(exc).__name__})
+        func = getattr(importlib.import_module(mod), name)
+    except (ImportError, AttributeError) as exc:
+        return json.dumps({"ok": False, "setup": True, "error": _message(exc), "kind": type(exc).__name__})
+    try:
+        out = func(json.loads(case_json))
+        if not isinstance(out, dict):
+            raise TypeError(f"{fn} returned a {type(out).__name__}: a case function must return a dict")
+        try:
+            return json.dumps({"ok": True, "result": out})  # NaN is kept (Python's JSON reads it back)
+        except (TypeError, ValueError) as exc:
+            raise type(exc)(f"the result of {fn} is not JSON ({exc}): return floats, lists and dicts "
+                            "(numpy values through float() or .tolist())") from None
+    except Exception as exc:  # noqa: BLE001 - every failure of a case becomes its record: type and message
+        return json.dumps({"ok": False, "error": _message(exc), "kind": type(exc).__name__})
 
 
-def _default_executor(workers: int | None) -> cf.Executor:
-    # forkserver: children start from a clean single-threaded server process, so a parent that runs threads
-    # (the HTTP service, Dask's client) cannot leave a lock held in a forked child; spawn where unavailable
-    # one BLAS thread per worker: the workers already use every core, and nested BLAS threads on top of
-    # them oversubscribe the machine (measured: a 2-worker topology search ran several times slower)
+def _cpu_count() -> int:
+    try:
+        return len(os.sched_getaffinity(0))  # the CPUs this process may use (containers, taskset)
+    except AttributeError:  # pragma: no cover - not on Linux
+        return os.cpu_count() or 1
+
+
+def _default_executor(workers: int) -> cf.Executor:
+    # Start method: forkserver, else spawn. Plain fork copies the parent at an arbitrary moment; the callers
+    # run threads (the HTTP service, the job process's cancel watcher, a Dask client, BLAS pools), and a
+    # lock held by one of them at fork time stays locked forever in the child. A forkserver child is
+    # forked from a separate single-threaded server process that was itself started fresh, so that hazard
+    # is gone, and starting a child costs a fork instead of a new interpreter (spawn).
+    # One BLAS thread per worker: the workers already use every core, and nested BLAS threads on top of
+    # them oversubscribe the machine (measured: a 2-worker topology search ran several times slower). The
+    # variables are inherited by the forkserver when it first starts; a value set by the user is kept.
     for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, "1")
     methods = multiprocessing.get_all_start_methods()
     ctx = multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
-    return cf.ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1, mp_context=ctx)
+    return cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
 
 
-def dask_executor(address: str) -> cf.Executor:
-    """A ``concurrent.futures`` executor on the Dask cluster at ``address`` (``Client.get_executor``)."""
+def dask_executor(address: str, **client_kwargs: object) -> cf.Executor:
+    """A ``concurrent.futures`` executor on the Dask cluster at ``address`` (``Client(address).get_executor()``).
+
+    ``client_kwargs`` go to ``distributed.Client`` (e.g. ``timeout="10s"``). Shutting the executor down
+    (``with dask_executor(addr) as ex: ...``) also closes its client; the cluster itself keeps running.
+    The workers need flexopt installed (they import ``optim.batch`` and the case function).
+    """
     try:
         from distributed import Client
+        from distributed.cfexecutor import ClientExecutor
     except ImportError as exc:  # pragma: no cover - depends on the installation
         raise ValueError("running on a Dask cluster needs the 'distributed' package: pip install "
                          "'flexopt[cluster]'") from exc
-    return Client(address).get_executor()
+
+    class _OwningClientExecutor(ClientExecutor):
+        # ClientExecutor.shutdown waits for (or cancels) the futures but leaves the client connected
+        def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+            try:
+                super().shutdown(wait=wait and not cancel_futures)
+            finally:
+                self._client.close()
+
+    try:
+        client = Client(address, **client_kwargs)
+    except OSError as exc:
+        raise ValueError(f"cannot reach the Dask scheduler at {address!r} ({exc}): check the address, or "
+                         "start one with `dask scheduler` and workers with `dask worker ADDRESS`") from exc
+    return _OwningClientExecutor(client)
 
 
 def _write(store: Path, cid: str, record: dict) -> None:
-    store.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=store, prefix=f".{cid}.", suffix=".tmp")
-    with os.fdopen(fd, "w") as fh:
-        json.dump(record, fh)
-    os.replace(tmp, store / f"{cid}.json")
+    try:
+        with os.fdopen(fd, "w") as fh:
+            json.dump(record, fh)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, store / f"{cid}.json")
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
 
 
 def _load(store: Path | None, cid: str) -> dict | None:
+    """The stored record of a case, or None (not stored, unreadable, or someone else's file)."""
     if store is None:
         return None
-    path = store / f"{cid}.json"
     try:
-        return json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError):
+        record = json.loads((store / f"{cid}.json").read_text())
+    except (OSError, ValueError):
         return None
+    return record if isinstance(record, dict) and record.get("id") == cid else None
+
+
+def _is_failure(record: dict) -> bool:
+    return set(record) == _FAILURE_KEYS
 
 
 class _Bar:
-    def __init__(self, total: int) -> None:
-        self.total, self.on = total, sys.stderr.isatty()
+    """A one-line text progress bar on stderr, drawn only when stderr is a terminal."""
 
-    def __call__(self, done: int) -> None:
+    def __init__(self, total: int) -> None:
+        self.total, self.failed, self.on = total, 0, sys.stderr.isatty()
+
+    def __call__(self, done: int, status: str) -> None:
+        self.failed += status == "failed"
         if self.on:
             n = int(30 * done / max(self.total, 1))
-            sys.stderr.write(f"\r[{'#' * n}{'.' * (30 - n)}] {done}/{self.total} cases")
+            tail = f", {self.failed} failed" if self.failed else ""
+            sys.stderr.write(f"\r[{'#' * n}{'.' * (30 - n)}] {done}/{self.total} cases{tail}")
             sys.stderr.flush()
 
     def close(self) -> None:
         if self.on:
             sys.stderr.write("\n")
+            sys.stderr.flush()
 
 
 def run_cases(cases: list[dict], fn: str, *, executor: cf.Executor | None = None, workers: int | None = None,
               store: str | os.PathLike | None = None, progress: Callable[[dict], None] | None = None,
               cancel: threading.Event | None = None, retry_failed: bool = False) -> list[dict]:
-    """Run ``fn`` on every case; results in the order of ``cases``.
+    """Run ``fn`` on every case, in parallel; results in the order of ``cases``.
 
-    Each result is the function's dictionary with ``"id"`` added, or a failure record ``{"id", "error",
-    "kind"}``. Cases already in ``store`` are not run again (failures only with ``retry_failed``).
-    ``progress(event)`` is called in the caller's process after each case with ``{"done", "total", "id",
-    "status": "done" | "failed" | "skipped"}``.
+    Parameters
+    ----------
+    cases
+        JSON dictionaries; equal cases (same :func:`case_id`) run once and share their record.
+    fn
+        ``"module:function"`` importable on every worker; it takes one case dictionary and returns a JSON
+        dictionary.
+    executor
+        Any ``concurrent.futures.Executor`` (e.g. :func:`dask_executor`); it is not shut down here. Default:
+        a local process pool, shut down on return.
+    workers
+        Processes of the default pool (default: the CPUs this process may use); ignored with ``executor``.
+    store
+        Directory of finished cases (see the module docstring); cases found there are not run again.
+    progress
+        Called in this process after each case with ``{"done", "total", "id", "status"}``, status one of
+        ``"done"``, ``"failed"``, ``"skipped"`` (found in the store).
+    cancel
+        When set, no new case starts; queued ones are cancelled; cases already running on a process pool
+        cannot be stopped: they finish and are stored, then :class:`BatchCancelled` is raised.
+    retry_failed
+        Run the cases whose stored record is a failure again (by default it is returned as it is).
+
+    Returns
+    -------
+    list of dict
+        The function's dictionary with ``"id"`` added, or a failure record ``{"id", "error", "kind"}``:
+        the exception's message (no traceback) and its class name (e.g. ``"EquilibriumError"``).
 
     Raises
     ------
     BatchCancelled
-        When ``cancel`` is set: no new case starts, queued ones are cancelled.
+        ``cancel`` was set (or the executor cancelled cases); carries the results finished so far.
+    ValueError
+        ``fn`` is not ``"module:function"``, cannot be imported on a worker, or a case is not strict JSON.
+    RuntimeError
+        The executor broke (a worker process died): finished cases are stored, rerun to resume.
     """
+    _split(fn)
+    if workers is not None and workers < 1:
+        raise ValueError(f"workers must be at least 1, got {workers}")
     root = Path(store) if store is not None else None
+    if root is not None:
+        root.mkdir(parents=True, exist_ok=True)
     ids = [case_id(c) for c in cases]
     results: list[dict | None] = [None] * len(cases)
     total, done = len(cases), 0
     bar = _Bar(total)
 
     def report(cid: str, status: str) -> None:
+        bar(done, status)
         if progress is not None:
             progress({"done": done, "total": total, "id": cid, "status": status})
-        bar(done)
 
-    todo: dict[str, list[int]] = {}
+    todo: dict[str, list[int]] = {}  # case id -> its positions in `cases`
     for i, cid in enumerate(ids):
+        if cid in todo:
+            todo[cid].append(i)
+            continue
         old = _load(root, cid)
-        if old is not None and ("error" not in old or not retry_failed):
+        if old is not None and not (retry_failed and _is_failure(old)):
             results[i] = old
             done += 1
             report(cid, "skipped")
         else:
-            todo.setdefault(cid, []).append(i)
+            todo[cid] = [i]
     if not todo:
         bar.close()
         return results  # type: ignore[return-value]
+
     own = executor is None
-    ex = _default_executor(min(workers or os.cpu_count() or 1, len(todo))) if own else executor
-    futures = {ex.submit(_call, fn, json.dumps(cases[idx[0]])): cid for cid, idx in todo.items()}
+    n_workers = min(workers or _cpu_count(), len(todo))
+    ex = _default_executor(n_workers) if own else executor
+    # Own pool: keep exactly one case per worker in flight, so a cancel stops every case not yet started
+    # (a process pool hands queued calls to its workers early and cannot take them back). A foreign
+    # executor gets every case at once: a Dask scheduler places them, and cancels queued or running ones.
+    limit = n_workers if own else None
+    queue = deque(todo.items())
+    running: dict[cf.Future, str] = {}
+    stopped = False
+
+    def cancelled() -> bool:
+        return cancel is not None and cancel.is_set()
+
+    def fill() -> None:
+        while queue and (limit is None or len(running) < limit) and not cancelled():
+            cid, idx = queue.popleft()
+            running[ex.submit(_call, fn, json.dumps(cases[idx[0]]))] = cid
+
+    def finish(f: cf.Future, cid: str) -> None:
+        nonlocal done
+        try:
+            out = json.loads(f.result())
+        except cf.CancelledError:
+            return  # cancelled by someone else (e.g. the executor shut down): not finished, not stored
+        except cf.BrokenExecutor as exc:
+            raise RuntimeError(
+                "a worker process died (out of memory, killed, a crash in compiled code, or a script that "
+                "starts the batch without an `if __name__ == '__main__':` guard); finished cases are in the "
+                "store: rerun to resume") from exc
+        except Exception as exc:  # noqa: BLE001 - the executor could not run this case: report, do not store
+            record = {"id": cid, "error": _message(exc), "kind": type(exc).__name__}
+        else:
+            if out.get("setup"):
+                raise ValueError(f"cannot import {fn!r} on a worker ({out['kind']}: {out['error']}): check the "
+                                 "name, and that the workers have flexopt (and the module) installed")
+            if out["ok"]:
+                record = dict(out["result"], id=cid)
+            else:
+                record = {"id": cid, "error": out["error"], "kind": out["kind"]}
+            if root is not None:
+                _write(root, cid, record)
+        for i in todo[cid]:
+            results[i] = record
+            done += 1
+        report(cid, "failed" if _is_failure(record) else "done")
+
     try:
-        pending = set(futures)
-        while pending:
-            if cancel is not None and cancel.is_set():
-                for f in pending:
-                    f.cancel()
-                raise BatchCancelled(results)
-            finished, pending = cf.wait(pending, timeout=0.2, return_when=cf.FIRST_COMPLETED)
+        fill()
+        while running:
+            if cancelled() and not stopped:
+                stopped = True
+                for f in list(running):
+                    if f.cancel():  # queued: dropped; running (cancel() is False): finishes below
+                        del running[f]
+                continue
+            finished, _ = cf.wait(running, timeout=_POLL, return_when=cf.FIRST_COMPLETED)
             for f in finished:
-                cid = futures[f]
-                try:
-                    raw = f.result()
-                except cf.process.BrokenProcessPool as exc:
-                    raise RuntimeError(
-                        "a worker process died (out of memory, killed, or a script that starts the batch "
-                        "without an `if __name__ == '__main__':` guard); finished cases are in the store, "
-                        "rerun to resume") from exc
-                out = json.loads(raw)
-                record = dict(out["result"], id=cid) if out["ok"] else {"id": cid, "error": out["error"],
-                                                                        "kind": out["kind"]}
-                if root is not None:
-                    _write(root, cid, record)
-                for i in todo[cid]:
-                    results[i] = record
-                    done += 1
-                report(cid, "done" if out["ok"] else "failed")
+                finish(f, running.pop(f))
+            fill()
     finally:
         bar.close()
         if own:
             ex.shutdown(wait=True, cancel_futures=True)
+    if any(r is None for r in results):  # cancelled, by `cancel` or by the executor
+        raise BatchCancelled(results)
     return results  # type: ignore[return-value]

@@ -1,8 +1,20 @@
-"""The batch runner (optim/batch.py) and the optimiser's batch entry point, on real model work."""
+"""The batch runner (optim/batch.py) and the optimiser's batch entry point, on real model work.
+
+Case functions live in tests/batch_cases.py so worker processes can import them; a marker file per call
+counts how often cases really ran.
+"""
 
 from __future__ import annotations
 
+import concurrent.futures as cf
+import io
+import json
+import sys
 import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -10,67 +22,206 @@ from optim import optimise
 from optim.batch import BatchCancelled, case_id, case_seed, run_cases
 from tests.batch_cases import leaf_torsion_hz
 
-FN = "tests.batch_cases:leaf_torsion_hz"
+LEAF = "tests.batch_cases:leaf_torsion_hz"
+SEEDED = "tests.batch_cases:seeded"
+MISBEHAVE = "tests.batch_cases:misbehave"
 
 
-def _cases(tmp_path=None, n=4):
-    marker = str(tmp_path) if tmp_path is not None else None
-    return [{"thickness": 3e-4 + 1e-4 * i, "marker_dir": marker} for i in range(n)]
+def _leaf_cases(marks: Path | None = None, n: int = 4) -> list[dict]:
+    return [{"thickness": 3e-4 + 1e-4 * i, "marker_dir": str(marks) if marks else None} for i in range(n)]
 
 
-def test_pool_results_equal_the_serial_computation_in_order():
-    cases = _cases()
-    out = run_cases(cases, FN, workers=2)
-    for c, r in zip(cases, out):
-        assert r["hz"] == leaf_torsion_hz(c)["hz"], "a worker process computes exactly what the caller does"
-        assert r["id"] == case_id(c)
+def _runs(marks: Path) -> int:
+    return len(list(marks.iterdir()))
 
 
-def test_interrupted_batch_resumes_without_redoing_finished_cases(tmp_path):
-    marks = tmp_path / "marks"
-    marks.mkdir()
+@pytest.fixture
+def marks(tmp_path: Path) -> Path:
+    d = tmp_path / "marks"
+    d.mkdir()
+    return d
+
+
+def test_pool_results_equal_the_serial_computation_in_order(marks: Path) -> None:
+    cases = _leaf_cases(marks)[::-1]
+    cases.append(cases[0])  # any order, and a repeated case
+    out = run_cases(cases, LEAF, workers=2)
+    assert _runs(marks) == 4, "the repeated case ran once"
+    for c, r in zip(cases, out, strict=True):
+        assert r == dict(leaf_torsion_hz(c), id=case_id(c)), "a worker process computes exactly what the caller does"
+    assert out[0] is out[-1]
+
+
+def test_cancel_after_the_first_case_then_resume_runs_each_case_once(tmp_path: Path, marks: Path) -> None:
+    store, cancel, events = tmp_path / "store", threading.Event(), []
+    cases = _leaf_cases(marks, n=5)
+
+    def stop_after_first(event: dict) -> None:
+        events.append(event)
+        cancel.set()
+
+    with pytest.raises(BatchCancelled) as info:
+        run_cases(cases, LEAF, workers=2, store=store, progress=stop_after_first, cancel=cancel)
+    # the pool holds one case per worker: the other running case finishes and is stored, none starts
+    assert _runs(marks) == 2 and len(events) == 2
+    finished = [r for r in info.value.results if r is not None]
+    assert len(finished) == 2 and len(list(store.glob("*.json"))) == 2
+    assert not list(store.glob(".*")), "no temporary file is left in the store"
+
+    events.clear()
+    full = run_cases(cases, LEAF, workers=2, store=store, progress=events.append)
+    assert _runs(marks) == 5, "each case ran exactly once over both batches"
+    assert sorted(e["status"] for e in events) == ["done"] * 3 + ["skipped"] * 2
+    assert [e["done"] for e in events] == [1, 2, 3, 4, 5] and events[-1]["total"] == 5
+    assert [r for r in full if r in finished] == finished, "resumed results are the stored ones"
+    assert [r["hz"] for r in full] == [leaf_torsion_hz(c)["hz"] for c in cases]
+
+
+def test_a_subset_run_then_the_whole_list_resumes(tmp_path: Path, marks: Path) -> None:
     store = tmp_path / "store"
-    cases = _cases(marks)
-    first = run_cases(cases[:2], FN, workers=2, store=store)  # the "interrupted" batch finished two cases
-    events = []
-    full = run_cases(cases, FN, workers=2, store=store, progress=events.append)
-    assert len(list(marks.iterdir())) == 4, "each case ran exactly once over both batches"
-    assert [e["status"] for e in events].count("skipped") == 2
-    assert full[:2] == first
-    assert events[-1]["done"] == events[-1]["total"] == 4
+    cases = _leaf_cases(marks, n=3)
+    first = run_cases(cases[:2], LEAF, workers=2, store=store)
+    full = run_cases(cases, LEAF, workers=2, store=store)
+    assert _runs(marks) == 3 and full[:2] == first
+    for r in full:
+        assert json.loads((store / f"{r['id']}.json").read_text()) == r, "one JSON file per case id"
 
 
-def test_failures_are_records_retried_only_on_request(tmp_path):
-    marks = tmp_path / "marks"
-    marks.mkdir()
-    cases = [{"thickness": -1.0, "marker_dir": str(marks)}]
-    out = run_cases(cases, FN, workers=1, store=tmp_path / "s")
-    assert out[0]["kind"] == "ValueError" and "thickness must be positive" in out[0]["error"]
-    run_cases(cases, FN, workers=1, store=tmp_path / "s")
-    assert len(list(marks.iterdir())) == 1, "a stored failure is not retried by default"
-    run_cases(cases, FN, workers=1, store=tmp_path / "s", retry_failed=True)
-    assert len(list(marks.iterdir())) == 2
+def test_cancel_on_a_foreign_executor_drops_queued_cases(tmp_path: Path, marks: Path) -> None:
+    store, cancel = tmp_path / "store", threading.Event()
+    # the second case holds its thread for 0.5 s: the cancel (at the first case's event) lands while it runs
+    cases = [{"base_seed": 0, "k": k, "hold": 0.5 * (k == 1), "marker_dir": str(marks)} for k in range(3)]
+    with cf.ThreadPoolExecutor(1) as ex:
+        with pytest.raises(BatchCancelled) as info:
+            run_cases(cases, SEEDED, executor=ex, store=store, progress=lambda e: cancel.set(), cancel=cancel)
+        ran = _runs(marks)
+        assert 1 <= ran <= 2, "the queued case never started; the one running when cancelled may finish"
+        assert info.value.results[2] is None and sum(r is not None for r in info.value.results) == ran
+        assert len(list(store.glob("*.json"))) == ran, "a case that finished after the cancel is stored too"
+        run_cases(cases, SEEDED, executor=ex, store=store)
+    assert _runs(marks) == 3
 
 
-def test_case_ids_and_seeds_are_deterministic():
-    a, b = {"x": 1, "y": [1, 2]}, {"y": [1, 2], "x": 1}
-    assert case_id(a) == case_id(b) and case_seed(a, 7) == case_seed(b, 7)
-    assert case_seed(a, 7) != case_seed(a, 8) and case_id(a) != case_id({"x": 2, "y": [1, 2]})
-
-
-def test_cancel_stops_the_batch_and_keeps_finished_results():
+def test_cancel_set_before_the_start_runs_nothing(marks: Path) -> None:
     cancel = threading.Event()
     cancel.set()
-    with pytest.raises(BatchCancelled) as info:
-        run_cases(_cases(n=3), FN, workers=1, cancel=cancel)
-    assert len(info.value.results) == 3
+    with pytest.raises(BatchCancelled, match="after 0 of 3 cases") as info:
+        run_cases(_leaf_cases(marks, n=3), LEAF, workers=1, cancel=cancel)
+    assert info.value.results == [None, None, None] and _runs(marks) == 0
+
+
+def test_failures_are_records_kept_and_retried_only_on_request(tmp_path: Path, marks: Path) -> None:
+    store = tmp_path / "store"
+    m = str(marks)
+    cases = [{"how": how, "marker_dir": m} for how in ("lookup", "divide", "not-a-dict", "not-json", "fine")]
+    cases.append({"thickness": -1e-3, "marker_dir": m})
+    with cf.ThreadPoolExecutor(2) as ex:  # in-process threads: the same worker code, no process start-up
+        out = run_cases(cases[:5], MISBEHAVE, executor=ex, store=store)
+    out += run_cases(cases[5:], LEAF, workers=1, store=store)  # the model's own error, in a worker process
+    expected = [  # kind, words in the message
+        ("KeyError", "missing-key"), ("ZeroDivisionError", "division by zero"),
+        ("TypeError", "must return a dict"), ("TypeError", "not JSON"), (None, None),
+        ("SceneError", "thickness: Input should be greater than 0"),  # FlexoptError: message kept whole
+    ]
+    for case, r, (kind, words) in zip(cases, out, expected, strict=True):
+        if kind is None:
+            assert r == {"value": "fine", "id": case_id(case)}
+            continue
+        assert set(r) == {"id", "error", "kind"} and r["kind"] == kind and words in r["error"], r
+        assert "Traceback" not in r["error"]
+        assert json.loads((store / f"{r['id']}.json").read_text()) == r, "a failure is stored like a result"
+    assert _runs(marks) == 6
+
+    events = []
+    with cf.ThreadPoolExecutor(2) as ex:
+        again = run_cases(cases[:5], MISBEHAVE, executor=ex, store=store, progress=events.append)
+        assert again == out[:5] and _runs(marks) == 6, "a stored failure is not retried by default"
+        assert {e["status"] for e in events} == {"skipped"}
+        events.clear()
+        run_cases(cases[:5], MISBEHAVE, executor=ex, store=store, retry_failed=True, progress=events.append)
+    assert _runs(marks) == 10, "retry_failed runs the four failures again, not the finished case"
+    assert sorted(e["status"] for e in events) == ["failed"] * 4 + ["skipped"]
+
+
+class _LosesFirstCase(cf.ThreadPoolExecutor):
+    """A thread pool that loses its first task, as a Dask cluster does when a worker dies."""
+
+    def __init__(self) -> None:
+        super().__init__(1)
+        self.lost = False
+
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> cf.Future:
+        if self.lost:
+            return super().submit(fn, *args, **kwargs)
+        self.lost = True
+        f: cf.Future = cf.Future()
+        f.set_exception(OSError("connection to worker tcp://10.0.0.7:40000 lost"))
+        return f
+
+
+def test_a_case_the_executor_lost_is_reported_not_stored(tmp_path: Path, marks: Path) -> None:
+    cases = [{"base_seed": 1, "k": k, "marker_dir": str(marks)} for k in range(2)]
+    with _LosesFirstCase() as ex:
+        out = run_cases(cases, SEEDED, executor=ex, store=tmp_path)
+    assert out[0] == {"id": case_id(cases[0]), "error": "connection to worker tcp://10.0.0.7:40000 lost",
+                      "kind": "OSError"}
+    assert not (tmp_path / f"{case_id(cases[0])}.json").exists() and _runs(marks) == 1
+    with cf.ThreadPoolExecutor(1) as ex:
+        again = run_cases(cases, SEEDED, executor=ex, store=tmp_path)
+    assert "seed" in again[0] and again[1] == out[1] and _runs(marks) == 2, "only the lost case ran again"
+
+
+def test_case_ids_and_seeds_are_deterministic_across_workers() -> None:
+    a, b = {"x": 1, "y": [1, 2]}, {"y": [1, 2], "x": 1}
+    assert case_id(a) == case_id(b) and case_seed(a, 7) == case_seed(b, 7), "key order does not matter"
+    assert case_id(a) != case_id({"x": 2, "y": [1, 2]}) and case_id({"x": 1}) != case_id({"x": 1.0})
+    assert case_seed(a, 7) != case_seed(a, 8)
+    # regression pin (this code's value, no outside source): a change re-seeds every stored batch
+    assert case_seed({"x": 1}, 0) == 1581472773 and case_id({"x": 1}) == "5041bf1f713df2047843"
+    cases = [{"base_seed": 3, "k": k} for k in range(4)]
+    out = run_cases(cases, SEEDED, workers=2)
+    assert [r["seed"] for r in out] == [case_seed(c, 3) for c in cases], "a worker derives the caller's seed"
+    assert len({r["draw"] for r in out}) == 4, "different cases draw different random streams"
+
+
+@pytest.mark.parametrize(("call", "words"), [
+    (lambda: run_cases([{}], "tests.batch_cases.seeded"), "'module:function'"),
+    (lambda: run_cases([{}], "tests.batch_cases:"), "'module:function'"),
+    (lambda: run_cases([{"x": float("nan")}], SEEDED), "strict JSON"),
+    (lambda: run_cases([{"x": {1, 2}}], SEEDED), "strict JSON"),
+    (lambda: run_cases([{}], SEEDED, workers=0), "workers must be at least 1"),
+    (lambda: case_seed({}, -1), "non-negative"),
+])
+def test_bad_inputs_fail_fast_with_a_fix(call: Callable[[], object], words: str) -> None:
+    with pytest.raises(ValueError, match=words):
+        call()
+
+
+def test_a_case_function_workers_cannot_import_stops_the_batch() -> None:
+    with cf.ThreadPoolExecutor(1) as ex, pytest.raises(ValueError, match="cannot import 'tests.batch_cases:nope'"):
+        run_cases([{"base_seed": 0}], "tests.batch_cases:nope", executor=ex)
+
+
+def test_progress_bar_on_a_terminal(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    class Tty(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    err = Tty()
+    monkeypatch.setattr(sys, "stderr", err)
+    cases = [{"base_seed": 0, "k": k} for k in range(2)] + [{"how": "divide"}]
+    with cf.ThreadPoolExecutor(1) as ex:
+        run_cases(cases[:2], SEEDED, executor=ex, store=tmp_path)
+        run_cases(cases[2:], MISBEHAVE, executor=ex)
+    lines = err.getvalue().split("\n")
+    assert lines[0].endswith("] 2/2 cases") and lines[1].endswith("] 1/1 cases, 1 failed")
 
 
 TINY = {"families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]}}], "stroke": 20,
         "samples": 5, "starts": 2, "max_iterations": 5}
 
 
-def test_optimise_runs_families_as_a_batch_and_resumes(tmp_path):
+def test_optimise_runs_families_as_a_batch_and_resumes(tmp_path: Path) -> None:
     events = []
     res = optimise(TINY, workers=2, store=tmp_path, progress=events.append)
     best = res["families"][0]["best"]
@@ -81,10 +232,33 @@ def test_optimise_runs_families_as_a_batch_and_resumes(tmp_path):
 
 
 @pytest.mark.slow
-def test_dask_local_cluster_gives_the_pool_results():
+def test_dask_local_cluster_gives_the_pool_results() -> None:
     distributed = pytest.importorskip("distributed")
-    cases = _cases(n=3)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster, distributed.Client(cluster) as client:
-        out = run_cases(cases, FN, executor=client.get_executor())
-    assert [r["hz"] for r in out] == [r["hz"] for r in run_cases(cases, FN, workers=2)]
+    from optim.batch import dask_executor
+
+    cases = _leaf_cases(n=3)
+    pool = run_cases(cases, LEAF, workers=2)
+    cancel = threading.Event()
+    deadline = threading.Timer(120.0, cancel.set)  # bound: a hung cluster ends as BatchCancelled, not a hang
+    deadline.start()
+    t0 = time.perf_counter()
+    try:
+        # close order: the executor closes its client first, then the cluster stops its workers
+        with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                      dashboard_address=None) as cluster:
+            with dask_executor(cluster.scheduler_address, timeout="30s") as ex:
+                out = run_cases(cases, LEAF, executor=ex, cancel=cancel)
+                assert ex._client.status == "running"
+            assert ex._client.status == "closed", "shutting the executor down closes its client"
+    finally:
+        deadline.cancel()
+    assert time.perf_counter() - t0 < 120
+    assert out == pool, "a Dask cluster computes exactly what the local process pool does"
+
+
+def test_an_unreachable_scheduler_says_how_to_fix_it() -> None:
+    pytest.importorskip("distributed")
+    from optim.batch import dask_executor
+
+    with pytest.raises(ValueError, match="cannot reach the Dask scheduler at 'tcp://127.0.0.1:9'.*dask scheduler"):
+        dask_executor("tcp://127.0.0.1:9", timeout="1s")
