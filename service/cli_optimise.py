@@ -57,7 +57,11 @@ def _cmd_optimise(args: argparse.Namespace) -> int:
         from optim.batch import dask_executor
 
         executor = dask_executor(args.scheduler)
-    result = optimise(prob, executor=executor, workers=args.workers, store=args.store)
+    try:
+        result = optimise(prob, executor=executor, workers=args.workers, store=args.store)
+    finally:
+        if executor is not None:
+            executor.shutdown()  # also closes the Dask client
     if args.scenes:
         out = Path(args.scenes)
         out.mkdir(parents=True, exist_ok=True)
