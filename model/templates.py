@@ -330,7 +330,7 @@ def _hinge(p: dict, name: str, nodes: list, bodies: list, elements: list, suppor
 
 
 def _cartwheel_hinge(p: dict) -> dict:
-    """Cartwheel hinge (monolithic cross-spring pivot; Henein, Aymon, Bottinelli and Clavel, Proc. SPIE 2003,
+    """Cartwheel hinge (monolithic cross-spring pivot; Henein, Aymon, Bottinelli and Clavel, Proc. SPIE 3834, 1999,
     "Fatigue failure of thin wire-electrodischarge machined flexible hinges", and Naves 2017, sec. 2): two
     leaves of length ``length`` crossing at ``angle`` degrees in one plane (z = 0), rigidly joined at their
     common midpoint on the hinge axis; the four half-leaves run from the centre to two ground anchors
