@@ -42,7 +42,7 @@ CASES = [
 _CHILD = """
 import time, sys
 t0 = time.perf_counter()
-from model import Analysis, template
+from flexopt.model import Analysis, template
 c = Analysis(template({name!r}, **{params!r})).frequency_curve()
 assert c.status == "complete" and len(c.stroke) == 91
 print(time.perf_counter() - t0)
@@ -63,7 +63,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--markdown", action="store_true", help="print a markdown table")
     args = ap.parse_args(argv)
 
-    from model import Analysis, template
+    from flexopt.model import Analysis, template
 
     rows = []
     with tempfile.TemporaryDirectory() as cold_root:

@@ -20,8 +20,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from model import Analysis, template  # noqa: E402
-from model.derivatives import frequency_curve  # noqa: E402
+from flexopt.model import Analysis, template  # noqa: E402
+from flexopt.model.derivatives import frequency_curve  # noqa: E402
 
 TEMPLATES = ("leaf-spring", "parallel-leaf-spring", "cross-spring-pivot")
 FAMILIES = ("cartwheel-hinge", "three-fold-cross-hinge", "double-cross-hinge")  # the optimiser's other families

@@ -21,16 +21,16 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 os.environ["PYTHONPATH"] = str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")
 
-from model import Analysis, template  # noqa: E402
-from model.templates import TEMPLATES  # noqa: E402
-from optim import optimise  # noqa: E402
+from flexopt.model import Analysis, template  # noqa: E402
+from flexopt.model.templates import TEMPLATES  # noqa: E402
+from flexopt.optim import optimise  # noqa: E402
 
 PIVOT = {"template": "cross-spring-pivot", "design": {"length": [0.03, 0.07], "thickness": [1.5e-4, 4e-4]}}
 
 
 def _hinge_families() -> list[dict]:
     try:
-        from model.templates import DESIGN_SPACES
+        from flexopt.model.templates import DESIGN_SPACES
     except ImportError:
         return [PIVOT]
     fams = []

@@ -22,5 +22,5 @@ def __getattr__(name: str) -> Any:
     if name in _LAZY:
         import importlib
 
-        return getattr(importlib.import_module("optim.search"), name)
-    raise AttributeError(f"module 'optim' has no attribute {name!r}")
+        return getattr(importlib.import_module(".search", __package__), name)
+    raise AttributeError(f"module 'flexopt.optim' has no attribute {name!r}")

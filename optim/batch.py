@@ -88,7 +88,7 @@ def _split(fn: str) -> tuple[str, str]:
     mod, sep, name = fn.partition(":")
     if not (sep and mod and name and all(p.isidentifier() for p in mod.split(".")) and name.isidentifier()):
         raise ValueError(f"fn must name an importable function as 'module:function' (e.g. "
-                         f"'optim.search:run_case'), got {fn!r}")
+                         f"'flexopt.optim.search:run_case'), got {fn!r}")
     return mod, name
 
 

@@ -34,10 +34,10 @@ import numpy as np
 from scipy.optimize import minimize
 from scipy.stats import qmc
 
-from model.analysis import Analysis
-from model.design import point_sensitivity, structure_derivative, trace_template
-from model.errors import FlexoptError
-from model.templates import TEMPLATES
+from ..model.analysis import Analysis
+from ..model.design import point_sensitivity, structure_derivative, trace_template
+from ..model.errors import FlexoptError
+from ..model.templates import TEMPLATES
 
 from .problem import Family, Problem
 
@@ -237,7 +237,7 @@ class _Family:
 
 def _verify(fam: _Family, x: np.ndarray, points: int) -> dict:
     """The exact curve of design ``x`` on ``points`` stroke points: worst and zero-stroke frequency."""
-    from model.templates import template
+    from ..model.templates import template
 
     params = fam.params(x)
     scene = template(fam.fam.template, **params)
@@ -279,8 +279,8 @@ def _screen(fam: _Family, prob: Problem, family_index: int, start: int, x0: np.n
     method 'auto' (each candidate's error estimate decides whether a Taylor estimate is good enough or the
     exact curve is needed). Candidates whose curve cannot be computed are skipped. Returns the best point
     and a record of the screening."""
-    from model.derivatives import frequency_curve as fast_curve
-    from model.templates import template
+    from ..model.derivatives import frequency_curve as fast_curve
+    from ..model.templates import template
 
     sampler = qmc.LatinHypercube(d=len(fam.names), seed=np.random.default_rng([prob.seed, family_index, start, 1]))
     cands = [x0] + list(sampler.random(prob.screen - 1)) if prob.screen > 1 else [x0]
@@ -414,7 +414,7 @@ def optimise(problem: Problem | dict, *, executor=None, workers: int | None = No
     prob = Problem.model_validate(problem)
     for fam in prob.families:  # fail fast, in the caller, on a bad family
         _Family(prob, fam)
-    results = run_cases(cases(prob), "optim.search:run_case", executor=executor, workers=workers, store=store,
+    results = run_cases(cases(prob), "flexopt.optim.search:run_case", executor=executor, workers=workers, store=store,
                         progress=progress, cancel=cancel)
     return summarise(prob, results)
 

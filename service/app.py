@@ -4,7 +4,7 @@ Routes are thin: validate, run the model in the worker pool (never on the event 
 The lifespan owns the runtime state: the worker process pool (service.worker functions of a JSON spec), the
 slots bounding concurrent heavy computations and the bounded LRU cache of identical frequency-curve requests. Exceptions become problem-details bodies in errors_http only.
 
-Regenerate the committed schema with ``python -m service.app > service/openapi.json``.
+Regenerate the committed schema with ``python -m flexopt.service.app > service/openapi.json``.
 """
 
 from __future__ import annotations
@@ -249,7 +249,7 @@ _HEAVY: dict[int | str, dict[str, Any]] = {
 
 def _scene(data: dict[str, Any]) -> Any:
     """Validate a scene document; errors are located inside the request's ``scene`` field."""
-    from model.scene import Scene
+    from ..model.scene import Scene
 
     try:
         return Scene.model_validate(data)
@@ -270,7 +270,7 @@ def _parameter_info(name: str, default: Any) -> ParameterInfo:
     if isinstance(default, str):
         from typing import get_args
 
-        from model.scene import RectangularSection
+        from ..model.scene import RectangularSection
 
         choices = get_args(RectangularSection.model_fields[name].annotation) if (
             name in RectangularSection.model_fields) else ()
@@ -283,7 +283,7 @@ def _parameter_info(name: str, default: Any) -> ParameterInfo:
 
 
 def _template_info(name: str) -> TemplateInfo:
-    from model import template_parameters
+    from ..model import template_parameters
 
     params = template_parameters(name)
     return TemplateInfo(name=name, parameters=[_parameter_info(k, v) for k, v in params.items()])
@@ -291,7 +291,7 @@ def _template_info(name: str) -> TemplateInfo:
 
 def _methods() -> list[str]:
     try:
-        from model import derivatives
+        from ..model import derivatives
 
         return list(getattr(derivatives, "METHODS", ("exact",)))
     except ImportError:  # pragma: no cover - before model.derivatives lands
@@ -300,7 +300,7 @@ def _methods() -> list[str]:
 
 def _diagnosis_available() -> bool:
     try:
-        from model.constraints import diagnose  # noqa: F401
+        from ..model.constraints import diagnose  # noqa: F401
     except ImportError:  # pragma: no cover - before model.constraints lands
         return False
     return True
@@ -311,14 +311,14 @@ def _router(settings: Settings) -> APIRouter:
 
     @v1.get("/templates", response_model=list[TemplateInfo], summary="List parametric templates")
     async def list_templates() -> list[TemplateInfo]:
-        from model import TEMPLATES
+        from ..model import TEMPLATES
 
         return [_template_info(n) for n in sorted(TEMPLATES)]
 
     @v1.get("/templates/{name}", response_model=TemplateInfo, summary="One template: parameters, defaults, bounds",
             responses={404: {"model": Problem}})
     async def get_template(name: str) -> TemplateInfo:
-        from model import TEMPLATES
+        from ..model import TEMPLATES
 
         if name not in TEMPLATES:
             raise HTTPException(404, f"unknown template '{name}'; choose one of {', '.join(sorted(TEMPLATES))}")
@@ -327,8 +327,8 @@ def _router(settings: Settings) -> APIRouter:
     @v1.post("/templates/{name}/scene", summary="The scene of a template with parameters overridden",
              response_model=dict[str, Any], responses={404: {"model": Problem}, **_ERRORS})
     async def template_scene(name: str, body: TemplateSceneRequest | None = None) -> JSONResponse:
-        from model import TEMPLATES, template
-        from model.errors import SceneError
+        from ..model import TEMPLATES, template
+        from ..model.errors import SceneError
 
         if name not in TEMPLATES:
             raise HTTPException(404, f"unknown template '{name}'; choose one of {', '.join(sorted(TEMPLATES))}")
@@ -343,7 +343,7 @@ def _router(settings: Settings) -> APIRouter:
 
     @v1.get("/scene-schema", summary="JSON schema of a scene", response_model=dict[str, Any])
     async def scene_schema() -> dict[str, Any]:
-        from model.scene import Scene
+        from ..model.scene import Scene
 
         return Scene.model_json_schema()
 
@@ -396,8 +396,8 @@ def _router(settings: Settings) -> APIRouter:
              responses={422: {"model": Problem}})
     async def submit_optimisation(spec: OptimisationProblem, request: Request, response: Response,
                                   idempotency_key: str | None = Header(default=None, max_length=200)) -> Job:
-        from model.errors import FlexoptError
-        from optim.search import _Family
+        from ..model.errors import FlexoptError
+        from ..optim.search import _Family
 
         for i, fam in enumerate(spec.families):  # fail now, not in the job, on a family that cannot run
             try:

@@ -23,8 +23,8 @@ def _parse_sets(items: Sequence[str]) -> dict[str, str]:
 
 
 def _cmd_template(args: argparse.Namespace) -> int:
-    from model import template, template_parameters
-    from model.templates import TEMPLATES
+    from ..model import template, template_parameters
+    from ..model.templates import TEMPLATES
 
     if args.name is None or args.list:
         for name in sorted(TEMPLATES):
@@ -79,7 +79,7 @@ def _plot(curve, path: str) -> None:
 
 
 def _cmd_curve(args: argparse.Namespace) -> int:
-    from model import Analysis, load_scene, template
+    from ..model import Analysis, load_scene, template
 
     if args.scene is not None and args.template is not None:
         raise ValueError("give a scene file or --template, not both")
@@ -88,7 +88,7 @@ def _cmd_curve(args: argparse.Namespace) -> int:
     if args.method == "exact":
         curve = Analysis(scene).frequency_curve(progress=progress)
     else:
-        from model.derivatives import curve_with_method
+        from ..model.derivatives import curve_with_method
 
         curve = curve_with_method(Analysis(scene), args.method, args.tolerance)
     progress.close()
@@ -141,7 +141,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code."""
     parser = _parser()
     args = parser.parse_args(argv)
-    from model.errors import FlexoptError
+    from ..model.errors import FlexoptError
 
     try:
         return int(args.func(args))

@@ -33,8 +33,8 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 def _cmd_diagnose(args: argparse.Namespace) -> int:
     import sys
 
-    from model import load_scene, template
-    from model.constraints import diagnose
+    from ..model import load_scene, template
+    from ..model.constraints import diagnose
 
     if (args.scene is None) == (args.template is None):
         raise ValueError("give a scene file or --template NAME (one of them)")
@@ -67,7 +67,7 @@ def plot_diagnosis(scene: Any, diag: Any, path: str) -> None:
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from model.structure import compile_scene
+    from ..model.structure import compile_scene
 
     s = compile_scene(scene)
     pos = {n.name: np.array(n.position, dtype=float) for n in scene.nodes}

@@ -40,7 +40,7 @@ def _first_error(exc: Exception) -> str:
 def _cmd_optimise(args: argparse.Namespace) -> int:
     from pydantic import ValidationError
 
-    from optim import Problem, optimise
+    from ..optim import Problem, optimise
 
     try:
         raw = json.loads(Path(args.spec).read_text())
@@ -54,7 +54,7 @@ def _cmd_optimise(args: argparse.Namespace) -> int:
         raise ValueError(f"spec.{_first_error(exc)}") from None
     executor = None
     if args.scheduler:
-        from optim.batch import dask_executor
+        from ..optim.batch import dask_executor
 
         executor = dask_executor(args.scheduler)
     try:

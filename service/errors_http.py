@@ -98,7 +98,7 @@ def _summary(errors: list[FieldError]) -> str:
 
 def install(app: FastAPI) -> None:
     """Register every exception handler on ``app``."""
-    from model.errors import FlexoptError, KernelBuildError, SceneError
+    from ..model.errors import FlexoptError, KernelBuildError, SceneError
 
     @app.exception_handler(RequestValidationError)
     async def _request_validation(_: Request, exc: RequestValidationError) -> JSONResponse:

@@ -211,7 +211,7 @@ class Dispatcher:
                 env = dict(os.environ, FLEXOPT_DATABASE_URL=self.store.url, FLEXOPT_DATA_DIR=str(self.store.data_dir))
                 if self.workers:
                     env["FLEXOPT_JOB_WORKERS"] = str(self.workers)
-                self.procs[job["id"]] = subprocess.Popen([sys.executable, "-m", "service.jobs", "run", job["id"]],
+                self.procs[job["id"]] = subprocess.Popen([sys.executable, "-m", "flexopt.service.jobs", "run", job["id"]],
                                                          env=env)
             self._stop.wait(0.2)
 
@@ -226,8 +226,8 @@ def _summary(case: dict) -> dict:
 
 def run_job(job_id: str) -> int:
     """Body of a job process: run the optimisation, writing progress and the result to the store."""
-    from optim import optimise
-    from optim.batch import BatchCancelled
+    from ..optim import optimise
+    from ..optim.batch import BatchCancelled
 
     store = JobStore(os.environ["FLEXOPT_DATABASE_URL"], Path(os.environ["FLEXOPT_DATA_DIR"]))
     job = store.get(job_id)
@@ -303,5 +303,5 @@ def _finite(obj: Any) -> Any:
 if __name__ == "__main__":
     if len(sys.argv) == 3 and sys.argv[1] == "run":
         sys.exit(run_job(sys.argv[2]))
-    print("usage: python -m service.jobs run JOB_ID", file=sys.stderr)
+    print("usage: python -m flexopt.service.jobs run JOB_ID", file=sys.stderr)
     sys.exit(2)

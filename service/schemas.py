@@ -12,7 +12,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, FiniteFloat, PositiveFloat
 
-from optim.problem import Problem as OptimisationProblem  # pydantic only (no CasADi)
+from ..optim.problem import Problem as OptimisationProblem  # pydantic only (no CasADi)
 
 __all__ = [
     "API_VERSION",

@@ -61,7 +61,7 @@ def _error(exc: Exception) -> Outcome:
 
 def raise_error(err: dict[str, Any]) -> None:
     """Rebuild and raise a model error reported by a worker."""
-    from model.errors import FlexoptError, KernelBuildError, ModelSizeError, SceneError
+    from ..model.errors import FlexoptError, KernelBuildError, ModelSizeError, SceneError
 
     kind, field, message = err["kind"], err["field"], err["message"]
     if kind in ("SceneError", "ModelSizeError"):
@@ -75,9 +75,9 @@ def curve(spec: str) -> Outcome:
     """Frequency curve of ``{"scene", "stroke", "method", "tolerance", "media"}`` as JSON, CSV or PNG bytes."""
     import numpy as np
 
-    from model import Analysis
-    from model.errors import FlexoptError
-    from model.scene import Scene
+    from ..model import Analysis
+    from ..model.errors import FlexoptError
+    from ..model.scene import Scene
 
     s = json.loads(spec)
     try:
@@ -86,7 +86,7 @@ def curve(spec: str) -> Outcome:
         if s["method"] == "exact":
             result = an.frequency_curve(stroke)
         else:
-            from model.derivatives import curve_with_method
+            from ..model.derivatives import curve_with_method
 
             result = curve_with_method(an, s["method"], s["tolerance"], stroke)
     except FlexoptError as exc:
@@ -100,9 +100,9 @@ def curve(spec: str) -> Outcome:
 
 def diagnosis(spec: str) -> Outcome:
     """Exact-constraint diagnosis of ``{"scene", "at_stroke", "kinematic"}`` as JSON bytes."""
-    from model.constraints import diagnose
-    from model.errors import FlexoptError
-    from model.scene import Scene
+    from ..model.constraints import diagnose
+    from ..model.errors import FlexoptError
+    from ..model.scene import Scene
 
     s = json.loads(spec)
     try:
@@ -114,4 +114,4 @@ def diagnosis(spec: str) -> Outcome:
 
 def warm_up() -> None:
     """Import the model in a fresh worker process (so the first request does not pay for it)."""
-    import model  # noqa: F401
+    from .. import model  # noqa: F401

@@ -20,7 +20,7 @@ def leaf_torsion_hz(case: dict) -> dict:
 
     A non-positive thickness makes the model raise its own ``SceneError`` (a FlexoptError and ValueError).
     """
-    from model import Analysis, template
+    from flexopt.model import Analysis, template
 
     _mark(case)
     c = Analysis(template("leaf-spring", thickness=case["thickness"], stroke=1.0, points=3)).frequency_curve()
@@ -34,7 +34,7 @@ def seeded(case: dict) -> dict:
     """
     import numpy as np
 
-    from optim.batch import case_seed
+    from flexopt.optim.batch import case_seed
 
     _mark(case)
     time.sleep(case.get("hold", 0.0))

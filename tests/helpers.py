@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from model import template
+from flexopt.model import template
 
 __all__ = [
     "DELETE",

@@ -18,8 +18,8 @@ from typing import Any
 
 import pytest
 
-from optim import optimise
-from optim.batch import BatchCancelled, case_id, case_seed, run_cases
+from flexopt.optim import optimise
+from flexopt.optim.batch import BatchCancelled, case_id, case_seed, run_cases
 from tests.batch_cases import leaf_torsion_hz
 
 LEAF = "tests.batch_cases:leaf_torsion_hz"
@@ -234,7 +234,7 @@ def test_optimise_runs_families_as_a_batch_and_resumes(tmp_path: Path) -> None:
 @pytest.mark.slow
 def test_dask_local_cluster_gives_the_pool_results() -> None:
     distributed = pytest.importorskip("distributed")
-    from optim.batch import dask_executor
+    from flexopt.optim.batch import dask_executor
 
     cases = _leaf_cases(n=3)
     pool = run_cases(cases, LEAF, workers=2)
@@ -258,7 +258,7 @@ def test_dask_local_cluster_gives_the_pool_results() -> None:
 
 def test_an_unreachable_scheduler_says_how_to_fix_it() -> None:
     pytest.importorskip("distributed")
-    from optim.batch import dask_executor
+    from flexopt.optim.batch import dask_executor
 
     with pytest.raises(ValueError, match="cannot reach the Dask scheduler at 'tcp://127.0.0.1:9'.*dask scheduler"):
         dask_executor("tcp://127.0.0.1:9", timeout="1s")

@@ -13,9 +13,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from model import Analysis, SceneError, scene_from_dict
-from model.constraints import NEAR_RTOL, RANK_RTOL, diagnose
-from service.cli import main
+from flexopt.model import Analysis, SceneError, scene_from_dict
+from flexopt.model.constraints import NEAR_RTOL, RANK_RTOL, diagnose
+from flexopt.service.cli import main
 
 from . import references as ref
 from .helpers import edit, rigid_motion, rotation_from_quaternion, scale_units, scene_dict
@@ -147,8 +147,8 @@ def test_folded_sheet_guide_frequencies_order_of_magnitude() -> None:
     10 to 40 times higher (the paper: about 20), six flexures raise the first mode and make the second
     and third coincide (within 1 %: the symmetric design has a repeated pair).
     """
-    from model.modal import modes_at
-    from model.statics import solve_point
+    from flexopt.model.modal import modes_at
+    from flexopt.model.statics import solve_point
 
     hz = {}
     for n in (5, 6):

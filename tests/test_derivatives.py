@@ -14,7 +14,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from model import Analysis, scene_from_dict, template
+from flexopt.model import Analysis, scene_from_dict, template
 
 SCENES = {
     "leaf": lambda: template("leaf-spring", segments=3),

@@ -13,12 +13,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from model.analysis import Analysis, beam_end_stresses
-from model.design import point_sensitivity, structure_derivative, trace_template
-from model.elements import beam_segment_design
-from model.errors import FlexoptError
-from model.structure import compile_scene
-from model.templates import TEMPLATES
+from flexopt.model.analysis import Analysis, beam_end_stresses
+from flexopt.model.design import point_sensitivity, structure_derivative, trace_template
+from flexopt.model.elements import beam_segment_design
+from flexopt.model.errors import FlexoptError
+from flexopt.model.structure import compile_scene
+from flexopt.model.templates import TEMPLATES
 
 H_REL = 1e-3
 TOL = 2e-4

@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from model import Analysis, scene_from_dict, template
-from model.derivatives import estimate_error, frequency_curve
+from flexopt.model import Analysis, scene_from_dict, template
+from flexopt.model.derivatives import estimate_error, frequency_curve
 from tests import references as ref
 
 # (label, length, width, thickness): t/w from 1e-4 (10 um foil on a 100 mm wide sheet) to 0.5, L/t from

@@ -9,10 +9,10 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from model import DESIGN_SPACES, Analysis, template
-from model.modal import modes_at
-from model.statics import solve_point
-from model.templates import TEMPLATES
+from flexopt.model import DESIGN_SPACES, Analysis, template
+from flexopt.model.modal import modes_at
+from flexopt.model.statics import solve_point
+from flexopt.model.templates import TEMPLATES
 from tests.test_design import H_REL, TOL, _at
 
 FAMILIES = sorted(DESIGN_SPACES)

@@ -10,8 +10,8 @@ import scipy.linalg as sla
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from model import Analysis, scene_from_dict
-from model.statics import walk
+from flexopt.model import Analysis, scene_from_dict
+from flexopt.model.statics import walk
 
 from .helpers import rigid_motion, rotation_from_quaternion, scale_units, scene_dict
 

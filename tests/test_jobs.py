@@ -11,9 +11,9 @@ import pytest
 pytest.importorskip("fastapi")
 pytest.importorskip("sqlalchemy")
 
-from service.client import Client, InvalidInput, JobFailed, NotFound  # noqa: E402
-from service.jobs import MAX_ATTEMPTS, JobStore  # noqa: E402
-from service.settings import Settings  # noqa: E402
+from flexopt.service.client import Client, InvalidInput, JobFailed, NotFound  # noqa: E402
+from flexopt.service.jobs import MAX_ATTEMPTS, JobStore  # noqa: E402
+from flexopt.service.settings import Settings  # noqa: E402
 from tests.test_service import _Server  # noqa: E402
 
 TINY = {"families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]}}], "stroke": 20,

@@ -10,18 +10,18 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from model import Analysis, scene_from_dict, template
-from model.derivatives import (
+from flexopt.model import Analysis, scene_from_dict, template
+from flexopt.model.derivatives import (
     _eq_at,
     _prepare,
     estimate_error,
     frequency_curve,
     modal_derivatives,
 )
-from model.errors import FlexoptError
-from model.modal import modes_at
-from model.rotations import skew
-from model.statics import solve_point
+from flexopt.model.errors import FlexoptError
+from flexopt.model.modal import modes_at
+from flexopt.model.rotations import skew
+from flexopt.model.statics import solve_point
 
 from .helpers import scale_units, scene_dict
 

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from model import Analysis, template
-from model.errors import FlexoptError
-from optim import Problem, cases, run_case
-from optim.search import _Family
+from flexopt.model import Analysis, template
+from flexopt.model.errors import FlexoptError
+from flexopt.optim import Problem, cases, run_case
+from flexopt.optim.search import _Family
 
 LEAF = {"families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]}}], "stroke": 20,
         "samples": 5, "starts": 1, "max_iterations": 10}
@@ -108,7 +108,7 @@ def test_two_parameter_pivot_optimum_beats_a_grid_search():
 def test_cli_optimise_prints_the_ranking_and_writes_scenes(tmp_path, capsys):
     import json
 
-    from service.cli import main
+    from flexopt.service.cli import main
 
     spec = tmp_path / "spec.json"
     spec.write_text(json.dumps(LEAF))
@@ -122,7 +122,7 @@ def test_cli_optimise_prints_the_ranking_and_writes_scenes(tmp_path, capsys):
 def test_cli_optimise_bad_spec_is_one_line_naming_the_field(tmp_path, capsys):
     import json
 
-    from service.cli import main
+    from flexopt.service.cli import main
 
     spec = tmp_path / "spec.json"
     spec.write_text(json.dumps({**LEAF, "samples": 1}))

@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from model import Analysis, scene_from_dict, template
-from model.modal import modes_at
-from model.statics import walk
+from flexopt.model import Analysis, scene_from_dict, template
+from flexopt.model.modal import modes_at
+from flexopt.model.statics import walk
 
 from . import references as ref
 

@@ -18,7 +18,7 @@ from typing import Any
 import pytest
 from pydantic import ValidationError
 
-from model import MAX_DOFS, ModelSizeError, SceneError, compile_scene, load_scene, scene_from_dict
+from flexopt.model import MAX_DOFS, ModelSizeError, SceneError, compile_scene, load_scene, scene_from_dict
 
 from .helpers import DELETE, edit, scene_dict
 
@@ -199,7 +199,7 @@ def test_bad_scene(case: Bad) -> None:
 
 
 def test_unknown_template_parameter_value_is_scene_error() -> None:
-    from model import template
+    from flexopt.model import template
 
     with pytest.raises(SceneError, match=r"template\.thickness: cannot read 'thin' as float"):
         template("leaf-spring", thickness="thin")

@@ -20,8 +20,8 @@ pytest.importorskip("uvicorn")
 
 import uvicorn  # noqa: E402
 
-from service.app import create_app, openapi_json  # noqa: E402
-from service.client import (  # noqa: E402
+from flexopt.service.app import create_app, openapi_json  # noqa: E402
+from flexopt.service.client import (  # noqa: E402
     Client,
     InvalidInput,
     NotFound,
@@ -29,8 +29,8 @@ from service.client import (  # noqa: E402
     TooManyRequests,
     Unauthorized,
 )
-from service.client import ComputeTimeout as ClientTimeout  # noqa: E402
-from service.settings import Settings  # noqa: E402
+from flexopt.service.client import ComputeTimeout as ClientTimeout  # noqa: E402
+from flexopt.service.settings import Settings  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -267,21 +267,21 @@ def test_problem_details_shape(server: _Server) -> None:
 # --- client and schema -------------------------------------------------------------------------------------
 
 def test_client_import_is_light() -> None:
-    code = ("import sys, service.client; "
+    code = ("import sys, flexopt.client; "
             "bad = [m for m in ('casadi', 'fastapi', 'uvicorn', 'model', 'starlette') if m in sys.modules]; "
             "print(bad); sys.exit(1 if bad else 0)")
     r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=60, check=False)
-    assert r.returncode == 0, f"importing service.client loaded {r.stdout.strip()} {r.stderr}"
+    assert r.returncode == 0, f"importing flexopt.client loaded {r.stdout.strip()} {r.stderr}"
 
 
 def test_openapi_committed_and_current() -> None:
     committed = (ROOT / "service" / "openapi.json").read_text()
     assert json.loads(committed) == json.loads(openapi_json()), (
-        "service/openapi.json is stale: regenerate with `python -m service.app > service/openapi.json`")
+        "service/openapi.json is stale: regenerate with `python -m flexopt.service.app > service/openapi.json`")
 
 
 def test_cli_registers_serve() -> None:
-    from service.cli import _parser
+    from flexopt.service.cli import _parser
 
     args = _parser().parse_args(["serve", "--port", "8123"])
     assert args.port == 8123 and args.host == "127.0.0.1"
@@ -290,7 +290,7 @@ def test_cli_registers_serve() -> None:
 def test_async_client(server: _Server) -> None:
     import asyncio
 
-    from service.client import AsyncClient
+    from flexopt.service.client import AsyncClient
 
     async def go() -> tuple[str, str]:
         async with AsyncClient(server.url) as c:
@@ -304,7 +304,7 @@ def test_async_client(server: _Server) -> None:
 
 
 def test_response_cache_is_bounded_lru() -> None:
-    from service.app import Runtime
+    from flexopt.service.app import Runtime
 
     rt = Runtime(Settings(cache_size=2))
     for k in "abc":
@@ -334,7 +334,7 @@ def test_retry_honours_retry_after() -> None:
 
 def test_flexopt_serve_subprocess() -> None:
     port = _free_port()
-    proc = subprocess.Popen([sys.executable, "-m", "service.cli", "serve", "--port", str(port), "--log-level",
+    proc = subprocess.Popen([sys.executable, "-m", "flexopt.service.cli", "serve", "--port", str(port), "--log-level",
                              "warning"], cwd=ROOT)
     try:
         deadline = time.monotonic() + 30
