@@ -9,7 +9,30 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-__all__ = ["FrequencyCurve", "Failure"]
+__all__ = ["FrequencyCurve", "Failure", "ResultWarning", "WARNING_KINDS"]
+
+#: The kinds of :class:`ResultWarning`: a limit broken by the result (``stress``), a model outside the
+#: validity of beam theory (``validity``), a discretisation not converged within its estimate (``mesh``),
+#: input whose units look wrong (``units``), and anything else a user must read (``notice``).
+WARNING_KINDS = ("stress", "validity", "mesh", "units", "notice")
+
+
+@dataclass(frozen=True)
+class ResultWarning:
+    """One thing a result's user must know: the one warning type of every result (curve, modes, diagnosis,
+    optimisation). Serialised as ``{"kind", "message", "element", "stroke_range", "value"}``."""
+
+    kind: str  # one of WARNING_KINDS
+    message: str  # one line: what is wrong, where, and what to do
+    element: str | None = None  # the scene element (member) it applies to, if one
+    stroke_range: tuple[float, float] | None = None  # (from, to) in the result's stroke unit, if limited
+    value: float | None = None  # the figure behind it (e.g. peak stress utilisation, relative mesh error)
+
+    def to_dict(self) -> dict:
+        """A JSON-ready dict."""
+        return {"kind": self.kind, "message": self.message, "element": self.element,
+                "stroke_range": None if self.stroke_range is None else [float(x) for x in self.stroke_range],
+                "value": None if self.value is None or not np.isfinite(self.value) else float(self.value)}
 
 
 @dataclass(frozen=True)
@@ -46,6 +69,9 @@ class FrequencyCurve:
     failures: tuple[Failure, ...] = ()
     conventions: dict[str, str] = field(default_factory=dict)
     solver: dict[str, float] = field(default_factory=dict)
+    warnings: tuple[ResultWarning, ...] = ()
+    mesh_error: float | None = None  # estimated relative discretisation error of parasitic_hz, if estimated
+    provenance: dict = field(default_factory=dict)  # flexopt version, scene hash, method, solver settings
 
     def to_dict(self) -> dict:
         """A JSON-ready dict (lists instead of arrays)."""
@@ -69,6 +95,10 @@ class FrequencyCurve:
             "failures": [asdict(f) for f in self.failures],
             "conventions": dict(self.conventions),
             "solver": dict(self.solver),
+            "warnings": [w.to_dict() for w in self.warnings],
+            "mesh_error": None if self.mesh_error is None or not np.isfinite(self.mesh_error)
+            else float(self.mesh_error),
+            "provenance": dict(self.provenance),
         }
 
     def to_json(self, indent: int | None = 2) -> str:

@@ -101,6 +101,18 @@ class FailureOut(_Wire):
     message: str
 
 
+class WarningOut(_Wire):
+    """Something the user of a result must know (``model.results.ResultWarning``)."""
+
+    kind: Literal["stress", "validity", "mesh", "units", "notice"] = Field(
+        description="stress: a limit broken; validity: outside beam theory; mesh: discretisation not "
+        "converged; units: input whose units look wrong; notice: anything else")
+    message: str = Field(description="one line: what, where and what to do")
+    element: str | None = Field(None, description="the scene element it applies to, if one")
+    stroke_range: list[float] | None = Field(None, description="[from, to] in the result's stroke unit, if limited")
+    value: float | None = Field(None, description="the figure behind it (e.g. peak stress utilisation)")
+
+
 class FrequencyCurveOut(_Wire):
     """Stroke-dependent natural frequencies (``model.FrequencyCurve.to_dict``); NaN travels as null."""
 
@@ -120,6 +132,10 @@ class FrequencyCurveOut(_Wire):
     failures: list[FailureOut]
     conventions: dict[str, str]
     solver: dict[str, float]
+    warnings: list[WarningOut] = Field(default_factory=list, description="limits broken, validity, mesh, units")
+    mesh_error: float | None = Field(None, description="estimated relative discretisation error of parasitic_hz")
+    provenance: dict[str, Any] = Field(default_factory=dict, description="flexopt version, scene hash, method, "
+                                       "solver settings")
 
 
 class DiagnosisRequest(_Wire):
