@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import copy
 import math
+import re
 from functools import lru_cache
 from typing import Any
 
@@ -32,6 +33,12 @@ UNIT_KINDS: dict[str, tuple[str, str]] = {
     "stress": ("Pa", "[pressure]"),
     "density": ("kg/m^3", "[density]"),
 }
+
+
+#: What a unit expression may look like before pint sees it (pint evaluates expressions: a plain float and a
+#: short product/quotient of unit names with small powers keep that cheap and harmless).
+_UNIT_RE = re.compile(r"^[A-Za-z_\u00b5\u03bc\u00b0%][A-Za-z0-9_\u00b5\u03bc\u00b0%*/^.() -]{0,47}$")
+_NUMBER_RE = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d{1,3})?)\s*(.*?)\s*$")
 
 
 class UnitsError(ValueError):
@@ -51,9 +58,11 @@ def check_unit(kind: str, unit: str) -> str:
     import pint
 
     si, dim = UNIT_KINDS[kind]
+    if not isinstance(unit, str) or not _UNIT_RE.match(unit.strip()) or "**" in unit and re.search(r"\*\*\s*\d{3}", unit):
+        raise UnitsError(f"'{unit}' is not a unit pint knows; give e.g. '{_example(kind)}'")
     try:
-        u = registry().Unit(unit)
-    except (pint.errors.PintError, ValueError, TypeError, AttributeError, AssertionError) as exc:
+        u = registry().Unit(unit.strip())
+    except Exception as exc:  # noqa: BLE001 - pint's parser raises many types (PintError, SyntaxError, ...)
         raise UnitsError(f"'{unit}' is not a unit pint knows ({exc}); give e.g. '{_example(kind)}'") from None
     if u.dimensionality != registry().Unit(si).dimensionality:
         raise UnitsError(f"'{unit}' is not a {kind} unit (it is {u.dimensionality}); give e.g. '{_example(kind)}'")
@@ -163,17 +172,21 @@ def quantity_to(text: str, unit: str) -> float:
     import pint
 
     reg = registry()
+    m = _NUMBER_RE.match(text) if isinstance(text, str) else None
+    if m is None or (m.group(2) and not _UNIT_RE.match(m.group(2))):
+        raise UnitsError(f"cannot read '{text}' as a quantity; write a number with a unit, e.g. '0.3 mm'")
+    number, unit_text = float(m.group(1)), m.group(2)
+    if not unit_text:
+        return number
     try:
-        q = reg.Quantity(text.strip())
-    except (pint.errors.PintError, ValueError, TypeError, AttributeError, AssertionError, SyntaxError) as exc:
+        q = reg.Quantity(number, reg.Unit(unit_text))
+    except Exception as exc:  # noqa: BLE001 - pint's parser raises many types (PintError, SyntaxError, ...)
         raise UnitsError(f"cannot read '{text}' as a quantity ({exc}); write a number with a unit, "
                          f"e.g. '0.3 mm'") from None
-    if not isinstance(q, reg.Quantity):  # a bare number
-        return float(q)
-    if q.dimensionless and q.units == reg.Unit(""):
-        return float(q.magnitude)
     try:
         v = float(q.to(unit).magnitude)
+    except OverflowError:
+        raise UnitsError(f"'{text}' overflows when converted to {unit}") from None
     except pint.errors.DimensionalityError:
         want = "a plain number" if unit in ("", "dimensionless") else f"a quantity convertible to {unit}"
         raise UnitsError(f"'{text}' has dimension {q.dimensionality}; give {want}") from None
