@@ -78,7 +78,9 @@ class TemplateInfo(_Wire):
 class TemplateSceneRequest(_Wire):
     """Parameter overrides for a template (omitted parameters keep their defaults)."""
 
-    parameters: dict[str, float | int | str] = Field(default_factory=dict)
+    parameters: dict[str, float | int | str] = Field(
+        default_factory=dict, description="numbers in the parameter's SI unit (a rotation stroke in deg), or "
+        "strings with a unit, e.g. {\"thickness\": \"0.3 mm\"}; the scene returned is SI")
 
 
 class FrequencyCurveRequest(_Wire):
