@@ -9,9 +9,9 @@ from typing import Any
 from pydantic import ValidationError
 
 from .errors import SceneError
-from .scene import Scene
+from .scene import Scene, did_you_mean
 
-__all__ = ["scene_from_dict", "load_scene", "format_validation_error"]
+__all__ = ["scene_from_dict", "load_scene", "format_validation_error", "clean_errors"]
 
 
 #: Tags of the scene's discriminated unions: pydantic puts the chosen tag into an error's location
@@ -19,10 +19,20 @@ __all__ = ["scene_from_dict", "load_scene", "format_validation_error"]
 _UNION_TAGS = frozenset({"beam", "truss", "rectangular", "general"})
 
 
+def _field_names() -> list[str]:
+    """Every field name of the scene's models (for "did you mean" on a misspelt field)."""
+    from . import scene as sc
+
+    models = (sc.Material, sc.Node, sc.RectangularSection, sc.GeneralSection, sc.Beam, sc.Truss, sc.RigidBody,
+              sc.Support, sc.Stroke, sc.SupportDirections, sc.Units, sc.Scene)
+    return sorted({f for m in models for f in m.model_fields})
+
+
 def clean_errors(errors: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """pydantic error dicts as they should reach a user: union tags dropped from locations, and no echo.
 
-    A tuple whose item fails validation is also reported by pydantic as "Tuple should have at least 1
+    An unknown field gets the closest field name of the scene's models ("did you mean"). A tuple whose
+    item fails validation is also reported by pydantic as "Tuple should have at least 1
     item after validation, not 0" when the field has a minimum length (the failed item counts as
     missing); that echo of a real error inside the same field is dropped.
     """
@@ -31,7 +41,11 @@ def clean_errors(errors: list[dict[str, Any]]) -> list[dict[str, Any]]:
         loc = tuple(p for i, p in enumerate(e["loc"])
                     if not (isinstance(p, str) and p in _UNION_TAGS and i > 0
                              and (isinstance(e["loc"][i - 1], int) or e["loc"][i - 1] == "section")))
-        out.append({**e, "loc": loc})
+        e = {**e, "loc": loc}
+        if e["type"] == "extra_forbidden" and loc and isinstance(loc[-1], str):
+            e["type"] = "value_error"  # the message is final: later formatters keep it
+            e["msg"] = f"unknown field{did_you_mean(loc[-1], _field_names())}; remove it or check its spelling"
+        out.append(e)
     locs = [e["loc"] for e in out]
     return [e for e in out if not (e["type"] == "too_short" and any(
         len(other) > len(e["loc"]) and other[:len(e["loc"])] == e["loc"] for other in locs))]

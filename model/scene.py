@@ -250,7 +250,8 @@ class Stroke(_Strict):
     stop: Real | None = Field(None, description="last stroke value (default +45 deg for rotations)")
     points: int = Field(91, ge=2, le=100001, description="number of stroke points")
     unit: Literal["deg", "rad", "m"] | None = Field(
-        None, description="stroke unit: deg (default) or rad for rotations, m (scene length) for translations"
+        None, description="stroke unit: deg (default) or rad for rotations, m for translations (written in the "
+        "units block's length unit, if any, and converted to m)"
     )
     drive: Literal["locked", "free"] = Field(
         "locked", description="eigen analysis with the actuator holding the drive (locked) or not (free)"

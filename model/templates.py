@@ -7,6 +7,7 @@ G 79 GPa, 7800 kg/m^3, ten elements, end rotation about the weak bending axis, +
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
@@ -188,8 +189,9 @@ def _read_parameter(name: str, key: str, default: Any, v: Any) -> Any:
                 raise SceneError(where, f"cannot read '{v}' as float or as a quantity in {unit or 'no unit'} "
                                  f"(template parameter '{key}'): {exc}") from None
         v = num
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
+    if isinstance(v, bool) or not isinstance(v, numbers.Real):
         raise SceneError(where, f"template parameter '{key}' must be {kind}, got {v!r}")
+    v = float(v) if not isinstance(v, int) else v
     if not math.isfinite(v):
         raise SceneError(where, f"template parameter '{key}' must be a finite number, got {v}")
     if isinstance(default, int):
