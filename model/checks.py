@@ -90,9 +90,18 @@ def _crossing(s: np.ndarray, v: np.ndarray, i: int, j: int, level: float) -> flo
 def stress_warnings(curve: FrequencyCurve) -> list[ResultWarning]:
     """One ``stress`` warning per member and contiguous stroke range where von Mises exceeds the allowable.
 
-    The range's inner ends are interpolated linearly between the last point below and the first above the
-    allowable; ``value`` is the peak utilisation in the range. Members without stresses (NaN: a general
-    section without fibre distances) and methods that compute no stresses get a ``notice``.
+    Parameters
+    ----------
+    curve
+        A frequency curve with ``max_von_mises`` and ``allowable_stress`` per member [Pa].
+
+    Returns
+    -------
+    list of ResultWarning
+        ``stress`` warnings: ``stroke_range`` with its inner ends interpolated linearly between the last
+        point below and the first above the allowable, ``value`` the peak utilisation (stress / allowable)
+        in the range. ``notice`` for members without stresses (NaN: a general section without fibre
+        distances) and for methods that compute no stresses.
     """
     out: list[ResultWarning] = []
     if not curve.max_von_mises:
@@ -143,8 +152,21 @@ def _section_depths(sec: Any) -> tuple[float, float, float, float]:
 
 
 def slenderness_warnings(scene: Scene) -> list[ResultWarning]:
-    """Beam members outside Euler-Bernoulli theory (``validity``) or with large stiff-direction shear
-    (``notice``); the limits and their sources are in the module docstring."""
+    """Beam members outside Euler-Bernoulli theory (``validity``) or with large stiff-direction shear (``notice``).
+
+    Parameters
+    ----------
+    scene
+        A validated scene (SI).
+
+    Returns
+    -------
+    list of ResultWarning
+        Per beam member: ``validity`` when ``L / h < SLENDER_MIN`` (``h = sqrt(12 I_min / A)``; the shear
+        share ``(E / (kappa G)) (h / L)^2`` of a clamped-guided member, Timoshenko beam theory, in the
+        message) or ``L / w < PLATE_MAX`` (a plate; Timoshenko and Woinowsky-Krieger 1959), else a ``notice``
+        when the share across the width exceeds ``SHEAR_NOTICE``. ``value``: the ratio or the share.
+    """
     out: list[ResultWarning] = []
     mats = {m.name: m for m in scene.materials}
     for e in scene.elements:
@@ -204,7 +226,20 @@ def _radian_like(x: float) -> bool:
 
 
 def units_warnings(scene: Scene) -> list[ResultWarning]:
-    """Input whose units look wrong (limits and reasons in the module docstring)."""
+    """Input whose units look wrong.
+
+    Parameters
+    ----------
+    scene
+        A validated scene (SI).
+
+    Returns
+    -------
+    list of ResultWarning
+        ``units`` warnings for each implausible material (allowable / E, sqrt(E / density), G / E), a scene
+        larger than ``EXTENT_MAX`` and a stroke that reads as radians given in degrees (or the reverse) or a
+        translation larger than the scene; limits and reasons in the module docstring.
+    """
     out: list[ResultWarning] = []
     for m in scene.materials:
         if m.allowable_stress > ALLOWABLE_OVER_E_MAX * m.E:
@@ -289,10 +324,25 @@ def _merge(old: tuple[ResultWarning, ...], new: list[ResultWarning]) -> tuple[Re
 
 
 def annotate_curve(curve: FrequencyCurve, scene: Scene, options: Any = None) -> FrequencyCurve:
-    """``curve`` with its checks' warnings, its provenance and the SI convention attached (idempotent).
+    """``curve`` with its checks' warnings, its provenance and the SI convention attached.
 
-    ``options`` are the Newton settings (a dataclass) used for the curve, recorded in the provenance with
-    the stroke grid, the modes reported, the members' segments and the method's own settings.
+    Parameters
+    ----------
+    curve
+        A frequency curve of ``scene`` by any method.
+    scene
+        The scene it was computed from.
+    options
+        The Newton settings (a dataclass, ``model.statics.NewtonOptions``) used; None keeps those already
+        recorded.
+
+    Returns
+    -------
+    FrequencyCurve
+        A copy with ``warnings`` = the curve's own followed by :func:`curve_warnings` (no duplicates, so
+        annotating twice changes nothing: call it again after filling ``mesh_error``), ``provenance`` =
+        :func:`provenance` with the stroke grid, modes, segments and the method's settings, and
+        ``conventions["units"]``.
     """
     st = scene.stroke
     settings: dict[str, Any] = {
