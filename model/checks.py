@@ -199,7 +199,8 @@ def slenderness_warnings(scene: Scene) -> list[ResultWarning]:
             share = ratio * (w / L) ** 2
             out.append(ResultWarning(
                 "notice",
-                f"{e.name}: L/w = {L / w:.3g} (w = {1e3 * w:.3g} mm): shear, which this beam neglects, would add {100 * share:.3g} % to "
+                f"{e.name}: L/w = {L / w:.3g} (w = {1e3 * w:.3g} mm): shear, which this beam neglects, would add "
+                f"{100 * share:.3g} % to "
                 f"its compliance across the width (Timoshenko, clamped-guided): support stiffness across the "
                 f"width is overestimated and modes bending it about its stiff axis read up to "
                 f"{100 * (math.sqrt(1 + share) - 1):.3g} % high",

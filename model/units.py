@@ -58,7 +58,8 @@ def check_unit(kind: str, unit: str) -> str:
     import pint
 
     si, dim = UNIT_KINDS[kind]
-    if not isinstance(unit, str) or not _UNIT_RE.match(unit.strip()) or "**" in unit and re.search(r"\*\*\s*\d{3}", unit):
+    big_power = isinstance(unit, str) and re.search(r"(\*\*|\^)\s*-?\d{3}", unit)
+    if not isinstance(unit, str) or not _UNIT_RE.match(unit.strip()) or big_power:
         raise UnitsError(f"'{unit}' is not a unit pint knows; give e.g. '{_example(kind)}'")
     try:
         u = registry().Unit(unit.strip())
