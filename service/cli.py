@@ -55,11 +55,13 @@ def scene_from_args(args: argparse.Namespace, default_template: str | None = Non
 
 def _cmd_template(args: argparse.Namespace) -> int:
     from ..model import template, template_parameters
-    from ..model.templates import TEMPLATES
+    from ..model.templates import TEMPLATES, parameter_unit
 
     if args.name is None or args.list:
         for name in sorted(TEMPLATES):
-            params = ", ".join(f"{k}={v}" for k, v in template_parameters(name).items())
+            params = ", ".join((f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}")
+                               + (f" {parameter_unit(name, k)}" if parameter_unit(name, k) else "")
+                               for k, v in template_parameters(name).items())
             print(f"{name}: {params}")
         return 0
     scene = template(args.name, **parse_sets(args.set))
@@ -181,6 +183,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     try:
         return int(args.func(args))
+    except BrokenPipeError:  # the reader went away (e.g. `| head`): no traceback
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except FlexoptError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
