@@ -239,8 +239,12 @@ def _parameter_error(name: str, params: dict[str, Any], overrides: dict[str, Any
             msg = err["msg"].removeprefix("Value error, ").replace("Input should be", "must be")
             shown = f"{params[key]!r}" + (f" {unit}" if unit else "")
             return SceneError(f"template.{key}", f"template parameter '{key}' = {shown}: {msg}; change '{key}'")
-    return SceneError("", f"template '{name}' with these parameters gives an invalid scene: "
-                      f"{format_validation_error(exc)}")
+    given = ", ".join(f"{k} = {params[k]!r}" + (f" {parameter_unit(name, k)}" if parameter_unit(name, k) else "")
+                      for k in overrides if k in params)
+    key = next(iter(overrides), None) if len(overrides) == 1 else None
+    return SceneError(f"template.{key}" if key else "", f"template '{name}' with {given or 'its defaults'} gives an "
+                      f"invalid scene: {format_validation_error(exc)}; change "
+                      + (f"'{key}'" if key else "the parameters"))
 
 
 def template(name: str, **overrides: Any) -> Scene:

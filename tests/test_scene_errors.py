@@ -250,6 +250,9 @@ BAD_TEMPLATE = [
     ("leaf-spring", {"thickness": "3 kg"}, ("template.thickness", "[mass]", "m"), ()),
     ("leaf-spring", {"thickness": "0.3 mmm"}, ("template.thickness", "0.3 mmm"), ()),
     ("leaf-spring", {"points": "7 mm"}, ("template.points", "without unit"), ()),
+    # a derived value (node positions from length): the overridden parameter is named with the scene's reason
+    ("cross-spring-pivot", {"length": 0.0}, ("template.length", "with length = 0.0 m", "zero length",
+                                             "change 'length'"), ()),
 ]
 
 
