@@ -21,8 +21,8 @@ Checks and their limits (each a module constant, so tests and the README quote t
   bend the member about its stiff axis read high by up to ``sqrt(1 + share) - 1``.
 * **mesh** -- ``curve.mesh_error`` (the estimated relative discretisation error of ``parasitic_hz``) above
   ``MESH_RTOL`` (0.5 %).
-* **units** -- an allowable stress above ``ALLOWABLE_OVER_E_MAX`` (0.1) E (no elastic solid allows a strain
-  of 10 %); a bar-wave speed ``sqrt(E / rho)`` outside ``WAVE_SPEED`` = 30 m/s (a 1 MPa elastomer) to 20 km/s
+* **units** -- an allowable stress above ``ALLOWABLE_OVER_E_MAX`` (0.1) E (an elastic strain of 10 %: spring
+  steel allows about 1 %, engineering polymers a few %; elastomers, which do, are outside this linear model); a bar-wave speed ``sqrt(E / rho)`` outside ``WAVE_SPEED`` = 30 m/s (a 1 MPa elastomer) to 20 km/s
   (diamond, the stiffest solid: about 18 km/s); ``G / E`` outside ``G_OVER_E`` = 0.01 to 1 (isotropic
   solids have 1/3 to 1/2, fibre composites down to a few hundredths); a scene larger than ``EXTENT_MAX``
   (10 m: lengths in mm given as m); a rotation stroke in degrees whose magnitude is a radian value (at most
