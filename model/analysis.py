@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .assembly import System
+from .checks import annotate_curve
 from .elements import von_mises_spec
 from .kernels import compiled
 from .modal import Modes, modes_at, participation, track
@@ -181,7 +182,7 @@ class Analysis:
         mats = {m.name: m for m in s.scene.materials}
         allow = {e.name: mats[e.material].allowable_stress for e in s.scene.elements}
         k = min((len(p.hz) for p in pts), default=0)
-        return FrequencyCurve(
+        curve = FrequencyCurve(
             scene=s.scene.name,
             method="exact",
             stroke=np.asarray(to_unit(np.array(keys)), dtype=float),
@@ -207,6 +208,7 @@ class Analysis:
             solver={"tol": self.options.tol, "seconds": time.perf_counter() - t0,
                     "mean_newton_iterations": float(np.mean(iters)) if iters else 0.0},
         )
+        return annotate_curve(curve, self.scene, self.options)  # warnings and provenance (model.checks)
 
 
 def frequency_curve(scene: Scene, stroke: np.ndarray | None = None,

@@ -49,9 +49,11 @@ from typing import Any
 
 import numpy as np
 
+from .checks import annotate_diagnosis
 from .elements import beam_spec, truss_spec
 from .errors import SceneError
 from .kernels import compiled
+from .results import ResultWarning
 from .scene import Beam, GeneralSection, RectangularSection, Scene, Truss, expand_modes
 from .structure import Structure, compile_scene
 
@@ -114,6 +116,8 @@ class ConstraintDiagnosis:
     kinematic_modes: tuple[dict[str, dict[str, list[float]]], ...] = field(default=())
     static_modes: tuple[dict[str, dict[str, float]], ...] = field(default=())
     release_candidates: tuple[tuple[str, ...], ...] = field(default=())
+    warnings: tuple[ResultWarning, ...] = field(default=())  # scene checks (model.checks): validity, units
+    provenance: dict[str, Any] = field(default_factory=dict)  # flexopt version, scene hash, method, settings
 
     @property
     def m(self) -> int:
@@ -195,6 +199,8 @@ class ConstraintDiagnosis:
             "kinematic_modes": [dict(k) for k in self.kinematic_modes],
             "static_modes": [dict(s) for s in self.static_modes],
             "release_candidates": [list(r) for r in self.release_candidates],
+            "warnings": [w.to_dict() for w in self.warnings],
+            "provenance": dict(self.provenance),
             "conventions": {
                 "scaling": "SVD of D_cc C / L_c with C = diag(L_c translations, 1 rotations): singular values "
                 "dimensionless; kinematic modes are unit vectors of that scaled problem (translations in L_c "
@@ -230,6 +236,7 @@ class ConstraintDiagnosis:
             for name, comps in mode.items():
                 lines.append("  " + name + ": " + ", ".join(f"{k} {v:+.4f}" for k, v in comps.items()))
             lines.append("  release one of these to remove it: " + ", ".join(rel))
+        lines += [f"warning [{w.kind}]: {w.message}" for w in self.warnings]
         return "\n".join(lines)
 
 
@@ -447,7 +454,7 @@ def diagnose(scene: Scene, at_stroke: float | None = None, kinematic: bool | Non
         order = np.argsort(-np.abs(u), kind="stable")
         big = [row_labels[i] for i in order if abs(u[i]) >= 0.5 * abs(u[order[0]])]
         releases.append(tuple(big[:12]))
-    return ConstraintDiagnosis(
+    diag = ConstraintDiagnosis(
         scene=scene.name,
         stroke=at_stroke,
         kinematic=kin,
@@ -470,3 +477,5 @@ def diagnose(scene: Scene, at_stroke: float | None = None, kinematic: bool | Non
         static_modes=tuple(stat_modes),
         release_candidates=tuple(releases),
     )
+    settings = {"at_stroke": at_stroke, "kinematic": kin, "rank_rtol": RANK_RTOL, "almost_singular_rtol": NEAR_RTOL}
+    return annotate_diagnosis(diag, scene, settings)  # scene checks and provenance (model.checks)

@@ -67,6 +67,7 @@ import scipy.linalg as sla
 from . import elements as _el
 from .analysis import Analysis
 from .assembly import State, System
+from .checks import annotate_curve
 from .errors import FlexoptError
 from .modal import Modes, modes_at
 from .results import FrequencyCurve
@@ -442,7 +443,7 @@ def _curve_from(an: Analysis, method: str, stroke_user: np.ndarray, hz: np.ndarr
                 par: np.ndarray, seconds: float, extra: dict) -> FrequencyCurve:
     spec = an.scene.stroke
     nan = np.full(len(stroke_user), np.nan)
-    return FrequencyCurve(
+    return annotate_curve(FrequencyCurve(
         scene=an.scene.name, method=method, stroke=np.asarray(stroke_user, dtype=float),
         stroke_unit=spec.resolved_unit, stroke_kind=spec.kind, modes_hz=hz, mode_labels=labels,
         parasitic_hz=par, drive_reaction=nan, drive_reaction_unit="N m" if spec.kind == "rotation" else "N",
@@ -451,7 +452,7 @@ def _curve_from(an: Analysis, method: str, stroke_user: np.ndarray, hz: np.ndarr
                                    "with drive entry 1 and the modal derivatives have no drive entry",
                      "method": method, "drive_reaction": "not computed by this method (NaN)"},
         solver={"seconds": seconds, **extra},
-    )
+    ), an.scene, an.options)
 
 
 def _hz(lam: np.ndarray) -> np.ndarray:
@@ -532,8 +533,8 @@ def frequency_curve(obj: Scene | Analysis, method: str = "auto", tolerance: floa
         for m in AUTO_ORDER:
             if m == "exact" or est[m] <= tolerance:
                 cur = frequency_curve(an, m, tolerance, values)
-                return replace(cur, method=m, solver={**cur.solver, "auto_estimate": est.get(m, 0.0),
-                                                      "auto_tolerance": tolerance})
+                return annotate_curve(replace(cur, method=m, solver={**cur.solver, "auto_estimate": est.get(m, 0.0),
+                                                                     "auto_tolerance": tolerance}), an.scene, an.options)
     t0 = time.perf_counter()
     prep = _prepare(an)
     eta = np.asarray(spec.to_internal(values), dtype=float)

@@ -9,22 +9,60 @@ from typing import Any
 from pydantic import ValidationError
 
 from .errors import SceneError
-from .scene import Scene
+from .scene import Scene, did_you_mean
 
-__all__ = ["scene_from_dict", "load_scene", "format_validation_error"]
+__all__ = ["scene_from_dict", "load_scene", "format_validation_error", "clean_errors"]
+
+
+#: Tags of the scene's discriminated unions: pydantic puts the chosen tag into an error's location
+#: (``elements[0].beam.segments``); the scene JSON has no such level, so it is dropped from messages.
+_UNION_TAGS = frozenset({"beam", "truss", "rectangular", "general"})
+
+
+def _field_names() -> list[str]:
+    """Every field name of the scene's models (for "did you mean" on a misspelt field)."""
+    from . import scene as sc
+
+    models = (sc.Material, sc.Node, sc.RectangularSection, sc.GeneralSection, sc.Beam, sc.Truss, sc.RigidBody,
+              sc.Support, sc.Stroke, sc.SupportDirections, sc.Units, sc.Scene)
+    return sorted({f for m in models for f in m.model_fields})
+
+
+def clean_errors(errors: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """pydantic error dicts as they should reach a user: union tags dropped from locations, and no echo.
+
+    An unknown field gets the closest field name of the scene's models ("did you mean"). A tuple whose
+    item fails validation is also reported by pydantic as "Tuple should have at least 1
+    item after validation, not 0" when the field has a minimum length (the failed item counts as
+    missing); that echo of a real error inside the same field is dropped.
+    """
+    out = []
+    for e in errors:
+        loc = tuple(p for i, p in enumerate(e["loc"])
+                    if not (isinstance(p, str) and p in _UNION_TAGS and i > 0
+                             and (isinstance(e["loc"][i - 1], int) or e["loc"][i - 1] == "section")))
+        e = {**e, "loc": loc}
+        if e["type"] == "extra_forbidden" and loc and isinstance(loc[-1], str):
+            e["type"] = "value_error"  # the message is final: later formatters keep it
+            e["msg"] = f"unknown field{did_you_mean(loc[-1], _field_names())}; remove it or check its spelling"
+        out.append(e)
+    locs = [e["loc"] for e in out]
+    return [e for e in out if not (e["type"] == "too_short" and any(
+        len(other) > len(e["loc"]) and other[:len(e["loc"])] == e["loc"] for other in locs))]
 
 
 def format_validation_error(exc: ValidationError) -> str:
-    """One line per problem: ``field.path: message``."""
+    """One line, one clause per problem: ``field.path: message``."""
     lines = []
-    for err in exc.errors():
+    for err in clean_errors(exc.errors()):
         loc = ".".join(f"[{p}]" if isinstance(p, int) else str(p) for p in err["loc"]).replace(".[", "[")
         msg = err["msg"].removeprefix("Value error, ")
         if err["type"] == "extra_forbidden":
             msg = "unknown field; remove it or check its spelling"
         elif err["type"] == "missing":
             msg = "required field is missing; add it"
-        lines.append(f"{loc or 'scene'}: {msg}")
+        # the scene's cross-reference check reports at the top level with the path in its message
+        lines.append(f"{loc}: {msg}" if loc else msg)
     return "; ".join(lines)
 
 

@@ -121,7 +121,7 @@ class FrequencyCurve:
         return buf.getvalue()
 
     def table(self) -> str:
-        """A readable fixed-width table."""
+        """A readable fixed-width table (SI; stroke in its unit), then failures and warnings as ``#`` lines."""
         k = self.modes_hz.shape[1]
         head = f"{'stroke [' + self.stroke_unit + ']':>14} {'parasitic Hz':>13} " + " ".join(
             f"{'mode ' + str(i + 1):>10}" for i in range(k)) + f" {'reaction':>11} {'max VM [MPa]':>13}"
@@ -135,4 +135,6 @@ class FrequencyCurve:
             )
         for f in self.failures:
             lines.append(f"# truncated: {f.message}")
+        for wn in self.warnings:
+            lines.append(f"# warning [{wn.kind}] {wn.message}")
         return "\n".join(lines)

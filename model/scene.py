@@ -1,7 +1,9 @@
 """The scene: a flexure design as JSON (pydantic v2 schema only; no CasADi here).
 
-Units are SI (m, kg, s, N, Pa) in every description; any *consistent* set works as well (e.g. mm, tonne,
-s, N, MPa), since frequencies in Hz do not depend on the length and mass units.
+Units are SI (m, kg, s, N, Pa) in every description. A scene written in other units says so in an optional
+``units`` block (e.g. ``{"length": "mm", "mass": "tonne", "stress": "MPa"}``): its numbers are converted to SI
+when the scene is validated (model.units, with pint) and the block is left out of every dump, so a loaded
+scene, its hash and every result are SI.
 
 A scene holds materials, nodes, rigid bodies, flexible elements (spatial beams and trusses), supports,
 the stroke (the driven coordinate and its range) and, optionally, the support directions used to label
@@ -11,8 +13,9 @@ names the field and the fix.
 
 from __future__ import annotations
 
+import difflib
 import math
-from typing import Annotated, Literal, Union
+from typing import Annotated, Any, Literal, Union
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
@@ -33,8 +36,10 @@ __all__ = [
     "Support",
     "Stroke",
     "SupportDirections",
+    "Units",
     "Scene",
     "expand_modes",
+    "did_you_mean",
 ]
 
 SCENE_FORMAT = "flexopt.scene"
@@ -245,7 +250,8 @@ class Stroke(_Strict):
     stop: Real | None = Field(None, description="last stroke value (default +45 deg for rotations)")
     points: int = Field(91, ge=2, le=100001, description="number of stroke points")
     unit: Literal["deg", "rad", "m"] | None = Field(
-        None, description="stroke unit: deg (default) or rad for rotations, m (scene length) for translations"
+        None, description="stroke unit: deg (default) or rad for rotations, m for translations (written in the "
+        "units block's length unit, if any, and converted to m)"
     )
     drive: Literal["locked", "free"] = Field(
         "locked", description="eigen analysis with the actuator holding the drive (locked) or not (free)"
@@ -298,6 +304,40 @@ class SupportDirections(_Strict):
     rotations: tuple[Vec3, ...] = ()
 
 
+class Units(_Strict):
+    """The units a scene's numbers are written in (each a pint unit string; omitted kinds are SI).
+
+    Converted to SI when the scene is validated (:func:`model.units.scene_to_si`); results are always SI.
+    """
+
+    length: str | None = Field(None, description="unit of lengths, e.g. 'mm' (positions, sections, a "
+                               "translation stroke); default m")
+    mass: str | None = Field(None, description="unit of masses, e.g. 'tonne' or 'g' (inertia: mass length^2); "
+                             "default kg")
+    force: str | None = Field(None, description="unit of force, e.g. 'N'; only sets the default stress unit "
+                              "(force / length^2); default N")
+    stress: str | None = Field(None, description="unit of E, G and the allowable stress, e.g. 'MPa' or 'GPa'; "
+                               "default force / length^2")
+    density: str | None = Field(None, description="unit of density, e.g. 'kg/m^3' or 'g/cm^3'; default "
+                                "mass / length^3")
+
+    @model_validator(mode="after")
+    def _readable(self) -> "Units":
+        from .units import UnitsError, check_unit
+
+        errors = []
+        for kind in ("length", "mass", "force", "stress", "density"):
+            u = getattr(self, kind)
+            if u is not None:
+                try:
+                    check_unit(kind, u)
+                except UnitsError as exc:
+                    errors.append(f"units.{kind}: {exc}")
+        if errors:
+            raise ValueError("; ".join(errors))
+        return self
+
+
 class Scene(_Strict):
     """A flexure design: the whole input of an analysis."""
 
@@ -321,10 +361,32 @@ class Scene(_Strict):
     )
     support_directions: SupportDirections | None = None
     modes: int = Field(6, ge=1, le=50, description="number of modes reported per stroke point")
+    units: Units | None = Field(
+        None, exclude=True,
+        description="units the numbers above are written in (default SI); converted to SI on reading, so the "
+        "validated scene, its dumps and every result are SI",
+    )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _to_si(cls, data: Any) -> Any:
+        if isinstance(data, dict) and isinstance(data.get("units"), dict):
+            from .units import UnitsError, scene_to_si
+
+            try:
+                return scene_to_si(data)
+            except UnitsError:
+                return data  # the Units validator names the bad unit; nothing is analysed
+        return data
 
     @model_validator(mode="after")
     def _references(self) -> "Scene":  # noqa: C901 - one table of checks, read top to bottom
         errors: list[str] = []
+        names_of = {"node": [n.name for n in self.nodes], "body": [b.name for b in self.bodies],
+                    "material": [m.name for m in self.materials]}
+
+        def unknown(kind: str, name: str) -> str:
+            return f"unknown {kind} '{name}'{did_you_mean(name, names_of[kind])}"
 
         def unique(kind: str, names: list[str]) -> set[str]:
             seen: set[str] = set()
@@ -347,7 +409,7 @@ class Scene(_Strict):
         for i, b in enumerate(self.bodies):
             for n in b.nodes:
                 if n not in nodes:
-                    errors.append(f"bodies[{i}].nodes: unknown node '{n}'; define it under 'nodes'")
+                    errors.append(f"bodies[{i}].nodes: {unknown('node', n)}; define it under 'nodes'")
                 elif n in carrier:
                     errors.append(
                         f"bodies[{i}].nodes: node '{n}' is already carried by body '{carrier[n]}'; "
@@ -360,9 +422,9 @@ class Scene(_Strict):
             where = f"elements[{i}]"
             for n in e.nodes:
                 if n not in nodes:
-                    errors.append(f"{where}.nodes: unknown node '{n}'; define it under 'nodes' or fix the name")
+                    errors.append(f"{where}.nodes: {unknown('node', n)}; define it under 'nodes' or fix the name")
             if e.material not in mats:
-                errors.append(f"{where}.material: unknown material '{e.material}'; define it under 'materials'")
+                errors.append(f"{where}.material: {unknown('material', e.material)}; define it under 'materials'")
             if all(n in pos for n in e.nodes):
                 p, q = pos[e.nodes[0]], pos[e.nodes[1]]
                 length = float(np.linalg.norm(q - p))
@@ -402,7 +464,7 @@ class Scene(_Strict):
         for i, s in enumerate(self.supports):
             if s.node is not None:
                 if s.node not in nodes:
-                    errors.append(f"supports[{i}].node: unknown node '{s.node}'")
+                    errors.append(f"supports[{i}].node: {unknown('node', s.node)}")
                 elif s.node in carrier:
                     if set(s.dofs) != {"x", "y", "z", "rx", "ry", "rz"}:
                         errors.append(
@@ -414,7 +476,7 @@ class Scene(_Strict):
                     supported.setdefault(s.node, set()).update(s.dofs)
             if s.body is not None:
                 if s.body not in bodies:
-                    errors.append(f"supports[{i}].body: unknown body '{s.body}'")
+                    errors.append(f"supports[{i}].body: {unknown('body', s.body)}")
                 grounded.add(s.body)
 
         st = self.stroke
@@ -422,7 +484,7 @@ class Scene(_Strict):
             pass
         elif st.node is not None:
             if st.node not in nodes:
-                errors.append(f"stroke.node: unknown node '{st.node}'")
+                errors.append(f"stroke.node: {unknown('node', st.node)}")
             elif st.node in carrier:
                 errors.append(
                     f"stroke.node: node '{st.node}' is carried by body '{carrier[st.node]}'; "
@@ -440,7 +502,7 @@ class Scene(_Strict):
                     )
         if st is not None and st.body is not None:
             if st.body not in bodies:
-                errors.append(f"stroke.body: unknown body '{st.body}'")
+                errors.append(f"stroke.body: {unknown('body', st.body)}")
             elif st.body in grounded:
                 errors.append(
                     f"stroke.body: body '{st.body}' is grounded by a support; drive a moving body instead"
@@ -448,6 +510,12 @@ class Scene(_Strict):
         if errors:
             raise ValueError("; ".join(errors))
         return self
+
+
+def did_you_mean(name: str, choices: list[str] | tuple[str, ...]) -> str:
+    """``" (did you mean 'x'?)"`` for the closest of ``choices`` to a misspelt ``name`` (difflib), else ``""``."""
+    close = difflib.get_close_matches(name, [str(c) for c in choices], n=1, cutoff=0.6)
+    return f" (did you mean '{close[0]}'?)" if close else ""
 
 
 def expand_modes(names: tuple[str, ...]) -> tuple[int, ...]:

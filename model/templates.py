@@ -7,15 +7,20 @@ G 79 GPa, 7800 kg/m^3, ten elements, end rotation about the weak bending axis, +
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import casadi as ca
 
 from .errors import SceneError
 from .scene import Scene
 
-__all__ = ["TEMPLATES", "DESIGN_SPACES", "design_space", "template", "template_parameters"]
+if TYPE_CHECKING:
+    from pydantic import ValidationError
+
+__all__ = ["TEMPLATES", "DESIGN_SPACES", "PARAMETER_UNITS", "design_space", "parameter_unit", "template",
+           "template_parameters"]
 
 STEEL = dict(E=210e9, G=79e9, density=7800.0, allowable_stress=600e6)
 
@@ -131,34 +136,146 @@ TEMPLATES: dict[str, tuple[Callable[[dict], dict], dict[str, Any]]] = {
 }
 
 
+#: SI unit of each template parameter (``""``: a plain number; absent: a count or a word). A parameter given
+#: as a string with a unit (``"0.3 mm"``, ``--set thickness=0.3mm``) is converted to this unit with pint.
+PARAMETER_UNITS: dict[str, str] = {
+    **dict.fromkeys(("E", "G", "allowable_stress"), "Pa"), "density": "kg/m^3",
+    **dict.fromkeys(("length", "width", "thickness", "spacing", "gap", "body_depth", "body_radius", "body_offset",
+                     "half_width", "height", "wire_length", "wire_diameter", "sheet_length", "sheet_width",
+                     "sheet_thickness", "body_length", "body_width", "body_height"), "m"),
+    **dict.fromkeys(("body_mass", "mid_mass"), "kg"), "area": "m^2", "angle": "deg", "crossing": "",
+}
+#: Templates whose ``stroke`` parameter is a translation [m]; in the others it is a rotation [deg].
+_TRANSLATION_TEMPLATES = frozenset({"parallel-leaf-spring", "wire-guide-5", "wire-guide-parallel",
+                                    "folded-sheet-guide-5", "folded-sheet-guide-6"})
+
+
+def parameter_unit(name: str, parameter: str) -> str | None:
+    """The SI unit of ``parameter`` of template ``name`` (None for counts and words)."""
+    if parameter == "stroke":
+        return "m" if name in _TRANSLATION_TEMPLATES else "deg"
+    return PARAMETER_UNITS.get(parameter)
+
+
 def template_parameters(name: str) -> dict[str, Any]:
     """The named parameters of a template with their defaults."""
     if name not in TEMPLATES:
-        raise SceneError("template", f"unknown template '{name}'; choose one of {sorted(TEMPLATES)}")
+        from .scene import did_you_mean
+
+        raise SceneError("template", f"unknown template '{name}'{did_you_mean(name, sorted(TEMPLATES))}; "
+                         f"choose one of {', '.join(sorted(TEMPLATES))}")
     return dict(TEMPLATES[name][1])
+
+
+def _read_parameter(name: str, key: str, default: Any, v: Any) -> Any:
+    """One override as the type of its default; strings with a unit are converted to the parameter's SI unit."""
+    where = f"template.{key}"
+    if isinstance(default, str):
+        return str(v)
+    unit = parameter_unit(name, key)
+    kind = "an integer" if isinstance(default, int) else "a number"
+    if isinstance(v, str):
+        try:
+            num = float(v)
+        except ValueError:
+            if unit is None:
+                raise SceneError(where, f"cannot read '{v}' as {type(default).__name__}: template parameter '{key}' "
+                                 f"is {kind} without unit") from None
+            from .units import UnitsError, quantity_to
+
+            try:
+                num = quantity_to(v, unit)
+            except UnitsError as exc:
+                raise SceneError(where, f"cannot read '{v}' as float or as a quantity in {unit or 'no unit'} "
+                                 f"(template parameter '{key}'): {exc}") from None
+        v = num
+    if isinstance(v, bool) or not isinstance(v, numbers.Real):
+        raise SceneError(where, f"template parameter '{key}' must be {kind}, got {v!r}")
+    v = float(v) if not isinstance(v, int) else v
+    if not math.isfinite(v):
+        raise SceneError(where, f"template parameter '{key}' must be a finite number, got {v}")
+    if isinstance(default, int):
+        if v != int(v):
+            raise SceneError(where, f"template parameter '{key}' must be an integer, got {v}")
+        return int(v)
+    return float(v)
+
+
+def _same(a: Any, b: Any) -> bool:
+    if isinstance(a, bool) or isinstance(b, bool):
+        return False
+    if isinstance(a, (int, float)) and isinstance(b, (int, float)):
+        return a == b or (math.isnan(a) and math.isnan(b))
+    return isinstance(a, str) and a == b
+
+
+def _at(data: Any, loc: tuple) -> Any:
+    for p in loc:
+        try:
+            data = data[p]
+        except (KeyError, IndexError, TypeError):
+            return None
+    return data
+
+
+def _parameter_error(name: str, params: dict[str, Any], overrides: dict[str, Any], data: dict,
+                     exc: "ValidationError") -> SceneError:
+    """A scene error of a template's scene, told in terms of the template parameter that caused it.
+
+    The offending scene value is traced back to the parameter holding the same value (overridden
+    parameters first); when none matches (a derived value), the scene path is kept.
+    """
+    from .io import clean_errors, format_validation_error
+
+    for err in clean_errors(exc.errors()):
+        if err["type"] == "too_short":
+            continue
+        value = _at(data, err["loc"])
+        order = [k for k in overrides if k in params] + [k for k in params if k not in overrides]
+        hits = [k for k in order if _same(params[k], value)]
+        if hits:
+            key = hits[0]
+            unit = parameter_unit(name, key)
+            msg = err["msg"].removeprefix("Value error, ").replace("Input should be", "must be")
+            shown = f"{params[key]!r}" + (f" {unit}" if unit else "")
+            return SceneError(f"template.{key}", f"template parameter '{key}' = {shown}: {msg}; change '{key}'")
+    given = ", ".join(f"{k} = {params[k]!r}" + (f" {parameter_unit(name, k)}" if parameter_unit(name, k) else "")
+                      for k in overrides if k in params)
+    key = next(iter(overrides), None) if len(overrides) == 1 else None
+    return SceneError(f"template.{key}" if key else "", f"template '{name}' with {given or 'its defaults'} gives an "
+                      f"invalid scene: {format_validation_error(exc)}; change "
+                      + (f"'{key}'" if key else "the parameters"))
 
 
 def template(name: str, **overrides: Any) -> Scene:
     """The scene of template ``name`` with parameters overridden by keyword.
 
+    A value may be a string with a unit (``thickness="0.3 mm"``): it is converted to the parameter's SI
+    unit (:data:`PARAMETER_UNITS`; a rotation stroke in deg). Plain numbers are in that unit already.
+
     Raises
     ------
     SceneError
-        For an unknown template or parameter, or a value that gives an invalid scene.
+        For an unknown template or parameter (with the closest name), or a value that gives an invalid
+        scene (naming the template parameter, not the scene path, when the value is a parameter's).
     """
     params = template_parameters(name)
     for k, v in overrides.items():
         if k not in params:
-            raise SceneError(f"template.{k}", f"template '{name}' has no parameter '{k}'; "
-                             f"its parameters are {sorted(params)}")
-        default = params[k]
-        try:
-            params[k] = type(default)(v) if not isinstance(default, str) else str(v)
-        except (TypeError, ValueError) as exc:
-            raise SceneError(f"template.{k}", f"cannot read '{v}' as {type(default).__name__}") from exc
-    from .io import scene_from_dict
+            from .scene import did_you_mean
 
-    return scene_from_dict(TEMPLATES[name][0](params))
+            raise SceneError(f"template.{k}", f"template '{name}' has no parameter '{k}'"
+                             f"{did_you_mean(k, sorted(params))}; its parameters are {sorted(params)}")
+        params[k] = _read_parameter(name, k, params[k], v)
+    from pydantic import ValidationError
+
+    from .scene import Scene
+
+    data = TEMPLATES[name][0](params)
+    try:
+        return Scene.model_validate(data)
+    except ValidationError as exc:
+        raise _parameter_error(name, params, overrides, data, exc) from None
 
 
 # ----------------------------------------------------------------------------------------------------------

@@ -249,12 +249,13 @@ _HEAVY: dict[int | str, dict[str, Any]] = {
 
 def _scene(data: dict[str, Any]) -> Any:
     """Validate a scene document; errors are located inside the request's ``scene`` field."""
+    from ..model.io import clean_errors
     from ..model.scene import Scene
 
     try:
         return Scene.model_validate(data)
     except ValidationError as exc:
-        errs = [{**e, "loc": ("body", "scene", *e["loc"])} for e in exc.errors(include_url=False)]
+        errs = [{**e, "loc": ("body", "scene", *e["loc"])} for e in clean_errors(exc.errors(include_url=False))]
         raise RequestValidationError(errs) from None
 
 
@@ -266,7 +267,7 @@ def _accepted(request: Request) -> str:
     return "application/json"
 
 
-def _parameter_info(name: str, default: Any) -> ParameterInfo:
+def _parameter_info(name: str, default: Any, unit: str | None = None) -> ParameterInfo:
     if isinstance(default, str):
         from typing import get_args
 
@@ -279,14 +280,30 @@ def _parameter_info(name: str, default: Any) -> ParameterInfo:
     if isinstance(default, int):
         return ParameterInfo(name=name, type="integer", default=default, bounds="integer >= 1 (a count)")
     bounds = "any real number (signed offset)" if "offset" in name else "positive (> 0)"
+    if unit:
+        bounds += f"; a number in {unit} or a string with a unit, e.g. '{default:g} {unit}'"
     return ParameterInfo(name=name, type="number", default=float(default), bounds=bounds)
+
+
+def _unknown_template(name: str) -> str:
+    from ..model.errors import SceneError
+    from ..model.templates import template_parameters
+
+    try:
+        template_parameters(name)
+    except SceneError as exc:
+        return exc.message  # "unknown template 'x' (did you mean 'y'?); choose one of ..."
+    return f"unknown template '{name}'"  # pragma: no cover - only called for unknown names
 
 
 def _template_info(name: str) -> TemplateInfo:
     from ..model import template_parameters
 
+    from ..model.templates import parameter_unit
+
     params = template_parameters(name)
-    return TemplateInfo(name=name, parameters=[_parameter_info(k, v) for k, v in params.items()])
+    return TemplateInfo(name=name, parameters=[_parameter_info(k, v, parameter_unit(name, k))
+                                               for k, v in params.items()])
 
 
 def _methods() -> list[str]:
@@ -321,7 +338,7 @@ def _router(settings: Settings) -> APIRouter:
         from ..model import TEMPLATES
 
         if name not in TEMPLATES:
-            raise HTTPException(404, f"unknown template '{name}'; choose one of {', '.join(sorted(TEMPLATES))}")
+            raise HTTPException(404, _unknown_template(name))
         return _template_info(name)
 
     @v1.post("/templates/{name}/scene", summary="The scene of a template with parameters overridden",
@@ -331,7 +348,7 @@ def _router(settings: Settings) -> APIRouter:
         from ..model.errors import SceneError
 
         if name not in TEMPLATES:
-            raise HTTPException(404, f"unknown template '{name}'; choose one of {', '.join(sorted(TEMPLATES))}")
+            raise HTTPException(404, _unknown_template(name))
         params = body.parameters if body is not None else {}
         try:
             scene = template(name, **params)

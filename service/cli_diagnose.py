@@ -15,9 +15,9 @@ __all__ = ["add_parser", "plot_diagnosis"]
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Add the ``diagnose`` subcommand to an argparse subparsers object."""
     d = subparsers.add_parser("diagnose", help="exact-constraint diagnosis: D_cc rank, free motions, self-stresses")
-    d.add_argument("scene", nargs="?", help="scene JSON file")
-    d.add_argument("--template", metavar="NAME", help="use a built-in template instead of a file")
-    d.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a template parameter")
+    from .cli import add_scene_arguments
+
+    add_scene_arguments(d)
     d.add_argument("--at-stroke", type=float, default=None, metavar="VALUE",
                    help="diagnose the equilibrium at this stroke value (stroke unit); default: the reference")
     d.add_argument("--kinematic", dest="kinematic", action="store_true", default=None,
@@ -33,20 +33,10 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 def _cmd_diagnose(args: argparse.Namespace) -> int:
     import sys
 
-    from ..model import load_scene, template
     from ..model.constraints import diagnose
+    from .cli import scene_from_args
 
-    if (args.scene is None) == (args.template is None):
-        raise ValueError("give a scene file or --template NAME (one of them)")
-    sets = {}
-    for item in args.set:
-        if "=" not in item:
-            raise ValueError(f"--set expects key=value, got '{item}'")
-        k, v = item.split("=", 1)
-        sets[k.strip()] = v.strip()
-    if sets and args.template is None:
-        raise ValueError("--set applies to --template only")
-    scene = load_scene(args.scene) if args.scene is not None else template(args.template, **sets)
+    scene = scene_from_args(args)
     diag = diagnose(scene, at_stroke=args.at_stroke, kinematic=args.kinematic)
     if args.json:
         print(json.dumps(diag.to_dict(), indent=2))

@@ -78,7 +78,9 @@ class TemplateInfo(_Wire):
 class TemplateSceneRequest(_Wire):
     """Parameter overrides for a template (omitted parameters keep their defaults)."""
 
-    parameters: dict[str, float | int | str] = Field(default_factory=dict)
+    parameters: dict[str, float | int | str] = Field(
+        default_factory=dict, description="numbers in the parameter's SI unit (a rotation stroke in deg), or "
+        "strings with a unit, e.g. {\"thickness\": \"0.3 mm\"}; the scene returned is SI")
 
 
 class FrequencyCurveRequest(_Wire):
@@ -86,7 +88,8 @@ class FrequencyCurveRequest(_Wire):
 
     scene: SceneDocument
     stroke: list[FiniteFloat] | None = Field(
-        None, description="stroke values in the scene's stroke unit (default: the scene's own grid)")
+        None, description="stroke values in the result's stroke unit: deg or rad, m for translations (SI even when "
+        "the scene has a units block); default: the scene's own grid")
     method: Method = Field("exact", description="exact (continuation + eigen), fd1, fd2, manifold, reduced or auto")
     tolerance: PositiveFloat = Field(0.01, description="relative error allowed on the first parasitic "
                                                        "frequency (method auto)")

@@ -121,7 +121,7 @@ def test_failures_are_records_kept_and_retried_only_on_request(tmp_path: Path, m
     expected = [  # kind, words in the message
         ("KeyError", "missing-key"), ("ZeroDivisionError", "division by zero"),
         ("TypeError", "must return a dict"), ("TypeError", "not JSON"), (None, None),
-        ("SceneError", "thickness: Input should be greater than 0"),  # FlexoptError: message kept whole
+        ("SceneError", "template parameter 'thickness' = -0.001 m: must be greater than 0"),  # FlexoptError: whole
     ]
     for case, r, (kind, words) in zip(cases, out, expected, strict=True):
         if kind is None:

@@ -350,3 +350,23 @@ def test_flexopt_serve_subprocess() -> None:
     finally:
         proc.terminate()
         proc.wait(10)
+
+
+def test_units_warnings_and_provenance_over_http(client: Client, server: _Server) -> None:
+    """Issue 11: unit-bearing template parameters, and warnings and provenance in HTTP answers."""
+    scene = client.template_scene("cross-spring-pivot", points=3, segments=4, thickness="0.3 mm")
+    assert scene["elements"][0]["section"]["thickness"] == pytest.approx(0.3e-3, rel=1e-15)
+    curve = client.frequency_curve(scene)
+    kinds = {w.kind for w in curve.warnings}
+    assert "stress" in kinds and curve.provenance["method"] == "exact"
+    assert len(curve.provenance["scene_sha256"]) == 64
+    with pytest.raises(InvalidInput) as err:
+        client.template_scene("leaf-spring", density=-1.0)
+    assert err.value.errors[0].loc == ["body", "parameters", "density"]
+    assert "template parameter 'density'" in err.value.detail and "materials" not in err.value.detail
+    bad = dict(scene, materials=[dict(scene["materials"][0], density=-1.0)])
+    with pytest.raises(InvalidInput) as err:
+        client.frequency_curve(bad)
+    assert "at least 1 item" not in err.value.detail, err.value.detail
+    r = httpx.get(f"{server.url}/v1/templates/leaf-sprng")
+    assert r.status_code == 404 and "did you mean 'leaf-spring'" in r.json()["detail"]
