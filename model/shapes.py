@@ -212,10 +212,11 @@ def _stress_warnings(an: Analysis, c: Configuration, unit: str) -> list[ResultWa
     return out
 
 
-def shapes_along(an: Analysis, stroke: Sequence[float], modes: bool = True) -> list[Shapes]:
+def shapes_along(an: Analysis, stroke: Sequence[float], modes: bool = True, strict: bool = True) -> list[Shapes]:
     """Deflected configurations (and, with ``modes``, mode shapes) at the stroke values ``stroke``
     (stroke unit), in ascending stroke order, computed by the exact continuation of
-    :meth:`~model.analysis.Analysis.frequency_curve`.
+    :meth:`~model.analysis.Analysis.frequency_curve`. With ``strict=False`` the stroke values past a loss
+    of equilibrium are left out instead.
 
     Raises
     ------
@@ -231,14 +232,16 @@ def shapes_along(an: Analysis, stroke: Sequence[float], modes: bool = True) -> l
     to_unit = (lambda v: float(np.degrees(v))) if spec.resolved_unit == "deg" else float
     found: dict[float, tuple[Configuration, tuple[ModeShape, ...]]] = {}
 
+    requested = {float(spec.to_internal(v)): float(v) for v in values}  # report the values as given
+
     def visit(eq: Equilibrium, md: Modes, labels: list[str]) -> None:
-        st = to_unit(eq.stroke)
+        st = requested.get(eq.stroke, to_unit(eq.stroke))
         c = _configuration(an, eq, st)
         found[eq.stroke] = (c, _mode_shapes(an, eq, md, labels, n_rep) if modes else ())
 
     curve = an.frequency_curve(values, visit=visit)
     missing = [v for v in values if float(spec.to_internal(v)) not in found]
-    if missing:
+    if missing and strict:
         why = "; ".join(f.message for f in curve.failures) or "no equilibrium found"
         raise FlexoptError(f"no stable equilibrium at stroke {missing[0]:.6g} {spec.resolved_unit}: {why}; "
                            "choose a stroke inside the curve's range")

@@ -83,7 +83,7 @@ def _default_mode(d: dict, mode: int | None) -> int:
 def write_vtk(shapes: list[dict], directory: str) -> list[str]:
     """One VTU file per stroke point (meshio): the deflected structure as lines (members) and quads (plates of
     rectangular members), point data ``mode_K_translation`` / ``mode_K_rotation`` (per unit modal
-    coordinate) and field data ``mode_K_hz``; plus ``series.pvd`` indexing the files by stroke for ParaView.
+    coordinate) and ``mode_K_hz`` (constant); plus ``series.pvd`` indexing the files by stroke for ParaView.
     Returns the paths written."""
     import os
 
@@ -116,19 +116,19 @@ def write_vtk(shapes: list[dict], directory: str) -> list[str]:
         pts = np.vstack([P, *extra]) if extra else P
         owner = np.concatenate([np.arange(len(P)), np.array(edge_of, dtype=int)])
         point_data = {}
-        field_data = {}
         for j, m in enumerate(d["modes"]):
             u = np.array([m["translation"][n] for n in names], dtype=float)
             psi = np.array([m["rotation"][n] for n in names], dtype=float)
             arm = pts - P[owner]  # plate edge points move with their node: u + psi x r
             point_data[f"mode_{j + 1}_translation"] = u[owner] + np.cross(psi[owner], arm)
             point_data[f"mode_{j + 1}_rotation"] = psi[owner]
-            field_data[f"mode_{j + 1}_hz"] = np.array([m["hz"]])
+            # meshio's VTU writer drops field data: the frequency travels as a constant point array
+            point_data[f"mode_{j + 1}_hz"] = np.full(len(pts), np.nan if m["hz"] is None else m["hz"])
         cells = [("line", np.array(lines, dtype=int).reshape(-1, 2))]
         if quads:
             cells.append(("quad", np.array(quads, dtype=int)))
         path = os.path.join(directory, f"stroke_{k:04d}.vtu")
-        meshio.write(path, meshio.Mesh(pts, cells, point_data=point_data, field_data=field_data))
+        meshio.write(path, meshio.Mesh(pts, cells, point_data=point_data))
         paths.append(path)
         entries.append(f'    <DataSet timestep="{d["stroke"]:.10g}" file="{os.path.basename(path)}"/>')
     pvd = os.path.join(directory, "series.pvd")
