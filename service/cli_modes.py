@@ -54,13 +54,22 @@ def _table(d: dict) -> str:
     lines = [f"scene '{d['scene']}' at stroke {d['stroke']:.6g} {d['stroke_unit']} "
              f"(drive reaction {d['drive_reaction']:.4g})",
              f"{'mode':>4} {'Hz':>11} {'label':>10}  dominant motion (share of the squared nodal rotations/translations)"]
+    pts = np.array(list(d["nodes"].values()))
+    size = float(np.ptp(pts, axis=0).max())
     for i, m in enumerate(d["modes"]):
         rot = np.array(list(m["rotation"].values()))
         tra = np.array(list(m["translation"].values()))
         r2, t2 = (rot**2).sum(axis=0), (tra**2).sum(axis=0)
         k, j = int(np.argmax(r2)), int(np.argmax(t2))
-        lines.append(f"{i + 1:>4} {m['hz']:11.4f} {m['label']:>10}  rotation about {'xyz'[k]} "
-                     f"{r2[k] / max(r2.sum(), 1e-300):.0%}, translation along {'xyz'[j]} {t2[j] / max(t2.sum(), 1e-300):.0%}")
+        parts = []
+        if np.abs(rot).max() > 0:
+            parts.append(f"rotation about {'xyz'[k]} {r2[k] / r2.sum():.0%}")
+        # translations below 1e-6 of what the rotations move across the structure are round-off
+        if np.abs(tra).max() > 1e-6 * size * np.abs(rot).max():
+            parts.append(f"translation along {'xyz'[j]} {t2[j] / t2.sum():.0%}")
+        else:
+            parts.append("nodes do not translate")
+        lines.append(f"{i + 1:>4} {m['hz']:11.4f} {m['label']:>10}  " + ", ".join(parts))
     for name, s in d["stress"].items():
         if s["von_mises"] is not None:
             lines.append(f"stress {name}: {s['von_mises'] / 1e6:.4g} MPa = {s['utilisation']:.3g} of the allowable")

@@ -296,10 +296,9 @@ def _mode_title(d: dict, mode: int | None, a: float) -> str:
     if mode is None:
         return t + ": deflected state"
     m = d["modes"][mode]
-    u = np.array(list(m["translation"].values()), dtype=float)
-    shown = a * float(np.linalg.norm(u, axis=1).max(initial=0))
-    return (t + f"\nmode {mode + 1}: {m['hz']:.4g} Hz ({m['label']}), drawn at scale {a:.3g}\n"
-            f"(largest node displacement shown {shown * 1e3:.3g} mm; grey = deflected state)")
+    shown = a * mode_scale(d, mode, 1.0) ** -1 * _extent(d)  # the largest drawn displacement, plate edges included
+    return (t + f"\nmode {mode + 1}: {m['hz']:.4g} Hz ({m['label']}), mass-normalised shape drawn at scale {a:.3g}\n"
+            f"(largest displacement shown {shown * 1e3:.3g} mm, plate edges included; grey = deflected state)")
 
 
 def _draw_frame(ax: Any, d: dict, mode: int | None, a: float, fixed_limits: list[np.ndarray] | None = None) -> list:

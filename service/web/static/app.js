@@ -226,7 +226,7 @@ function structureTraces(geo, mode, a, style) {
       const t = { type: "mesh3d", x, y, z, i: I, j: J, k: K, name, opacity: style.opacity, flatshading: true,
         hovertemplate: `${name}<extra></extra>`, showscale: false };
       if (colourValue !== undefined) {
-        Object.assign(t, { intensity: x.map(() => colourValue), colorscale: "RdBu", reversescale: true, cmin: -1, cmax: 1 });
+        Object.assign(t, { intensity: x.map(() => colourValue), colorscale: "RdBu", cmin: -1, cmax: 1 });
         if (style.showscale && !style.scaleShown) {
           t.showscale = true; style.scaleShown = true;
           t.colorbar = { title: { text: "self-stress<br>(normalised)" }, len: 0.6 };
