@@ -184,6 +184,15 @@ def test_http_modes_and_curve_shapes() -> None:
             assert plain.get("shapes") is None
             page = await c.get("/")
             assert page.status_code == 200 and 'data-testid="curve"' in page.text
+        # the typed client hands the same wire dict to the one plotting module
+        from flexopt.client import AsyncClient
+
+        async with AsyncClient("http://t", transport=httpx.ASGITransport(app=app)) as client:
+            d = await client.modes(scene, 0.0)
+            gif = await client.modes(scene, 0.0, format="gif", mode=1)
+        assert gif[:6] == b"GIF89a"
+        fig = plots.shapes_figure(d, 1)
+        assert "mode 2: 197.9 Hz (parasitic)" in fig._suptitle.get_text() and "drawn at scale" in fig._suptitle.get_text()
 
     asyncio.run(run())
 
