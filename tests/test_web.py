@@ -100,9 +100,14 @@ def test_page_computes_leaf_curve_and_shows_a_mode(url: str, browser: object, sh
     assert plotted["x"] == 0.0
     assert plotted["y"] == pytest.approx(api["parasitic_hz"][i0], rel=1e-12), "plotted first parasitic at stroke 0"
     assert curve.locator(".main-svg").count() > 0, "plotly drew no SVG in the curve container"
-    # a stroke point's structure and modes: what a click on the curve does, at stroke 0
-    page.evaluate("() => window.flexopt && document.querySelector('[data-testid=curve]')")
-    page.evaluate("() => loadModes(0)")
+    # click the curve's point at stroke 0: the page computes and shows the structure and modes there
+    box = curve.bounding_box()
+    at = page.evaluate("""([x, y]) => {
+        const gd = document.querySelector('[data-testid=curve]'), L = gd._fullLayout;
+        return [L.xaxis._offset + L.xaxis.l2p(x), L.yaxis._offset + L.yaxis.l2p(y)];
+    }""", [0.0, plotted["y"]])
+    page.mouse.move(box["x"] + at[0], box["y"] + at[1])
+    page.mouse.click(box["x"] + at[0], box["y"] + at[1])
     page.get_by_test_id("mode-2").wait_for(timeout=30_000)
     page.get_by_test_id("mode-2").click()
     page.wait_for_function("() => { const d = document.querySelector('[data-testid=shape]'); "
@@ -144,4 +149,25 @@ def test_diagnosis_and_docs_offline(url: str, browser: object, shots: Path) -> N
     page.goto(url + "/redoc")
     page.wait_for_selector("[data-role='redoc-summary'], .menu-content", timeout=20_000)
     assert "frequency-curve" in page.content()
+    page.close()
+
+
+def test_optimisation_from_the_page_shows_progress_and_ranking(url: str, browser: object) -> None:
+    import json
+
+    page = browser.new_page(viewport={"width": 1400, "height": 1100})
+    page.goto(f"{url}/")
+    page.wait_for_function("() => document.querySelectorAll('#template option').length > 0")
+    tiny = {"families": [{"template": "cross-spring-pivot", "design": {"thickness": [1e-4, 4e-4]}}], "stroke": 10,
+            "samples": 3, "modes": 1, "starts": 1, "max_iterations": 2, "refine_rounds": 0, "verify_points": 31}
+    page.fill("#problem", json.dumps(tiny))
+    page.get_by_test_id("optimise").click()
+    page.wait_for_function("() => window.flexopt.job && ['succeeded', 'failed', 'cancelled']"
+                           ".includes(window.flexopt.job.status)", timeout=120_000)
+    job = page.evaluate("() => window.flexopt.job")
+    assert job["status"] == "succeeded", job.get("error")
+    assert "1 of 1 cases" in page.get_by_test_id("opt-progress").inner_text()
+    cells = page.get_by_test_id("ranking").locator("tr").nth(1).locator("td").all_inner_texts()
+    best = job["result"]["ranking"][0]
+    assert cells[1] == "cross-spring-pivot" and float(cells[2]) == pytest.approx(best["worst_hz"], rel=1e-4)
     page.close()
