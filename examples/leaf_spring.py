@@ -34,7 +34,8 @@ def main(outdir: str = "leaf_spring_out") -> dict:
 
     # 2. the mode shapes at stroke 0 and at the end of the stroke
     at0 = shapes_at(analysis, 0.0).to_dict()
-    first = min((i for i, m in enumerate(at0["modes"]) if m["label"] == "parasitic"), key=lambda i: at0["modes"][i]["hz"])
+    parasitic = [i for i, m in enumerate(at0["modes"]) if m["label"] == "parasitic"]
+    first = min(parasitic, key=lambda i: at0["modes"][i]["hz"])
     plots.save(plots.shapes_figure(at0, first), str(out / "mode_stroke0.png"))
     plots.animate_mode(at0, first, str(out / "mode_stroke0.gif"), frames=12)
     at45 = shapes_at(analysis, 45.0).to_dict()

@@ -53,7 +53,8 @@ def _table(d: dict) -> str:
 
     lines = [f"scene '{d['scene']}' at stroke {d['stroke']:.6g} {d['stroke_unit']} "
              f"(drive reaction {d['drive_reaction']:.4g})",
-             f"{'mode':>4} {'Hz':>11} {'label':>10}  dominant motion (share of the squared nodal rotations/translations)"]
+             f"{'mode':>4} {'Hz':>11} {'label':>10}  dominant motion (share of the squared nodal "
+             "rotations/translations)"]
     pts = np.array(list(d["nodes"].values()))
     size = float(np.ptp(pts, axis=0).max())
     for i, m in enumerate(d["modes"]):

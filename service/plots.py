@@ -234,7 +234,7 @@ def _draw_structure(ax: Any, d: dict, pos: dict, rot: dict, *, color: str = PLAT
             ax.add_collection3d(Poly3DCollection(quads, facecolors=fc, edgecolors=edge, linewidths=lw, alpha=alpha))
             pts += [P - Y, P + Y]
         else:
-            ax.plot(*P.T, color=fc if isinstance(fc, str) else fc, lw=2.0, alpha=alpha)
+            ax.plot(*P.T, color=fc, lw=2.0, alpha=alpha)
             pts.append(P)
     for name, b in (bodies if bodies is not None else d.get("bodies", {})).items():
         c, R = b["_centre"], b["_R"]

@@ -192,7 +192,8 @@ def test_http_modes_and_curve_shapes() -> None:
             gif = await client.modes(scene, 0.0, format="gif", mode=1)
         assert gif[:6] == b"GIF89a"
         fig = plots.shapes_figure(d, 1)
-        assert "mode 2: 197.9 Hz (parasitic)" in fig._suptitle.get_text() and "drawn at scale" in fig._suptitle.get_text()
+        title = fig._suptitle.get_text()
+        assert "mode 2: 197.9 Hz (parasitic)" in title and "drawn at scale" in title
 
     asyncio.run(run())
 
