@@ -38,22 +38,36 @@ def _equilibrium(an: Analysis, stroke: float):
     return seen["eq"], seen["modes"]
 
 
-@pytest.mark.parametrize("stroke", [0.0, 30.0])
-def test_modes_are_mass_normalised_against_the_models_mass_matrix(leaf: Analysis, stroke: float) -> None:
-    d = shapes_at(leaf, stroke).to_dict()
-    eq, _ = _equilibrium(leaf, stroke)
-    sys = leaf.system
-    s = leaf.structure
+def _master_vector(d: dict, mode: dict, masters: tuple[str, ...]) -> np.ndarray:
+    """The JSON's nodal motion as the model's master DOFs (u, psi) in global axes: a node carried by a body at
+    X moves by u_n = u_m + psi x (x_n - X), so the body's own translation is u_n - psi x (x_n - X)."""
+    out = []
+    for m in masters:
+        if m in d["bodies"]:
+            n = d["bodies"][m]["nodes"][0]
+            psi = np.asarray(mode["rotation"][n])
+            r = np.asarray(d["nodes"][n]) - np.asarray(d["bodies"][m]["position"])
+            out.append(np.r_[np.asarray(mode["translation"][n]) - np.cross(psi, r), psi])
+        else:
+            out.append(np.r_[mode["translation"][m], mode["rotation"][m]])
+    return np.concatenate(out)
+
+
+@pytest.mark.parametrize("name, stroke", [("leaf-spring", 0.0), ("leaf-spring", 30.0),
+                                          ("parallel-leaf-spring", None), ("cross-spring-pivot", 20.0)])
+def test_modes_are_mass_normalised_against_the_models_mass_matrix(name: str, stroke: float | None) -> None:
+    an = Analysis(template(name, points=3))
+    if stroke is None:
+        stroke = float(an.scene.stroke.values()[-1])
+    d = shapes_at(an, stroke).to_dict()
+    eq, _ = _equilibrium(an, stroke)
+    sys = an.system
     M = sys.mass(eq.state)
-    assert all(s.master_names[s.node_master[i]] == n for i, n in enumerate(s.node_names)), "leaf: nodes are masters"
-    for k, m in enumerate(d["modes"]):
-        v = np.concatenate([np.r_[m["translation"][n], m["rotation"][n]] for n in s.master_names])
-        xi = sys.from_global(v)  # the JSON's nodal motion in the model's active DOFs
+    xis = [sys.from_global(_master_vector(d, m, an.structure.master_names)) for m in d["modes"]]
+    for k, xi in enumerate(xis):
         assert xi @ M @ xi == pytest.approx(1.0, rel=1e-9), f"mode {k + 1}: phi^T M phi"
         for j in range(k):  # and M-orthogonal to the others
-            o = d["modes"][j]
-            w = sys.from_global(np.concatenate([np.r_[o["translation"][n], o["rotation"][n]] for n in s.master_names]))
-            assert abs(xi @ M @ w) < 1e-8
+            assert abs(xi @ M @ xis[j]) < 1e-8
 
 
 def test_first_parasitic_mode_of_the_leaf_at_stroke_0_is_torsion(leaf0: dict) -> None:
