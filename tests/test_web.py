@@ -126,13 +126,20 @@ def test_page_computes_leaf_curve_and_shows_a_mode(url: str, browser: object, sh
     page.close()
 
 
-def test_diagnosis_and_docs_offline(url: str, browser: object, shots: Path) -> None:
+def test_diagnosis_and_docs_offline(url: str, browser: object, shots: Path, tmp_path: Path) -> None:
     page = browser.new_page(viewport={"width": 1400, "height": 1200})
     external: list[str] = []
     page.on("request", lambda r: None if r.url.startswith((url, "data:", "blob:")) else external.append(r.url))
     page.goto(f"{url}/")
     page.wait_for_function("() => document.querySelectorAll('#template option').length > 0")
-    page.select_option("#template", "wire-guide-parallel")
+    # a scene file, as an engineer would load one (here wire-guide-parallel's scene)
+    from flexopt.model import template
+
+    path = tmp_path / "guide.json"
+    path.write_text(template("wire-guide-parallel").model_dump_json())
+    page.set_input_files("#scene-file", str(path))
+    page.wait_for_function("() => window.flexopt.fileScene && window.flexopt.fileScene.name === 'wire-guide-parallel'")
+    assert "using scene file guide.json" in page.locator("#scene-note").inner_text()
     page.get_by_test_id("diagnose").click()
     page.get_by_test_id("diagnosis-3d").wait_for(timeout=30_000)
     text = page.get_by_test_id("diagnosis").inner_text()
