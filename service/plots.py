@@ -112,7 +112,8 @@ def curve_figure(curve: Any, scene: Any = None, log: bool | None = None) -> Figu
     d = _data(curve)
     stroke = _arr(d["stroke"])
     unit = d["stroke_unit"]
-    modes = np.array([_arr(r) for r in d["modes_hz"]]).reshape(len(stroke), -1)
+    rows = [_arr(r) for r in d["modes_hz"]]
+    modes = np.array(rows).reshape(len(stroke), len(rows[0]) if rows else 0)
     labels = d.get("mode_labels") or []
     par = _arr(d["parasitic_hz"])
     warn = _warning_lines(d)
@@ -128,7 +129,7 @@ def curve_figure(curve: Any, scene: Any = None, log: bool | None = None) -> Figu
         log = finite.size > 0 and finite.max() / finite.min() > 8
     i0 = int(np.argmin(np.abs(stroke))) if len(stroke) else 0
     for j in range(modes.shape[1]):
-        lab = labels[i0][j] if labels and j < len(labels[i0]) else ""
+        lab = labels[i0][j] if len(labels) > i0 and j < len(labels[i0]) else ""
         ls = "-" if lab == "parasitic" else ("--" if lab == "intended" else ":")
         line, = ax.plot(stroke, modes[:, j], lw=1, ls=ls, color=f"C{j % 10}", alpha=0.8,
                         label=f"mode {j + 1} ({lab})" if lab else f"mode {j + 1}")

@@ -236,6 +236,15 @@ def test_curve_plot_highlights_the_parasitic_and_marks_the_stress_limit(leaf: An
     assert any("over the limit" in t.get_text() for t in fig.texts), "warnings are shown on the figure"
 
 
+def test_curve_plot_of_a_curve_lost_at_once_says_why() -> None:
+    d = {"scene": "x", "method": "exact", "stroke": [], "stroke_unit": "deg", "stroke_kind": "rotation",
+         "parasitic_hz": [], "modes_hz": [], "mode_labels": [], "max_von_mises": {"leaf": []},
+         "allowable_stress": {"leaf": 1e8}, "warnings": [],
+         "failures": [{"reason": "unstable", "stroke": 0.1, "last_converged": 0.0, "message": "lost at 0.1 deg"}]}
+    fig = plots.curve_figure(d)
+    assert any("[truncated] lost at 0.1 deg" in t.get_text() for t in fig.texts)
+
+
 def test_diagnosis_plot_draws_the_rotation_of_the_free_motion() -> None:
     """wire-guide-parallel's free motion is mainly a rotation (0.95 rad per unit) of the slider: the drawn
     motion of the slider's nodes must contain psi x r, not only the 0.30 translation."""
