@@ -27,6 +27,7 @@ from fastapi import APIRouter, Depends, FastAPI, Header, Query, Request, Securit
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, Response
 from fastapi.security import APIKeyHeader
+from fastapi_offline import FastAPIOffline
 from pydantic import ValidationError
 from starlette.exceptions import HTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
@@ -389,7 +390,7 @@ def _router(settings: Settings) -> APIRouter:
         if hit is None:
             scene = _scene(req.scene)
             spec = {"scene": scene.model_dump(mode="json"), "stroke": req.stroke, "method": req.method,
-                    "tolerance": req.tolerance, "media": media}
+                    "tolerance": req.tolerance, "media": media, "shapes": req.shapes}
             hit = await rt.run(worker.curve, json.dumps(spec))
             rt.store(key, hit)
         return Response(hit, media_type=media)
@@ -465,7 +466,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         finally:
             rt.stop()
 
-    app = FastAPI(title="flexopt", version=_package_version(), lifespan=lifespan,
+    app = FastAPIOffline(title="flexopt", version=_package_version(), lifespan=lifespan,
                   description="Large-stroke flexure hinges: templates, scenes, stroke-dependent natural "
                               "frequencies and exact-constraint diagnosis. Errors are RFC 9457 problem details.")
     # The runtime also exists before startup so that in-process tools (schema export) work without a lifespan.
@@ -477,6 +478,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         return Health(version=_package_version(), methods=_methods())
 
     app.include_router(_router(settings))
+    from . import routes_shapes, web  # POST /v1/modes; the page at / and its static assets
+
+    app.include_router(routes_shapes.router(), prefix="/v1", dependencies=[Depends(_key_checker(settings))],
+                       responses={401: _ERRORS[401]})
+    web.install(app)
     app.add_middleware(BodyLimit, limit=settings.max_body_bytes)
     return app
 

@@ -91,24 +91,10 @@ class _Progress:
             print(file=sys.stderr)
 
 
-def _plot(curve, path: str) -> None:
-    import matplotlib
+def _plot(curve, path: str, scene=None, log: bool | None = None) -> None:
+    from . import plots
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    for j in range(curve.modes_hz.shape[1]):
-        ax.plot(curve.stroke, curve.modes_hz[:, j], color="0.75", lw=1, label="tracked modes" if j == 0 else None)
-    ax.plot(curve.stroke, curve.parasitic_hz, color="C3", lw=2, label="first parasitic")
-    ax.set_xlabel(f"stroke [{curve.stroke_unit}]")
-    ax.set_ylabel("natural frequency [Hz]")
-    ax.set_title(f"{curve.scene} ({curve.method})")
-    ax.grid(alpha=0.3)
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    plots.save(plots.curve_figure(curve, None if scene is None else scene.model_dump(mode="json"), log), path)
 
 
 def _cmd_curve(args: argparse.Namespace) -> int:
@@ -131,7 +117,7 @@ def _cmd_curve(args: argparse.Namespace) -> int:
     else:
         print(curve.table())
     if args.plot:
-        _plot(curve, args.plot)
+        _plot(curve, args.plot, scene, True if args.log_frequency else None)
         print(f"plot written to {args.plot}", file=sys.stderr)
     for f in curve.failures:
         print(f"warning: curve truncated: {f.message}", file=sys.stderr)
@@ -158,6 +144,8 @@ def _parser() -> argparse.ArgumentParser:
     fmt.add_argument("--json", action="store_true", help="print a JSON object")
     fmt.add_argument("--csv", action="store_true", help="print CSV")
     c.add_argument("--plot", metavar="FILE.png", help="draw frequency against stroke")
+    c.add_argument("--log-frequency", action="store_true",
+                   help="logarithmic frequency axis in --plot (default: chosen when modes span > 8x)")
     c.add_argument("--progress", action="store_true", help="show progress on stderr even when not a terminal")
     c.add_argument("--method", choices=["exact", "fd1", "fd2", "manifold", "reduced", "auto"], default="exact",
                    help="exact (continuation + eigen), Taylor fd1/fd2, quadratic manifold, reduced, or auto")
@@ -168,6 +156,8 @@ def _parser() -> argparse.ArgumentParser:
     c.set_defaults(func=_cmd_curve)
     from .cli_diagnose import add_parser as _add_diagnose  # exact-constraint diagnosis
     _add_diagnose(sub)
+    from .cli_modes import add_parser as _add_modes  # deflected structure and mode shapes, plots, VTK
+    _add_modes(sub)
     from .cli_serve import add_parser as _add_serve  # HTTP service; uvicorn loads only on run
     _add_serve(sub)
     from .cli_optimise import add_parser as _add_optimise  # optimisation batch; optim loads only on run

@@ -250,6 +250,14 @@ class Client(_Base):
         return self._request("POST", "/v1/diagnosis", json={"scene": _scene_json(scene), "at_stroke": at_stroke,
                                                              "kinematic": kinematic}).json()
 
+    def modes(self, scene: Any, at_stroke: float = 0.0, format: Literal["json", "png", "gif"] = "json",
+              mode: int | None = None) -> dict[str, Any] | bytes:
+        """Deflected structure and mode shapes at ``at_stroke`` (``ModesOut`` dict, for
+        ``flexopt.service.plots``), or a PNG 3D view / GIF animation of ``mode`` (0-based)."""
+        r = self._request("POST", "/v1/modes", json={"scene": _scene_json(scene), "at_stroke": at_stroke, "mode": mode},
+                          headers={"Accept": {"json": "application/json", "png": "image/png", "gif": "image/gif"}[format]})
+        return r.json() if format == "json" else r.content
+
     def submit_optimisation(self, spec: Any, idempotency_key: str | None = None) -> "JobHandle":
         """Submit an optimisation (an ``optim.Problem`` or its JSON); one idempotency key for all retries, so
         a retried submission returns the same job."""
@@ -337,6 +345,15 @@ class AsyncClient(_Base):
         r = await self._request("POST", "/v1/diagnosis", json={"scene": _scene_json(scene), "at_stroke": at_stroke,
                                                                 "kinematic": kinematic})
         return r.json()
+
+    async def modes(self, scene: Any, at_stroke: float = 0.0, format: Literal["json", "png", "gif"] = "json",
+                    mode: int | None = None) -> dict[str, Any] | bytes:
+        """Deflected structure and mode shapes; see :meth:`Client.modes`."""
+        r = await self._request("POST", "/v1/modes", json={"scene": _scene_json(scene), "at_stroke": at_stroke,
+                                                           "mode": mode},
+                                headers={"Accept": {"json": "application/json", "png": "image/png",
+                                                    "gif": "image/gif"}[format]})
+        return r.json() if format == "json" else r.content
 
     async def submit_optimisation(self, spec: Any, idempotency_key: str | None = None) -> "AsyncJobHandle":
         """Submit an optimisation; see :meth:`Client.submit_optimisation`."""

@@ -27,6 +27,9 @@ __all__ = [
     "FailureOut",
     "FrequencyCurveOut",
     "DiagnosisRequest",
+    "ModesRequest",
+    "ModeShapeOut",
+    "ModesOut",
     "FieldError",
     "Problem",
     "OptimisationProblem",
@@ -93,6 +96,9 @@ class FrequencyCurveRequest(_Wire):
     method: Method = Field("exact", description="exact (continuation + eigen), fd1, fd2, manifold, reduced or auto")
     tolerance: PositiveFloat = Field(0.01, description="relative error allowed on the first parasitic "
                                                        "frequency (method auto)")
+    shapes: bool = Field(False, description="add the deflected configuration at every stroke point (`shapes`: "
+                                            "member chains, body boxes and per point node positions [m], "
+                                            "orientations as rotation vectors [rad], stresses)")
 
 
 class FailureOut(_Wire):
@@ -139,6 +145,8 @@ class FrequencyCurveOut(_Wire):
     mesh_error: float | None = Field(None, description="estimated relative discretisation error of parasitic_hz")
     provenance: dict[str, Any] = Field(default_factory=dict, description="flexopt version, scene hash, method, "
                                        "solver settings")
+    shapes: dict[str, Any] | None = Field(None, description="with shapes=true: {members, bodies, points: one "
+                                          "deflected configuration per stroke point}")
 
 
 class DiagnosisRequest(_Wire):
@@ -147,6 +155,46 @@ class DiagnosisRequest(_Wire):
     scene: SceneDocument
     at_stroke: FiniteFloat | None = Field(None, description="stroke value (stroke unit); null = reference configuration")
     kinematic: bool | None = Field(None, description="kinematic diagnosis (null: the scene's own setting)")
+
+
+class ModesRequest(_Wire):
+    """A scene and a stroke value at which to compute the deflected structure and mode shapes."""
+
+    scene: SceneDocument
+    at_stroke: FiniteFloat = Field(0.0, description="stroke value in the scene's stroke unit")
+    mode: int | None = Field(None, ge=0, description="0-based mode drawn with Accept: image/png or image/gif "
+                                                     "(default: the first parasitic mode)")
+
+
+class ModeShapeOut(_Wire):
+    """One mode shape, mass normalised (phi^T M phi = 1, M in kg and kg m^2)."""
+
+    hz: float | None = Field(description="natural frequency [Hz]")
+    label: str = Field(description="parasitic | intended | drive")
+    translation: dict[str, list[float]] = Field(description="node -> translation [m] per unit modal coordinate")
+    rotation: dict[str, list[float]] = Field(description="node -> rotation vector [rad] per unit modal coordinate")
+
+
+class ModesOut(_Wire):
+    """The deflected structure and its mode shapes at one stroke value (``model.shapes.Shapes.to_dict``)."""
+
+    scene: str
+    stroke: float = Field(description="stroke value (stroke_unit)")
+    stroke_unit: str
+    stroke_kind: str
+    nodes: dict[str, list[float]] = Field(description="node -> deflected position [m] (scene and segment-internal "
+                                                      "nodes 'member#i')")
+    orientations: dict[str, list[float]] = Field(description="node -> rotation vector from the reference [rad]")
+    bodies: dict[str, dict[str, Any]] = Field(description="body -> position (centre of mass) [m], orientation "
+                                              "[rad], nodes, drawn box size and centre offset [m]")
+    members: dict[str, dict[str, Any]] = Field(description="member -> node chain, width and thickness [m] (plates), "
+                                               "unit width direction in the reference")
+    drive_reaction: float | None = Field(description="actuator moment [N m] or force [N]")
+    stress: dict[str, dict[str, float | None]] = Field(description="member -> von_mises [Pa], allowable [Pa], "
+                                                       "utilisation [-]")
+    modes: list[ModeShapeOut]
+    warnings: list[WarningOut] = Field(default_factory=list)
+    conventions: dict[str, str]
 
 
 class FieldError(_Wire):

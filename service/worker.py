@@ -12,7 +12,7 @@ import json
 import math
 from typing import Any
 
-__all__ = ["curve", "diagnosis", "raise_error", "warm_up"]
+__all__ = ["curve", "diagnosis", "modes", "raise_error", "warm_up"]
 
 Outcome = tuple[bool, Any]
 
@@ -32,26 +32,11 @@ def _finite(obj: Any) -> Any:
     return v if math.isfinite(v) else None
 
 
-def _png(curve: Any) -> bytes:
-    """Frequency against stroke as a PNG (matplotlib's object API: thread-safe, no pyplot state)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+def _png(curve: Any, scene: dict | None = None) -> bytes:
+    """The curve plot (service.plots, matplotlib's object API: thread-safe, no pyplot state) as PNG."""
+    from .plots import curve_png
 
-    fig = Figure(figsize=(7, 4.5))
-    FigureCanvasAgg(fig)
-    ax = fig.add_subplot()
-    for j in range(curve.modes_hz.shape[1]):
-        ax.plot(curve.stroke, curve.modes_hz[:, j], color="0.75", lw=1, label="tracked modes" if j == 0 else None)
-    ax.plot(curve.stroke, curve.parasitic_hz, color="C3", lw=2, label="first parasitic")
-    ax.set_xlabel(f"stroke [{curve.stroke_unit}]")
-    ax.set_ylabel("natural frequency [Hz]")
-    ax.set_title(f"{curve.scene} ({curve.method})")
-    ax.grid(alpha=0.3)
-    ax.legend()
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
-    return buf.getvalue()
+    return curve_png(curve, scene)
 
 
 def _error(exc: Exception) -> Outcome:
@@ -80,6 +65,7 @@ def curve(spec: str) -> Outcome:
     from ..model.scene import Scene
 
     s = json.loads(spec)
+    shapes = None
     try:
         an = Analysis(Scene.model_validate(s["scene"]))
         stroke = None if s["stroke"] is None else np.asarray(s["stroke"], dtype=float)
@@ -89,13 +75,69 @@ def curve(spec: str) -> Outcome:
             from ..model.derivatives import curve_with_method
 
             result = curve_with_method(an, s["method"], s["tolerance"], stroke)
+        if s.get("shapes"):
+            shapes = _configurations(an, result.stroke)
     except FlexoptError as exc:
         return _error(exc)
     if s["media"] == "text/csv":
         return True, result.to_csv().encode()
     if s["media"] == "image/png":
-        return True, _png(result)
-    return True, json.dumps(_finite(result.to_dict()), allow_nan=False).encode()
+        return True, _png(result, s["scene"])
+    out = result.to_dict()
+    if shapes is not None:
+        out["shapes"] = shapes
+    return True, json.dumps(_finite(out), allow_nan=False).encode()
+
+
+def _configurations(an: Any, stroke: Any) -> dict:
+    """The deflected configuration at every stroke point of a curve, with the drawing geometry once."""
+    from ..model.shapes import configuration_dict, shapes_along
+
+    found = shapes_along(an, stroke, modes=False, strict=False)
+    if not found:
+        return {"members": {}, "bodies": {}, "points": []}
+    first = found[0]
+    return {"members": first.members, "bodies": first.bodies,
+            "points": [configuration_dict(sh.node_names, list(sh.bodies), sh.members, sh.allowable_stress,
+                                          sh.configuration) for sh in found]}
+
+
+def modes(spec: str) -> Outcome:
+    """Deflected structure and mode shapes of ``{"scene", "at_stroke", "media"}`` as JSON, PNG or GIF bytes
+    (``mode``: the 0-based mode drawn in a picture; default the first parasitic)."""
+    import os
+    import tempfile
+
+    from ..model import Analysis
+    from ..model.errors import FlexoptError
+    from ..model.scene import Scene
+    from ..model.shapes import shapes_at
+
+    s = json.loads(spec)
+    try:
+        d = shapes_at(Analysis(Scene.model_validate(s["scene"])), s["at_stroke"]).to_dict()
+    except FlexoptError as exc:
+        return _error(exc)
+    if s["media"] in ("image/png", "image/gif"):
+        from . import plots
+
+        k = s.get("mode")
+        if k is None:
+            par = [i for i, m in enumerate(d["modes"]) if m["label"] == "parasitic"]
+            k = min(par, key=lambda i: d["modes"][i]["hz"]) if par else 0
+        if not 0 <= k < len(d["modes"]):
+            return _error(FlexoptError(f"mode {k} does not exist; give 0 to {len(d['modes']) - 1}"))
+        if s["media"] == "image/png":
+            return True, plots.figure_bytes(plots.shapes_figure(d, k))
+        fd, path = tempfile.mkstemp(suffix=".gif")
+        os.close(fd)
+        try:
+            plots.animate_mode(d, k, path)
+            with open(path, "rb") as fh:
+                return True, fh.read()
+        finally:
+            os.unlink(path)
+    return True, json.dumps(_finite(d), allow_nan=False).encode()
 
 
 def diagnosis(spec: str) -> Outcome:

@@ -1,0 +1,555 @@
+// flexopt web page: calls the same /v1 API as every client. No build step, no CDN: plotly.js is served by
+// the package (static/vendor/plotly, MIT). State for tests and the curious: window.flexopt.
+"use strict";
+
+const $ = (id) => document.getElementById(id);
+const state = { scene: null, fileScene: null, curve: null, shapes: null, templates: [], diagnosis: null, job: null };
+window.flexopt = state;
+
+// ------------------------------------------------------------------------------------------------- API
+async function api(method, path, body) {
+  const headers = { "Accept": "application/json" };
+  const key = localStorage.getItem("flexopt-api-key");
+  if (key) headers["X-API-Key"] = key;
+  if (body !== undefined) headers["Content-Type"] = "application/json";
+  const r = await fetch(path, { method, headers, body: body === undefined ? undefined : JSON.stringify(body) });
+  const text = await r.text();
+  let data = null;
+  try { data = text ? JSON.parse(text) : null; } catch (e) { data = { detail: text }; }
+  if (!r.ok) {
+    let msg = (data && (data.detail || data.title)) || `HTTP ${r.status}`;
+    if (data && data.errors && data.errors.length)
+      msg += "\n" + data.errors.map((e) => `${(e.loc || []).join(".")}: ${e.msg}`).join("\n");
+    if (r.status === 401) {
+      const k = prompt("This server needs an API key:");
+      if (k) { localStorage.setItem("flexopt-api-key", k); return api(method, path, body); }
+    }
+    throw new Error(msg);
+  }
+  return data;
+}
+
+function status(msg, error = false) {
+  const el = $("status");
+  el.textContent = msg;
+  el.className = "status" + (error ? " error" : "");
+}
+
+async function busy(label, fn) {
+  status(label + " ...");
+  const t0 = performance.now();
+  try {
+    const out = await fn();
+    status(`${label}: done in ${((performance.now() - t0) / 1000).toFixed(1)} s`);
+    return out;
+  } catch (e) {
+    status(`${label} failed: ${e.message}`, true);
+    throw e;
+  }
+}
+
+// -------------------------------------------------------------------------------------------- design
+function renderParams(info) {
+  const box = $("params");
+  box.innerHTML = "";
+  for (const p of info.parameters) {
+    const lab = document.createElement("label");
+    lab.title = `${p.name}: ${p.bounds} (default ${p.default})`;
+    const span = document.createElement("span");
+    span.textContent = p.name;
+    const inp = document.createElement("input");
+    inp.dataset.name = p.name;
+    inp.dataset.type = p.type;
+    inp.dataset.default = String(p.default);
+    inp.type = p.type === "string" ? "text" : "number";
+    if (p.type !== "string") inp.step = "any";
+    inp.value = p.default;
+    lab.append(span, inp);
+    box.append(lab);
+  }
+}
+
+function parameters() {
+  const out = {};
+  for (const inp of $("params").querySelectorAll("input")) {
+    if (inp.value === inp.dataset.default) continue;
+    if (inp.dataset.type === "string") out[inp.dataset.name] = inp.value;
+    else if (inp.dataset.type === "integer") out[inp.dataset.name] = parseInt(inp.value, 10);
+    else out[inp.dataset.name] = parseFloat(inp.value);
+  }
+  return out;
+}
+
+async function currentScene() {
+  if (state.fileScene) return state.fileScene;
+  const name = $("template").value;
+  return api("POST", `/v1/templates/${encodeURIComponent(name)}/scene`, { parameters: parameters() });
+}
+
+function mm(v) { return `${(v * 1e3).toPrecision(3)} mm`; }
+
+function designSummary(scene) {
+  const pos = Object.fromEntries(scene.nodes.map((n) => [n.name, n.position]));
+  const seen = new Map();
+  for (const e of scene.elements) {
+    const [p, q] = e.nodes;
+    const L = Math.hypot(...pos[q].map((v, i) => v - pos[p][i]));
+    let key = `L ${mm(L)}`;
+    if (e.section && e.section.kind === "rectangular") key += `, w ${mm(e.section.width)}, t ${mm(e.section.thickness)}`;
+    seen.set(key, (seen.get(key) || []).concat([e.name]));
+  }
+  return [...seen].map(([k, v]) => (v.length > 1 ? `${v.length}x (${k})` : `${v[0]}: ${k}`)).join("; ");
+}
+
+// --------------------------------------------------------------------------------------------- curve
+async function computeCurve() {
+  const scene = await currentScene();
+  state.scene = scene;
+  const body = { scene, method: $("method").value, tolerance: parseFloat($("tolerance").value) };
+  const curve = await busy(`curve of ${scene.name} (${body.method})`, () => api("POST", "/v1/frequency-curve", body));
+  state.curve = curve;
+  drawCurve(curve, scene);
+  return curve;
+}
+
+function drawCurve(c, scene) {
+  const traces = [];
+  const i0 = c.stroke.reduce((b, s, i) => (Math.abs(s) < Math.abs(c.stroke[b]) ? i : b), 0);
+  const k = c.modes_hz.length ? c.modes_hz[0].length : 0;
+  for (let j = 0; j < k; j++) {
+    const lab = c.mode_labels.length ? c.mode_labels[i0][j] : "";
+    traces.push({ x: c.stroke, y: c.modes_hz.map((r) => r[j]), name: `mode ${j + 1} (${lab})`, mode: "lines",
+      line: { width: 1.2, dash: lab === "parasitic" ? "solid" : lab === "intended" ? "dash" : "dot" },
+      hovertemplate: `mode ${j + 1} (${lab})<br>%{x:.4g} ${c.stroke_unit}: %{y:.5g} Hz<extra></extra>` });
+  }
+  traces.push({ x: c.stroke, y: c.parasitic_hz, name: "first parasitic", mode: "lines+markers",
+    line: { width: 4, color: "#c0392b" }, marker: { size: 5, color: "#c0392b" },
+    hovertemplate: `first parasitic<br>%{x:.4g} ${c.stroke_unit}: %{y:.5g} Hz<br>click: structure and modes<extra></extra>` });
+  let peak = 0;
+  for (const [m, vm] of Object.entries(c.max_von_mises)) {
+    const allow = c.allowable_stress[m];
+    const u = vm.map((v) => (v === null ? null : v / allow));
+    for (const v of u) if (v !== null && v > peak) peak = v;
+    traces.push({ x: c.stroke, y: u, name: `${m}: von Mises / allowable`, yaxis: "y2", mode: "lines", line: { width: 1.5 },
+      hovertemplate: `${m}<br>%{x:.4g} ${c.stroke_unit}: %{y:.3f} of the allowable<extra></extra>` });
+  }
+  traces.push({ x: [c.stroke[0], c.stroke[c.stroke.length - 1]], y: [1, 1], yaxis: "y2", name: "allowable stress",
+    mode: "lines", line: { color: "red", dash: "dash", width: 1.5 }, hoverinfo: "skip" });
+  const par = c.parasitic_hz.filter((v) => v !== null);
+  const worst = par.length ? Math.min(...par) : null;
+  const title = `${c.scene} (${c.method}${c.mesh_error != null ? `, mesh error ${(100 * c.mesh_error).toFixed(2)} %` : ""})` +
+    (worst !== null ? `: worst first parasitic ${worst.toPrecision(4)} Hz` : "") +
+    (scene ? `<br><span style="font-size:11px">${designSummary(scene)}</span>` : "");
+  const layout = {
+    title: { text: title, font: { size: 14 } }, margin: { t: 60, r: 10, l: 70, b: 45 },
+    xaxis: { title: { text: `stroke [${c.stroke_unit}]` }, anchor: "y2" },
+    yaxis: { title: { text: "natural frequency [Hz]" }, domain: [0.34, 1], type: $("logf").checked ? "log" : "linear" },
+    yaxis2: { title: { text: "stress / allowable [-]" }, domain: [0, 0.25], range: [0, Math.max(1.1, 1.1 * peak)] },
+    legend: { font: { size: 11 } }, hovermode: "closest",
+  };
+  Plotly.newPlot("curve", traces, layout, { responsive: true, displaylogo: false });
+  $("curve").on("plotly_click", (ev) => {
+    const p = ev.points && ev.points[0];
+    if (p) loadModes(p.x).catch(() => {});
+  });
+  const ul = $("warnings");
+  ul.innerHTML = "";
+  for (const w of c.warnings || []) {
+    const li = document.createElement("li");
+    li.textContent = `[${w.kind}] ${w.message}`;
+    ul.append(li);
+  }
+  for (const f of c.failures || []) {
+    const li = document.createElement("li");
+    li.textContent = `[truncated] ${f.message}`;
+    ul.append(li);
+  }
+}
+
+// ------------------------------------------------------------------------------------------ 3D views
+function rotmat(r) { // Rodrigues: rotation vector -> matrix (row-major 3x3)
+  const th = Math.hypot(r[0], r[1], r[2]);
+  if (th < 1e-14) return [[1, 0, 0], [0, 1, 0], [0, 0, 1]];
+  const [x, y, z] = r.map((v) => v / th), c = Math.cos(th), s = Math.sin(th), C = 1 - c;
+  return [[c + x * x * C, x * y * C - z * s, x * z * C + y * s],
+          [y * x * C + z * s, c + y * y * C, y * z * C - x * s],
+          [z * x * C - y * s, z * y * C + x * s, c + z * z * C]];
+}
+const mul = (R, v) => [0, 1, 2].map((i) => R[i][0] * v[0] + R[i][1] * v[1] + R[i][2] * v[2]);
+const matmul = (A, B) => [0, 1, 2].map((i) => [0, 1, 2].map((j) => A[i][0] * B[0][j] + A[i][1] * B[1][j] + A[i][2] * B[2][j]));
+const add = (a, b, s = 1) => [a[0] + s * b[0], a[1] + s * b[1], a[2] + s * b[2]];
+const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+
+function extent(geo) {
+  const P = Object.values(geo.nodes);
+  let e = 0;
+  for (let k = 0; k < 3; k++) e = Math.max(e, Math.max(...P.map((p) => p[k])) - Math.min(...P.map((p) => p[k])));
+  return e || 1e-3;
+}
+
+function modeScale(geo, mode, fraction) {
+  let half = 0;
+  for (const m of Object.values(geo.members)) half = Math.max(half, (m.width || 0) / 2);
+  let peak = 0, prot = 0;
+  for (const n of Object.keys(geo.nodes)) {
+    peak = Math.max(peak, Math.hypot(...mode.translation[n]));
+    prot = Math.max(prot, Math.hypot(...mode.rotation[n]));
+  }
+  return fraction * extent(geo) / Math.max(peak + half * prot, 1e-300);
+}
+
+// positions and rotations of the deflected state moved by a * mode
+function moved(geo, mode, a) {
+  const pos = {}, rot = {};
+  for (const [n, p] of Object.entries(geo.nodes)) {
+    pos[n] = mode ? add(p, mode.translation[n], a) : p;
+    const R = rotmat(geo.orientations[n]);
+    rot[n] = mode ? matmul(rotmat(mode.rotation[n].map((v) => a * v)), R) : R;
+  }
+  return { pos, rot };
+}
+
+function structureTraces(geo, mode, a, style) {
+  const { pos, rot } = moved(geo, mode, a);
+  const traces = [];
+  const S = 1e3; // drawn in mm
+  for (const [name, m] of Object.entries(geo.members)) {
+    const chain = m.nodes.filter((n) => n in pos);
+    const colourValue = style.memberValue ? style.memberValue[name] : undefined;
+    if (m.width && m.y_axis) {
+      const x = [], y = [], z = [], I = [], J = [], K = [];
+      chain.forEach((n, i) => {
+        const d = mul(rot[n], m.y_axis).map((v) => (v * m.width) / 2);
+        for (const s of [-1, 1]) { const q = add(pos[n], d, s); x.push(q[0] * S); y.push(q[1] * S); z.push(q[2] * S); }
+        if (i > 0) { const b = 2 * (i - 1); I.push(b, b + 1); J.push(b + 2, b + 2); K.push(b + 1, b + 3); }
+      });
+      const t = { type: "mesh3d", x, y, z, i: I, j: J, k: K, name, opacity: style.opacity, flatshading: true,
+        hovertemplate: `${name}<extra></extra>`, showscale: false };
+      if (colourValue !== undefined) {
+        Object.assign(t, { intensity: x.map(() => colourValue), colorscale: "RdBu", cmin: -1, cmax: 1 });
+        if (style.showscale && !style.scaleShown) {
+          t.showscale = true; style.scaleShown = true;
+          t.colorbar = { title: { text: "self-stress<br>(normalised)" }, len: 0.6 };
+        }
+      } else t.color = style.color;
+      traces.push(t);
+    } else {
+      let color = style.color;
+      if (colourValue !== undefined) {
+        const v = Math.max(-1, Math.min(1, colourValue));
+        color = v >= 0 ? `rgb(${178 + 77 * (1 - v)},${24 + 200 * (1 - v)},${43 + 190 * (1 - v)})`
+                       : `rgb(${33 + 200 * (1 + v)},${102 + 120 * (1 + v)},${172 + 60 * (1 + v)})`;
+      }
+      traces.push({ type: "scatter3d", mode: "lines", name, x: chain.map((n) => pos[n][0] * S),
+        y: chain.map((n) => pos[n][1] * S), z: chain.map((n) => pos[n][2] * S),
+        line: { width: 6, color }, opacity: style.opacity, hovertemplate: `${name}<extra></extra>` });
+    }
+  }
+  for (const [name, b] of Object.entries(geo.bodies || {})) {
+    let R = rotmat(b.orientation);
+    let c = add(b.position, mul(R, b.center_offset));
+    if (mode && b.nodes.length) {
+      const n0 = b.nodes[0], psi = mode.rotation[n0];
+      const r = add(c, geo.nodes[n0], -1);
+      c = add(c, add(mode.translation[n0], cross(psi, r)), a);
+      R = matmul(rotmat(psi.map((v) => a * v)), R);
+    }
+    const x = [], y = [], z = [];
+    for (const i of [-1, 1]) for (const j of [-1, 1]) for (const k of [-1, 1]) {
+      const q = add(c, mul(R, [i * b.size[0] / 2, j * b.size[1] / 2, k * b.size[2] / 2]));
+      x.push(q[0] * S); y.push(q[1] * S); z.push(q[2] * S);
+    }
+    traces.push({ type: "mesh3d", x, y, z, alphahull: 0, color: "#34495e", opacity: 0.18 * style.opacity / 0.9,
+      name, hovertemplate: `body ${name}<extra></extra>` });
+  }
+  return traces;
+}
+
+class Viewer {
+  constructor(div) { this.div = div; this.timer = null; this.geo = null; this.mode = null; this.extra = {}; }
+  show(geo, mode, extra = {}) {
+    this.stop();
+    this.geo = geo; this.mode = mode; this.extra = extra;
+    this.limits();
+    this.frame(mode ? this.amplitude() : 0, true);
+    if (mode) this.animate();
+  }
+  amplitude() { return modeScale(this.geo, this.mode, parseFloat($("amp").value)); }
+  limits() { // fixed axes over the whole oscillation (largest amplitude of the slider), equal scales
+    const a = this.mode ? modeScale(this.geo, this.mode, parseFloat($("amp").max)) : 0;
+    const lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
+    for (const s of this.mode ? [-a, 0, a] : [0]) {
+      for (const t of structureTraces(this.geo, this.mode, s, { color: "#000", opacity: 1 })) {
+        ["x", "y", "z"].forEach((k, i) => { for (const v of t[k]) { lo[i] = Math.min(lo[i], v); hi[i] = Math.max(hi[i], v); } });
+      }
+    }
+    const span = Math.max(...hi.map((h, i) => h - lo[i]), 1e-9);
+    const half = hi.map((h, i) => Math.max((h - lo[i]) / 2, 0.08 * span) * 1.05);
+    const c = hi.map((h, i) => (h + lo[i]) / 2);
+    const m = Math.max(...half);
+    this.range = c.map((v, i) => [v - half[i], v + half[i]]);
+    this.aspect = { x: half[0] / m, y: half[1] / m, z: half[2] / m };
+  }
+  frame(a, fresh = false) {
+    const base = structureTraces(this.geo, null, 0, { color: "#95a5a6", opacity: this.mode ? 0.3 : 0.9,
+      memberValue: this.extra.memberValue, showscale: !!this.extra.memberValue });
+    const traces = this.mode ? base.concat(structureTraces(this.geo, this.mode, a, { color: "#e67e22", opacity: 0.9 })) : base;
+    const layout = { margin: { t: 10, l: 0, r: 0, b: 0 }, showlegend: false, uirevision: "keep",
+      scene: { aspectmode: "manual", aspectratio: this.aspect,
+               xaxis: { title: { text: "x [mm]" }, range: this.range[0] }, yaxis: { title: { text: "y [mm]" }, range: this.range[1] },
+               zaxis: { title: { text: "z [mm]" }, range: this.range[2] }, camera: { eye: { x: 0.95, y: -1.05, z: 0.65 } } } };
+    if (fresh || !this.div.data) Plotly.newPlot(this.div, traces, layout, { displaylogo: false, responsive: true });
+    else Plotly.react(this.div, traces, layout);
+  }
+  animate() {
+    const t0 = performance.now();
+    const step = () => {
+      const a = this.amplitude() * Math.sin((2 * Math.PI * (performance.now() - t0)) / 1600);
+      this.frame(a);
+      this.timer = setTimeout(() => requestAnimationFrame(step), 60);
+    };
+    this.timer = setTimeout(step, 60);
+  }
+  stop() { if (this.timer) clearTimeout(this.timer); this.timer = null; }
+}
+
+const shapeViewer = new Viewer($("shape"));
+let diagViewer = null;
+
+async function loadModes(stroke) {
+  const scene = state.scene || (await currentScene());
+  const d = await busy(`modes at stroke ${(+stroke).toPrecision(4)}`, () => api("POST", "/v1/modes", { scene, at_stroke: stroke }));
+  state.shapes = d;
+  $("shape-title").textContent = `${d.scene} at stroke ${d.stroke.toPrecision(4)} ${d.stroke_unit}: ` +
+    `drive reaction ${d.drive_reaction === null ? "n/a" : d.drive_reaction.toPrecision(4)} ${d.stroke_kind === "rotation" ? "N m" : "N"}`;
+  const list = $("mode-list");
+  list.innerHTML = "";
+  const deflected = document.createElement("button");
+  deflected.textContent = "deflected state only";
+  deflected.onclick = () => { select(deflected); shapeViewer.show(d, null); $("scale-note").textContent = ""; };
+  list.append(deflected);
+  const select = (btn) => { for (const b of list.querySelectorAll("button")) b.classList.remove("active"); btn.classList.add("active"); };
+  let first = null;
+  d.modes.forEach((m, i) => {
+    const b = document.createElement("button");
+    b.dataset.testid = `mode-${i + 1}`;
+    b.setAttribute("data-testid", `mode-${i + 1}`);
+    b.textContent = `mode ${i + 1}: ${m.hz.toPrecision(5)} Hz (${m.label})`;
+    b.onclick = () => {
+      select(b);
+      shapeViewer.show(d, m);
+      const a = shapeViewer.amplitude();
+      const shown = parseFloat($("amp").value) * extent(d) * 1e3;
+      $("scale-note").textContent = `Mode ${i + 1} drawn at scale ${a.toPrecision(3)} (mass-normalised shape; largest ` +
+        `displacement shown, plate edges included, ${shown.toPrecision(3)} mm). Grey: the deflected state.`;
+    };
+    list.append(b);
+    if (first === null && m.label === "parasitic") first = b;
+  });
+  const st = document.createElement("div");
+  st.className = "note";
+  st.textContent = Object.entries(d.stress).map(([k, v]) => v.utilisation === null ? "" :
+    `${k}: ${(v.von_mises / 1e6).toPrecision(4)} MPa = ${(100 * v.utilisation).toFixed(1)} % of the allowable`).join("; ");
+  list.append(st);
+  for (const w of d.warnings) {
+    const p = document.createElement("div");
+    p.className = "error";
+    p.textContent = `[${w.kind}] ${w.message}`;
+    list.append(p);
+  }
+  (first || deflected).click();
+  return d;
+}
+
+// ---------------------------------------------------------------------------------------- diagnosis
+function sceneGeometry(scene) { // the reference configuration in the shapes wire form
+  const pos = Object.fromEntries(scene.nodes.map((n) => [n.name, n.position]));
+  const nodes = { ...pos }, members = {}, bodies = {};
+  for (const e of scene.elements) {
+    const [p, q] = e.nodes, n = e.segments || 1, chain = [p];
+    for (let i = 1; i < n; i++) { nodes[`${e.name}#${i}`] = pos[p].map((v, k) => v + ((pos[q][k] - v) * i) / n); chain.push(`${e.name}#${i}`); }
+    chain.push(q);
+    let y = null;
+    if ((e.kind || "beam") === "beam" && e.y_axis) {
+      const L = Math.hypot(...pos[q].map((v, k) => v - pos[p][k]));
+      const t = pos[q].map((v, k) => (v - pos[p][k]) / L);
+      const dot = e.y_axis.reduce((s, v, k) => s + v * t[k], 0);
+      y = e.y_axis.map((v, k) => v - dot * t[k]);
+      const ny = Math.hypot(...y); y = y.map((v) => v / ny);
+    }
+    members[e.name] = { nodes: chain, width: e.section && e.section.kind === "rectangular" ? e.section.width : null, y_axis: y };
+  }
+  const geo = { nodes, members, bodies, orientations: Object.fromEntries(Object.keys(nodes).map((n) => [n, [0, 0, 0]])) };
+  const ext = extent(geo);
+  for (const b of scene.bodies || []) {
+    const pts = b.nodes.map((n) => pos[n]).concat([b.center_of_mass]);
+    const lo = [0, 1, 2].map((k) => Math.min(...pts.map((p) => p[k]))), hi = [0, 1, 2].map((k) => Math.max(...pts.map((p) => p[k])));
+    bodies[b.name] = { nodes: b.nodes, position: b.center_of_mass, orientation: [0, 0, 0],
+      size: [0, 1, 2].map((k) => Math.max(hi[k] - lo[k], 0.06 * ext)),
+      center_offset: [0, 1, 2].map((k) => (lo[k] + hi[k]) / 2 - b.center_of_mass[k]) };
+  }
+  return geo;
+}
+
+function freeMotion(scene, geo, motion, Lc) { // diagnosis kinematic mode -> nodal translation/rotation
+  const owner = {}, com = {};
+  for (const b of scene.bodies || []) { com[b.name] = b.center_of_mass; for (const n of b.nodes) owner[n] = b.name; }
+  const translation = {}, rotation = {};
+  for (const [n, p] of Object.entries(geo.nodes)) {
+    const m = owner[n] || n, v = motion[m];
+    if (!v) { translation[n] = [0, 0, 0]; rotation[n] = [0, 0, 0]; continue; }
+    const u = (v.translation || [0, 0, 0]).map((x) => Lc * x), psi = v.rotation || [0, 0, 0];
+    const r = com[m] ? add(p, com[m], -1) : [0, 0, 0];
+    translation[n] = add(u, cross(psi, r));
+    rotation[n] = psi;
+  }
+  return { translation, rotation };
+}
+
+function fmtMotion(motion) {
+  return Object.entries(motion).map(([m, v]) => {
+    const t = (v.translation || []).map((x, k) => (Math.abs(x) > 1e-3 ? `${"xyz"[k]} ${x.toFixed(3)}` : "")).filter(Boolean);
+    const r = (v.rotation || []).map((x, k) => (Math.abs(x) > 1e-3 ? `r${"xyz"[k]} ${x.toFixed(3)}` : "")).filter(Boolean);
+    return t.length || r.length ? `${m}: ${t.concat(r).join(", ")}` : "";
+  }).filter(Boolean).join("; ");
+}
+
+async function runDiagnosis() {
+  const scene = await currentScene();
+  state.scene = scene;
+  const d = await busy(`diagnosis of ${scene.name}`, () => api("POST", "/v1/diagnosis", { scene }));
+  state.diagnosis = d;
+  const box = $("diagnosis");
+  box.innerHTML = "";
+  const h = document.createElement("p");
+  h.innerHTML = `<b>${d.classification}</b>: D<sub>cc</sub> ${d.m} x ${d.n}, rank ${d.rank}, ` +
+    `${d.kinematic_modes.length} free motion(s), ${d.static_modes.length} self-stress(es); ` +
+    `condition number ${d.condition_number === null ? "n/a" : d.condition_number.toPrecision(3)}` +
+    (d.almost_singular ? " <span class='error'>(almost singular)</span>" : "");
+  box.append(h);
+  const stress = {};
+  if (d.static_modes.length) {
+    let smax = 0;
+    for (const [el, comps] of Object.entries(d.static_modes[0])) {
+      const member = el.split("[")[0].split("#")[0];
+      const v = Object.values(comps).reduce((a, b) => (Math.abs(b) > Math.abs(a) ? b : a), 0);
+      if (Math.abs(v) > Math.abs(stress[member] || 0)) stress[member] = v;
+      smax = Math.max(smax, Math.abs(v));
+    }
+    for (const k of Object.keys(stress)) stress[k] /= smax || 1;
+  }
+  const row = document.createElement("div");
+  row.className = "row";
+  const div = document.createElement("div");
+  div.className = "plot3d";
+  div.setAttribute("data-testid", "diagnosis-3d");
+  const side = document.createElement("div");
+  side.className = "side";
+  row.append(div, side);
+  box.append(row);
+  const geo = sceneGeometry(scene);
+  diagViewer = new Viewer(div);
+  const extra = Object.keys(stress).length ? { memberValue: stress } : {};
+  const still = document.createElement("button");
+  still.textContent = Object.keys(stress).length ? "first self-stress (colours)" : "structure";
+  still.onclick = () => diagViewer.show(geo, null, extra);
+  side.append(still);
+  d.kinematic_modes.forEach((motion, i) => {
+    const b = document.createElement("button");
+    b.textContent = `free motion ${i + 1}`;
+    b.title = fmtMotion(motion);
+    b.onclick = () => diagViewer.show(geo, freeMotion(scene, geo, motion, d.characteristic_length), extra);
+    side.append(b);
+    const p = document.createElement("div");
+    p.className = "note";
+    p.textContent = `free motion ${i + 1} (translations in L_c = ${mm(d.characteristic_length)} per unit, rotations in rad per unit): ${fmtMotion(motion)}`;
+    side.append(p);
+  });
+  d.static_modes.forEach((s, i) => {
+    const p = document.createElement("div");
+    p.className = "note";
+    p.textContent = `self-stress ${i + 1}: ` + Object.entries(s).map(([el, c]) =>
+      `${el} ${Object.entries(c).map(([k, v]) => `${k} ${v.toFixed(3)}`).join(" ")}`).join("; ");
+    side.append(p);
+  });
+  if (d.release_candidates.length) {
+    const p = document.createElement("div");
+    p.className = "note";
+    p.textContent = "to release (one of each set): " + d.release_candidates.map((r) => r.join(", ")).join(" | ");
+    side.append(p);
+  }
+  (d.kinematic_modes.length ? side.querySelectorAll("button")[1] : still).click();
+  return d;
+}
+
+// ------------------------------------------------------------------------------------- optimisation
+const DEFAULT_PROBLEM = {
+  families: [{ template: "cross-spring-pivot", design: { thickness: [1e-4, 4e-4], width: [0.01, 0.04] } }],
+  stroke: 20, samples: 5, modes: 1, starts: 2, max_iterations: 6, refine_rounds: 0, verify_points: 31,
+};
+
+async function submitOptimisation() {
+  let spec;
+  try { spec = JSON.parse($("problem").value); } catch (e) { status(`problem is not valid JSON: ${e.message}`, true); return; }
+  const job = await busy("submitting optimisation", () => api("POST", "/v1/optimisations", spec));
+  state.job = job;
+  $("cancel-opt").disabled = false;
+  pollJob(job.id);
+}
+
+function renderJob(job) {
+  const done = job.progress.done || 0, total = job.progress.total || 1;
+  $("opt-progress").innerHTML = `job ${job.id}: <b>${job.status}</b>, ${done} of ${total} cases` +
+    `<div class="bar"><div style="width:${(100 * done) / total}%"></div></div>` + (job.error ? `<div class="error">${job.error}</div>` : "");
+  const rows = (job.result && job.result.ranking) ? job.result.ranking.map((r, i) => ({ rank: i + 1, family: r.template,
+    worst: r.worst_hz, zero: r.zero_stroke_hz, design: r.design }))
+    : job.partial.filter((p) => p.verified && p.verified.worst_hz != null)
+        .sort((a, b) => b.verified.worst_hz - a.verified.worst_hz)
+        .map((p, i) => ({ rank: i + 1, family: `${p.family} (start ${p.start})`, worst: p.verified.worst_hz, zero: p.verified.zero_stroke_hz, design: p.design }));
+  const t = $("ranking");
+  t.innerHTML = `<tr><th>rank</th><th class="l">family</th><th>worst first parasitic [Hz]</th><th>at stroke 0 [Hz]</th><th class="l">design</th></tr>` +
+    rows.map((r) => `<tr><td>${r.rank}</td><td class="l">${r.family}</td><td>${(+r.worst).toPrecision(5)}</td><td>${r.zero == null ? "" : (+r.zero).toPrecision(5)}</td>` +
+      `<td class="l">${Object.entries(r.design || {}).map(([k, v]) => `${k} ${(+v).toPrecision(4)}`).join(", ")}</td></tr>`).join("");
+}
+
+async function pollJob(id) {
+  const job = await api("GET", `/v1/optimisations/${id}`);
+  state.job = job;
+  renderJob(job);
+  if (["queued", "running", "cancelling"].includes(job.status)) setTimeout(() => pollJob(id), 1000);
+  else $("cancel-opt").disabled = true;
+}
+
+// ------------------------------------------------------------------------------------------- start
+async function init() {
+  const [health, templates] = await Promise.all([api("GET", "/health"), api("GET", "/v1/templates")]);
+  $("version").textContent = `v${health.version}`;
+  $("method").innerHTML = health.methods.map((m) => `<option>${m}</option>`).join("");
+  state.templates = templates;
+  const sel = $("template");
+  sel.innerHTML = templates.map((t) => `<option>${t.name}</option>`).join("");
+  const q = new URLSearchParams(location.search);
+  const want = q.get("template") || "leaf-spring";
+  if (templates.some((t) => t.name === want)) sel.value = want;
+  const render = () => renderParams(templates.find((t) => t.name === sel.value));
+  sel.onchange = () => { state.fileScene = null; $("scene-note").textContent = ""; render(); };
+  render();
+  if (q.get("method") && health.methods.includes(q.get("method"))) $("method").value = q.get("method");
+  $("scene-file").onchange = async (ev) => {
+    const f = ev.target.files[0];
+    if (!f) return;
+    try { state.fileScene = JSON.parse(await f.text()); $("scene-note").textContent = `using scene file ${f.name} (${state.fileScene.name || "unnamed"})`; }
+    catch (e) { status(`${f.name} is not valid JSON: ${e.message}`, true); }
+  };
+  $("compute").onclick = () => computeCurve().catch(() => {});
+  $("diagnose").onclick = () => runDiagnosis().catch(() => {});
+  $("logf").onchange = () => { if (state.curve) drawCurve(state.curve, state.scene); };
+  $("amp").oninput = () => {};
+  $("stop").onclick = () => { shapeViewer.stop(); if (diagViewer) diagViewer.stop(); };
+  $("problem").value = JSON.stringify(DEFAULT_PROBLEM, null, 1);
+  $("optimise").onclick = () => submitOptimisation().catch(() => {});
+  $("cancel-opt").onclick = async () => { if (state.job) renderJob(await api("DELETE", `/v1/optimisations/${state.job.id}`)); };
+  if (q.get("template")) await computeCurve();
+}
+
+init().catch((e) => status(`could not start: ${e.message}`, true));
