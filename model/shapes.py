@@ -85,6 +85,7 @@ class Shapes:
     modes: tuple[ModeShape, ...]
     warnings: tuple[ResultWarning, ...] = ()
     conventions: dict[str, str] = field(default_factory=dict)
+    provenance: dict = field(default_factory=dict)  # flexopt version, scene hash, method, solver settings
 
     @property
     def stroke(self) -> float:
@@ -109,6 +110,7 @@ class Shapes:
                        "rotation": {n: _vec(v) for n, v in zip(names, m.rotation)}} for m in self.modes],
             "warnings": [w.to_dict() for w in self.warnings],
             "conventions": dict(self.conventions),
+            "provenance": dict(self.provenance),
         }
         return out
 
@@ -258,13 +260,17 @@ def shapes_along(an: Analysis, stroke: Sequence[float], modes: bool = True, stri
         "stress": STRESS_CONVENTION,
         **{k: v for k, v in curve.conventions.items() if k in ("drive", "drive_in_eigen_analysis", "parasitic")},
     }
+    # the scene's own checks (beam-theory validity, units, mesh) come with the curve (model.checks); stress is
+    # checked per point here, so the curve's stress ranges are not repeated
+    common = tuple(w for w in curve.warnings if w.kind != "stress")
     out = []
     for key in sorted(found):
         c, ms = found[key]
         out.append(Shapes(scene=s.scene.name, stroke_unit=spec.resolved_unit, stroke_kind=spec.kind,
                           node_names=s.node_names, members=members, bodies=bodies, allowable_stress=allow,
                           configuration=c, modes=ms,
-                          warnings=tuple(_stress_warnings(an, c, spec.resolved_unit)), conventions=conventions))
+                          warnings=(*_stress_warnings(an, c, spec.resolved_unit), *common),
+                          conventions=conventions, provenance=dict(curve.provenance)))
     return out
 
 

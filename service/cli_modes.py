@@ -15,10 +15,10 @@ __all__ = ["add_parser", "write_vtk"]
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Add the ``modes`` subcommand to an argparse subparsers object."""
+    from .cli import add_scene_arguments
+
     d = subparsers.add_parser("modes", help="deflected structure and mode shapes at a stroke value")
-    d.add_argument("scene", nargs="?", help="scene JSON file")
-    d.add_argument("--template", metavar="NAME", help="use a built-in template instead of a file")
-    d.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a template parameter")
+    add_scene_arguments(d)
     d.add_argument("--at-stroke", type=float, default=0.0, metavar="S",
                    help="stroke value in the scene's stroke unit (default 0)")
     d.add_argument("--json", action="store_true", help="print the shapes as a JSON object")
@@ -33,19 +33,11 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 
 def _scene(args: argparse.Namespace) -> Any:
-    from ..model import load_scene, template
+    from .cli import scene_from_args
 
-    if (args.scene is None) == (args.template is None):
+    if args.scene is None and args.template is None:
         raise ValueError("give a scene file or --template NAME (one of them)")
-    sets = {}
-    for item in args.set:
-        if "=" not in item:
-            raise ValueError(f"--set expects key=value, got '{item}'")
-        k, v = item.split("=", 1)
-        sets[k.strip()] = v.strip()
-    if sets and args.template is None:
-        raise ValueError("--set applies to --template only")
-    return load_scene(args.scene) if args.scene is not None else template(args.template, **sets)
+    return scene_from_args(args)
 
 
 def _table(d: dict) -> str:

@@ -269,3 +269,15 @@ def test_diagnosis_plot_draws_the_rotation_of_the_free_motion() -> None:
     fig = plots.diagnosis_figure(scene, dg)
     assert any("rz+0.95" in t.get_text() for t in fig.texts)
     assert len(fig.axes) == 2, "a 3D view and its colour bar"
+
+
+def test_modes_carry_the_scene_checks_and_provenance() -> None:
+    # issue 11 item 1: every result carries warnings; a leaf as thick as it is long (L/t = 1 < 10) is outside
+    # Euler-Bernoulli beam theory (model.checks.SLENDER_MIN), and every result names the scene it came from
+    from flexopt.model.checks import scene_hash
+
+    thick = template("leaf-spring", thickness=0.1, points=3)
+    d = shapes_at(Analysis(thick), 0.0).to_dict()
+    assert any(w["kind"] == "validity" and w["element"] == "leaf" for w in d["warnings"]), d["warnings"]
+    assert d["provenance"]["scene_sha256"] == scene_hash(thick)
+    assert d["provenance"]["flexopt_version"]
