@@ -145,11 +145,17 @@ def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
     finally:
         cancel.set()
     reasons = _all_failed(result)
-    if reasons is not None:
-        store.update(job_id, attempt, status="failed", error=reasons, result=blob)
-        return 1
-    store.update(job_id, attempt, status="succeeded", result=blob)
-    return 0
+    verdict = {"status": "failed", "error": reasons} if reasons is not None else {"status": "succeeded"}
+    for wait in (0.5, 1, 2, 4, 8, 16, 30):  # the verdict outlasts a busy or briefly unreachable database
+        try:
+            store.update(job_id, attempt, result=blob, **verdict)
+            break
+        except StoreUnavailable as exc:
+            log.warning("job %s: verdict not written (%s); retrying in %g s", job_id, exc, wait)
+            time.sleep(wait)
+    else:
+        return RETRY  # every case is stored: the retry only summarises them
+    return 1 if reasons is not None else 0
 
 
 def _finite(obj: Any) -> Any:

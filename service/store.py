@@ -180,9 +180,15 @@ class JobStore:
     # -- reads and writes -------------------------------------------------------------------------------------
     @_guarded
     def ping(self) -> None:
-        """Raise :class:`StoreUnavailable` unless a trivial query answers."""
+        """Raise :class:`StoreUnavailable` unless the store can be written: a write transaction begins (SQLite:
+        readers go on while another process holds the write lock, so a read proves nothing) or a query
+        answers (a server database)."""
         with self.engine.connect() as conn:
-            conn.execute(select(func.count()).select_from(Job).where(Job.id == ""))
+            if self.url.startswith("sqlite"):
+                conn.exec_driver_sql("BEGIN IMMEDIATE")
+                conn.exec_driver_sql("ROLLBACK")
+            else:
+                conn.execute(select(func.count()).select_from(Job).where(Job.id == ""))
 
     @_guarded
     def submit(self, spec: dict, idempotency_key: str | None, owner: str = "",

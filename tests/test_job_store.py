@@ -189,3 +189,35 @@ def test_concurrent_claims_give_each_job_once(store: JobStore) -> None:
     for t in threads:
         t.join(30)
     assert sorted(got) == sorted(ids), "every job claimed exactly once"
+
+
+def test_dispatcher_survives_database_errors(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The audit: one database error (a lock held for 40 s) ended the dispatch thread for good, while /health
+    said 200. Now each failing tick is logged and retried with backoff, and ``healthy()`` tells /ready."""
+    from flexopt.service.dispatch import Dispatcher
+
+    store = JobStore(f"sqlite:///{tmp_path / 'jobs.sqlite'}", tmp_path)
+    real, calls = store.expired, []
+
+    def flaky(now: float | None = None) -> list[dict]:
+        calls.append(time.monotonic())
+        if len(calls) <= 3:
+            raise StoreUnavailable(RuntimeError("database is locked"))
+        return real(now)
+
+    monkeypatch.setattr(store, "expired", flaky)
+    d = Dispatcher(store, max_jobs=1, workers=1)
+    d.start()
+    try:
+        deadline = time.monotonic() + 2
+        while d.last_error is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert d.healthy() is not None and "locked" in d.healthy()
+        deadline = time.monotonic() + 20
+        while len(calls) < 5 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert d.healthy() is None and d._thread.is_alive(), "back to work after the errors"
+        gaps = [b - a for a, b in zip(calls, calls[1:4])]
+        assert gaps[1] > gaps[0] > 0.4, f"exponential backoff between retries: {gaps}"
+    finally:
+        d.stop()
