@@ -311,9 +311,9 @@ def _scene(data: dict[str, Any]) -> Any:
     except ValidationError as exc:
         errs = [{**e, "loc": ("body", "scene", *e["loc"])} for e in exc.errors(include_url=False)]
         raise RequestValidationError(errs) from None
-    except ArithmeticError as exc:  # a validator's arithmetic overflowed on extreme numbers
-        raise ComputationFailed(worker._extreme_fields(data)[:5],
-                                f"the scene's numbers overflow ({exc}); use values in SI units") from None
+    except Exception as exc:  # noqa: BLE001 - a validator's arithmetic broke on extreme numbers: named, not a 500
+        ok, err = worker._broken(exc, data)
+        raise ComputationFailed(err["field"], err["message"]) from None
 
 
 def _dofs(scene: Any) -> int:
