@@ -302,10 +302,25 @@ class JobStore:
         if job["status"] not in FINISHED:
             return self.cancel(job_id, owner)
         with Session(self.engine) as s:
+            spec = s.scalar(select(Job.spec).where(Job.id == job_id))
             s.execute(Job.__table__.delete().where(Job.id == job_id, Job.status.in_(FINISHED)))
+            shared = s.scalar(select(func.count()).select_from(Job).where(Job.spec == spec)) if spec else 0
             s.commit()
         shutil.rmtree(self.job_dir(job_id), ignore_errors=True)
+        if spec and not shared:  # its cases are no other job's (a case's id covers the whole problem)
+            for path in self.case_files(json.loads(spec)):
+                path.unlink(missing_ok=True)
         return job
+
+    def case_files(self, spec: dict) -> list[Path]:
+        """Where the finished cases of a job with ``spec`` are (or will be) stored."""
+        from ..optim.batch import case_id
+        from ..optim.search import cases
+
+        try:
+            return [self.case_dir() / f"{case_id(c)}.json" for c in cases(spec)]
+        except ValueError:  # pragma: no cover - a spec the optimiser no longer reads: nothing to find
+            return []
 
     @_guarded
     def next_queued(self, holder: str) -> dict | None:

@@ -94,7 +94,11 @@ def test_keys_isolate_jobs_cap_and_delete(tmp_path: Path) -> None:
             hb = b.submit_optimisation({**TINY, "samples": 7}, idempotency_key="same")  # keys scoped by API key
             assert hb.id != h.id
             h.wait(poll=0.2, timeout=120)
+            store = JobStore(Settings(data_dir=tmp_path).job_store_url(), tmp_path)
+            files = store.case_files(TINY)
+            assert files and all(f.exists() for f in files)
             assert a.cancel_optimisation(h.id).status == "succeeded", "DELETE of a finished job removes it"
+            assert not any(f.exists() for f in files), "and its files"
             with pytest.raises(NotFound):
                 a.optimisation(h.id)
             assert a.optimisations().total == 0 and b.optimisations().total == 1
