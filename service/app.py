@@ -218,8 +218,14 @@ class Runtime:
             self.dispatcher.stop()
             self.dispatcher = None
         if self.pool is not None:
-            # Queued work is dropped; running computations (bounded by the time limit) end, then the workers.
-            self.pool.shutdown(wait=True, cancel_futures=True)
+            # Queued work is dropped and running computations are ended: their requests were answered or cut
+            # when the server stopped listening, and waiting for them would outlast a container's stop grace.
+            workers = list(getattr(self.pool, "_processes", {}).values())
+            self.pool.shutdown(wait=False, cancel_futures=True)
+            for p in workers:
+                p.terminate()
+            for p in workers:
+                p.join(5)
             self.pool = None
         self.cache.clear()
 

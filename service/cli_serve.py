@@ -24,9 +24,9 @@ def _cmd_serve(args: argparse.Namespace) -> int:
         print(f"flexopt serve: {exc}", file=sys.stderr)
         return 2
     # JSON log lines (request id, route, status, duration; job events). A stopping server gives requests
-    # 5 s to end; job processes get settings.job_stop_timeout more (see Dockerfile's stop grace).
+    # 3 s to end; job processes get settings.job_stop_timeout more (see Dockerfile's stop grace).
     uvicorn.run(create_app(settings), host=args.host, port=args.port, log_level=args.log_level,
-                log_config=log_config(args.log_level), access_log=False, timeout_graceful_shutdown=5)
+                log_config=log_config(args.log_level), access_log=False, timeout_graceful_shutdown=3)
     return 0
 
 

@@ -44,7 +44,7 @@ def end_group(pgid: int, sig: int = signal.SIGKILL) -> None:
 class Dispatcher:
     """Runs queued jobs, at most ``max_jobs`` at a time, each in its own process group."""
 
-    def __init__(self, store: JobStore, max_jobs: int, workers: int | None, stop_timeout: float = 8.0) -> None:
+    def __init__(self, store: JobStore, max_jobs: int, workers: int | None, stop_timeout: float = 5.0) -> None:
         self.store, self.max_jobs, self.workers, self.stop_timeout = store, max_jobs, workers, stop_timeout
         self.procs: dict[str, tuple[subprocess.Popen, int]] = {}  # job id -> (its process, attempt)
         self.holder = f"{HOST}:{os.getpid()}"

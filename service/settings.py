@@ -50,9 +50,9 @@ class Settings(BaseSettings):
     max_active_jobs: PositiveInt = Field(8, description="queued or running jobs per API key (429 past it)")
     lease_seconds: PositiveFloat = Field(15.0, description="a job run's lease [s]: renewed by its heartbeat; a "
                                          "job whose lease ran out is requeued")
-    job_stop_timeout: PositiveFloat = Field(8.0, description="how long a stopping server waits for its job "
-                                            "processes [s] before killing them (keep below the container's stop "
-                                            "grace, 10 s by default in Docker)")
+    job_stop_timeout: PositiveFloat = Field(5.0, description="how long a stopping server waits for its job "
+                                            "processes [s] before killing them (with the 3 s given to requests, "
+                                            "keep the sum below the container's stop grace, 10 s in Docker)")
 
     def job_store_url(self) -> str:
         """The job store's SQLAlchemy URL."""
