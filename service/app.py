@@ -552,9 +552,12 @@ def _router(settings: Settings) -> APIRouter:
     async def submit_optimisation(spec: OptimisationProblem, request: Request, response: Response,
                                   idempotency_key: str | None = Header(default=None, max_length=200)) -> Job:
         await asyncio.to_thread(_check_problem, spec)  # fail now, not in the job
-        job, _ = await asyncio.to_thread(_store(request).submit, spec.model_dump(mode="json"), idempotency_key,
+        job, created = await asyncio.to_thread(_store(request).submit, spec.model_dump(mode="json"), idempotency_key,
                                          request.state.owner, _runtime(request).settings.max_active_jobs)
         response.headers["Location"] = f"/v1/optimisations/{job['id']}"
+        if created:
+            errors_http.log.info("job submitted", extra={"event": "job.submitted", "job_id": job["id"],
+                                                         "request_id": request.state.request_id})
         return Job(**job)
 
     @v1.get("/optimisations/{job_id}", response_model=Job, summary="Status, progress, partial and final results",
@@ -579,6 +582,9 @@ def _router(settings: Settings) -> APIRouter:
         job = await asyncio.to_thread(_store(request).delete, job_id, request.state.owner)
         if job is None:
             raise HTTPException(404, f"no optimisation job '{job_id}'")
+        errors_http.log.info("job deleted or cancelled", extra={"event": "job.delete", "job_id": job_id,
+                                                                "status": job["status"],
+                                                                "request_id": request.state.request_id})
         return Job(**job)
 
     return v1

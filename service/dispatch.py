@@ -109,9 +109,11 @@ class Dispatcher:
             end_group(p.pid)  # a job process killed outright leaves its worker pool behind
             new = self.store.requeue(jid, attempt, f"the job process ended without a result (exit code {code})")
             del self.procs[jid]
-            if new is None:
-                log.info("job ended", extra={"event": "job.ended", "job_id": jid, "attempt": attempt,
-                                             "exit_code": code, "status": (self.store.get(jid) or {}).get("status")})
+            if new is None:  # the job process wrote its verdict
+                job = self.store.get(jid) or {}
+                level = logging.WARNING if job.get("status") == "failed" else logging.INFO
+                log.log(level, "job ended", extra={"event": f"job.{job.get('status', 'ended')}", "job_id": jid,
+                                                   "attempt": attempt, "exit_code": code, "error": job.get("error")})
             else:
                 log.warning("job run lost", extra={"event": f"job.{'requeued' if new == 'queued' else new}",
                                                    "job_id": jid, "attempt": attempt, "exit_code": code})

@@ -171,6 +171,11 @@ def _finite(obj: Any) -> Any:
 
 if __name__ == "__main__":
     if len(sys.argv) == 4 and sys.argv[1] == "run" and sys.argv[3].isdigit():
+        import logging.config
+
+        from .middleware import log_config
+
+        logging.config.dictConfig(log_config(os.environ.get("FLEXOPT_LOG_LEVEL", "info")))
         sys.exit(run_job(sys.argv[2], int(sys.argv[3])))
     print("usage: python -m flexopt.service.jobs run JOB_ID ATTEMPT", file=sys.stderr)
     sys.exit(2)
