@@ -226,6 +226,7 @@ class Runtime:
                 p.terminate()
             for p in workers:
                 p.join(5)
+            self.pool.shutdown(wait=True)  # the pool's manager sees its workers gone and frees its queues
             self.pool = None
         self.cache.clear()
 
