@@ -55,13 +55,17 @@ from .schemas import (
 )
 from .settings import Settings
 
-__all__ = ["COST_PER_DOF2_POINT", "Runtime", "create_app"]
+__all__ = ["Runtime", "create_app", "seconds_per_point"]
 
-#: Seconds per (degree of freedom)^2 per stroke point: the cost model checked before a synchronous
-#: computation starts. A rough upper estimate from one measurement (a 3000-DOF scene took 9 s for one stroke
-#: point, exact method, on the reference machine: 9 / 3000^2 = 1e-6); it only has to keep requests that
-#: cannot finish in time off the request path.
-COST_PER_DOF2_POINT = 1e-6
+
+def seconds_per_point(dofs: int) -> float:
+    """Estimated seconds per stroke point of the exact method for a model with ``dofs`` degrees of freedom,
+    checked before a synchronous computation starts: ``1e-9 n^3 + 1e-4 n`` (dense eigen-analysis, plus a
+    per-DOF overhead). Fitted to one measured series (leaf spring, 10 to 320 segments, 66 to 1926 DOFs, 5 points:
+    0.011, 0.044, 1.0, 6.3 s per point at load average 7 on 2 cores, ``bench/bench_request_cost.py``), so
+    it errs on the slow side on a quiet machine; it only has to keep requests that cannot finish in time off
+    the request path."""
+    return 1e-9 * dofs**3 + 1e-4 * dofs
 
 def _package_version() -> str:
     try:
@@ -88,7 +92,6 @@ class Runtime:
     pool: concurrent.futures.ProcessPoolExecutor | None = None
     jobs: Any = None  # service.store.JobStore, opened by start()
     dispatcher: Any = None  # service.dispatch.Dispatcher
-    pool_broken: str | None = None  # why the worker pool cannot run work (for /ready), None when it can
 
     def slots(self) -> asyncio.Semaphore:
         """The slot semaphore, created on first use inside the server's event loop."""
@@ -145,7 +148,6 @@ class Runtime:
                 future = self.pool.submit(fn, spec)
             except concurrent.futures.BrokenExecutor:  # a worker died: replace the pool, once
                 self.slots().release()
-                self.pool_broken = "a worker process died; the pool was replaced"
                 self._new_pool()
                 return await self.run(fn, spec)
         else:
@@ -166,7 +168,6 @@ class Runtime:
             future.cancel()  # drops it if still queued in the pool; a running computation finishes on its own
             raise ComputeTimeout(s.request_timeout) from None
         except concurrent.futures.BrokenExecutor:  # the worker running it died (killed, out of memory)
-            self.pool_broken = "a worker process died; the pool was replaced"
             self._new_pool()
             raise ComputationFailed([], "the worker process computing this request died (out of memory or "
                                         "killed); retry, or use fewer stroke points or a smaller model") from None
@@ -346,7 +347,7 @@ def _check_cost(scene: Any, stroke: list[float] | None, settings: Settings) -> N
         raise RequestValidationError([{"loc": loc, "type": "value_error",
                                        "msg": f"{points} stroke points; give 1 to {settings.max_stroke_points}"}])
     dofs = _dofs(scene)
-    seconds = COST_PER_DOF2_POINT * dofs**2 * points
+    seconds = seconds_per_point(dofs) * points
     if seconds > settings.max_cost:
         raise HTTPException(413, f"estimated cost {seconds:.0f} s ({dofs} degrees of freedom x {points} stroke "
                                  f"points) exceeds this server's limit of {settings.max_cost:g} s; use fewer stroke "
