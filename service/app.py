@@ -433,9 +433,9 @@ def _check_problem(spec: OptimisationProblem) -> None:
         try:
             built = _Family(spec, fam)
         except FlexoptError as exc:
-            part = str(exc).split(":")[0].removeprefix("families[].")
-            raise bad(("families", i, *part.split(".")[:1]) if part in ("template", "design") or
-                      part.startswith("design") else ("families", i), str(exc)) from None
+            path = str(exc).split(":")[0].removeprefix("families[].").split(".")  # e.g. design.thickness
+            raise bad(("families", i, *path) if path[0] in ("template", "design") else ("families", i),
+                      str(exc)) from None
         defaults = TEMPLATES[fam.template][1]
         for k in fam.design:
             if not isinstance(defaults[k], float):
