@@ -120,9 +120,10 @@ class Dispatcher:
         for job in self.store.expired():
             if job["id"] in self.procs:
                 continue
-            holder = job["lease_holder"] or ""
-            if holder.startswith(f"{HOST}:") and holder.split(":")[-1].isdigit():
-                end_group(int(holder.split(":")[-1]))  # its job process is gone; its pool may not be
+            host, _, rest = (job["lease_holder"] or "").partition(":")
+            pid, _, kind = rest.partition(":")
+            if host == HOST and kind == "job" and pid.isdigit():
+                end_group(int(pid))  # its job process is gone (it led its own group); its pool may not be
             new = self.store.requeue(job["id"], job["attempts"], "the job's lease expired (its process is gone)")
             if new is not None:
                 log.warning("job lease expired", extra={"event": f"job.{'requeued' if new == 'queued' else new}",

@@ -69,7 +69,7 @@ def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
 
     store = JobStore(os.environ["FLEXOPT_DATABASE_URL"], Path(os.environ["FLEXOPT_DATA_DIR"]),
                      float(os.environ.get("FLEXOPT_LEASE_SECONDS", "15")))
-    holder = f"{HOST}:{os.getpid()}"
+    holder = f"{HOST}:{os.getpid()}:job"  # a job process leads its own process group (its pool workers)
     job = store.row(job_id)
     if job is None or job["attempts"] != attempt:
         return 0
