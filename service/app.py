@@ -670,7 +670,20 @@ def _openapi(app: FastAPI) -> dict[str, Any]:
             props["scene"] = {"$ref": "#/components/schemas/Scene", "description": props["scene"].get("description", "")}
     comps.pop("HTTPValidationError", None)
     comps.pop("ValidationError", None)
-    problem_ref = {"$ref": "#/components/schemas/Problem"}
+    # two models are called Problem (the error body and optim's problem): pydantic names them Problem-Input
+    # and Problem-Output by accident of use; give each its own name
+    renames = {}
+    for name in [k for k in comps if k.split("-")[0] == "Problem"]:
+        is_error = {"detail", "errors", "status"} <= set(comps[name].get("properties", {}))
+        renames[name] = "ProblemDetails" if is_error else "OptimisationProblem"
+    text = json.dumps(doc)
+    for old, new in renames.items():
+        text = text.replace(f'"#/components/schemas/{old}"', f'"#/components/schemas/{new}"')
+    doc = json.loads(text)
+    comps = doc["components"]["schemas"]
+    for old, new in renames.items():
+        comps[new] = comps.pop(old)
+    problem_ref = {"$ref": "#/components/schemas/ProblemDetails"}
     schemes = doc.get("components", {}).get("securitySchemes", {})
     for path_item in doc.get("paths", {}).values():
         for method, op in path_item.items():

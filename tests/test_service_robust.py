@@ -10,6 +10,7 @@ from __future__ import annotations
 import copy
 import json
 import logging
+import re
 import socket
 import threading
 import time
@@ -188,3 +189,6 @@ def test_openapi_describes_the_service() -> None:
     scene = doc["components"]["schemas"]["FrequencyCurveRequest"]["properties"]["scene"]
     assert scene["$ref"] == "#/components/schemas/Scene"
     assert "elements" in doc["components"]["schemas"]["Scene"]["properties"]
+    refs = set(re.findall(r'"#/components/schemas/([^"]+)"', json.dumps(doc)))
+    assert refs <= set(doc["components"]["schemas"]), f"unresolvable: {refs - set(doc['components']['schemas'])}"
+    assert set(doc["components"]["schemas"]["ProblemDetails"]["properties"]) >= {"detail", "errors", "status"}
