@@ -696,6 +696,12 @@ def _openapi(app: FastAPI) -> dict[str, Any]:
                     resp["content"] = {"application/problem+json": {"schema": problem_ref}}
             if op.get("security") and schemes:  # keys are optional: no key is fine on a server without keys
                 op["security"] = [*op["security"], {}]
+    submit = doc["paths"].get("/v1/optimisations", {}).get("post")
+    if submit is not None:  # the job id of a submission feeds the job's own operations (OpenAPI links)
+        by_id = {op["operationId"]: op for op in doc["paths"].get("/v1/optimisations/{job_id}", {}).values()}
+        submit["responses"]["202"]["links"] = {
+            op_id.split("_v1_")[0]: {"operationId": op_id, "parameters": {"job_id": "$response.body#/id"}}
+            for op_id in sorted(by_id)}
     app.openapi_schema = doc
     return doc
 
