@@ -90,7 +90,7 @@ class JsonOnly:
         await self.app(scope, receive, send)
 
 
-_STANDARD = set(logging.makeLogRecord({}).__dict__) | {"message", "asctime"}
+_STANDARD = set(logging.makeLogRecord({}).__dict__) | {"message", "asctime", "color_message"}
 
 
 class JsonLogFormatter(logging.Formatter):

@@ -92,7 +92,7 @@ def test_killed_job_process_and_pool_worker_are_retried_from_finished_cases(tmp_
 
 def _serve(tmp_path: Path, port: int) -> subprocess.Popen:
     env = {**os.environ, "FLEXOPT_DATA_DIR": str(tmp_path), "FLEXOPT_EXECUTOR": "thread",
-           "FLEXOPT_JOB_WORKERS": "1", "FLEXOPT_LEASE_SECONDS": "3"}
+           "FLEXOPT_JOB_WORKERS": "1", "FLEXOPT_LEASE_SECONDS": "8"}  # beats every 2 s under load
     p = subprocess.Popen([sys.executable, "-m", "flexopt.service.cli", "serve", "--port", str(port),
                           "--log-level", "warning"], cwd=ROOT, env=env)
 
