@@ -339,8 +339,17 @@ def _dofs(scene: Any) -> int:
         raise ComputationFailed(err["field"], err["message"]) from None
 
 
+class TooCostly(Exception):
+    """A synchronous computation estimated to exceed ``max_cost`` (413, or a job when the client asks)."""
+
+    def __init__(self, seconds: float, message: str) -> None:
+        super().__init__(message)
+        self.seconds = seconds
+
+
 def _check_cost(scene: Any, stroke: list[float] | None, settings: Settings) -> None:
-    """422 for more stroke points than allowed, 413 for a computation estimated to exceed ``max_cost``."""
+    """422 for more stroke points than allowed, :class:`TooCostly` for a computation estimated to exceed
+    ``max_cost``."""
     points, loc = (len(stroke), ("body", "stroke")) if stroke is not None else (
         scene.stroke.points, ("body", "scene", "stroke", "points"))
     if not 1 <= points <= settings.max_stroke_points:
@@ -349,9 +358,10 @@ def _check_cost(scene: Any, stroke: list[float] | None, settings: Settings) -> N
     dofs = _dofs(scene)
     seconds = seconds_per_point(dofs) * points
     if seconds > settings.max_cost:
-        raise HTTPException(413, f"estimated cost {seconds:.0f} s ({dofs} degrees of freedom x {points} stroke "
-                                 f"points) exceeds this server's limit of {settings.max_cost:g} s; use fewer stroke "
-                                 "points or fewer segments, or run it with the command-line tool")
+        raise TooCostly(seconds, f"estimated cost {seconds:.0f} s ({dofs} degrees of freedom x {points} stroke "
+                                 f"points) exceeds this server's limit of {settings.max_cost:g} s for a request; "
+                                 "send 'Prefer: respond-async' to run it as a job, or use fewer stroke points or "
+                                 "fewer segments")
 
 
 def _accepted(request: Request) -> str:
@@ -506,6 +516,8 @@ def _router(settings: Settings) -> APIRouter:
         responses={200: {"content": {"text/csv": {"schema": {"type": "string"}},
                                      "image/png": {"schema": {"type": "string", "format": "binary"}}},
                          "description": "JSON by default; CSV with Accept: text/csv; PNG with Accept: image/png"},
+                   202: {"model": Job, "description": "too costly for a request and 'Prefer: respond-async' sent: "
+                                                      "run as a job (Location; its result is the curve's JSON)"},
                    **_HEAVY},
     )
     async def frequency_curve(req: FrequencyCurveRequest, request: Request) -> Response:
@@ -523,9 +535,19 @@ def _router(settings: Settings) -> APIRouter:
         hit = rt.cached(key)  # only validated scenes are ever stored, so a hit needs no re-validation
         if hit is None:
             scene = _scene(req.scene)
-            _check_cost(scene, req.stroke, rt.settings)
             spec = {"scene": scene.model_dump(mode="json"), "stroke": req.stroke, "method": req.method,
                     "tolerance": req.tolerance, "media": media}
+            try:
+                _check_cost(scene, req.stroke, rt.settings)
+            except TooCostly as exc:  # large models go to a job when the client accepts an asynchronous answer
+                if "respond-async" not in request.headers.get("prefer", "") or exc.seconds > rt.settings.max_job_cost:
+                    raise HTTPException(413, str(exc)) from None
+                job, _ = await asyncio.to_thread(_store(request).submit,
+                                                 {**spec, "kind": "frequency-curve", "media": "application/json"},
+                                                 None, request.state.owner, rt.settings.max_active_jobs)
+                return JSONResponse(Job(**job).model_dump(mode="json"), status_code=202,
+                                    headers={"Location": f"/v1/optimisations/{job['id']}",
+                                             "Preference-Applied": "respond-async"})
             hit = await rt.run(worker.curve, json.dumps(spec))
             rt.store(key, hit)
         return Response(hit, media_type=media)

@@ -117,6 +117,8 @@ def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
         except StoreUnavailable:  # the next case's progress writes it again
             log.warning("job %s: progress not written", job_id)
 
+    if spec.get("kind") == "frequency-curve":  # a curve too costly for a request: one computation
+        return _curve_job(store, job_id, attempt, spec, holder)
     if handle_signals:
         signal.signal(signal.SIGTERM, lambda signum, frame: stop_outside())
         signal.signal(signal.SIGINT, lambda signum, frame: stop_outside())
@@ -156,6 +158,32 @@ def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
     else:
         return RETRY  # every case is stored: the retry only summarises them
     return 1 if reasons is not None else 0
+
+
+def _curve_job(store: JobStore, job_id: str, attempt: int, spec: dict, holder: str) -> int:
+    """Compute a frequency curve (``worker.curve``) while a thread renews the lease; store it as the result.
+    SIGTERM ends the process (default action): the dispatcher requeues the run, which starts again."""
+    from . import worker
+
+    done = threading.Event()
+
+    def beat() -> None:
+        while not done.wait(max(0.5, store.lease_seconds / 4)):
+            try:
+                store.heartbeat(job_id, attempt, holder)
+            except StoreUnavailable as exc:
+                log.warning("job %s: %s", job_id, exc)
+
+    threading.Thread(target=beat, daemon=True, name="flexopt-lease").start()
+    try:
+        ok, payload = worker.curve(json.dumps(spec))
+    finally:
+        done.set()
+    if ok:
+        store.update(job_id, attempt, status="succeeded", result=payload.decode(), progress='{"done": 1, "total": 1}')
+        return 0
+    store.update(job_id, attempt, status="failed", error=f"{payload['kind']}: {payload['message']}")
+    return 1
 
 
 def _finite(obj: Any) -> Any:

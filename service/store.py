@@ -117,7 +117,8 @@ class Job(_Base):
     lease_until: Mapped[float | None] = mapped_column(Float, nullable=True)  # epoch seconds
 
     def to_dict(self) -> dict[str, Any]:
-        return {"id": self.id, "status": self.status, "progress": json.loads(self.progress or "{}"),
+        kind = "frequency-curve" if '"kind": "frequency-curve"' in (self.spec or "") else "optimisation"
+        return {"id": self.id, "kind": kind, "status": self.status, "progress": json.loads(self.progress or "{}"),
                 "partial": json.loads(self.partial or "[]"),
                 "result": json.loads(self.result) if self.result else None, "error": self.error,
                 "attempts": self.attempts, "created": self.created, "updated": self.updated}

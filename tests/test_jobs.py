@@ -203,3 +203,28 @@ def test_restart_resumes_a_running_job_without_redoing_finished_cases(tmp_path: 
     finally:
         srv.__exit__()
         store.engine.dispose()
+
+
+def test_costly_curve_runs_as_a_job_when_asked(tmp_path: Path) -> None:
+    """Large models leave the request path: 413 naming the way out, or a job with 'Prefer: respond-async'."""
+    import numpy as np
+
+    from flexopt.model import Analysis
+    from flexopt.model.scene import Scene
+
+    srv = _server(tmp_path, max_cost=1e-4)  # every curve is "too costly" for a request here
+    try:
+        with Client(srv.url, max_retries=0) as c:
+            scene = c.template_scene("leaf-spring", points=5)
+            r = httpx.post(f"{srv.url}/v1/frequency-curve", json={"scene": scene})
+            assert r.status_code == 413 and "Prefer: respond-async" in r.json()["detail"]
+            r = httpx.post(f"{srv.url}/v1/frequency-curve", json={"scene": scene},
+                           headers={"Prefer": "respond-async"})
+            assert r.status_code == 202 and r.headers["preference-applied"] == "respond-async", r.text
+            assert r.json()["kind"] == "frequency-curve"
+            job = _until(lambda: (j := c.optimisation(r.json()["id"])).status in ("succeeded", "failed") and j)
+            assert job.status == "succeeded", job.error
+        direct = Analysis(Scene.model_validate(scene)).frequency_curve()  # the same computation in-process
+        np.testing.assert_allclose(job.result["parasitic_hz"], direct.parasitic_hz, rtol=1e-9)
+    finally:
+        srv.__exit__()
