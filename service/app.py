@@ -4,6 +4,9 @@ Routes are thin: validate, run the model in the worker pool (never on the event 
 The lifespan owns the runtime state: the worker process pool (service.worker functions of a JSON spec), the
 slots bounding concurrent heavy computations and the bounded LRU cache of identical frequency-curve requests. Exceptions become problem-details bodies in errors_http only.
 
+Jobs: ``store`` (SQLAlchemy table, owners, leases), ``dispatch`` (job processes, retries), ``jobs`` (the job
+process). Request ids, JSON access logs and 415: ``middleware``.
+
 Regenerate the committed schema with ``python -m flexopt.service.app > service/openapi.json``.
 """
 
@@ -14,7 +17,9 @@ import concurrent.futures
 import hashlib
 import hmac
 import json
+import math
 import multiprocessing
+import re
 import threading
 from collections import OrderedDict
 from collections.abc import AsyncIterator, Callable
@@ -23,6 +28,7 @@ from dataclasses import dataclass, field
 from importlib.metadata import PackageNotFoundError, version
 from typing import Any
 
+import numpy as np
 from fastapi import APIRouter, Depends, FastAPI, Header, Query, Request, Security
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, Response
@@ -33,7 +39,8 @@ from starlette.exceptions import HTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from . import errors_http, worker
-from .errors_http import Busy, ComputeTimeout
+from .errors_http import Busy, ComputationFailed, ComputeTimeout
+from .middleware import JsonOnly, RequestLog
 from .schemas import (
     DiagnosisRequest,
     FrequencyCurveOut,
@@ -49,7 +56,17 @@ from .schemas import (
 )
 from .settings import Settings
 
-__all__ = ["Runtime", "create_app"]
+__all__ = ["Runtime", "create_app", "seconds_per_point"]
+
+
+def seconds_per_point(dofs: int) -> float:
+    """Estimated seconds per stroke point of the exact method for a model with ``dofs`` degrees of freedom,
+    checked before a synchronous computation starts: ``1e-9 n^3 + 1e-4 n`` (dense eigen-analysis, plus a
+    per-DOF overhead). Fitted to one measured series (leaf spring, 10 to 320 segments, 66 to 1926 DOFs, 5 points:
+    0.011, 0.044, 1.0, 6.3 s per point at load average 7 on 2 cores, ``bench/bench_request_cost.py``), so
+    it errs on the slow side on a quiet machine; it only has to keep requests that cannot finish in time off
+    the request path."""
+    return 1e-9 * dofs**3 + 1e-4 * dofs
 
 def _package_version() -> str:
     try:
@@ -74,8 +91,8 @@ class Runtime:
     cache: OrderedDict[str, Any] = field(default_factory=OrderedDict)  # canonical request -> result (LRU)
     _slots: asyncio.Semaphore | None = None
     pool: concurrent.futures.ProcessPoolExecutor | None = None
-    jobs: Any = None  # service.jobs.JobStore, opened by start()
-    dispatcher: Any = None  # service.jobs.Dispatcher
+    jobs: Any = None  # service.store.JobStore, opened by start()
+    dispatcher: Any = None  # service.dispatch.Dispatcher
 
     def slots(self) -> asyncio.Semaphore:
         """The slot semaphore, created on first use inside the server's event loop."""
@@ -128,7 +145,12 @@ class Runtime:
         loop = asyncio.get_running_loop()
         release = self.slots().release
         if self.pool is not None:
-            future = self.pool.submit(fn, spec)
+            try:
+                future = self.pool.submit(fn, spec)
+            except concurrent.futures.BrokenExecutor:  # a worker died: replace the pool, once
+                self.slots().release()
+                self._new_pool()
+                return await self.run(fn, spec)
         else:
             future = concurrent.futures.Future()
 
@@ -146,21 +168,51 @@ class Runtime:
         except TimeoutError:
             future.cancel()  # drops it if still queued in the pool; a running computation finishes on its own
             raise ComputeTimeout(s.request_timeout) from None
+        except concurrent.futures.BrokenExecutor:  # the worker running it died (killed, out of memory)
+            self._new_pool()
+            raise ComputationFailed([], "the worker process computing this request died (out of memory or "
+                                        "killed); retry, or use fewer stroke points or a smaller model") from None
         if not ok:
             worker.raise_error(payload)
         return payload
 
-    def start(self) -> None:
-        """Start the worker pool (process executor)."""
-        if self.settings.executor == "process":
-            ctx = multiprocessing.get_context("spawn")  # never fork the threaded server
-            self.pool = concurrent.futures.ProcessPoolExecutor(self.settings.max_concurrent, mp_context=ctx,
-                                                               initializer=worker.warm_up)
-        from .jobs import Dispatcher, JobStore
+    def _new_pool(self) -> None:
+        old, self.pool = self.pool, None
+        if old is not None:
+            old.shutdown(wait=False, cancel_futures=True)
+        ctx = multiprocessing.get_context("spawn")  # never fork the threaded server
+        self.pool = concurrent.futures.ProcessPoolExecutor(self.settings.max_concurrent, mp_context=ctx,
+                                                           initializer=worker.warm_up)
 
-        self.jobs = JobStore(self.settings.job_store_url(), self.settings.data_dir)
-        self.dispatcher = Dispatcher(self.jobs, self.settings.max_jobs, self.settings.job_workers or None)
-        self.dispatcher.start()  # jobs left running by a stopped server are requeued (or failed) first
+    def start(self) -> None:
+        """Open the job store (a corrupt one raises ``store.StoreCorrupt``), start the pool and the dispatcher."""
+        from .dispatch import Dispatcher
+        from .store import JobStore
+
+        s = self.settings
+        self.jobs = JobStore(s.job_store_url(), s.data_dir, s.lease_seconds)
+        if s.executor == "process":
+            self._new_pool()
+        self.dispatcher = Dispatcher(self.jobs, s.max_jobs, s.job_workers or None, s.job_stop_timeout)
+        self.dispatcher.start()  # jobs whose lease expired (their server and process gone) are requeued
+
+    def not_ready(self) -> list[str]:
+        """Why the service cannot take work now (empty: ready): the store, the dispatcher, the pool."""
+        from .store import StoreUnavailable
+
+        out = []
+        if self.jobs is None:
+            out.append("the job store is not open")
+        else:
+            try:
+                self.jobs.ping()
+            except StoreUnavailable as exc:
+                out.append(str(exc))
+        if self.dispatcher is not None and (why := self.dispatcher.healthy()):
+            out.append(why)
+        if self.settings.executor == "process" and self.pool is None:
+            out.append("the worker pool is not running")
+        return out
 
     def stop(self) -> None:
         """Stop the job dispatcher (running jobs resume at the next start), the pool, and drop the cache."""
@@ -168,8 +220,15 @@ class Runtime:
             self.dispatcher.stop()
             self.dispatcher = None
         if self.pool is not None:
-            # Queued work is dropped; running computations (bounded by the time limit) end, then the workers.
-            self.pool.shutdown(wait=True, cancel_futures=True)
+            # Queued work is dropped and running computations are ended: their requests were answered or cut
+            # when the server stopped listening, and waiting for them would outlast a container's stop grace.
+            workers = list(getattr(self.pool, "_processes", {}).values())
+            self.pool.shutdown(wait=False, cancel_futures=True)
+            for p in workers:
+                p.terminate()
+            for p in workers:
+                p.join(5)
+            self.pool.shutdown(wait=True)  # the pool's manager sees its workers gone and frees its queues
             self.pool = None
         self.cache.clear()
 
@@ -225,13 +284,17 @@ def _key_checker(settings: Settings) -> Callable[..., None]:
     header = APIKeyHeader(name=settings.api_key_header, auto_error=False,
                           description="API key; required only when the server has FLEXOPT_API_KEYS set")
 
-    def require_key(given: str | None = Security(header)) -> None:
+    def require_key(request: Request, given: str | None = Security(header)) -> None:
         keys = settings.keys()
         if not keys:
+            request.state.owner = ""
             return
         if not any(hmac.compare_digest((given or "").encode(), k.encode()) for k in keys):
             raise HTTPException(401, f"missing or invalid API key: send it in the '{settings.api_key_header}' "
                                      "header", headers={"WWW-Authenticate": "ApiKey"})
+        from .store import owner_of
+
+        request.state.owner = owner_of(given)  # jobs belong to the key that submitted them
 
     return require_key
 
@@ -258,6 +321,49 @@ def _scene(data: dict[str, Any]) -> Any:
     except ValidationError as exc:
         errs = [{**e, "loc": ("body", "scene", *e["loc"])} for e in clean_errors(exc.errors(include_url=False))]
         raise RequestValidationError(errs) from None
+    except Exception as exc:  # noqa: BLE001 - a validator's arithmetic broke on extreme numbers: named, not a 500
+        ok, err = worker._broken(exc, data)
+        raise ComputationFailed(err["field"], err["message"]) from None
+
+
+def _dofs(scene: Any) -> int:
+    """Degrees of freedom of the meshed scene (``compile_scene``: numeric tables only, about a millisecond);
+    the model-size limit (422) is checked here, and numbers that break the tables are named (422)."""
+    from ..model.errors import FlexoptError
+    from ..model.structure import compile_scene
+
+    try:
+        return compile_scene(scene).n_dof
+    except FlexoptError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - overflow and the like on extreme numbers: named, never a 500
+        ok, err = worker._broken(exc, scene.model_dump(mode="json"))
+        raise ComputationFailed(err["field"], err["message"]) from None
+
+
+class TooCostly(Exception):
+    """A synchronous computation estimated to exceed ``max_cost`` (413, or a job when the client asks)."""
+
+    def __init__(self, seconds: float, message: str) -> None:
+        super().__init__(message)
+        self.seconds = seconds
+
+
+def _check_cost(scene: Any, stroke: list[float] | None, settings: Settings) -> None:
+    """422 for more stroke points than allowed, :class:`TooCostly` for a computation estimated to exceed
+    ``max_cost``."""
+    points, loc = (len(stroke), ("body", "stroke")) if stroke is not None else (
+        scene.stroke.points, ("body", "scene", "stroke", "points"))
+    if not 1 <= points <= settings.max_stroke_points:
+        raise RequestValidationError([{"loc": loc, "type": "value_error",
+                                       "msg": f"{points} stroke points; give 1 to {settings.max_stroke_points}"}])
+    dofs = _dofs(scene)
+    seconds = seconds_per_point(dofs) * points
+    if seconds > settings.max_cost:
+        raise TooCostly(seconds, f"estimated cost {seconds:.0f} s ({dofs} degrees of freedom x {points} stroke "
+                                 f"points) exceeds this server's limit of {settings.max_cost:g} s for a request; "
+                                 "send 'Prefer: respond-async' to run it as a job, or use fewer stroke points or "
+                                 "fewer segments")
 
 
 def _accepted(request: Request) -> str:
@@ -324,6 +430,62 @@ def _diagnosis_available() -> bool:
     return True
 
 
+def _nonfinite(obj: Any, loc: tuple = ()) -> tuple | None:
+    """The location of the first NaN or infinite number in a JSON-like value, or None."""
+    if isinstance(obj, dict):
+        return next((r for k, v in obj.items() if (r := _nonfinite(v, (*loc, k))) is not None), None)
+    if isinstance(obj, (list, tuple)):
+        return next((r for i, v in enumerate(obj) if (r := _nonfinite(v, (*loc, i))) is not None), None)
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return loc
+    return None
+
+
+def _check_problem(spec: OptimisationProblem) -> None:
+    """Everything the job's cases would check, done at submission (422 naming the field): finite numbers,
+    each family as the optimiser builds it (``optim.search._Family``), design parameters that are real
+    numbers, and the scene of every family at both corners of its design box (template, scene validation,
+    model size)."""
+    from ..model import TEMPLATES, template
+    from ..model.errors import FlexoptError, SceneError
+    from ..model.structure import compile_scene
+    from ..optim.search import _Family
+
+    def bad(loc: tuple, msg: str) -> RequestValidationError:
+        return RequestValidationError([{"loc": ("body", *loc), "type": "value_error", "msg": msg}])
+
+    where = _nonfinite(spec.model_dump())
+    if where is not None:
+        raise bad(where, "must be a finite number (Infinity and NaN are not accepted)")
+    for i, fam in enumerate(spec.families):
+        try:
+            built = _Family(spec, fam)
+        except FlexoptError as exc:
+            path = str(exc).split(":")[0].removeprefix("families[].").split(".")  # e.g. design.thickness
+            raise bad(("families", i, *path) if path[0] in ("template", "design") else ("families", i),
+                      str(exc)) from None
+        defaults = TEMPLATES[fam.template][1]
+        for k in fam.design:
+            if not isinstance(defaults[k], float):
+                raise bad(("families", i, "design", k), f"'{k}' is not a real-valued parameter of template "
+                          f"'{fam.template}' (default {defaults[k]!r}); set it in 'fixed' instead")
+        for corner in (0.0, 1.0):
+            params = built.params(np.full(len(built.names), corner))
+            try:
+                compile_scene(template(fam.template, **params))
+            except SceneError as exc:
+                # the scene's field (elements[0].beam.segments) named by the template parameter it comes from
+                path = exc.field or exc.message.split(":")[0]  # a pydantic error's path leads the message
+                key = [p for p in re.split(r"[.\[\]]", path.removeprefix("template.")) if p][-1:]
+                key = key[0] if key else ""
+                loc = ("families", i, "fixed", key) if key in fam.fixed else (
+                    ("families", i, "design", key) if key in fam.design else ("families", i))
+                raise bad(loc, f"{exc.message} (at the {'lower' if corner == 0 else 'upper'} corner of the design "
+                               "box)") from None
+            except FlexoptError as exc:
+                raise bad(("families", i), str(exc)) from None
+
+
 def _router(settings: Settings) -> APIRouter:
     v1 = APIRouter(prefix="/v1", dependencies=[Depends(_key_checker(settings))], responses={401: _ERRORS[401]})
 
@@ -372,6 +534,8 @@ def _router(settings: Settings) -> APIRouter:
         responses={200: {"content": {"text/csv": {"schema": {"type": "string"}},
                                      "image/png": {"schema": {"type": "string", "format": "binary"}}},
                          "description": "JSON by default; CSV with Accept: text/csv; PNG with Accept: image/png"},
+                   202: {"model": Job, "description": "too costly for a request and 'Prefer: respond-async' sent: "
+                                                      "run as a job (Location; its result is the curve's JSON)"},
                    **_HEAVY},
     )
     async def frequency_curve(req: FrequencyCurveRequest, request: Request) -> Response:
@@ -391,6 +555,17 @@ def _router(settings: Settings) -> APIRouter:
             scene = _scene(req.scene)
             spec = {"scene": scene.model_dump(mode="json"), "stroke": req.stroke, "method": req.method,
                     "tolerance": req.tolerance, "media": media, "shapes": req.shapes}
+            try:
+                _check_cost(scene, req.stroke, rt.settings)
+            except TooCostly as exc:  # large models go to a job when the client accepts an asynchronous answer
+                if "respond-async" not in request.headers.get("prefer", "") or exc.seconds > rt.settings.max_job_cost:
+                    raise HTTPException(413, str(exc)) from None
+                job, _ = await asyncio.to_thread(_store(request).submit,
+                                                 {**spec, "kind": "frequency-curve", "media": "application/json"},
+                                                 None, request.state.owner, rt.settings.max_active_jobs)
+                return JSONResponse(Job(**job).model_dump(mode="json"), status_code=202,
+                                    headers={"Location": f"/v1/optimisations/{job['id']}",
+                                             "Preference-Applied": "respond-async"})
             hit = await rt.run(worker.curve, json.dumps(spec))
             rt.store(key, hit)
         return Response(hit, media_type=media)
@@ -401,6 +576,7 @@ def _router(settings: Settings) -> APIRouter:
         async def diagnosis(req: DiagnosisRequest, request: Request) -> Response:
             rt = _runtime(request)
             scene = _scene(req.scene)
+            _check_cost(scene, [0.0], rt.settings)
             spec = {"scene": scene.model_dump(mode="json"), "at_stroke": req.at_stroke, "kinematic": req.kinematic}
             return Response(await rt.run(worker.diagnosis, json.dumps(spec)), media_type="application/json")
 
@@ -410,43 +586,47 @@ def _router(settings: Settings) -> APIRouter:
             raise HTTPException(503, "the job store is not open yet; retry")
         return store
 
+    _JOBS = {503: {"model": Problem, "description": "the job store is unavailable; see Retry-After"}}
+
     @v1.post("/optimisations", status_code=202, response_model=Job, summary="Submit an optimisation job",
-             responses={422: {"model": Problem}})
+             responses={**_ERRORS, **_JOBS, 429: {"model": Problem, "description": "too many unfinished jobs "
+                                                                                   "of this API key"}})
     async def submit_optimisation(spec: OptimisationProblem, request: Request, response: Response,
                                   idempotency_key: str | None = Header(default=None, max_length=200)) -> Job:
-        from ..model.errors import FlexoptError
-        from ..optim.search import _Family
-
-        for i, fam in enumerate(spec.families):  # fail now, not in the job, on a family that cannot run
-            try:
-                _Family(spec, fam)
-            except FlexoptError as exc:
-                raise RequestValidationError([{"loc": ("body", "families", i), "type": "value_error",
-                                               "msg": str(exc)}]) from None
-        job, _ = await asyncio.to_thread(_store(request).submit, spec.model_dump(mode="json"), idempotency_key)
+        await asyncio.to_thread(_check_problem, spec)  # fail now, not in the job
+        job, created = await asyncio.to_thread(_store(request).submit, spec.model_dump(mode="json"), idempotency_key,
+                                         request.state.owner, _runtime(request).settings.max_active_jobs)
         response.headers["Location"] = f"/v1/optimisations/{job['id']}"
+        if created:
+            errors_http.log.info("job submitted", extra={"event": "job.submitted", "job_id": job["id"],
+                                                         "request_id": request.state.request_id})
         return Job(**job)
 
     @v1.get("/optimisations/{job_id}", response_model=Job, summary="Status, progress, partial and final results",
-            responses={404: {"model": Problem}})
+            responses={404: {"model": Problem}, **_JOBS})
     async def get_optimisation(job_id: str, request: Request) -> Job:
-        job = await asyncio.to_thread(_store(request).get, job_id)
+        job = await asyncio.to_thread(_store(request).get, job_id, request.state.owner)
         if job is None:
             raise HTTPException(404, f"no optimisation job '{job_id}'")
         return Job(**job)
 
-    @v1.get("/optimisations", response_model=JobPage, summary="Optimisation jobs, newest first")
+    @v1.get("/optimisations", response_model=JobPage, summary="Optimisation jobs of this API key, newest first",
+            responses=_JOBS)
     async def list_optimisations(request: Request, offset: int = Query(0, ge=0, le=1_000_000_000),
                                  limit: int = Query(20, ge=1, le=100)) -> JobPage:
-        items, total = await asyncio.to_thread(_store(request).page, offset, limit)
+        items, total = await asyncio.to_thread(_store(request).page, offset, limit, request.state.owner)
         return JobPage(items=[Job(**j) for j in items], total=total, offset=offset, limit=limit)
 
-    @v1.delete("/optimisations/{job_id}", response_model=Job, summary="Cancel a job (queued: at once; running: "
-               "it stops after the cases in progress)", responses={404: {"model": Problem}})
+    @v1.delete("/optimisations/{job_id}", response_model=Job,
+               summary="Cancel an unfinished job (queued: at once; running: after the cases in progress), or "
+                       "remove a finished one and its files", responses={404: {"model": Problem}, **_JOBS})
     async def cancel_optimisation(job_id: str, request: Request) -> Job:
-        job = await asyncio.to_thread(_store(request).cancel, job_id)
+        job = await asyncio.to_thread(_store(request).delete, job_id, request.state.owner)
         if job is None:
             raise HTTPException(404, f"no optimisation job '{job_id}'")
+        errors_http.log.info("job deleted or cancelled", extra={"event": "job.delete", "job_id": job_id,
+                                                                "status": job["status"],
+                                                                "request_id": request.state.request_id})
         return Job(**job)
 
     return v1
@@ -473,9 +653,28 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.runtime = Runtime(settings)
     errors_http.install(app)
 
-    @app.get("/health", response_model=Health, summary="Liveness, version and available methods")
+    @app.get("/health", response_model=Health, summary="Liveness (the process answers), version and methods")
     async def health() -> Health:
         return Health(version=_package_version(), methods=_methods())
+
+    @app.head("/health", summary="Liveness, without a body", operation_id="health_head")
+    async def health_head() -> Response:
+        return Response()
+
+    _NOT_READY = {503: {"model": Problem, "description": "not ready; detail says what is missing"}}
+
+    @app.get("/ready", response_model=Health, responses=_NOT_READY,
+             summary="Readiness: the job store answers, the job dispatcher runs, the worker pool is up")
+    async def ready(request: Request) -> Health:
+        why = await asyncio.to_thread(_runtime(request).not_ready)
+        if why:
+            raise HTTPException(503, "not ready: " + "; ".join(why), headers={"Retry-After": "5"})
+        return Health(version=_package_version(), methods=_methods())
+
+    @app.head("/ready", summary="Readiness, without a body", operation_id="ready_head", responses=_NOT_READY)
+    async def ready_head(request: Request) -> Response:
+        await ready(request)
+        return Response()
 
     app.include_router(_router(settings))
     from . import routes_shapes, web  # POST /v1/modes; the page at / and its static assets
@@ -483,8 +682,73 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(routes_shapes.router(), prefix="/v1", dependencies=[Depends(_key_checker(settings))],
                        responses={401: _ERRORS[401]})
     web.install(app)
+    app.add_middleware(JsonOnly)  # inside BodyLimit: a body too large is 413 whatever its type
     app.add_middleware(BodyLimit, limit=settings.max_body_bytes)
+    app.add_middleware(RequestLog)  # added last: the outermost layer, sees every request and exception
+    app.openapi = lambda: _openapi(app)  # type: ignore[method-assign]
     return app
+
+
+def _openapi(app: FastAPI) -> dict[str, Any]:
+    """FastAPI's document, corrected to describe what the service really does (built once, then cached):
+    error bodies are ``application/problem+json`` (RFC 9457) and every 422 is a :class:`Problem`; bodies that
+    are not JSON get 415 and bodies that are not UTF-8 or not JSON get 400 (or 422); the API key is optional
+    (only servers with keys configured ask for it); the ``scene`` of a request is the full scene schema, so
+    that a client or a fuzzer can build valid scenes from the document alone."""
+    if app.openapi_schema:
+        return app.openapi_schema
+    from fastapi.openapi.utils import get_openapi
+
+    from ..model.scene import Scene
+
+    doc = get_openapi(title=app.title, version=app.version, description=app.description, routes=app.routes)
+    comps = doc.setdefault("components", {}).setdefault("schemas", {})
+    scene = Scene.model_json_schema(ref_template="#/components/schemas/{model}")
+    for name, sub in scene.pop("$defs", {}).items():
+        if name in comps:  # pragma: no cover - a name clash would silently change another schema
+            raise RuntimeError(f"scene schema part '{name}' clashes with an API schema")
+        comps[name] = sub
+    comps["Scene"] = scene
+    for req in ("FrequencyCurveRequest", "DiagnosisRequest", "ModesRequest"):
+        props = comps.get(req, {}).get("properties", {})
+        if "scene" in props:
+            props["scene"] = {"$ref": "#/components/schemas/Scene", "description": props["scene"].get("description", "")}
+    comps.pop("HTTPValidationError", None)
+    comps.pop("ValidationError", None)
+    # two models are called Problem (the error body and optim's problem): pydantic names them Problem-Input
+    # and Problem-Output by accident of use; give each its own name
+    renames = {}
+    for name in [k for k in comps if k.split("-")[0] == "Problem"]:
+        is_error = {"detail", "errors", "status"} <= set(comps[name].get("properties", {}))
+        renames[name] = "ProblemDetails" if is_error else "OptimisationProblem"
+    text = json.dumps(doc)
+    for old, new in renames.items():
+        text = text.replace(f'"#/components/schemas/{old}"', f'"#/components/schemas/{new}"')
+    doc = json.loads(text)
+    comps = doc["components"]["schemas"]
+    for old, new in renames.items():
+        comps[new] = comps.pop(old)
+    problem_ref = {"$ref": "#/components/schemas/ProblemDetails"}
+    schemes = doc.get("components", {}).get("securitySchemes", {})
+    for path_item in doc.get("paths", {}).values():
+        for method, op in path_item.items():
+            responses = op.setdefault("responses", {})
+            if method in ("post", "put", "patch") and "requestBody" in op:
+                responses.setdefault("400", {"description": "the body is not UTF-8 or not JSON"})
+                responses.setdefault("415", {"description": "the body's Content-Type is not JSON"})
+            for code, resp in responses.items():
+                if code.isdigit() and int(code) >= 400:
+                    resp["content"] = {"application/problem+json": {"schema": problem_ref}}
+            if op.get("security") and schemes:  # keys are optional: no key is fine on a server without keys
+                op["security"] = [*op["security"], {}]
+    submit = doc["paths"].get("/v1/optimisations", {}).get("post")
+    if submit is not None:  # the job id of a submission feeds the job's own operations (OpenAPI links)
+        by_id = {op["operationId"]: op for op in doc["paths"].get("/v1/optimisations/{job_id}", {}).values()}
+        submit["responses"]["202"]["links"] = {
+            op_id.split("_v1_")[0]: {"operationId": op_id, "parameters": {"job_id": "$response.body#/id"}}
+            for op_id in sorted(by_id)}
+    app.openapi_schema = doc
+    return doc
 
 
 def openapi_json() -> str:

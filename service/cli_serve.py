@@ -8,11 +8,25 @@ __all__ = ["add_parser"]
 
 
 def _cmd_serve(args: argparse.Namespace) -> int:
+    import sys
+
     import uvicorn
 
     from .app import create_app
+    from .middleware import log_config
+    from .settings import Settings
+    from .store import JobStore, StoreCorrupt
 
-    uvicorn.run(create_app(), host=args.host, port=args.port, log_level=args.log_level)
+    settings = Settings()
+    try:  # refuse a corrupt or unreachable job store before listening, with one line naming it and the fix
+        JobStore(settings.job_store_url(), settings.data_dir, settings.lease_seconds).engine.dispose()
+    except StoreCorrupt as exc:
+        print(f"flexopt serve: {exc}", file=sys.stderr)
+        return 2
+    # JSON log lines (request id, route, status, duration; job events). A stopping server gives requests
+    # 3 s to end; job processes get settings.job_stop_timeout more (see Dockerfile's stop grace).
+    uvicorn.run(create_app(settings), host=args.host, port=args.port, log_level=args.log_level,
+                log_config=log_config(args.log_level), access_log=False, timeout_graceful_shutdown=3)
     return 0
 
 

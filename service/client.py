@@ -275,7 +275,8 @@ class Client(_Base):
                                                     params={"offset": offset, "limit": limit}).json())
 
     def cancel_optimisation(self, job_id: str) -> Job:
-        """Ask a job to stop."""
+        """``DELETE``: an unfinished job is cancelled (queued: at once; running: after the cases in progress);
+        a finished one is removed with its files. The job as it was answered."""
         return Job.model_validate(self._request("DELETE", f"/v1/optimisations/{job_id}").json())
 
 
@@ -366,7 +367,8 @@ class AsyncClient(_Base):
         return Job.model_validate((await self._request("GET", f"/v1/optimisations/{job_id}")).json())
 
     async def cancel_optimisation(self, job_id: str) -> Job:
-        """Ask a job to stop."""
+        """``DELETE``: an unfinished job is cancelled (queued: at once; running: after the cases in progress);
+        a finished one is removed with its files. The job as it was answered."""
         return Job.model_validate((await self._request("DELETE", f"/v1/optimisations/{job_id}")).json())
 
 

@@ -4,11 +4,16 @@
 
     model.FlexoptError      -> 422 (SceneError, ModelSizeError, EquilibriumError: the input cannot be analysed)
       KernelBuildError      -> 500 (a server-side compiler problem)
+    ComputationFailed       -> 422 (the numbers of a valid scene broke the computation: the fields named)
     RequestValidationError  -> 422 with one entry per invalid field (loc path and reason)
+    store.KeyReused         -> 422 at header Idempotency-Key
+    store.TooManyJobs       -> 429 with Retry-After
+    store.StoreUnavailable  -> 503 with Retry-After (the job database is locked or unreachable)
     HTTPException           -> its status (404, 401, 413, ...)
     Busy                    -> 429 with Retry-After
     ComputeTimeout          -> 504
-    anything else           -> 500 with a generic message (details only in the server log)
+    anything else           -> 500 with a generic message (details only in the server log); the
+                               connection stays open (middleware.RequestLog)
 """
 
 from __future__ import annotations
@@ -25,7 +30,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from .schemas import FieldError, Problem
 
-__all__ = ["Busy", "ComputeTimeout", "problem", "install", "validation_errors"]
+__all__ = ["Busy", "ComputationFailed", "ComputeTimeout", "problem", "install", "validation_errors"]
 
 log = logging.getLogger("flexopt.service")
 
@@ -50,6 +55,14 @@ class ComputeTimeout(Exception):
     def __init__(self, limit: float) -> None:
         super().__init__(f"the computation exceeded the server's time limit of {limit:g} s; use fewer stroke "
                          f"points, a cheaper method, or a smaller model")
+
+
+class ComputationFailed(Exception):
+    """A valid scene whose numbers broke the computation (overflow, division by zero, a failed solve)."""
+
+    def __init__(self, fields: list[str], message: str) -> None:
+        super().__init__(message)
+        self.fields = fields
 
 
 def problem(status: int, detail: str, errors: list[FieldError] | None = None,
@@ -99,6 +112,7 @@ def _summary(errors: list[FieldError]) -> str:
 def install(app: FastAPI) -> None:
     """Register every exception handler on ``app``."""
     from ..model.errors import FlexoptError, KernelBuildError, SceneError
+    from .store import KeyReused, StoreUnavailable, TooManyJobs
 
     @app.exception_handler(RequestValidationError)
     async def _request_validation(_: Request, exc: RequestValidationError) -> JSONResponse:
@@ -124,9 +138,30 @@ def install(app: FastAPI) -> None:
             errors = [FieldError(loc=loc, msg=exc.message)]
         return problem(422, str(exc), errors)
 
+    @app.exception_handler(ComputationFailed)
+    async def _computation(_: Request, exc: ComputationFailed) -> JSONResponse:
+        locs = [["body", "scene", *_field_path(f)] for f in exc.fields] or [["body", "scene"]]
+        return problem(422, str(exc), [FieldError(loc=loc, msg=str(exc)) for loc in locs])
+
+    @app.exception_handler(KeyReused)
+    async def _key_reused(_: Request, exc: KeyReused) -> JSONResponse:
+        return problem(422, str(exc), [FieldError(loc=["header", "Idempotency-Key"], msg=str(exc))])
+
+    @app.exception_handler(TooManyJobs)
+    async def _too_many_jobs(_: Request, exc: TooManyJobs) -> JSONResponse:
+        return problem(429, str(exc), headers={"Retry-After": "30"})
+
+    @app.exception_handler(StoreUnavailable)
+    async def _store(_: Request, exc: StoreUnavailable) -> JSONResponse:
+        log.warning("job store unavailable: %s", exc)
+        return problem(503, str(exc), headers={"Retry-After": "5"})
+
     @app.exception_handler(StarletteHTTPException)
     async def _http(_: Request, exc: StarletteHTTPException) -> JSONResponse:
-        return problem(exc.status_code, str(exc.detail), headers=getattr(exc, "headers", None))
+        detail = str(exc.detail)
+        if exc.status_code == 400 and detail == "There was an error parsing the body":  # FastAPI's wording
+            detail = "the body could not be read: send JSON encoded as UTF-8"
+        return problem(exc.status_code, detail, headers=getattr(exc, "headers", None))
 
     @app.exception_handler(Busy)
     async def _busy(_: Request, exc: Busy) -> JSONResponse:

@@ -1,219 +1,46 @@
-"""Optimisation jobs that are never lost: a SQLAlchemy store and a dispatcher of job processes.
+"""Optimisation jobs that are never lost nor run twice: the job process, on top of ``store`` and ``dispatch``.
 
-Store: one ``jobs`` table (SQLite file by default, any SQLAlchemy URL such as PostgreSQL through
-``FLEXOPT_DATABASE_URL``). Each job runs ``optim.search`` in its own OS process (``python -m
-service.jobs run ID``), never in the server's event loop; that process writes progress to the store as
-cases finish, and keeps every finished case in the job's directory (``optim.batch`` store), so a job that
-is started again resumes without redoing finished cases.
+Each job runs ``optim.optimise`` in its own OS process (``python -m flexopt.service.jobs run ID ATTEMPT``),
+started by :class:`~flexopt.service.dispatch.Dispatcher` in its own process group, never in the server's
+event loop. The process holds the job's lease (heartbeat with ``host:pid``) and writes progress and its
+verdict only while the row carries its attempt number (the fencing token, :mod:`.store`).
 
-Life cycle: ``queued -> running -> succeeded | failed | cancelled``. At start-up the dispatcher puts every
-job left ``running`` by a stopped server back in the queue (it resumes from its case store) or, after
-``MAX_ATTEMPTS`` interrupted runs, marks it failed with that reason: no job stays ``running`` forever.
-Cancellation is cooperative: the job process watches its row and stops the batch when it reads
-``cancelling``. An ``Idempotency-Key`` is unique: a retried submission returns the first job.
+Finished cases are kept in one case store shared by all jobs (``DATA_DIR/cases/<case id>.json``, the id a
+hash of the case's content, ``optim.batch``): a retried run and an identical resubmission find them there
+and never compute them again.
+
+Life cycle: ``queued -> running -> succeeded | failed | cancelled``. A run that ends without a verdict (the
+process or one of its pool workers killed, the server stopping) is requeued and resumes from its finished
+cases; after ``MAX_ATTEMPTS`` runs the job fails with that reason. A job whose every case failed is
+``failed`` with the reasons. The job process keeps running if its server is killed (its lease stays alive,
+so a restarted server does not start it a second time) and writes its own verdict. Cancellation is
+cooperative: the process reads ``cancelling`` from its row and stops the batch.
 """
 
 from __future__ import annotations
 
+import concurrent.futures as cf
 import json
+import logging
+import math
 import os
 import signal
-import subprocess
 import sys
 import threading
 import time
-import uuid
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import Integer, String, Text, create_engine, func, select
-from sqlalchemy.exc import IntegrityError
-from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column
+from .dispatch import Dispatcher
+from .store import HOST, MAX_ATTEMPTS, STATUSES, Job, JobStore, KeyReused, StoreUnavailable
 
-__all__ = ["Job", "JobStore", "Dispatcher", "MAX_ATTEMPTS"]
+__all__ = ["MAX_ATTEMPTS", "STATUSES", "Dispatcher", "Job", "JobStore", "KeyReused", "run_job"]
 
-#: Runs of a job interrupted by a stopped server before it is marked failed.
-MAX_ATTEMPTS = 3
-ACTIVE = ("queued", "running", "cancelling")
+log = logging.getLogger("flexopt.service.jobs")
 
-
-class _Base(DeclarativeBase):
-    pass
-
-
-class Job(_Base):
-    """One optimisation job."""
-
-    __tablename__ = "jobs"
-    id: Mapped[str] = mapped_column(String(36), primary_key=True)
-    status: Mapped[str] = mapped_column(String(16), index=True)
-    spec: Mapped[str] = mapped_column(Text)
-    idempotency_key: Mapped[str | None] = mapped_column(String(200), unique=True, nullable=True)
-    progress: Mapped[str] = mapped_column(Text, default="{}")
-    partial: Mapped[str] = mapped_column(Text, default="[]")  # finished cases so far (summaries)
-    result: Mapped[str | None] = mapped_column(Text, nullable=True)
-    error: Mapped[str | None] = mapped_column(Text, nullable=True)
-    attempts: Mapped[int] = mapped_column(Integer, default=0)
-    created: Mapped[str] = mapped_column(String(40))
-    updated: Mapped[str] = mapped_column(String(40))
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"id": self.id, "status": self.status, "progress": json.loads(self.progress or "{}"),
-                "partial": json.loads(self.partial or "[]"),
-                "result": json.loads(self.result) if self.result else None, "error": self.error,
-                "attempts": self.attempts, "created": self.created, "updated": self.updated}
-
-
-def _now() -> str:
-    return datetime.now(UTC).isoformat(timespec="milliseconds")
-
-
-class JobStore:
-    """The job table behind a SQLAlchemy engine."""
-
-    def __init__(self, url: str, data_dir: Path) -> None:
-        self.url, self.data_dir = url, Path(data_dir)
-        self.data_dir.mkdir(parents=True, exist_ok=True)
-        args = {"check_same_thread": False, "timeout": 30} if url.startswith("sqlite") else {}
-        self.engine = create_engine(url, connect_args=args)
-        _Base.metadata.create_all(self.engine)
-
-    def case_dir(self, job_id: str) -> Path:
-        return self.data_dir / "jobs" / job_id
-
-    def submit(self, spec: dict, idempotency_key: str | None) -> tuple[dict, bool]:
-        """Store a new queued job; with a known idempotency key return that job instead. (job, created)"""
-        with Session(self.engine) as s:
-            if idempotency_key:
-                old = s.scalar(select(Job).where(Job.idempotency_key == idempotency_key))
-                if old is not None:
-                    return old.to_dict(), False
-            now = _now()
-            job = Job(id=str(uuid.uuid4()), status="queued", spec=json.dumps(spec), idempotency_key=idempotency_key,
-                      progress="{}", partial="[]", attempts=0, created=now, updated=now)
-            s.add(job)
-            try:
-                s.commit()
-            except IntegrityError:  # a concurrent retry with the same key won the race
-                s.rollback()
-                old = s.scalar(select(Job).where(Job.idempotency_key == idempotency_key))
-                assert old is not None
-                return old.to_dict(), False
-            return job.to_dict(), True
-
-    def get(self, job_id: str) -> dict | None:
-        with Session(self.engine) as s:
-            job = s.get(Job, job_id)
-            return job.to_dict() if job is not None else None
-
-    def page(self, offset: int, limit: int) -> tuple[list[dict], int]:
-        with Session(self.engine) as s:
-            total = s.scalar(select(func.count()).select_from(Job)) or 0
-            rows = s.scalars(select(Job).order_by(Job.created.desc(), Job.id).offset(offset).limit(limit)).all()
-            return [r.to_dict() for r in rows], int(total)
-
-    def update(self, job_id: str, **fields: Any) -> dict | None:
-        with Session(self.engine) as s:
-            job = s.get(Job, job_id)
-            if job is None:
-                return None
-            for k, v in fields.items():
-                setattr(job, k, v)
-            job.updated = _now()
-            s.commit()
-            return job.to_dict()
-
-    def cancel(self, job_id: str) -> dict | None:
-        """Queued jobs are cancelled at once; running ones are asked to stop (``cancelling``)."""
-        with Session(self.engine) as s:
-            job = s.get(Job, job_id)
-            if job is None:
-                return None
-            if job.status == "queued":
-                job.status = "cancelled"
-            elif job.status == "running":
-                job.status = "cancelling"
-            job.updated = _now()
-            s.commit()
-            return job.to_dict()
-
-    def next_queued(self) -> dict | None:
-        """Claim the oldest queued job (mark it running)."""
-        with Session(self.engine) as s:
-            job = s.scalar(select(Job).where(Job.status == "queued").order_by(Job.created, Job.id).limit(1))
-            if job is None:
-                return None
-            job.status, job.attempts, job.updated = "running", job.attempts + 1, _now()
-            s.commit()
-            return job.to_dict()
-
-    def recover(self) -> list[str]:
-        """Jobs left running (or cancelling) by a stopped server: back to the queue, or failed/cancelled."""
-        touched = []
-        with Session(self.engine) as s:
-            for job in s.scalars(select(Job).where(Job.status.in_(("running", "cancelling")))).all():
-                if job.status == "cancelling":
-                    job.status = "cancelled"
-                elif job.attempts >= MAX_ATTEMPTS:
-                    job.status = "failed"
-                    job.error = (f"interrupted {job.attempts} times by a stopped server; resubmit it (finished cases "
-                                 "are kept and will not be recomputed)")
-                else:
-                    job.status = "queued"
-                job.updated = _now()
-                touched.append(job.id)
-            s.commit()
-        return touched
-
-
-class Dispatcher:
-    """Runs queued jobs, at most ``max_jobs`` at a time, each in its own process."""
-
-    def __init__(self, store: JobStore, max_jobs: int, workers: int | None) -> None:
-        self.store, self.max_jobs, self.workers = store, max_jobs, workers
-        self.procs: dict[str, subprocess.Popen] = {}
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._loop, name="flexopt-jobs", daemon=True)
-
-    def start(self) -> None:
-        self.store.recover()
-        self._thread.start()
-
-    def stop(self) -> None:
-        """Stop dispatching and terminate running job processes: their jobs resume at the next start."""
-        self._stop.set()
-        self._thread.join(5)
-        for p in self.procs.values():
-            p.terminate()
-        for p in self.procs.values():
-            try:  # the job finishes the cases in progress (a few seconds each), then exits
-                p.wait(30)
-            except subprocess.TimeoutExpired:
-                p.kill()
-        self.procs.clear()
-
-    def _loop(self) -> None:
-        while not self._stop.is_set():
-            for jid, p in list(self.procs.items()):
-                if p.poll() is not None:
-                    del self.procs[jid]
-                    job = self.store.get(jid)
-                    if job is not None and job["status"] == "cancelling":
-                        self.store.update(jid, status="cancelled")
-                    elif job is not None and job["status"] in ACTIVE:  # the process died without a verdict
-                        self.store.update(jid, status="failed",
-                                          error=f"the job process ended unexpectedly (exit code {p.returncode})")
-            while len(self.procs) < self.max_jobs and not self._stop.is_set():
-                job = self.store.next_queued()
-                if job is None:
-                    break
-                env = dict(os.environ, FLEXOPT_DATABASE_URL=self.store.url, FLEXOPT_DATA_DIR=str(self.store.data_dir))
-                if self.workers:
-                    env["FLEXOPT_JOB_WORKERS"] = str(self.workers)
-                self.procs[job["id"]] = subprocess.Popen([sys.executable, "-m", "flexopt.service.jobs", "run", job["id"]],
-                                                         env=env)
-            self._stop.wait(0.2)
+#: Exit code of a run that ended without a verdict (interrupted, lost its lease, a pool worker died): the
+#: dispatcher requeues it (EX_TEMPFAIL).
+RETRY = 75
 
 
 def _summary(case: dict) -> dict:
@@ -224,69 +51,139 @@ def _summary(case: dict) -> dict:
             "error": case.get("error")}
 
 
-def run_job(job_id: str) -> int:
-    """Body of a job process: run the optimisation, writing progress and the result to the store."""
+def _all_failed(result: dict) -> str | None:
+    """The reasons, when no family of ``result`` has a verified design (every case failed); else None."""
+    fams = result.get("families", [])
+    if not fams or any(f.get("best") is not None for f in fams):
+        return None
+    reasons = [f"{f.get('template')} start {x.get('start')}: {x.get('message') or x.get('status')}"
+               for f in fams for x in f.get("failed", [])]
+    return "every case failed: " + "; ".join(reasons[:5]) + (" ..." if len(reasons) > 5 else "")
+
+
+def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
+    """Body of a job process (run ``attempt`` of the job). Returns the process's exit code: 0 with a
+    verdict written (or nothing to do), :data:`RETRY` without one (the dispatcher requeues), 1 on failure."""
     from ..optim import optimise
     from ..optim.batch import BatchCancelled
 
-    store = JobStore(os.environ["FLEXOPT_DATABASE_URL"], Path(os.environ["FLEXOPT_DATA_DIR"]))
-    job = store.get(job_id)
-    if job is not None and job["status"] == "cancelling":  # cancelled before this process started
-        store.update(job_id, status="cancelled")
-    if job is None or job["status"] != "running":
+    store = JobStore(os.environ["FLEXOPT_DATABASE_URL"], Path(os.environ["FLEXOPT_DATA_DIR"]),
+                     float(os.environ.get("FLEXOPT_LEASE_SECONDS", "15")))
+    holder = f"{HOST}:{os.getpid()}:job"  # a job process leads its own process group (its pool workers)
+    job = store.row(job_id)
+    if job is None or job["attempts"] != attempt:
         return 0
-    spec = json.loads(_spec(store, job_id))
-    cancel = threading.Event()
+    if job["status"] == "cancelling":  # cancelled before this process started
+        store.update(job_id, attempt, status="cancelled")
+        return 0
+    if job["status"] != "running" or not store.heartbeat(job_id, attempt, holder):
+        return 0
+    spec = json.loads(job["spec"])
+    cancel, interrupted = threading.Event(), threading.Event()
     partial: list[dict] = []
-    case_dir = store.case_dir(job_id)
+    cases = store.case_dir()
 
-    def watch() -> None:
-        while not cancel.is_set():
-            j = store.get(job_id)
-            if j is None or j["status"] == "cancelling":
-                cancel.set()
-            time.sleep(0.3)
-
-    def progress(event: dict) -> None:
-        path = case_dir / f"{event['id']}.json"
-        try:
-            partial.append(_summary(json.loads(path.read_text())))
-        except (OSError, json.JSONDecodeError):
-            pass
-        store.update(job_id, progress=json.dumps({"done": event["done"], "total": event["total"]}),
-                     partial=json.dumps(partial))
-
-    # a stopping server sends SIGTERM: stop the batch cleanly (the worker pool shuts down with this process
-    # instead of being orphaned) and leave the job 'running', so that the next start requeues and resumes it
-    interrupted = threading.Event()
-
-    def on_term(signum: int, frame: Any) -> None:
+    def stop_outside() -> None:
+        """Stopped from outside (SIGTERM from a stopping server, or a newer run owns the job): stop the batch,
+        write no verdict."""
         interrupted.set()
         cancel.set()
 
-    signal.signal(signal.SIGTERM, on_term)
-    threading.Thread(target=watch, daemon=True).start()
+    def watch() -> None:
+        beat = max(0.5, store.lease_seconds / 4)
+        last = 0.0
+        while not cancel.is_set():
+            try:
+                if time.monotonic() - last >= beat:
+                    if not store.heartbeat(job_id, attempt, holder):
+                        stop_outside()  # recovered and handed to a newer run, or deleted
+                        break
+                    last = time.monotonic()
+                row = store.get(job_id)
+                if row is not None and row["status"] == "cancelling":
+                    cancel.set()
+            except StoreUnavailable as exc:  # a busy or unreachable database: keep going, look again
+                log.warning("job %s: %s", job_id, exc)
+            time.sleep(0.3)
+
+    def progress(event: dict) -> None:
+        try:
+            partial.append(_summary(json.loads((cases / f"{event['id']}.json").read_text())))
+        except (OSError, json.JSONDecodeError):
+            pass
+        try:  # best effort: a database busy for longer than its timeout must not fail the optimisation
+            store.update(job_id, attempt, progress=json.dumps({"done": event["done"], "total": event["total"]}),
+                         partial=json.dumps(_finite(partial), allow_nan=False))
+        except StoreUnavailable:  # the next case's progress writes it again
+            log.warning("job %s: progress not written", job_id)
+
+    if spec.get("kind") == "frequency-curve":  # a curve too costly for a request: one computation
+        return _curve_job(store, job_id, attempt, spec, holder)
+    if handle_signals:
+        signal.signal(signal.SIGTERM, lambda signum, frame: stop_outside())
+        signal.signal(signal.SIGINT, lambda signum, frame: stop_outside())
+    threading.Thread(target=watch, daemon=True, name="flexopt-lease").start()
     workers = int(os.environ["FLEXOPT_JOB_WORKERS"]) if os.environ.get("FLEXOPT_JOB_WORKERS") else None
     try:
-        result = optimise(spec, workers=workers, store=case_dir, progress=progress, cancel=cancel)
+        result = optimise(spec, workers=workers, store=cases, progress=progress, cancel=cancel)
+        blob = json.dumps(_finite(result), allow_nan=False)
     except BatchCancelled:
-        if not interrupted.is_set():
-            store.update(job_id, status="cancelled")
+        if interrupted.is_set():
+            return RETRY
+        store.update(job_id, attempt, status="cancelled")
         return 0
+    except RuntimeError as exc:
+        if isinstance(exc.__cause__, cf.BrokenExecutor) or interrupted.is_set():
+            log.warning("job %s: run %d lost a worker process; finished cases are stored, the job is retried",
+                        job_id, attempt)
+            return RETRY
+        store.update(job_id, attempt, status="failed", error=f"{type(exc).__name__}: {exc}")
+        return 1
     except Exception as exc:  # noqa: BLE001 - any failure is recorded on the job with its message
-        store.update(job_id, status="failed", error=f"{type(exc).__name__}: {exc}")
+        if interrupted.is_set():
+            return RETRY
+        store.update(job_id, attempt, status="failed", error=f"{type(exc).__name__}: {exc}")
         return 1
     finally:
         cancel.set()
-    store.update(job_id, status="succeeded", result=json.dumps(_finite(result)))
-    return 0
+    reasons = _all_failed(result)
+    verdict = {"status": "failed", "error": reasons} if reasons is not None else {"status": "succeeded"}
+    for wait in (0.5, 1, 2, 4, 8, 16, 30):  # the verdict outlasts a busy or briefly unreachable database
+        try:
+            store.update(job_id, attempt, result=blob, **verdict)
+            break
+        except StoreUnavailable as exc:
+            log.warning("job %s: verdict not written (%s); retrying in %g s", job_id, exc, wait)
+            time.sleep(wait)
+    else:
+        return RETRY  # every case is stored: the retry only summarises them
+    return 1 if reasons is not None else 0
 
 
-def _spec(store: JobStore, job_id: str) -> str:
-    with Session(store.engine) as s:
-        job = s.get(Job, job_id)
-        assert job is not None
-        return job.spec
+def _curve_job(store: JobStore, job_id: str, attempt: int, spec: dict, holder: str) -> int:
+    """Compute a frequency curve (``worker.curve``) while a thread renews the lease; store it as the result.
+    SIGTERM ends the process (default action): the dispatcher requeues the run, which starts again."""
+    from . import worker
+
+    done = threading.Event()
+
+    def beat() -> None:
+        while not done.wait(max(0.5, store.lease_seconds / 4)):
+            try:
+                store.heartbeat(job_id, attempt, holder)
+            except StoreUnavailable as exc:
+                log.warning("job %s: %s", job_id, exc)
+
+    threading.Thread(target=beat, daemon=True, name="flexopt-lease").start()
+    try:
+        ok, payload = worker.curve(json.dumps(spec))
+    finally:
+        done.set()
+    if ok:
+        store.update(job_id, attempt, status="succeeded", result=payload.decode(), progress='{"done": 1, "total": 1}')
+        return 0
+    store.update(job_id, attempt, status="failed", error=f"{payload['kind']}: {payload['message']}")
+    return 1
 
 
 def _finite(obj: Any) -> Any:
@@ -295,13 +192,18 @@ def _finite(obj: Any) -> Any:
         return {k: _finite(v) for k, v in obj.items()}
     if isinstance(obj, list):
         return [_finite(v) for v in obj]
-    if isinstance(obj, float) and obj != obj or obj in (float("inf"), float("-inf")):
+    if isinstance(obj, float) and not math.isfinite(obj):
         return None
     return obj
 
 
 if __name__ == "__main__":
-    if len(sys.argv) == 3 and sys.argv[1] == "run":
-        sys.exit(run_job(sys.argv[2]))
-    print("usage: python -m flexopt.service.jobs run JOB_ID", file=sys.stderr)
+    if len(sys.argv) == 4 and sys.argv[1] == "run" and sys.argv[3].isdigit():
+        import logging.config
+
+        from .middleware import log_config
+
+        logging.config.dictConfig(log_config(os.environ.get("FLEXOPT_LOG_LEVEL", "info")))
+        sys.exit(run_job(sys.argv[2], int(sys.argv[3])))
+    print("usage: python -m flexopt.service.jobs run JOB_ID ATTEMPT", file=sys.stderr)
     sys.exit(2)

@@ -9,10 +9,8 @@ from __future__ import annotations
 import json
 from typing import Any
 
-from fastapi import APIRouter, Request
-from fastapi.exceptions import RequestValidationError
+from fastapi import APIRouter, HTTPException, Request
 from fastapi.responses import Response
-from pydantic import ValidationError
 
 from . import worker
 from .schemas import ModesOut, ModesRequest, Problem
@@ -20,16 +18,6 @@ from .schemas import ModesOut, ModesRequest, Problem
 __all__ = ["router"]
 
 _MEDIA = ("image/gif", "image/png")
-
-
-def _scene(data: dict[str, Any]) -> Any:
-    from ..model.scene import Scene
-
-    try:
-        return Scene.model_validate(data)
-    except ValidationError as exc:
-        errs = [{**e, "loc": ("body", "scene", *e["loc"])} for e in exc.errors(include_url=False)]
-        raise RequestValidationError(errs) from None
 
 
 def router() -> APIRouter:
@@ -52,7 +40,13 @@ def router() -> APIRouter:
     async def modes(req: ModesRequest, request: Request) -> Response:
         accept = request.headers.get("accept", "")
         media = next((m for m in _MEDIA if m in accept), "application/json")
+        from .app import TooCostly, _check_cost, _scene  # the same validation and cost limit as every heavy route
+
         scene = _scene(req.scene)
+        try:  # the continuation walks to the stroke value in the scene's own steps: cost as for the whole curve
+            _check_cost(scene, None, request.app.state.runtime.settings)
+        except TooCostly as exc:
+            raise HTTPException(413, str(exc)) from None
         spec = {"scene": scene.model_dump(mode="json"), "at_stroke": req.at_stroke, "mode": req.mode, "media": media}
         body = await request.app.state.runtime.run(worker.modes, json.dumps(spec))
         return Response(body, media_type=media)

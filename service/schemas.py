@@ -218,6 +218,8 @@ class Job(_Wire):
     """An optimisation job: status, progress, finished cases so far and the final result."""
 
     id: str
+    kind: Literal["optimisation", "frequency-curve"] = Field(
+        "optimisation", description="an optimisation, or a frequency curve too costly for a request")
     status: Literal["queued", "running", "cancelling", "succeeded", "failed", "cancelled"]
     progress: dict[str, Any] = Field(description="{'done': cases finished, 'total': cases}")
     partial: list[dict[str, Any]] = Field(description="summary of every finished case (family, start, verified "

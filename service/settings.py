@@ -31,7 +31,14 @@ class Settings(BaseSettings):
     max_queued: int = Field(64, ge=0, description="heavy requests waiting for a slot (429 past it)")
     queue_timeout: float = Field(10.0, ge=0, description="longest wait for a computation slot [s] (429 past it)")
     retry_after: PositiveInt = Field(1, description="Retry-After sent with 429 [s]")
-    max_stroke_points: PositiveInt = Field(1001, description="largest stroke grid accepted")
+    max_stroke_points: PositiveInt = Field(1001, description="largest stroke grid accepted: the explicit list or "
+                                           "the scene's own stroke.points (422 past it)")
+    max_cost: PositiveFloat = Field(
+        30.0, description="largest estimated cost of a synchronous computation [s], estimated before any work "
+                          "as app.seconds_per_point(DOFs) x stroke points (413 past it, or a job with "
+                          "'Prefer: respond-async')")
+    max_job_cost: PositiveFloat = Field(
+        3600.0, description="largest estimated cost of a frequency curve run as a job [s] (413 past it)")
     cache_size: int = Field(256, ge=0, description="entries of the LRU response cache for identical requests (0 = off)")
     api_keys: str = Field("", description="comma-separated API keys; empty = no authentication")
     api_key_header: str = Field("X-API-Key", description="header carrying the API key")
@@ -43,6 +50,12 @@ class Settings(BaseSettings):
                                           "empty = SQLite file in data_dir")
     max_jobs: PositiveInt = Field(1, description="optimisation jobs running at once (each uses job_workers processes)")
     job_workers: int = Field(0, ge=0, description="worker processes per optimisation job (0 = CPU count)")
+    max_active_jobs: PositiveInt = Field(8, description="queued or running jobs per API key (429 past it)")
+    lease_seconds: PositiveFloat = Field(15.0, description="a job run's lease [s]: renewed by its heartbeat; a "
+                                         "job whose lease ran out is requeued")
+    job_stop_timeout: PositiveFloat = Field(5.0, description="how long a stopping server waits for its job "
+                                            "processes [s] before killing them (with the 3 s given to requests, "
+                                            "keep the sum below the container's stop grace, 10 s in Docker)")
 
     def job_store_url(self) -> str:
         """The job store's SQLAlchemy URL."""

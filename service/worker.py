@@ -44,11 +44,47 @@ def _error(exc: Exception) -> Outcome:
                    "message": getattr(exc, "message", str(exc))}
 
 
+#: Magnitudes outside [TINY, HUGE] are reported as the likely cause when a computation breaks: far beyond
+#: any flexure in SI units (nanometre films to kilometre frames, E of steel 2.1e11 Pa), and where squares,
+#: cubes and products of such numbers leave double precision (1e308) or its useful relative range.
+TINY, HUGE = 1e-12, 1e15
+
+
+def _extreme_fields(doc: Any, path: str = "") -> list[str]:
+    """Dotted paths (``elements[0].section.thickness``) of the scene's numbers outside [TINY, HUGE]."""
+    out: list[str] = []
+    if isinstance(doc, dict):
+        for k, v in doc.items():
+            out += _extreme_fields(v, f"{path}.{k}" if path else str(k))
+    elif isinstance(doc, list):
+        for i, v in enumerate(doc):
+            out += _extreme_fields(v, f"{path}[{i}]")
+    elif isinstance(doc, (int, float)) and not isinstance(doc, bool) and doc != 0:
+        if not TINY <= abs(doc) <= HUGE:
+            out.append(path)
+    return out
+
+
+def _broken(exc: Exception, scene: dict) -> Outcome:
+    """A computation that broke on a valid scene (overflow, division by zero, a failed solve): name the
+    scene's extreme numbers as the likely cause, or the scene as a whole."""
+    fields = _extreme_fields(scene)
+    where = (f"; check {', '.join(fields[:5])}: outside the range [{TINY:g}, {HUGE:g}] in SI units"
+             if fields else "; check that the scene's sizes, materials and stroke are physically plausible")
+    first = (str(exc).strip().splitlines() or [""])[-1][:200]
+    return False, {"kind": "ComputationError", "field": fields[:5],
+                   "message": f"the scene could not be computed ({type(exc).__name__}: {first}){where}"}
+
+
 def raise_error(err: dict[str, Any]) -> None:
     """Rebuild and raise a model error reported by a worker."""
     from ..model.errors import FlexoptError, KernelBuildError, ModelSizeError, SceneError
 
     kind, field, message = err["kind"], err["field"], err["message"]
+    if kind == "ComputationError":
+        from .errors_http import ComputationFailed
+
+        raise ComputationFailed(list(field), message)
     if kind in ("SceneError", "ModelSizeError"):
         raise (ModelSizeError if kind == "ModelSizeError" else SceneError)(field, message)
     if kind == "KernelBuildError":
@@ -77,16 +113,18 @@ def curve(spec: str) -> Outcome:
             result = curve_with_method(an, s["method"], s["tolerance"], stroke)
         if s.get("shapes"):
             shapes = _configurations(an, result.stroke)
+        if s["media"] == "text/csv":
+            return True, result.to_csv().encode()
+        if s["media"] == "image/png":
+            return True, _png(result, s["scene"])
+        out = result.to_dict()
+        if shapes is not None:
+            out["shapes"] = shapes
+        return True, json.dumps(_finite(out), allow_nan=False).encode()
     except FlexoptError as exc:
         return _error(exc)
-    if s["media"] == "text/csv":
-        return True, result.to_csv().encode()
-    if s["media"] == "image/png":
-        return True, _png(result, s["scene"])
-    out = result.to_dict()
-    if shapes is not None:
-        out["shapes"] = shapes
-    return True, json.dumps(_finite(out), allow_nan=False).encode()
+    except Exception as exc:  # noqa: BLE001 - overflow, zero division, a failed solve: named, never a 500
+        return _broken(exc, s["scene"])
 
 
 def _configurations(an: Any, stroke: Any) -> dict:
@@ -105,6 +143,18 @@ def _configurations(an: Any, stroke: Any) -> dict:
 def modes(spec: str) -> Outcome:
     """Deflected structure and mode shapes of ``{"scene", "at_stroke", "media"}`` as JSON, PNG or GIF bytes
     (``mode``: the 0-based mode drawn in a picture; default the first parasitic)."""
+    s = json.loads(spec)
+    try:
+        return _modes(s)
+    except Exception as exc:  # noqa: BLE001 - overflow, zero division, a failed solve: named, never a 500
+        from ..model.errors import FlexoptError
+
+        if isinstance(exc, FlexoptError):
+            return _error(exc)
+        return _broken(exc, s["scene"])
+
+
+def _modes(s: dict) -> Outcome:
     import os
     import tempfile
 
@@ -113,11 +163,7 @@ def modes(spec: str) -> Outcome:
     from ..model.scene import Scene
     from ..model.shapes import shapes_at
 
-    s = json.loads(spec)
-    try:
-        d = shapes_at(Analysis(Scene.model_validate(s["scene"])), s["at_stroke"]).to_dict()
-    except FlexoptError as exc:
-        return _error(exc)
+    d = shapes_at(Analysis(Scene.model_validate(s["scene"])), s["at_stroke"]).to_dict()
     if s["media"] in ("image/png", "image/gif"):
         from . import plots
 
@@ -149,9 +195,11 @@ def diagnosis(spec: str) -> Outcome:
     s = json.loads(spec)
     try:
         d = diagnose(Scene.model_validate(s["scene"]), at_stroke=s["at_stroke"], kinematic=s["kinematic"])
+        return True, json.dumps(_finite(d.to_dict()), allow_nan=False).encode()
     except FlexoptError as exc:
         return _error(exc)
-    return True, json.dumps(_finite(d.to_dict()), allow_nan=False).encode()
+    except Exception as exc:  # noqa: BLE001 - overflow, zero division, a failed solve: named, never a 500
+        return _broken(exc, s["scene"])
 
 
 def warm_up() -> None:

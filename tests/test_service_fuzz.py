@@ -29,7 +29,7 @@ schema = schemathesis.openapi.from_dict(
 @pytest.fixture(scope="module")
 def base_url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     # Small limits keep the heavy endpoints cheap if a generated scene happens to be valid.
-    with _Server(Settings(request_timeout=5.0, max_stroke_points=11, cache_size=0,
+    with _Server(Settings(request_timeout=5.0, max_stroke_points=11, max_cost=2.0, cache_size=0,
                           data_dir=tmp_path_factory.mktemp("data"))) as srv:
         yield srv.url
 
@@ -42,3 +42,60 @@ def test_api_fuzz(case: schemathesis.Case, base_url: str) -> None:
     if response.status_code >= 400:
         body = response.json()
         assert isinstance(body.get("detail"), str) and body["detail"].strip(), body
+
+
+# -- mutated template scenes (issue 13) ---------------------------------------------------------------------
+# The schema-level fuzzer above rarely builds a scene a flexure designer would send. Here every template is
+# sent with every method, each with numbers replaced by extreme but finite values (and signs, zeros,
+# subnormals): the audit found 500s only this way. Bounded by a fixed seed and a time budget.
+EXTREMES = (1e308, -1e308, 1e-308, 5e-324, 1e-300, 1e-103, 1e15, -1e15, 1e-15, 0.0, -1.0, 1e6, 3.0)
+FUZZ_SECONDS = float(__import__("os").environ.get("FLEXOPT_FUZZ_SECONDS", "25"))
+
+
+def _numbers(doc: object, path: tuple = ()) -> list[tuple]:
+    if isinstance(doc, dict):
+        return [p for k, v in doc.items() for p in _numbers(v, (*path, k))]
+    if isinstance(doc, list):
+        return [p for i, v in enumerate(doc) for p in _numbers(v, (*path, i))]
+    return [path] if isinstance(doc, (int, float)) and not isinstance(doc, bool) else []
+
+
+def test_mutated_template_scenes_never_5xx(tmp_path_factory: pytest.TempPathFactory) -> None:
+    import copy
+    import random
+    import time
+    from collections import Counter
+
+    import httpx
+
+    rng = random.Random(13)
+    seen: Counter[int] = Counter()
+    with _Server(Settings(executor="thread", request_timeout=5.0, max_cost=1.0, cache_size=0,
+                          data_dir=tmp_path_factory.mktemp("fuzz"))) as srv, httpx.Client(base_url=srv.url,
+                                                                                          timeout=60) as c:
+        names = [t["name"] for t in c.get("/v1/templates").json()]
+        methods = c.get("/health").json()["methods"]
+        bases = {n: c.post(f"/v1/templates/{n}/scene").json() for n in names}
+        deadline = time.monotonic() + FUZZ_SECONDS
+        rounds = 0
+        while time.monotonic() < deadline:
+            for name in names:
+                for method in methods:
+                    scene = copy.deepcopy(bases[name])
+                    for path in rng.sample(_numbers(scene), k=rng.choice((1, 1, 2))):
+                        d = scene
+                        for k in path[:-1]:
+                            d = d[k]
+                        d[path[-1]] = rng.choice(EXTREMES) if isinstance(d[path[-1]], float) else rng.choice(
+                            (0, -1, 10**6, 2**63))
+                    body = {"scene": scene, "method": method, "stroke": [0.0, 0.5 * rng.random()]}
+                    r = c.post("/v1/frequency-curve", json=body)
+                    seen[r.status_code] += 1
+                    assert r.status_code < 500 or r.status_code == 504, (name, method, r.status_code, r.text)
+                    if r.status_code >= 400:
+                        assert r.json()["detail"].strip(), r.text
+                    if time.monotonic() > deadline and rounds:  # the first round covers every pair
+                        break
+            rounds += 1
+    print(f"mutated template scenes: {sum(seen.values())} requests, statuses {dict(sorted(seen.items()))}")
+    assert rounds >= 1 and sum(seen.values()) >= len(names) * len(methods)

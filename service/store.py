@@ -1,0 +1,367 @@
+"""The job store: one ``jobs`` table behind SQLAlchemy (a SQLite file by default, PostgreSQL by URL).
+
+Every state change is a conditional ``UPDATE ... WHERE`` so that a cancellation, the dispatcher claiming a
+job and a job process writing its verdict can never overwrite each other. Three ideas carry the rest:
+
+- **Owner.** A job belongs to the API key that submitted it (``owner``: a SHA-256 prefix of the key, ``""``
+  when the server has no keys); every read, list, cancel and delete is filtered by it. The
+  ``Idempotency-Key`` is stored prefixed by the owner, so keys of different clients never meet, and a key
+  reused with a different problem raises :class:`KeyReused`.
+- **Lease and fencing token.** A run of a job holds a lease: ``lease_holder`` (``host:pid``) and
+  ``lease_until`` (epoch seconds), renewed by the job process's heartbeat. ``attempts`` numbers the runs and
+  is the fencing token: a job process writes only while the row still carries its number, so a process
+  left over from an earlier run can never overwrite a newer one. A (restarted) server requeues only jobs
+  whose lease has expired; a job whose lease is alive is left to the process that holds it.
+- **Unavailable store.** Any database error is raised as :class:`StoreUnavailable` (503 at the HTTP
+  layer), a file that is not a database as :class:`StoreCorrupt` (refused at start with one line).
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import json
+import shutil
+import socket
+import time
+import uuid
+from collections.abc import Callable
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any, TypeVar
+
+from sqlalchemy import Float, Integer, String, Text, create_engine, event, func, inspect, select, text
+from sqlalchemy import update as sql_update
+from sqlalchemy.exc import DatabaseError, IntegrityError, OperationalError, SQLAlchemyError
+from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column
+
+__all__ = ["ACTIVE", "MAX_ATTEMPTS", "STATUSES", "Job", "JobStore", "KeyReused", "StoreCorrupt",
+           "StoreUnavailable", "TooManyJobs", "owner_of"]
+
+#: Runs of a job (interrupted by a stopped server, a killed job process or worker) before it is failed.
+MAX_ATTEMPTS = 3
+ACTIVE = ("queued", "running", "cancelling")
+FINISHED = ("succeeded", "failed", "cancelled")
+STATUSES = (*ACTIVE, *FINISHED)
+HOST = socket.gethostname()
+
+T = TypeVar("T")
+
+
+class StoreUnavailable(Exception):
+    """The job database cannot be reached or is locked; the request can be retried later (HTTP 503)."""
+
+    def __init__(self, cause: BaseException) -> None:
+        first = str(cause).strip().splitlines()[0] if str(cause).strip() else type(cause).__name__
+        super().__init__(f"the job store is unavailable ({first[:200]}); retry in a few seconds")
+
+
+class StoreCorrupt(Exception):
+    """The job database file exists but is not a readable database."""
+
+
+class TooManyJobs(Exception):
+    """The owner already has the allowed number of unfinished jobs (HTTP 429)."""
+
+
+class KeyReused(Exception):
+    """An ``Idempotency-Key`` already names a job of this owner with a different problem."""
+
+    def __init__(self, key: str, job_id: str) -> None:
+        super().__init__(f"Idempotency-Key '{key}' was already used for job {job_id} with a different problem; "
+                         "use a new key for a new problem")
+        self.job_id = job_id
+
+
+def owner_of(api_key: str | None) -> str:
+    """The owner recorded on a job: a SHA-256 prefix of the API key (never the key itself), ``""`` for none."""
+    return hashlib.sha256(api_key.encode()).hexdigest()[:16] if api_key else ""
+
+
+def _guarded(fn: Callable[..., T]) -> Callable[..., T]:
+    """Database errors (locked, unreachable, broken) leave the store as :class:`StoreUnavailable`."""
+
+    @functools.wraps(fn)
+    def call(*args: Any, **kwargs: Any) -> T:
+        try:
+            return fn(*args, **kwargs)
+        except (KeyReused, StoreUnavailable, TooManyJobs):
+            raise
+        except SQLAlchemyError as exc:
+            raise StoreUnavailable(getattr(exc, "orig", None) or exc) from exc
+
+    return call
+
+
+class _Base(DeclarativeBase):
+    pass
+
+
+class Job(_Base):
+    """One optimisation job."""
+
+    __tablename__ = "jobs"
+    id: Mapped[str] = mapped_column(String(36), primary_key=True)
+    status: Mapped[str] = mapped_column(String(16), index=True)
+    spec: Mapped[str] = mapped_column(Text)
+    idempotency_key: Mapped[str | None] = mapped_column(String(300), unique=True, nullable=True)
+    progress: Mapped[str] = mapped_column(Text, default="{}")
+    partial: Mapped[str] = mapped_column(Text, default="[]")  # finished cases so far (summaries)
+    result: Mapped[str | None] = mapped_column(Text, nullable=True)
+    error: Mapped[str | None] = mapped_column(Text, nullable=True)
+    attempts: Mapped[int] = mapped_column(Integer, default=0)  # runs started; the fencing token
+    created: Mapped[str] = mapped_column(String(40))
+    updated: Mapped[str] = mapped_column(String(40))
+    owner: Mapped[str] = mapped_column(String(64), default="", index=True)
+    lease_holder: Mapped[str | None] = mapped_column(String(300), nullable=True)  # host:pid of the run
+    lease_until: Mapped[float | None] = mapped_column(Float, nullable=True)  # epoch seconds
+
+    def to_dict(self) -> dict[str, Any]:
+        kind = "frequency-curve" if '"kind": "frequency-curve"' in (self.spec or "") else "optimisation"
+        return {"id": self.id, "kind": kind, "status": self.status, "progress": json.loads(self.progress or "{}"),
+                "partial": json.loads(self.partial or "[]"),
+                "result": json.loads(self.result) if self.result else None, "error": self.error,
+                "attempts": self.attempts, "created": self.created, "updated": self.updated}
+
+
+# columns added after the first release: added to an older database at start (all nullable or defaulted)
+_ADDED = {"owner": "VARCHAR(64) NOT NULL DEFAULT ''", "lease_holder": "VARCHAR(300)", "lease_until": "FLOAT"}
+
+
+def _now() -> str:
+    return datetime.now(UTC).isoformat(timespec="milliseconds")
+
+
+def _sqlite_pragmas(conn: Any, record: Any) -> None:
+    cur = conn.cursor()
+    cur.execute("PRAGMA journal_mode=WAL")  # server, dispatcher and job processes share the file
+    cur.execute("PRAGMA busy_timeout=5000")
+    cur.close()
+
+
+class JobStore:
+    """The job table behind a SQLAlchemy engine; ``data_dir`` holds the shared case store."""
+
+    def __init__(self, url: str, data_dir: Path, lease_seconds: float = 15.0) -> None:
+        self.url, self.data_dir, self.lease_seconds = url, Path(data_dir), lease_seconds
+        self.data_dir.mkdir(parents=True, exist_ok=True)
+        sqlite = url.startswith("sqlite")
+        self.engine = create_engine(url, connect_args={"check_same_thread": False, "timeout": 5} if sqlite else {},
+                                    pool_pre_ping=not sqlite)
+        if sqlite:
+            event.listen(self.engine, "connect", _sqlite_pragmas)
+        try:
+            _Base.metadata.create_all(self.engine)
+            self._add_columns()
+        except DatabaseError as exc:
+            where = url.removeprefix("sqlite:///") if sqlite else url.split("@")[-1]
+            if sqlite and "not a database" in str(exc) or "malformed" in str(exc):
+                raise StoreCorrupt(f"the job store {where} is not a readable database ({str(exc.orig)[:80]}); "
+                                   "move it aside (jobs are lost, finished cases in cases/ are kept) or restore "
+                                   "a backup, then start again") from None
+            raise StoreCorrupt(f"the job store {where} cannot be opened ({str(getattr(exc, 'orig', exc))[:120]});"
+                               " check FLEXOPT_DATABASE_URL and that the database is running") from None
+
+    def _add_columns(self) -> None:
+        have = {c["name"] for c in inspect(self.engine).get_columns("jobs")}
+        with self.engine.begin() as conn:
+            for name, ddl in _ADDED.items():
+                if name not in have:
+                    conn.execute(text(f"ALTER TABLE jobs ADD COLUMN {name} {ddl}"))
+
+    # -- where a job's files are ------------------------------------------------------------------------------
+    def case_dir(self) -> Path:
+        """The case store shared by all jobs: one file per case, named by the case's content (its id)."""
+        return self.data_dir / "cases"
+
+    def job_dir(self, job_id: str) -> Path:
+        """Files of one job (none today besides the database row; removed with the job)."""
+        return self.data_dir / "jobs" / job_id
+
+    # -- reads and writes -------------------------------------------------------------------------------------
+    @_guarded
+    def ping(self) -> None:
+        """Raise :class:`StoreUnavailable` unless the store can be written: a write transaction begins (SQLite:
+        readers go on while another process holds the write lock, so a read proves nothing) or a query
+        answers (a server database)."""
+        with self.engine.connect() as conn:
+            if self.url.startswith("sqlite"):
+                conn.exec_driver_sql("BEGIN IMMEDIATE")
+                conn.exec_driver_sql("ROLLBACK")
+            else:
+                conn.execute(select(func.count()).select_from(Job).where(Job.id == ""))
+
+    @_guarded
+    def submit(self, spec: dict, idempotency_key: str | None, owner: str = "",
+               max_active: int | None = None) -> tuple[dict, bool]:
+        """Store a new queued job; with a known idempotency key (of this owner) return that job instead.
+
+        Returns ``(job, created)``. Raises :class:`KeyReused` when the key names a job with a different spec,
+        and :class:`TooManyJobs` when the owner already has ``max_active`` unfinished jobs.
+        """
+        scoped = f"{owner}/{idempotency_key}" if idempotency_key else None
+
+        def same(old: Job) -> tuple[dict, bool]:
+            if json.loads(old.spec) != spec:
+                raise KeyReused(str(idempotency_key), old.id)
+            return old.to_dict(), False
+
+        with Session(self.engine) as s:
+            if scoped:
+                old = s.scalar(select(Job).where(Job.idempotency_key == scoped))
+                if old is not None:
+                    return same(old)
+            if max_active is not None:
+                n = s.scalar(select(func.count()).select_from(Job).where(Job.owner == owner,
+                                                                          Job.status.in_(ACTIVE))) or 0
+                if n >= max_active:
+                    raise TooManyJobs(f"{n} jobs of this API key are queued or running (limit {max_active}); "
+                                        "wait for one to finish or cancel one")
+            now = _now()
+            job = Job(id=str(uuid.uuid4()), status="queued", spec=json.dumps(spec), idempotency_key=scoped,
+                      progress="{}", partial="[]", attempts=0, created=now, updated=now, owner=owner)
+            s.add(job)
+            try:
+                s.commit()
+            except IntegrityError:  # a concurrent retry with the same key won the race
+                s.rollback()
+                old = s.scalar(select(Job).where(Job.idempotency_key == scoped))
+                if old is None:  # pragma: no cover - not a key clash: a real integrity problem
+                    raise
+                return same(old)
+            return job.to_dict(), True
+
+    @_guarded
+    def get(self, job_id: str, owner: str | None = None) -> dict | None:
+        """The job (only if it belongs to ``owner``, when given), or None."""
+        with Session(self.engine) as s:
+            job = s.get(Job, job_id)
+            if job is None or (owner is not None and job.owner != owner):
+                return None
+            return job.to_dict()
+
+    @_guarded
+    def row(self, job_id: str) -> dict | None:
+        """The job with its spec and lease (for the dispatcher and the job process)."""
+        with Session(self.engine) as s:
+            job = s.get(Job, job_id)
+            if job is None:
+                return None
+            return {**job.to_dict(), "spec": job.spec, "owner": job.owner, "lease_holder": job.lease_holder,
+                    "lease_until": job.lease_until}
+
+    @_guarded
+    def page(self, offset: int, limit: int, owner: str | None = None,
+             status: str | None = None) -> tuple[list[dict], int]:
+        """Jobs newest first (of ``owner``, with ``status``, when given) and how many there are in all."""
+        where = [w for w in (Job.owner == owner if owner is not None else None,
+                             Job.status == status if status else None) if w is not None]
+        with Session(self.engine) as s:
+            total = s.scalar(select(func.count()).select_from(Job).where(*where)) or 0
+            rows = s.scalars(select(Job).where(*where).order_by(Job.created.desc(), Job.id.desc())
+                             .offset(offset).limit(limit)).all()
+            return [r.to_dict() for r in rows], int(total)
+
+    def _set(self, job_id: str, where: tuple, **fields: Any) -> bool:
+        """``UPDATE jobs SET fields WHERE id = job_id AND where``: whether a row changed."""
+        with Session(self.engine) as s:
+            n = s.execute(sql_update(Job).where(Job.id == job_id, *where).values(**fields, updated=_now())).rowcount
+            s.commit()
+            return bool(n)
+
+    @_guarded
+    def update(self, job_id: str, attempt: int | None = None, **fields: Any) -> bool:
+        """Set ``fields``; with ``attempt`` (the fencing token) only while that run still owns the job (it is
+        running or cancelling with that attempt number). Whether the row was written."""
+        where = () if attempt is None else (Job.attempts == attempt, Job.status.in_(("running", "cancelling")))
+        return self._set(job_id, where, **fields)
+
+    @_guarded
+    def heartbeat(self, job_id: str, attempt: int, holder: str) -> bool:
+        """Renew the lease of run ``attempt``; False when that run no longer owns the job."""
+        return self._set(job_id, (Job.attempts == attempt, Job.status.in_(("running", "cancelling"))),
+                         lease_holder=holder, lease_until=time.time() + self.lease_seconds)
+
+    @_guarded
+    def cancel(self, job_id: str, owner: str | None = None) -> dict | None:
+        """Queued jobs are cancelled at once; running ones are asked to stop (``cancelling``); finished ones
+        are left as they are. The job afterwards, or None if there is no such job (of ``owner``)."""
+        if self.get(job_id, owner) is None:
+            return None
+        if not self._set(job_id, (Job.status == "queued",), status="cancelled"):
+            self._set(job_id, (Job.status == "running",), status="cancelling")
+        return self.get(job_id)
+
+    @_guarded
+    def delete(self, job_id: str, owner: str | None = None) -> dict | None:
+        """Remove a finished job and its files; an unfinished one is only cancelled (as :meth:`cancel`).
+
+        Returns the job as it was (``status`` tells which happened), or None if there is no such job."""
+        job = self.get(job_id, owner)
+        if job is None:
+            return None
+        if job["status"] not in FINISHED:
+            return self.cancel(job_id, owner)
+        with Session(self.engine) as s:
+            spec = s.scalar(select(Job.spec).where(Job.id == job_id))
+            s.execute(Job.__table__.delete().where(Job.id == job_id, Job.status.in_(FINISHED)))
+            shared = s.scalar(select(func.count()).select_from(Job).where(Job.spec == spec)) if spec else 0
+            s.commit()
+        shutil.rmtree(self.job_dir(job_id), ignore_errors=True)
+        if spec and not shared:  # its cases are no other job's (a case's id covers the whole problem)
+            for path in self.case_files(json.loads(spec)):
+                path.unlink(missing_ok=True)
+        return job
+
+    def case_files(self, spec: dict) -> list[Path]:
+        """Where the finished cases of a job with ``spec`` are (or will be) stored."""
+        from ..optim.batch import case_id
+        from ..optim.search import cases
+
+        try:
+            return [self.case_dir() / f"{case_id(c)}.json" for c in cases(spec)]
+        except ValueError:  # pragma: no cover - a spec the optimiser no longer reads: nothing to find
+            return []
+
+    @_guarded
+    def next_queued(self, holder: str) -> dict | None:
+        """Claim the oldest queued job: running, one more attempt, a lease held by ``holder`` (the dispatcher)
+        until the job process takes it over."""
+        while True:
+            with Session(self.engine) as s:
+                job = s.scalar(select(Job).where(Job.status == "queued").order_by(Job.created, Job.id).limit(1))
+                if job is None:
+                    return None
+                job_id, attempts = job.id, job.attempts
+            if self._set(job_id, (Job.status == "queued", Job.attempts == attempts), status="running",
+                         attempts=attempts + 1, lease_holder=holder, lease_until=time.time() + self.lease_seconds):
+                return self.row(job_id)
+            # cancelled (or claimed by another server) in the meantime: look again
+
+    @_guarded
+    def requeue(self, job_id: str, attempt: int, reason: str) -> str | None:
+        """Run ``attempt`` ended without a verdict (process or worker killed, server stopped): back to the
+        queue, or failed with ``reason`` after :data:`MAX_ATTEMPTS` runs, or cancelled if it was being
+        cancelled. The new status, or None if that run no longer owned the job."""
+        job = self.row(job_id)
+        if job is None or job["attempts"] != attempt or job["status"] not in ("running", "cancelling"):
+            return None
+        if job["status"] == "cancelling":
+            new, extra = "cancelled", {}
+        elif attempt >= MAX_ATTEMPTS:
+            new, extra = "failed", {"error": f"{reason}, {attempt} times; finished cases are kept: resubmit to "
+                                              "resume from them"}
+        else:
+            new, extra = "queued", {}
+        ok = self._set(job_id, (Job.attempts == attempt, Job.status == job["status"]), status=new,
+                       lease_holder=None, lease_until=None, **extra)
+        return new if ok else None
+
+    @_guarded
+    def expired(self, now: float | None = None) -> list[dict]:
+        """Running or cancelling jobs whose lease has run out (their run is gone)."""
+        now = time.time() if now is None else now
+        with Session(self.engine) as s:
+            rows = s.scalars(select(Job).where(Job.status.in_(("running", "cancelling")),
+                                               (Job.lease_until.is_(None)) | (Job.lease_until < now))).all()
+            return [{"id": j.id, "attempts": j.attempts, "lease_holder": j.lease_holder} for j in rows]
