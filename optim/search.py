@@ -213,25 +213,22 @@ class _Family:
             pts[eq.stroke] = (float(hz[0]), float(np.max(ps.vm)))
 
         if prob.envelope is not None:
-            axis = np.asarray(ds.scene.stroke.axis, float) if ds.scene.stroke.axis is not None else np.zeros(3)
-            axis = axis / max(float(np.linalg.norm(axis)), 1e-300)
-            for k, node in enumerate(ds.scene_dict["nodes"]):
-                pos = np.asarray(node["position"], float)
-                dpos = np.array([d["nodes"][k]["position"] for d in ds.dscene], float)  # (np, 3)
-                name = node["name"]
+            for pos, dpos, name in _envelope_points(ds.scene_dict, ds.dscene):
                 if not isinstance(prob.envelope, Envelope):  # a sphere about the origin
                     R2 = prob.envelope**2
                     rows_g.append((1.0 - float(pos @ pos) / R2, -2.0 * (dpos @ pos) * scale / R2, float("nan"),
-                                   "envelope", f"node {name} on the envelope (sphere)", 0.0, ""))
+                                   "envelope", f"{name} on the envelope (sphere)", 0.0, ""))
                     continue
+                axis = np.asarray(ds.scene.stroke.axis, float)
+                axis = axis / float(np.linalg.norm(axis))
                 a, da = float(pos @ axis), dpos @ axis
                 R2 = prob.envelope.radius**2
                 rows_g.append((1.0 - (float(pos @ pos) - a * a) / R2, -2.0 * (dpos @ pos - a * da) * scale / R2,
-                               float("nan"), "envelope", f"node {name} on the envelope's radius", 0.0, ""))
+                               float("nan"), "envelope", f"{name} on the envelope's radius", 0.0, ""))
                 if prob.envelope.half_height is not None:
                     H2 = prob.envelope.half_height**2
                     rows_g.append((1.0 - a * a / H2, -2.0 * a * da * scale / H2, float("nan"), "envelope",
-                                   f"node {name} on the envelope's end", 0.0, ""))
+                                   f"{name} on the envelope's end", 0.0, ""))
         curve = an.frequency_curve(stroke=self.samples, visit=visit)
         if curve.status != "complete":
             raise FlexoptError(curve.failures[0].message if curve.failures else "the stroke was not completed")
@@ -325,6 +322,33 @@ class _Family:
     def jac(self, z: np.ndarray) -> np.ndarray:
         j = self._checked(z).jac
         return j if self.keep is None else j[self.keep]
+
+
+def _envelope_points(scene: dict, dscene: tuple[dict, ...]) -> list[tuple[np.ndarray, np.ndarray, str]]:
+    """Points that must lie in the envelope, with their derivatives ``(np, 3)`` along the design: every scene
+    node, and both edges of every rectangular leaf at its end nodes (node +- width/2 along the section's
+    width direction ``y_axis``), so that the leaves' width counts. Rigid bodies are mass properties without a
+    shape here and are not bounded; the thickness (t/2, well below a millimetre) is neglected."""
+    pos = {n["name"]: (np.asarray(n["position"], float), np.array([d["nodes"][k]["position"] for d in dscene], float))
+           for k, n in enumerate(scene["nodes"])}
+    out = [(p, dp, f"node {name}") for name, (p, dp) in pos.items()]
+    for k, el in enumerate(scene["elements"]):
+        sec = el.get("section") or {}
+        if el.get("kind") != "beam" or sec.get("kind") != "rectangular":
+            continue
+        y = np.asarray(el["y_axis"], float)
+        dy = np.array([d["elements"][k]["y_axis"] for d in dscene], float)
+        ny = float(np.linalg.norm(y))
+        u = y / ny
+        du = (dy - np.outer(dy @ u, u)) / ny  # derivative of the unit vector y / |y|
+        w = float(sec["width"])
+        dw = np.array([float(d["elements"][k]["section"]["width"]) for d in dscene])
+        for node in el["nodes"]:
+            p, dp = pos[node]
+            for sign, side in ((1.0, "+"), (-1.0, "-")):
+                out.append((p + sign * 0.5 * w * u, dp + sign * 0.5 * (np.outer(dw, u) + w * du),
+                            f"edge {side} of {el['name']} at node {node}"))
+    return out
 
 
 def start_point(fam: _Family, prob: Problem, family_index: int, start: int) -> np.ndarray:

@@ -131,20 +131,29 @@ def test_cli_optimise_bad_spec_is_one_line_naming_the_field(tmp_path, capsys):
     assert err.count("\n") == 0 and "samples" in err, err
 
 
+def _extent(scene: dict, radial: bool) -> float:
+    """Largest distance of the nodes and leaf edges (node +- width/2 along y_axis) from the origin (or the z axis)."""
+    pos = {n["name"]: np.asarray(n["position"], float) for n in scene["nodes"]}
+    pts = list(pos.values())
+    for el in scene["elements"]:
+        u = np.asarray(el["y_axis"], float) / np.linalg.norm(el["y_axis"])
+        pts += [pos[n] + s * el["section"]["width"] / 2 * u for n in el["nodes"] for s in (1, -1)]
+    return max(float(np.hypot(p[0], p[1]) if radial else np.linalg.norm(p)) for p in pts)
+
+
 def test_envelope_limits_the_optimum():
-    """Without an envelope the pivot's best length is the upper bound (bench/bench_optim.py); a 25 mm
-    envelope must stop it at the sphere: the farthest node lies on it (active constraint, to the search
+    """Without an envelope the pivot's best length is the upper bound (bench/bench_optim.py); a 30 mm sphere
+    must stop it: the farthest point of the leaves (a leaf edge) lies on it (active constraint, to the search
     tolerance) and never outside."""
     spec = {"families": [{"template": "cross-spring-pivot",
                           "design": {"length": [0.03, 0.07], "thickness": [1.5e-4, 4e-4]}}],
-            "starts": 1, "envelope": 0.025}
+            "starts": 1, "envelope": 0.03}
     r = run_case(cases(spec)[0])
     assert r["status"] == "optimal", r["message"]
     assert "envelope" in r["optimality"]["active_kinds"]
     assert r["verified"]["stress_ratio"] <= 1 + 1e-3
-    nodes = r["verified"]["scene"]["nodes"]
-    far = max(float(np.linalg.norm(n["position"])) for n in nodes)
-    assert 0.025 * (1 - 1e-3) <= far <= 0.025 * (1 + 1e-6), far
+    far = _extent(r["verified"]["scene"], radial=False)
+    assert 0.03 * (1 - 1e-3) <= far <= 0.03 * (1 + 1e-6), far
 
 
 def test_fast_screening_picks_the_best_estimated_start():
@@ -287,11 +296,10 @@ def test_5_active_bounds_and_a_common_envelope_and_mass():
     r = run_case(cases(spec)[0])
     assert r["optimality"]["active_bounds"] == {"length": "upper"}
     assert any("stopped by the design bounds length (upper)" in w["message"] for w in r["warnings"])
-    env = run_case(cases({**spec, "envelope": {"radius": 0.025}, "body_mass": 0.05})[0])
+    env = run_case(cases({**spec, "envelope": {"radius": 0.025, "half_height": 0.03}, "body_mass": 0.05})[0])
     assert env["status"] == "optimal", env["message"]
     assert "length" not in env["optimality"]["active_bounds"] and "envelope" in env["optimality"]["active_kinds"]
-    far = max(float(np.hypot(*n["position"][:2])) for n in env["verified"]["scene"]["nodes"])
-    assert far == pytest.approx(0.025, rel=1e-3)
+    assert _extent(env["verified"]["scene"], radial=True) == pytest.approx(0.025, rel=1e-3)
     assert env["moving_mass"] == 0.05 and env["verified"]["scene"]["bodies"][0]["mass"] == 0.05
     with pytest.raises(FlexoptError, match="body_mass is set by the problem"):
         p = Problem.model_validate({**spec, "body_mass": 0.05, "families": [
@@ -340,3 +348,23 @@ def test_trust_constr_reaches_the_same_optimum():
     r = run_case(cases({**LEAF, "solver": "trust-constr"})[0])
     assert r["status"] == "optimal", r["message"]
     assert r["design"]["thickness"] == pytest.approx(6e-4, rel=1e-4)
+
+
+def test_cylinder_envelope_rows_match_finite_differences():
+    """The envelope's rows (nodes and leaf edges in a cylinder around the axis) are algebraic in the design:
+    their gradients along width, angle and crossing match central differences to rounding (quadratic
+    functions: the O(h^2) truncation is below 1e-8 at h = 1e-4)."""
+    prob = Problem.model_validate({"families": [{"template": "cross-spring-pivot", "design": {
+        "width": [0.01, 0.04], "angle": [60, 120], "crossing": [0.3, 0.7]}}], "samples": 3,
+        "envelope": {"radius": 0.04, "half_height": 0.03}})
+    fam = _Family(prob, prob.families[0])
+    x = np.array([0.4, 0.3, 0.6])
+    ev = fam.evaluate(x)
+    env = ev.kinds == "envelope"
+    assert int(env.sum()) == 2 * (4 + 2 * 2 * 2), "radius and end rows of 4 nodes and 8 leaf-edge points"
+    h = 1e-4
+    for j in range(3):
+        e = np.zeros(3)
+        e[j] = h
+        fd = (fam.evaluate(x + e).con - fam.evaluate(x - e).con) / (2 * h)
+        np.testing.assert_allclose(ev.jac[env, j], fd[env], atol=1e-7, err_msg=fam.names[j])
