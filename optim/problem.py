@@ -21,9 +21,11 @@ class Envelope(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     shape: Literal["cylinder"] = "cylinder"
-    radius: PositiveFloat = Field(description="largest distance of any scene node from the stroke axis [m]")
-    half_height: PositiveFloat | None = Field(default=None, description="largest distance of any scene node "
-                                              "along the axis from the origin's plane [m] (default: unbounded)")
+    radius: PositiveFloat = Field(description="largest distance of any scene node or leaf edge (node +- "
+                                  "width/2 across the leaf) from the stroke axis [m]")
+    half_height: PositiveFloat | None = Field(default=None, description="largest distance of any scene node or "
+                                              "leaf edge along the axis from the origin's plane [m] (default: "
+                                              "unbounded)")
 
 
 class Family(BaseModel):
@@ -82,7 +84,8 @@ class Problem(BaseModel):
     envelope: PositiveFloat | Envelope | None = Field(
         default=None, description="the space every family must fit in, the same for all: a cylinder around "
         "the stroke axis ({\"radius\", \"half_height\"} [m]), or a number: a sphere of that radius [m] about "
-        "the origin (the hinge centre of the templates); node positions are constrained (optional)")
+        "the origin (the hinge centre of the templates); scene nodes and leaf edges are constrained, rigid "
+        "bodies are not (optional)")
     body_mass: PositiveFloat | None = Field(
         default=None, description="moving-body mass [kg] given to every family (the templates' 'body_mass'), so "
         "that they are compared with the same payload; default: each template's own (0.1 kg for every hinge "
