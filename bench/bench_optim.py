@@ -107,7 +107,7 @@ def families(workers: int, starts: int, solvers: list[str], fair: bool) -> None:
     print("| family | solver | worst [Hz] | worst / zero | optimal starts | spread of optimal starts | KKT residual "
           "(best) | active bounds | active constraints | time [s] | design |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
-    summary = []
+    summary, notes = [], []
     for fam in _families(wide=fair):
         for solver in solvers:
             res, t = _timed(dict(base, families=[fam], solver=solver), workers)
@@ -115,6 +115,7 @@ def families(workers: int, starts: int, solvers: list[str], fair: bool) -> None:
             b = f["best"]
             others = ", ".join(f"{x['status']}" for x in f["failed"])
             starts_col = f"{f['optimal_starts']}/{f['starts']}" + (f" ({others})" if others else "")
+            notes += [f"- {fam['template']}, {solver}, start {x['start']}: {x['status']}: {x['message']}" for x in f["failed"]]
             if b is None:
                 print(f"| {fam['template']} | {solver} | - | - | {starts_col} | - | - | - | - | {t:.1f} | |")
                 continue
@@ -124,6 +125,7 @@ def families(workers: int, starts: int, solvers: list[str], fair: bool) -> None:
                   f"{f['spread'] * 100:.2f} % | {o['kkt_residual']:.1e} | {bounds} | {', '.join(o['active_kinds'])} | "
                   f"{t:.1f} | {_design(b['design'])} |")
             summary.append((solver, fam["template"], v["worst_hz"], t))
+    print("\n" + "\n".join(notes) if notes else "")
     for solver in solvers:
         rank = sorted((s for s in summary if s[0] == solver), key=lambda s: -s[2])
         print(f"\n{solver}: ranking {' > '.join(f'{s[1]} ({s[2]:.2f} Hz)' for s in rank)}; total "
