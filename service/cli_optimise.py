@@ -99,6 +99,7 @@ def _table(result: dict) -> str:
                      f"  {v['ratio']:>10.3f}  {v['stress_ratio']:>12.3f}  {b['status']:<10}  {design}")
     lines.append(f"verified on {result['problem']['verify_points']} exact stroke points per family; stress limit = "
                  f"allowable / {result['problem']['safety_factor']}")
+    lines += [f"warning ({w['kind']}): {w['message']}" for w in result.get("warnings", [])]
     return "\n".join(lines)
 
 

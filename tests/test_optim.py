@@ -368,3 +368,47 @@ def test_cylinder_envelope_rows_match_finite_differences():
         e[j] = h
         fd = (fam.evaluate(x + e).con - fam.evaluate(x - e).con) / (2 * h)
         np.testing.assert_allclose(ev.jac[env, j], fd[env], atol=1e-7, err_msg=fam.names[j])
+
+
+def test_kkt_residual_of_one_active_frequency_row_is_its_gradient_norm():
+    """Independent closed form: at an interior design where only the worst frequency rows are active (all with
+    the same design gradient g, the leaf's mirrored samples), stationarity asks -e_t = s (g, -1) with
+    s = sum mu_i >= 0; the least-squares residual (1 - s)^2 + s^2 g^2 is least at s = 1 / (1 + g^2), where
+    it is |g| / sqrt(1 + g^2). At the thickness bound the bound's multiplier absorbs g (frequencies rise with
+    thickness) and the residual is 0."""
+    from flexopt.optim.search import _optimality
+
+    prob = Problem.model_validate(LEAF)
+    fam = _Family(prob, prob.families[0])
+    ev = fam.evaluate(np.array([0.5]))
+    nf = fam.n_frequency()
+    act = np.flatnonzero(ev.con[:nf] - ev.con[:nf].min() <= 1e-3)
+    g = ev.jac[act, 0]
+    assert np.ptp(g) <= 1e-9 * abs(g[0]) and g[0] > 0
+    assert _optimality(fam, ev, 1e-3)["kkt_residual"] == pytest.approx(abs(g[0]) / np.sqrt(1 + g[0] ** 2), rel=1e-9)
+    top = _optimality(fam, fam.evaluate(np.array([1.0])), 1e-3)
+    assert top["kkt_residual"] == pytest.approx(0.0, abs=1e-12) and top["active_bounds"] == {"thickness": "upper"}
+
+
+def test_summary_warns_of_unequal_payloads_and_a_missing_envelope():
+    """Two families moving different masses, compared without an envelope: the ranking stands, but the summary
+    says both (never a silent unfair comparison); it is JSON with the problem's hash in its provenance."""
+    import json
+
+    from flexopt.optim import summarise
+
+    prob = Problem.model_validate({"families": [
+        {"template": "cross-spring-pivot", "design": {"length": [0.03, 0.07]}, "fixed": {"body_mass": 0.2}},
+        {"template": "cartwheel-hinge", "design": {"length": [0.04, 0.14]}}]})
+
+    def result(i: int, hz: float, mass: float) -> dict:
+        return {"family_index": i, "start": 0, "status": "optimal", "message": "", "design": {"length": 0.05},
+                "verified": {"worst_hz": hz, "zero_stroke_hz": 2 * hz, "ratio": 0.5, "stress_ratio": 1.0},
+                "optimality": {"kkt_residual": 0.0, "active_bounds": {}, "active": []}, "moving_mass": mass,
+                "warnings": [], "seconds": 1.0}
+
+    res = summarise(prob, [result(0, 30.0, 0.2), result(1, 20.0, 0.1)])
+    assert [r["template"] for r in res["ranking"]] == ["cross-spring-pivot", "cartwheel-hinge"]
+    words = " ".join(w["message"] for w in res["warnings"])
+    assert "move different masses" in words and "no envelope" in words
+    assert json.loads(json.dumps(res))["provenance"]["problem_sha256"] == res["provenance"]["problem_sha256"]
