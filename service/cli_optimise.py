@@ -63,9 +63,9 @@ def _cmd_optimise(args: argparse.Namespace) -> int:
     try:
         result = optimise(prob, executor=executor, workers=args.workers, store=args.store,
                           no_worker_timeout=args.no_worker_timeout)
-    except NoWorkers as exc:
+    except NoWorkers as exc:  # exit code 4: the cluster, not the input (2) nor a warning (3, curve --strict)
         print(f"error: {exc}", file=sys.stderr)
-        return 3
+        return 4
     finally:
         if executor is not None:
             executor.shutdown()  # also closes the Dask client
