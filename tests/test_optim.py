@@ -412,3 +412,27 @@ def test_summary_warns_of_unequal_payloads_and_a_missing_envelope():
     words = " ".join(w["message"] for w in res["warnings"])
     assert "move different masses" in words and "no envelope" in words
     assert json.loads(json.dumps(res))["provenance"]["problem_sha256"] == res["provenance"]["problem_sha256"]
+
+
+def test_cli_optimise_a_cluster_without_workers_is_one_line_and_exit_4(tmp_path, capsys, monkeypatch):
+    """The batch's NoWorkers (tested on a real cluster in tests/test_batch.py) reaches the user as one line."""
+    import json
+
+    import flexopt.optim
+    import flexopt.optim.batch as batch
+    from flexopt.service.cli import main
+
+    class _Executor:
+        def shutdown(self) -> None:
+            pass
+
+    def no_workers(*args, **kwargs):
+        raise batch.NoWorkers([{"id": "a"}, None], kwargs["no_worker_timeout"])
+
+    monkeypatch.setattr(batch, "dask_executor", lambda address: _Executor())
+    monkeypatch.setattr(flexopt.optim, "optimise", no_workers, raising=False)
+    spec = tmp_path / "spec.json"
+    spec.write_text(json.dumps(LEAF))
+    assert main(["optimise", str(spec), "--scheduler", "tcp://127.0.0.1:8786", "--no-worker-timeout", "5"]) == 4
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "no workers for 5 s" in err and "1 of 2 cases" in err, err
