@@ -145,9 +145,10 @@ class _Family:
         return p
 
     def moving_mass(self) -> float | None:
-        """The moving body's mass of this family [kg] (the template's 'body_mass'), None if it has none."""
+        """The moving body's (payload's) mass of this family [kg]: the template's 'body_mass'; None if it has
+        none or designs it."""
         d = TEMPLATES[self.fam.template][1]
-        if "body_mass" not in d:
+        if "body_mass" not in d or "body_mass" in self.names:
             return None
         return float(self.params(np.zeros(len(self.names))).get("body_mass", d["body_mass"]))
 
@@ -438,6 +439,7 @@ def _verify(fam: _Family, x: np.ndarray, points: int) -> dict:
     allow = min(mats[e.material].allowable_stress for e in scene.elements)
     out = {"points": points, "status": curve.status,
            "failures": [f.message for f in curve.failures],
+           "warnings": [w.to_dict() for w in curve.warnings],  # the model's checks of the verified curve
            "stroke": curve.stroke.tolist(), "parasitic_hz": curve.parasitic_hz.tolist()}
     if curve.status != "complete":
         return out
@@ -674,6 +676,11 @@ def _case_warnings(fam: _Family, start: int, status: str, message: str, verified
                    opt: dict | None) -> list[ResultWarning]:
     out: list[ResultWarning] = []
     name = fam.fam.template
+    for w in verified.get("warnings", []):  # the model's own checks (validity, mesh, units); stress is below
+        if w["kind"] != "stress":
+            rng = w.get("stroke_range")
+            out.append(ResultWarning(w["kind"], f"{name} start {start}: {w['message']}", w.get("element"),
+                                     None if rng is None else (rng[0], rng[1]), w.get("value")))
     if verified.get("stress_ratio", 0.0) > 1 + fam.prob.tolerance:
         out.append(ResultWarning("stress", f"{name} start {start}: the verified peak stress is "
                                  f"{verified['stress_ratio']:.3f} times allowable / safety_factor in "

@@ -436,3 +436,20 @@ def test_cli_optimise_a_cluster_without_workers_is_one_line_and_exit_4(tmp_path,
     assert main(["optimise", str(spec), "--scheduler", "tcp://127.0.0.1:8786", "--no-worker-timeout", "5"]) == 4
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "no workers for 5 s" in err and "1 of 2 cases" in err, err
+
+
+def test_the_verified_curves_own_warnings_reach_the_start():
+    """A validity or mesh warning of the model's checks on the verified curve is the optimum's warning too; a
+    stress warning is replaced by the optimiser's own (which applies the safety factor)."""
+    from flexopt.optim.search import _case_warnings
+
+    prob = Problem.model_validate(LEAF)
+    fam = _Family(prob, prob.families[0])
+    verified = {"stress_ratio": 0.5, "warnings": [
+        {"kind": "validity", "message": "leaf: L/t = 8 is below 10", "element": "leaf", "stroke_range": None,
+         "value": 8.0},
+        {"kind": "stress", "message": "leaf above allowable", "element": "leaf", "stroke_range": [-20, 20],
+         "value": 1.1}]}
+    out = _case_warnings(fam, 0, "optimal", "", verified, None)
+    assert [(w.kind, w.element, w.value) for w in out] == [("validity", "leaf", 8.0)]
+    assert "L/t = 8" in out[0].message and "start 0" in out[0].message
