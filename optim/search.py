@@ -41,7 +41,9 @@ failed). The ranking uses "optimal" starts only; the others are listed with thei
 
 A design whose evaluation fails (equilibrium lost along the stroke) is never given to the solver as a
 value: the solver stops, and the search steps back to the last good design and resumes inside a box
-around it half as wide as the failed step (a trust region), at most ``_STEP_BACKS`` times per round.
+around it half as wide as the failed step (a trust region), at most ``_STEP_BACKS`` times per round. A
+start design that fails (e.g. unstable at zero stroke) steps toward start 0, the template's own design,
+along the segment between them (``_START_STEPS``), and says so in its warnings.
 """
 
 from __future__ import annotations
@@ -69,6 +71,7 @@ __all__ = ["run_case", "cases", "optimise", "summarise", "start_point"]
 
 _STEP_BACKS = 4  # failed evaluations per round before the start is reported as failed
 _BOUND_TOL = 1e-6  # a scaled design variable this close to 0 or 1 is on its bound
+_START_STEPS = (0.25, 0.5, 0.75, 1.0)  # a failing start steps this far toward start 0 (the template's design)
 
 
 class _EvaluationFailed(Exception):
@@ -598,6 +601,16 @@ def run_case(case: dict) -> dict:
     status, message = "optimal", ""
     verified: dict = {}
     searched = fam.evaluate(x)
+    moved = None
+    if not searched.ok and si > 0:  # step back toward start 0 (the template's design) along the segment
+        xd = fam.default_x()
+        for frac in _START_STEPS:
+            ev = fam.evaluate(x0 + frac * (xd - x0))
+            if ev.ok:
+                moved = {"fraction_toward_defaults": frac, "reason": searched.message,
+                         "design": {k: v for k, v in fam.params(ev.x).items() if k in fam.names}}
+                x, searched = ev.x.copy(), ev
+                break
     symmetric = fam.reduce_symmetric(searched)
     run: dict | None = None
     low = False
@@ -655,6 +668,10 @@ def run_case(case: dict) -> dict:
                                               f"{prob.kkt_tolerance:g}")
     params = fam.params(x)
     notes = _case_warnings(fam, si, status, message, verified, opt)
+    if moved is not None:
+        notes.append(ResultWarning("notice", f"{fam_spec.template} start {si}: the start design fails "
+                                   f"({moved['reason']}); the search started {moved['fraction_toward_defaults']:g} of "
+                                   "the way toward the template's design instead"))
     return {
         "family": fam_spec.template, "family_index": fi, "start": si, "status": status, "message": message,
         "design": {k: params[k] for k in fam.names},
@@ -665,7 +682,7 @@ def run_case(case: dict) -> dict:
                      "max_stress": searched.max_stress},
         "solver": {"method": prob.solver, "status": run["code"] if run else None,
                    "message": run["message"] if run else None, "converged": bool(run and run["success"])},
-        "optimality": opt, "moving_mass": fam.moving_mass(),
+        "optimality": opt, "moving_mass": fam.moving_mass(), "start_moved": moved,
         "verified": verified, "initial": initial, "history": history, "screening": screening,
         "evaluations": fam.evaluations, "seconds": time.perf_counter() - t0,
         "warnings": [w.to_dict() for w in notes], "provenance": _provenance(prob),

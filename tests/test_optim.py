@@ -453,3 +453,24 @@ def test_the_verified_curves_own_warnings_reach_the_start():
     out = _case_warnings(fam, 0, "optimal", "", verified, None)
     assert [(w.kind, w.element, w.value) for w in out] == [("validity", "leaf", 8.0)]
     assert "L/t = 8" in out[0].message and "start 0" in out[0].message
+
+
+def test_a_failing_start_steps_toward_the_template_design(monkeypatch):
+    """Start 1's own design 'fails' (patched): the start steps a quarter of the way toward start 0 (the
+    template's design, which works) and is optimised from there, saying so; start 0 never moves."""
+    from flexopt.optim import search
+
+    prob = Problem.model_validate({**LEAF, "starts": 2})
+    x1 = search.start_point(_Family(prob, prob.families[0]), prob, 0, 1)
+    real = search._Family._evaluate
+
+    def start_fails(self, x):
+        if np.array_equal(x, x1):
+            raise FlexoptError("equilibrium becomes unstable (patched for the test)")
+        return real(self, x)
+
+    monkeypatch.setattr(search._Family, "_evaluate", start_fails)
+    r = run_case(cases({**LEAF, "starts": 2})[1])
+    assert r["start_moved"]["fraction_toward_defaults"] == 0.25 and "patched" in r["start_moved"]["reason"]
+    assert r["status"] == "optimal", r["message"]
+    assert any("toward the template's design" in w["message"] for w in r["warnings"])
