@@ -104,7 +104,8 @@ class Problem(BaseModel):
                         "where none does) and starts from the one with the highest estimated worst case")
     screen_tolerance: float = Field(default=0.02, gt=0, lt=0.5, description="error tolerance of the screening")
     seed: int = Field(default=0, ge=0, description="base seed of the start sequence and the screening (deterministic)")
-    max_iterations: int = Field(default=30, ge=1, le=500, description="SLSQP iterations per start and round")
+    max_iterations: int = Field(default=30, ge=1, le=500, description="SLSQP iterations per start and "
+                                "round (trust-constr: ten times as many, its iterations being cheaper)")
     refine_rounds: int = Field(default=3, ge=0, le=10, description="verification rounds: what the "
                                "verification found (the stroke of the verified minimum or stress peak, or the "
                                "stressed member's constraints) is added to the search and the search resumed; "
