@@ -1,0 +1,120 @@
+"""One registry of frequency-curve methods, ``frequency_curve(obj, method)`` and ``auto``.
+
+Methods: ``exact`` (continuation + eigen at every point, model.analysis), ``fd1``/``fd2`` (Taylor,
+:mod:`.taylor`), ``manifold``/``reduced`` (:mod:`.manifold`), ``hermite`` (exact samples and exact
+stroke derivatives joined by cubic Hermite interpolation, :mod:`.hermite`) and ``auto``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from ..analysis import Analysis
+from ..errors import FlexoptError
+from ..results import FrequencyCurve
+from ..scene import Scene
+from .common import _curve_from
+from .hermite import hermite_frequency_curve
+from .manifold import eigen_curve
+from .taylor import _prepare, taylor_curve
+
+__all__ = ["METHODS", "AUTO_ORDER", "frequency_curve", "estimate_error", "curve_with_method"]
+
+METHODS = ("exact", "fd1", "fd2", "manifold", "reduced", "hermite", "auto")
+#: Cheapest first: the order in which ``auto`` tries the methods.
+AUTO_ORDER = ("fd1", "fd2", "reduced", "manifold", "exact")
+
+
+def frequency_curve(obj: Scene | Analysis, method: str = "auto", tolerance: float = 0.01,
+                    stroke: np.ndarray | None = None) -> FrequencyCurve:
+    """Stroke-dependent frequencies by ``method`` (one of :data:`METHODS`).
+
+    ``exact``: continuation + eigen at every point. ``fd1``: eq. 10 (first order). ``fd2``: second-order
+    Taylor in eta with degenerate perturbation. ``manifold``: one-shot configuration on the quadratic
+    manifold, full eigen solve, no Newton. ``reduced``: the same configuration, eigenproblem in the basis
+    of the first modes, their modal derivatives and the driving mode (Wu and Tiso 2015). ``auto``: the
+    cheapest method whose estimated error (:func:`estimate_error`) is at most ``tolerance`` (relative,
+    first parasitic frequency) over the requested stroke range.
+    """
+    an = obj if isinstance(obj, Analysis) else Analysis(obj)
+    if method not in METHODS:
+        raise FlexoptError(f"unknown method '{method}': choose one of {', '.join(METHODS)}")
+    if not (tolerance > 0):
+        raise FlexoptError(f"tolerance must be positive (a relative error, e.g. 0.01), got {tolerance}")
+    spec = an.scene.stroke
+    values = np.asarray(spec.values() if stroke is None else stroke, dtype=float)
+    if method == "exact":
+        return an.frequency_curve(values)
+    if method == "hermite":
+        return hermite_frequency_curve(an, values, tolerance)[0]
+    if method == "auto":
+        est = estimate_error(an, values)
+        for m in AUTO_ORDER:
+            if m == "exact" or est[m] <= tolerance:
+                cur = frequency_curve(an, m, tolerance, values)
+                return replace(cur, method=m, solver={**cur.solver, "auto_estimate": est.get(m, 0.0),
+                                                      "auto_tolerance": tolerance})
+    if spec.drive == "free":
+        # the Taylor and manifold methods analyse modes with the drive locked (model.methods.taylor): on a
+        # scene whose eigen analysis keeps the drive free they would answer a different question
+        raise FlexoptError(f"method '{method}' computes modes with the drive locked, but scene '{an.scene.name}' "
+                           "asks for the drive free in its eigen analysis (stroke.drive: free): use method "
+                           "'exact', 'hermite' or 'auto', or set stroke.drive to 'locked'")
+    t0 = time.perf_counter()
+    prep = _prepare(an)
+    eta = np.asarray(spec.to_internal(values), dtype=float)
+    # a structure with fewer locked DOFs than requested modes has only that many (wire guides: 5 of 6)
+    n_rep = min(an.scene.modes, len(an.system.free) - an.system.n_con)
+    extra: dict = {"build_seconds": prep.md.build_seconds}
+    if method in ("fd1", "fd2"):
+        hz, labels, par = taylor_curve(prep, eta, 1 if method == "fd1" else 2, n_rep)
+    else:
+        hz, labels, par, dev = eigen_curve(prep, eta, method == "reduced", n_rep)
+        extra["max_drive_deviation"] = dev
+    return _curve_from(an, method, values, hz, labels, par, time.perf_counter() - t0, extra)
+
+
+def estimate_error(an: Analysis, values: np.ndarray, n_check: int = 2) -> dict[str, float]:
+    """Estimated max relative error of the first parasitic frequency for each fast method.
+
+    The estimator solves the exact problem at a few check strokes per side (the largest requested stroke
+    and its half; the Taylor and manifold errors grow monotonically with |stroke| on the templates, so the
+    ends dominate) and returns, per method, the largest relative deviation from exact at those points.
+    Cost: ``2 n_check`` exact points instead of the whole curve. Tested (tests/test_modal_derivatives.py)
+    to stay within a factor 2 of the true max error over the whole curve on the templates.
+    """
+    values = np.asarray(values, dtype=float)
+    checks = []
+    for side in (values[values > 0], values[values < 0]):
+        if len(side):
+            far = side[np.argmax(np.abs(side))]
+            checks += [far * (i + 1) / n_check for i in range(n_check)]
+    checks = np.array(sorted(set(checks)))
+    if len(checks) == 0:
+        return {m: 0.0 for m in AUTO_ORDER}
+    ref = an.frequency_curve(checks)
+    # points the exact continuation reached (a truncated curve makes every fast method unusable below)
+    ok = np.array([np.any(np.isclose(c, ref.stroke, rtol=1e-9, atol=1e-12 * np.abs(checks).max()))
+                   for c in checks])
+    exact = ref.parasitic_hz
+    est = {"exact": 0.0}
+    for m in AUTO_ORDER[:-1]:
+        try:
+            c = frequency_curve(an, m, 1.0, checks[ok])
+            est[m] = float(np.max(np.abs(c.parasitic_hz / exact - 1.0))) if len(exact) else 0.0
+        except FlexoptError:
+            est[m] = float("inf")
+        if not np.isfinite(est[m]):
+            est[m] = float("inf")
+    if ref.status != "complete":
+        est = {m: (v if m == "exact" else float("inf")) for m, v in est.items()}
+    return est
+
+
+def curve_with_method(analysis: Analysis, method: str, tolerance: float = 0.01,
+                      stroke: np.ndarray | None = None) -> FrequencyCurve:
+    """CLI entry point: :func:`frequency_curve` on a ready :class:`Analysis` (result has ``.method`` set)."""
+    return frequency_curve(analysis, method, tolerance, stroke)
