@@ -24,8 +24,8 @@ from .taylor import _prepare, taylor_curve
 __all__ = ["METHODS", "AUTO_ORDER", "frequency_curve", "estimate_error", "curve_with_method"]
 
 METHODS = ("exact", "fd1", "fd2", "manifold", "reduced", "hermite", "auto")
-#: Cheapest first: the order in which ``auto`` tries the methods.
-AUTO_ORDER = ("fd1", "fd2", "reduced", "manifold", "exact")
+#: Cheapest first: the fast methods :func:`estimate_error` rates.
+AUTO_ORDER = ("fd1", "fd2", "reduced", "manifold", "exact")  # candidates of estimate_error (auto: _auto)
 
 
 def frequency_curve(obj: Scene | Analysis, method: str = "auto", tolerance: float = 0.01,
@@ -35,9 +35,11 @@ def frequency_curve(obj: Scene | Analysis, method: str = "auto", tolerance: floa
     ``exact``: continuation + eigen at every point. ``fd1``: eq. 10 (first order). ``fd2``: second-order
     Taylor in eta with degenerate perturbation. ``manifold``: one-shot configuration on the quadratic
     manifold, full eigen solve, no Newton. ``reduced``: the same configuration, eigenproblem in the basis
-    of the first modes, their modal derivatives and the driving mode (Wu and Tiso 2015). ``auto``: the
-    cheapest method whose estimated error (:func:`estimate_error`) is at most ``tolerance`` (relative,
-    first parasitic frequency) over the requested stroke range.
+    of the first modes, their modal derivatives and the driving mode (Wu and Tiso 2015). ``hermite``:
+    exact samples with exact stroke derivatives, cubic Hermite along tracked branches, samples added until
+    the estimated error of the first parasitic frequency meets ``tolerance`` (:mod:`.hermite`). ``auto``:
+    ``hermite`` when it meets ``tolerance`` within a sample budget, otherwise ``exact`` (:func:`_auto`).
+    The fast methods' estimator for the Taylor and manifold methods is :func:`estimate_error`.
     """
     an = obj if isinstance(obj, Analysis) else Analysis(obj)
     if method not in METHODS:
@@ -51,12 +53,7 @@ def frequency_curve(obj: Scene | Analysis, method: str = "auto", tolerance: floa
     if method == "hermite":
         return hermite_frequency_curve(an, values, tolerance)[0]
     if method == "auto":
-        est = estimate_error(an, values)
-        for m in AUTO_ORDER:
-            if m == "exact" or est[m] <= tolerance:
-                cur = frequency_curve(an, m, tolerance, values)
-                return replace(cur, method=m, solver={**cur.solver, "auto_estimate": est.get(m, 0.0),
-                                                      "auto_tolerance": tolerance})
+        return _auto(an, values, tolerance)
     if spec.drive == "free":
         # the Taylor and manifold methods analyse modes with the drive locked (model.methods.taylor): on a
         # scene whose eigen analysis keeps the drive free they would answer a different question
@@ -75,6 +72,38 @@ def frequency_curve(obj: Scene | Analysis, method: str = "auto", tolerance: floa
         hz, labels, par, dev = eigen_curve(prep, eta, method == "reduced", n_rep)
         extra["max_drive_deviation"] = dev
     return _curve_from(an, method, values, hz, labels, par, time.perf_counter() - t0, extra)
+
+
+#: Fewest requested stroke points on one side of 0 for which ``auto`` tries ``hermite`` (it needs four exact
+#: samples per side before it can estimate anything; below this the exact curve is as cheap).
+AUTO_MIN_POINTS = 12
+
+
+def _auto(an: Analysis, values: np.ndarray, tolerance: float) -> FrequencyCurve:
+    """``auto``: ``hermite`` within a sample budget when the curve is long enough, else (or when hermite
+    does not reach ``tolerance`` within the budget) the exact curve.
+
+    Budget: a third of the requested points per side (each hermite sample costs about one to two exact
+    points: its continuation step, one eigen solve and the slopes), so hermite never costs more than about
+    two thirds of the exact curve; when it fails, ``auto`` costs that attempt plus the exact curve. The
+    curve's ``solver`` says which method ran (``auto_method``), its estimated error (``auto_estimate``: the
+    hermite estimate, 0 for exact) and the tolerance; ``solver.seconds`` covers everything auto did.
+    """
+    t0 = time.perf_counter()
+    internal = np.asarray(an.scene.stroke.to_internal(values), dtype=float)
+    per_side = max(int(np.sum(internal > 0)), int(np.sum(internal < 0)))
+    tried: dict = {}
+    if per_side >= AUTO_MIN_POINTS:
+        curve, extra = hermite_frequency_curve(an, values, tolerance, max_samples=max(4, per_side // 3))
+        if curve.method == "hermite" and extra["converged"] and extra["estimated_error"] <= tolerance:
+            return replace(curve, solver={**curve.solver, "seconds": time.perf_counter() - t0,
+                                          "auto_method": "hermite", "auto_estimate": extra["estimated_error"],
+                                          "auto_tolerance": tolerance})
+        tried = {"auto_rejected": f"hermite (estimated error {extra.get('estimated_error', float('nan')):.3g}, "
+                                  f"{extra.get('samples', 0)} samples)"}
+    cur = an.frequency_curve(values)
+    return replace(cur, solver={**cur.solver, "seconds": time.perf_counter() - t0, "auto_method": "exact",
+                                "auto_estimate": 0.0, "auto_tolerance": tolerance, **tried})
 
 
 def estimate_error(an: Analysis, values: np.ndarray, n_check: int = 2) -> dict[str, float]:

@@ -52,6 +52,9 @@ __all__ = ["hermite_curve", "stroke_slopes", "HermiteResult"]
 #: pairs, gap at rounding level -- need the cluster matrix. (The Taylor methods use the wider CLUSTER_GAP
 #: because their expansions divide by the gap; here nothing does.)
 SLOPE_CLUSTER_GAP = 1e-6
+#: An interval is refined while a branch within ``MAC_BAND`` times the lowest frequency at either end was
+#: matched across it with a MAC below ``MAC_MIN`` (its identity is uncertain: a crossing in between).
+MAC_MIN, MAC_BAND = 0.9, 1.5
 
 
 @dataclass
@@ -185,23 +188,20 @@ class _Side:
         return _Sample(s_new, eq, modes, stroke_slopes(an, eq, modes))
 
     def initial(self, smax: float) -> None:
-        """Continuation from stroke 0 to ``smax`` in eight steps; samples at a quarter, half, three quarters
-        and the end."""
+        """Continuation from stroke 0 to ``smax`` with targets (and samples) at a quarter, half, three
+        quarters and the end (the continuation halves a step that fails; from the second target on its
+        predictor is the cubic through two converged points)."""
         an = self.an
         sys = an.system
-        keep = {2, 4, 6, 8}
-        count = [0]
-
         def accept(e: Equilibrium) -> None:
-            count[0] += 1
-            if count[0] in keep:
+            if True:
                 modes = modes_at(sys, e, self.k, self.drive)
                 if len(modes.omega2) == 0 or modes.omega2[0] <= 0:
                     raise _Fallback("equilibrium unstable at a sample")
                 self.add(_Sample(float(e.stroke), e, modes, stroke_slopes(an, e, modes)))
             return None
 
-        fail = walk(sys, np.linspace(0.0, smax, 9)[1:], an.options, accept, start=self.samples[0].eq)
+        fail = walk(sys, np.linspace(0.0, smax, 5)[1:], an.options, accept, start=self.samples[0].eq)
         if fail is not None:
             raise _Fallback(fail.message)
 
@@ -212,7 +212,7 @@ class _Side:
     def retrack(self) -> None:
         """Branch identities from stroke 0 outwards through every sample (MAC, as the exact method)."""
         prev = None
-        lam, slope, labels = [], [], []
+        lam, slope, labels, mac = [], [], [], []
         for smp in self.samples:
             m = smp.modes
             if prev is None:
@@ -220,11 +220,16 @@ class _Side:
             else:
                 perm = track(prev, m)
             tm = Modes(m.omega2[perm], m.phi[:, perm], m.M)
+            if prev is not None:  # MAC of each branch's match across the interval (1: same shape)
+                MB = tm.M @ tm.phi
+                num = np.einsum("ik,ik->k", prev.phi, MB) ** 2
+                den = np.einsum("ik,ik->k", prev.phi, tm.M @ prev.phi) * np.einsum("ik,ik->k", tm.phi, MB)
+                mac.append(num / np.where(den > 0, den, 1.0))
             lam.append(1.0 / tm.omega2)  # interpolated variable: mu = 1 / lambda (see module docstring)
             slope.append(-smp.slope[perm] / tm.omega2**2)
             labels.append(self.an._labels(tm)[0])
             prev = tm
-        self.lam, self.slope, self.labels = np.array(lam), np.array(slope), labels
+        self.lam, self.slope, self.labels, self.mac = np.array(lam), np.array(slope), labels, mac
 
     def strokes(self) -> np.ndarray:
         return np.array([x.s for x in self.samples])
@@ -260,10 +265,17 @@ def _error(side: _Side, i: int) -> float:
     in ``1 / sqrt(mu)`` (the frequency up to 2 pi) -- have different error terms (fourth derivatives of different functions); where both
     are accurate they agree, where the branch changes faster than a cubic can follow (pre-asymptotic
     sampling, a crossing with wrong tracking) they do not. The largest relative difference of the first
-    parasitic frequency on 16 interior points is the estimate: no extra exact solve.
+    parasitic frequency on 16 interior points is the estimate: no extra exact solve. Infinite when a low
+    branch's match across the interval is uncertain (``MAC_MIN``).
     """
     S = side.strokes()
     mu, d = side.lam, side.slope
+    # a branch near the first parasitic frequency whose mode shape changed much across the interval may
+    # have been matched to another mode (a crossing between the samples): refine until the match is clear
+    hz0, hz1 = _hz(mu[i]), _hz(mu[i + 1])
+    near = (hz0 <= MAC_BAND * np.nanmin(hz0)) | (hz1 <= MAC_BAND * np.nanmin(hz1))
+    if np.any(side.mac[i][near] < MAC_MIN):
+        return float("inf")
     x = np.linspace(S[i], S[i + 1], 18)[1:-1]
     a = _hermite(S[i], S[i + 1], mu[i], mu[i + 1], d[i], d[i + 1], x)
     # second interpolant in r = mu^(-1/2) (proportional to the frequency): dr/ds = -mu'/(2 mu^(3/2))
@@ -312,9 +324,8 @@ def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samp
                 continue
             smax = s_req[np.argmax(np.abs(s_req))]
             side = _Side(an, first, k, drive)
-            # initial samples at s/4, s/2, 3s/4 and s, reached by continuation in steps of s/8 (one big step
-            # costs more Newton iterations and step halvings than eight small ones), then bisection of every
-            # interval whose estimate exceeds the tolerance
+            # initial samples at s/4, s/2, 3s/4 and s, then bisection of every interval whose estimate
+            # exceeds the tolerance
             side.initial(smax)
             side.retrack()
             h_min = abs(smax) / 64.0
