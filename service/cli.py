@@ -123,10 +123,10 @@ def _parser() -> argparse.ArgumentParser:
     fmt.add_argument("--csv", action="store_true", help="print CSV")
     c.add_argument("--plot", metavar="FILE.png", help="draw frequency against stroke")
     c.add_argument("--progress", action="store_true", help="show progress on stderr even when not a terminal")
-    c.add_argument("--method", choices=["exact", "fd1", "fd2", "manifold", "reduced", "auto"], default="exact",
-                   help="exact (continuation + eigen), Taylor fd1/fd2, quadratic manifold, reduced, or auto")
+    c.add_argument("--method", choices=["exact", "fd1", "fd2", "manifold", "reduced", "hermite", "auto"], default="exact",
+                   help="exact (continuation + eigen), Taylor fd1/fd2, quadratic manifold, reduced, hermite, or auto")
     c.add_argument("--tolerance", type=float, default=0.01,
-                   help="relative error allowed on the first parasitic frequency (for --method auto)")
+                   help="relative error allowed on the first parasitic frequency (for --method hermite and auto)")
     c.set_defaults(func=_cmd_curve)
     from .cli_diagnose import add_parser as _add_diagnose  # exact-constraint diagnosis
     _add_diagnose(sub)

@@ -35,8 +35,8 @@ __all__ = [
 ]
 
 API_VERSION = "1"
-METHODS = ("exact", "fd1", "fd2", "manifold", "reduced", "auto")
-Method = Literal["exact", "fd1", "fd2", "manifold", "reduced", "auto"]
+METHODS = ("exact", "fd1", "fd2", "manifold", "reduced", "hermite", "auto")
+Method = Literal["exact", "fd1", "fd2", "manifold", "reduced", "hermite", "auto"]
 
 SceneDocument = Annotated[
     dict[str, Any],
@@ -87,7 +87,7 @@ class FrequencyCurveRequest(_Wire):
     scene: SceneDocument
     stroke: list[FiniteFloat] | None = Field(
         None, description="stroke values in the scene's stroke unit (default: the scene's own grid)")
-    method: Method = Field("exact", description="exact (continuation + eigen), fd1, fd2, manifold, reduced or auto")
+    method: Method = Field("exact", description="exact (continuation + eigen), fd1, fd2, manifold, reduced, hermite (exact samples + exact stroke derivatives, cubic Hermite) or auto")
     tolerance: PositiveFloat = Field(0.01, description="relative error allowed on the first parasitic "
                                                        "frequency (method auto)")
 
