@@ -253,11 +253,6 @@ class _Fallback(Exception):
     """The samples cannot be computed (loss of equilibrium, instability): the caller uses the exact method."""
 
 
-def _par(side: _Side, mu: np.ndarray, labels: list[str]) -> float:
-    par = [j for j, lab in enumerate(labels) if lab == "parasitic"]
-    return float(np.min(_hz(mu)[par])) if par else float("nan")
-
-
 def _error(side: _Side, i: int) -> float:
     """Estimated error of the interpolated first parasitic frequency over the interval [S_i, S_i+1].
 
@@ -281,13 +276,13 @@ def _error(side: _Side, i: int) -> float:
     # second interpolant in r = mu^(-1/2) (proportional to the frequency): dr/ds = -mu'/(2 mu^(3/2))
     r0, r1 = mu[i] ** -0.5, mu[i + 1] ** -0.5
     b = _hermite(S[i], S[i + 1], r0, r1, -0.5 * d[i] * r0**3, -0.5 * d[i + 1] * r1**3, x) ** -2.0
-    err = 0.0
-    for p in range(len(x)):
-        lab = side.labels[i] if abs(x[p] - S[i]) <= abs(S[i + 1] - x[p]) else side.labels[i + 1]
-        fa, fb = _par(side, a[p], lab), _par(side, b[p], lab)
-        if np.isfinite(fa) and np.isfinite(fb):
-            err = max(err, abs(fa / fb - 1))
-    return err
+    left = np.abs(x - S[i]) <= np.abs(S[i + 1] - x)
+    par = np.where(left[:, None], np.array(side.labels[i]) == "parasitic",
+                   np.array(side.labels[i + 1]) == "parasitic")  # (16, k) labels of the nearer sample
+    fa = np.where(par, _hz(a), np.inf).min(axis=1)
+    fb = np.where(par, _hz(b), np.inf).min(axis=1)
+    ok = np.isfinite(fa) & np.isfinite(fb)
+    return float(np.max(np.abs(fa[ok] / fb[ok] - 1), initial=0.0))
 
 
 def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samples: int | None = None

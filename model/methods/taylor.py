@@ -96,6 +96,10 @@ def hessian_second_derivative(sys: System, st: State, v: np.ndarray) -> np.ndarr
     return sys._reduce_mat(out.reshape(N, N))
 
 
+#: Inverse Vandermonde matrix of the nodes -2..2: Taylor coefficients of the quartic through five values.
+_VANDER_INV = np.linalg.inv(np.vander(np.array([-2.0, -1.0, 0.0, 1.0, 2.0]), 5, increasing=True))
+
+
 def mass_derivatives(sys: System, st: State, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """First and second derivatives of the mass matrix along ``q(eta) = a eta + 1/2 b eta^2`` at ``st``.
 
@@ -121,8 +125,8 @@ def mass_derivatives(sys: System, st: State, a: np.ndarray, b: np.ndarray) -> tu
         vals.append(sys.mass(trial))
     vals = np.array(vals)
     # exact derivatives at 0 of the degree-4 interpolant through the five points
-    V = np.vander(nodes, 5, increasing=True)
-    coef = np.linalg.solve(V, vals.reshape(5, -1)).reshape(vals.shape)
+    coef = (_VANDER_INV[1:3] @ vals.reshape(5, -1)).reshape((2,) + vals.shape[1:])
+    coef = np.concatenate([np.zeros((1,) + vals.shape[1:]), coef])
     M1, M2 = coef[1], 2.0 * coef[2]
     return 0.5 * (M1 + M1.T), 0.5 * (M2 + M2.T)
 
