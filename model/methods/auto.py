@@ -80,13 +80,15 @@ AUTO_MIN_POINTS = 12
 
 
 def _auto(an: Analysis, values: np.ndarray, tolerance: float) -> FrequencyCurve:
-    """``auto``: ``hermite`` within a sample budget when the curve is long enough, else (or when hermite
-    does not reach ``tolerance`` within the budget) the exact curve.
+    """``auto``: on curves with at least ``AUTO_MIN_POINTS`` points per side, ``hermite`` within a sample
+    budget; on shorter curves (an optimiser's screening grid) the cheapest Taylor or manifold method whose
+    :func:`estimate_error` meets ``tolerance``; otherwise (or when neither qualifies) the exact curve.
 
     Budget: a third of the requested points per side (each hermite sample costs about one to two exact
-    points: its continuation step, one eigen solve and the slopes), so hermite never costs more than about
-    two thirds of the exact curve; when it fails, ``auto`` costs that attempt plus the exact curve. The
-    curve's ``solver`` says which method ran (``auto_method``), its estimated error (``auto_estimate``: the
+    points: its continuation step, one eigen solve and the slopes), so hermite costs at most about two
+    thirds of the exact curve. When nothing qualifies, ``auto`` costs the attempt plus the exact curve:
+    up to about 1.7x exact on a long curve, and the estimator's four exact points on a short one (none
+    for a drive-free scene, where the locked-drive methods do not apply). The curve's ``solver`` says which method ran (``auto_method``), its estimated error (``auto_estimate``: the
     hermite estimate, 0 for exact) and the tolerance; ``solver.seconds`` covers everything auto did.
     """
     t0 = time.perf_counter()
@@ -101,6 +103,17 @@ def _auto(an: Analysis, values: np.ndarray, tolerance: float) -> FrequencyCurve:
                                           "auto_tolerance": tolerance})
         tried = {"auto_rejected": f"hermite (estimated error {extra.get('estimated_error', float('nan')):.3g}, "
                                   f"{extra.get('samples', 0)} samples)"}
+    elif an.scene.stroke.drive == "locked" and not an.system.n_con:
+        # short curves (e.g. an optimiser's screening grid): the Taylor and manifold methods rated by
+        # estimate_error (exact solves at the largest stroke and its half per side)
+        est = estimate_error(an, values)
+        for m in AUTO_ORDER[:-1]:
+            if est[m] <= tolerance:
+                cur = frequency_curve(an, m, tolerance, values)
+                return replace(cur, solver={**cur.solver, "seconds": time.perf_counter() - t0, "auto_method": m,
+                                            "auto_estimate": est[m], "auto_tolerance": tolerance})
+        tried = {"auto_rejected": "fd1, fd2, reduced, manifold (estimated errors "
+                                  + ", ".join(f"{est[m]:.3g}" for m in AUTO_ORDER[:-1]) + ")"}
     cur = an.frequency_curve(values)
     return replace(cur, solver={**cur.solver, "seconds": time.perf_counter() - t0, "auto_method": "exact",
                                 "auto_estimate": 0.0, "auto_tolerance": tolerance, **tried})
