@@ -6,12 +6,16 @@ frequency derivatives, for the fast methods), max and RMS relative error of the 
 against the exact curve over a third, two thirds and all of the stroke (+-15, +-30, +-45 deg for
 rotations), and the stroke range over which each method stays within 1 % and 5 %.
 
-    python bench/bench_methods.py [--repeat 5] [--plot methods.png]
+    python bench/bench_methods.py [--repeat 5] [--plot methods.png] [--only-interleaved]
+
+The last table times exact, hermite and auto interleaved (E H A per round), the ratio that holds on a
+shared machine.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import sys
 import time
@@ -82,12 +86,12 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--repeat", type=int, default=5)
     p.add_argument("--plot", default=None, help="write a PNG of the first parasitic frequency per method")
+    p.add_argument("--only-interleaved", action="store_true", help="print only the exact/hermite/auto table")
     args = p.parse_args(argv)
-    import os
 
     print(f"load average {os.getloadavg()[0]:.2f} at start; {os.cpu_count()} CPUs; medians of {args.repeat} warm runs")
     all_curves = {}
-    for name in TEMPLATES + FAMILIES:
+    for name in () if args.only_interleaved else TEMPLATES + FAMILIES:
         rows, curves = bench_template(name, args.repeat)
         all_curves[name] = curves
         unit = curves["exact"].stroke_unit
@@ -99,7 +103,31 @@ def main(argv: list[str] | None = None) -> int:
         print("|---|---|---|---|---|---|---|---|---|")
         for r in rows:
             print(r)
-    if args.plot:
+    print(f"\n### exact, hermite and auto interleaved (tolerance 1 %; {args.repeat} rounds of E H A; load average "
+          f"{os.getloadavg()[0]:.2f})\n")
+    print("| template | exact median [ms] | hermite median [ms] | hermite speed-up (median of rounds) | auto ran "
+          "| auto speed-up | hermite samples | hermite max error | hermite estimate |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for name in TEMPLATES + FAMILIES:
+        an = Analysis(template(name))
+        ex = frequency_curve(an, "exact")
+        frequency_curve(an, "hermite")
+        te, th, ta = [], [], []
+        for _ in range(args.repeat):
+            for m, acc in (("exact", te), ("hermite", th), ("auto", ta)):
+                t0 = time.perf_counter()
+                c = frequency_curve(an, m, tolerance=0.01)
+                acc.append(time.perf_counter() - t0)
+                if m == "hermite":
+                    h = c
+                elif m == "auto":
+                    a = c
+        err = float(np.max(np.abs(h.parasitic_hz / ex.parasitic_hz - 1)))
+        sh = statistics.median([e / x for e, x in zip(te, th)])
+        sa = statistics.median([e / x for e, x in zip(te, ta)])
+        print(f"| {name} | {statistics.median(te) * 1e3:.1f} | {statistics.median(th) * 1e3:.1f} | {sh:.1f}x | "
+              f"{a.method} | {sa:.1f}x | {h.solver['samples']} | {err:.2e} | {h.solver['estimated_error']:.2e} |")
+    if args.plot and all_curves:
         import matplotlib
 
         matplotlib.use("Agg")

@@ -73,6 +73,7 @@ class ExudynLeaf:
         ss.staticSolver.newton.absoluteTolerance = 1e-8
         ss.staticSolver.numberOfLoadSteps = 1
         ss.staticSolver.verboseMode = 0
+        ss.solutionSettings.writeSolutionToFile = False  # Exudyn writes solution/ into the cwd by default
         ss.linearSolver.solverType = exu.LinearSolverType.EXUdense
         self.mbs, self.ss = mbs, ss
         self.state0 = mbs.systemData.GetSystemState(exu.ConfigurationType.Initial)
