@@ -145,8 +145,10 @@ def track(prev: Modes, cur: Modes) -> np.ndarray:
     num = (A.T @ MB) ** 2
     den = np.outer(np.einsum("ij,ij->j", A, cur.M @ A), np.einsum("ij,ij->j", B, MB))
     mac = num / np.where(den > 0, den, 1.0)
+    if mac.size == 0:
+        return np.arange(mac.shape[0])
     best = np.argmax(mac, axis=1)
-    if len(np.unique(best)) == len(best) and mac.shape[0] == mac.shape[1]:
+    if mac.shape[0] == mac.shape[1] and np.bincount(best, minlength=len(best)).max() == 1:
         # every mode's best match is a different mode: that permutation is the assignment of largest total
         # MAC (each term is at its row's maximum), so the assignment solver is not needed
         return best
