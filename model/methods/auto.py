@@ -84,12 +84,14 @@ def _auto(an: Analysis, values: np.ndarray, tolerance: float) -> FrequencyCurve:
     budget; on shorter curves (an optimiser's screening grid) the cheapest Taylor or manifold method whose
     :func:`estimate_error` meets ``tolerance``; otherwise (or when neither qualifies) the exact curve.
 
-    Budget: a third of the requested points per side (each hermite sample costs about one to two exact
-    points: its continuation step, one eigen solve and the slopes), so hermite costs at most about two
-    thirds of the exact curve. When nothing qualifies, ``auto`` costs the attempt plus the exact curve:
-    up to about 1.7x exact on a long curve, and the estimator's four exact points on a short one (none
-    for a drive-free scene, where the locked-drive methods do not apply). The curve's ``solver`` says which method ran (``auto_method``), its estimated error (``auto_estimate``: the
-    hermite estimate, 0 for exact) and the tolerance; ``solver.seconds`` covers everything auto did.
+    Budget: a third of the requested points per side as samples. A sample costs one to three exact points
+    (its continuation step, one eigen solve and the slopes), so the attempt costs at most about the exact
+    curve and measured a fifth to a half of it on the templates (README, Fast methods). When nothing
+    qualifies, ``auto`` costs the attempt plus the exact curve (up to about twice exact on a long curve;
+    the estimator's four exact points more on a short one; nothing more for a drive-free scene, where the
+    locked-drive methods do not apply). The curve's ``solver`` says which method ran (``auto_method``), its
+    estimated error (``auto_estimate``; 0 for exact) and the tolerance; ``solver.seconds`` covers everything
+    auto did.
     """
     t0 = time.perf_counter()
     internal = np.asarray(an.scene.stroke.to_internal(values), dtype=float)

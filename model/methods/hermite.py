@@ -24,9 +24,9 @@ stiffness of a flexure is a support stiffness in series with a compliance that g
 (PHYSICS.md, the 1/700 term), so ``1 / lambda`` is close to a low-order polynomial in the stroke where
 ``lambda`` itself falls by orders of magnitude (cross-spring pivot: 325 Hz to 39 Hz over 45 deg).
 
-Adaptive samples (per side of stroke 0): start with 0, s_max/4, s_max/2, 3 s_max/4 and s_max and bisect every interval whose
-error estimate exceeds the tolerance (relative, on the first parasitic frequency, the quantity the
-tolerance is about), down to intervals of s_max/64 or the sample budget. The estimate (:func:`_error`)
+Adaptive samples (per side of stroke 0): start with 0, s_max/4, s_max/2, 3 s_max/4 and s_max and bisect
+every interval whose error estimate exceeds the tolerance (relative, on the first parasitic frequency,
+the quantity the tolerance is about), down to intervals of s_max/64 or the sample budget. The estimate (:func:`_error`)
 compares the interpolant in ``1 / lambda`` with one in the frequency built from the same samples: no extra
 solve. The estimated error of the curve is the largest remaining interval estimate.
 """
@@ -257,8 +257,8 @@ def _error(side: _Side, i: int) -> float:
     """Estimated error of the interpolated first parasitic frequency over the interval [S_i, S_i+1].
 
     Two cubic Hermite interpolants of the same exact data -- in ``mu = 1 / lambda`` (the one reported) and
-    in ``1 / sqrt(mu)`` (the frequency up to 2 pi) -- have different error terms (fourth derivatives of different functions); where both
-    are accurate they agree, where the branch changes faster than a cubic can follow (pre-asymptotic
+    in ``1 / sqrt(mu)`` (the frequency up to 2 pi) -- have different error terms (fourth derivatives of
+    different functions); where both are accurate they agree, where the branch changes faster than a cubic can follow (pre-asymptotic
     sampling, a crossing with wrong tracking) they do not. The largest relative difference of the first
     parasitic frequency on 16 interior points is the estimate: no extra exact solve. Infinite when a low
     branch's match across the interval is uncertain (``MAC_MIN``).
