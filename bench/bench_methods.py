@@ -1,16 +1,21 @@
 """The speed-accuracy ladder of the frequency-curve methods (issue 4), as markdown tables.
 
-For every template: warm time of a 91-point curve (median of ``--repeat`` runs), build time (modal and
+For every template: warm time of a 91-point curve (median of ``--repeat`` runs) and its speed-up over the
+exact curve in the same run, build time (modal and
 frequency derivatives, for the fast methods), max and RMS relative error of the first parasitic frequency
 against the exact curve over a third, two thirds and all of the stroke (+-15, +-30, +-45 deg for
 rotations), and the stroke range over which each method stays within 1 % and 5 %.
 
-    python bench/bench_methods.py [--repeat 5] [--plot methods.png]
+    python bench/bench_methods.py [--repeat 5] [--plot methods.png] [--only-interleaved]
+
+The last table times exact, hermite and auto interleaved (E H A per round), the ratio that holds on a
+shared machine.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import sys
 import time
@@ -21,11 +26,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from flexopt.model import Analysis, template  # noqa: E402
-from flexopt.model.derivatives import frequency_curve  # noqa: E402
+from flexopt.model.methods import frequency_curve  # noqa: E402
 
 TEMPLATES = ("leaf-spring", "parallel-leaf-spring", "cross-spring-pivot")
 FAMILIES = ("cartwheel-hinge", "three-fold-cross-hinge", "double-cross-hinge")  # the optimiser's other families
-METHODS = ("exact", "fd1", "fd2", "manifold", "reduced")
+METHODS = ("exact", "fd1", "fd2", "manifold", "reduced", "hermite", "auto")
 
 
 def _range_within(stroke: np.ndarray, err: np.ndarray, tol: float) -> float:
@@ -58,7 +63,7 @@ def bench_template(name: str, repeat: int) -> tuple[list[str], dict]:
             times.append(time.perf_counter() - t0)
         curves[m] = c
         if m == "exact":
-            exact = c
+            exact, exact_median = c, statistics.median(times)
         err = np.abs(c.parasitic_hz / exact.parasitic_hz - 1.0)
         smax = np.abs(values).max()
         cols = []
@@ -68,7 +73,9 @@ def bench_template(name: str, repeat: int) -> tuple[list[str], dict]:
             cols.append(f"{e.max():.2e} / {np.sqrt(np.mean(e**2)):.2e}")
         unit = c.stroke_unit
         r1, r5 = _range_within(values, err, 0.01), _range_within(values, err, 0.05)
-        rows.append(f"| {m} | {statistics.median(times) * 1e3:.2f} | "
+        label = m if m != "auto" else f"auto ({c.method})"
+        speed = statistics.median(times) / exact_median if m != "exact" else 1.0
+        rows.append(f"| {label} | {statistics.median(times) * 1e3:.2f} | {1 / speed:.1f}x | "
                     f"{'-' if not np.isfinite(build) else f'{build * 1e3:.1f}'} | " + " | ".join(cols)
                     + f" | +-{r1:.4g} {unit} | +-{r5:.4g} {unit} |")
     return rows, curves
@@ -79,21 +86,48 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--repeat", type=int, default=5)
     p.add_argument("--plot", default=None, help="write a PNG of the first parasitic frequency per method")
+    p.add_argument("--only-interleaved", action="store_true", help="print only the exact/hermite/auto table")
     args = p.parse_args(argv)
+
+    print(f"load average {os.getloadavg()[0]:.2f} at start; {os.cpu_count()} CPUs; medians of {args.repeat} warm runs")
     all_curves = {}
-    for name in TEMPLATES + FAMILIES:
+    for name in () if args.only_interleaved else TEMPLATES + FAMILIES:
         rows, curves = bench_template(name, args.repeat)
         all_curves[name] = curves
         unit = curves["exact"].stroke_unit
         smax = float(np.abs(curves["exact"].stroke).max())
         thirds = ", ".join(f"+-{f * smax:.3g}" for f in (1 / 3, 2 / 3, 1.0))
         print(f"\n### {name} (first parasitic at 0: {curves['exact'].parasitic_hz[len(curves['exact'].stroke) // 2]:.2f} Hz)\n")
-        print(f"| method | warm 91-pt [ms] | build [ms] | max / RMS rel. error over {thirds} {unit} (three columns) "
-              "| | | within 1 % | within 5 % |")
-        print("|---|---|---|---|---|---|---|---|")
+        print(f"| method | warm 91-pt [ms] | speed-up vs exact | build [ms] | max / RMS rel. error over {thirds} {unit} "
+              "(three columns) | | | within 1 % | within 5 % |")
+        print("|---|---|---|---|---|---|---|---|---|")
         for r in rows:
             print(r)
-    if args.plot:
+    print(f"\n### exact, hermite and auto interleaved (tolerance 1 %; {args.repeat} rounds of E H A; load average "
+          f"{os.getloadavg()[0]:.2f})\n")
+    print("| template | exact median [ms] | hermite median [ms] | hermite speed-up (median of rounds) | auto ran "
+          "| auto speed-up | hermite samples | hermite max error | hermite estimate |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for name in TEMPLATES + FAMILIES:
+        an = Analysis(template(name))
+        ex = frequency_curve(an, "exact")
+        frequency_curve(an, "hermite")
+        te, th, ta = [], [], []
+        for _ in range(args.repeat):
+            for m, acc in (("exact", te), ("hermite", th), ("auto", ta)):
+                t0 = time.perf_counter()
+                c = frequency_curve(an, m, tolerance=0.01)
+                acc.append(time.perf_counter() - t0)
+                if m == "hermite":
+                    h = c
+                elif m == "auto":
+                    a = c
+        err = float(np.max(np.abs(h.parasitic_hz / ex.parasitic_hz - 1)))
+        sh = statistics.median([e / x for e, x in zip(te, th)])
+        sa = statistics.median([e / x for e, x in zip(te, ta)])
+        print(f"| {name} | {statistics.median(te) * 1e3:.1f} | {statistics.median(th) * 1e3:.1f} | {sh:.1f}x | "
+              f"{a.method} | {sa:.1f}x | {h.solver['samples']} | {err:.2e} | {h.solver['estimated_error']:.2e} |")
+    if args.plot and all_curves:
         import matplotlib
 
         matplotlib.use("Agg")

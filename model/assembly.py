@@ -11,9 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .elements import beam_spec, truss_spec
+from .elements import beam_spec, rotation_log_spec, rotation_update_spec, truss_spec
 from .kernels import compiled
-from .rotations import expm_so3, log_so3, skew, twist_angle, twist_gradient
+from .rotations import log_so3, skew, twist_angle, twist_gradient
 from .structure import Structure
 
 __all__ = ["State", "Assembled", "System"]
@@ -159,6 +159,11 @@ class System:
         self._chart_flat = np.concatenate([rp[:, i] * N + rp[:, j] for i, j, _, _ in ijks])
         self._chart_src = np.concatenate([6 * rm + 3 + k for _, _, k, _ in ijks])
         self._chart_sign = np.repeat([0.5 * sg for _, _, _, sg in ijks], len(rm))
+        # compiled Rodrigues update and relative logarithm of the rotating masters, with input buffers
+        self._rot_update = compiled(rotation_update_spec())
+        self._rot_log = compiled(rotation_log_spec())
+        self._rot_in = np.zeros((len(rm), 12))
+        self._log_in = np.zeros((len(rm), 18))
 
     # ------------------------------------------------------------------ state
     def reference_state(self) -> State:
@@ -225,7 +230,10 @@ class System:
         R = st.R.copy()
         moving = self._rot_masters
         if len(moving):
-            R[moving] = expm_so3(d[moving, 3:]) @ st.R[moving]
+            buf = self._rot_in
+            buf[:, :3] = d[moving, 3:]
+            buf[:, 3:] = st.R[moving].transpose(0, 2, 1).reshape(-1, 9)
+            R[moving] = self._rot_update(buf).reshape(-1, 3, 3).transpose(0, 2, 1)
         new = State(st.X + d[:, :3], R, st.lam.copy())
         if dlam is not None:
             new.lam += dlam
@@ -240,7 +248,14 @@ class System:
         d[:, :3] = st.X - base.X
         m = self._rot_masters
         if len(m):
-            d[m, 3:] = log_so3(st.R[m] @ base.R[m].transpose(0, 2, 1))
+            buf = self._log_in
+            buf[:, :9] = st.R[m].transpose(0, 2, 1).reshape(-1, 9)
+            buf[:, 9:] = base.R[m].transpose(0, 2, 1).reshape(-1, 9)
+            out = self._rot_log(buf)
+            d[m, 3:] = out[:, :3]
+            far = out[:, 3] > np.pi - 1e-3  # near pi the skew part loses the axis: quaternion route
+            if far.any():
+                d[m[far], 3:] = log_so3(st.R[m[far]] @ base.R[m[far]].transpose(0, 2, 1))
         return self.from_global(d.ravel())
 
     # ------------------------------------------------------------ kernels

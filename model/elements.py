@@ -39,7 +39,8 @@ from functools import lru_cache
 import casadi as ca
 
 __all__ = ["KernelSpec", "beam_spec", "truss_spec", "BEAM_CONST", "TRUSS_CONST", "beam_input_jvp",
-           "beam_segment_design", "beam_von_mises", "beam_von_mises_squared"]
+           "beam_segment_design", "beam_von_mises", "beam_von_mises_squared", "rotation_update_spec",
+           "rotation_log_spec"]
 
 # Layout of a beam's packed input vector.
 BEAM_STATE = 30  # xp(3) Rp(9, column-major) rp(3) xq(3) Rq(9) rq(3)
@@ -341,3 +342,51 @@ def von_mises_spec() -> KernelSpec:
     """The values of :func:`beam_von_mises` as a compiled kernel (the curve evaluates it at every point)."""
     z, vm = _von_mises_expr()
     return KernelSpec("flexopt_von_mises_value", ca.Function("flexopt_von_mises_value", [z], [vm]), 13, 2, 6, 6, 7)
+
+
+# ------------------------------------------------------------ rotation kernels (numeric use only)
+@lru_cache(maxsize=None)
+def rotation_update_spec() -> KernelSpec:
+    """``R_new = exp(skew(psi)) R`` per master: input ``[psi (3), R (9, column-major)]``, output R_new (9).
+
+    Rodrigues' formula ``exp(S) = I + a S + b S^2``, ``a = sin t / t``, ``b = 2 sin^2(t/2) / t^2``
+    (``t = |psi|``; the half-angle form avoids the cancellation of ``1 - cos t``), with the Taylor series of
+    ``a`` and ``b`` below ``t = 1e-4`` (truncation error below 1e-17). Used by the Newton update, not
+    differentiated (the elements use the Taylor polynomials above).
+    """
+    a = ca.SX.sym("a", 12)
+    psi, R = a[:3], ca.reshape(a[3:], 3, 3)
+    t2 = ca.dot(psi, psi)
+    t = ca.sqrt(t2)
+    small = t < 1e-4
+    ts = ca.if_else(small, 1.0, t)
+    ca_ = ca.if_else(small, 1.0 - t2 / 6.0, ca.sin(ts) / ts)
+    h = ca.sin(0.5 * ts) / ts
+    cb = ca.if_else(small, 0.5 - t2 / 24.0, 2.0 * h * h)
+    S = _skew(psi)
+    out = ca.reshape((ca.SX.eye(3) + ca_ * S + cb * (S @ S)) @ R, 9, 1)
+    f = ca.Function("flexopt_rot_update", [a], [out])
+    return KernelSpec("flexopt_rot_update", f, 12, 9, 0, 12, 0)
+
+
+@lru_cache(maxsize=None)
+def rotation_log_spec() -> KernelSpec:
+    """``psi = log(R Rb^T)`` per master: input ``[R (9), Rb (9)]`` (column-major), output ``[psi (3),
+    angle (1)]``.
+
+    ``A = R Rb^T``; ``psi = atan2(s, c) v / s`` with ``v = vee(A - A^T) / 2``, ``s = |v|`` (sine of the
+    angle) and ``c = (tr A - 1) / 2``; ``psi = (1 + s^2 / 6) v`` below ``s = 1e-6``. Accurate for angles
+    below about ``pi - 1e-3`` (the axis comes from the skew part, whose size is the sine): the caller
+    re-does larger angles by the quaternion route (``angle`` returned for that check).
+    """
+    a = ca.SX.sym("a", 18)
+    A = ca.reshape(a[:9], 3, 3) @ ca.reshape(a[9:], 3, 3).T
+    v = 0.5 * ca.vertcat(A[2, 1] - A[1, 2], A[0, 2] - A[2, 0], A[1, 0] - A[0, 1])
+    s = ca.norm_2(v)
+    c = 0.5 * (A[0, 0] + A[1, 1] + A[2, 2] - 1.0)
+    ang = ca.atan2(s, c)
+    small = s < 1e-6
+    fac = ca.if_else(small, 1.0 + s * s / 6.0, ang / ca.if_else(small, 1.0, s))
+    out = ca.vertcat(fac * v, ang)
+    f = ca.Function("flexopt_rot_log", [a], [out])
+    return KernelSpec("flexopt_rot_log", f, 18, 4, 0, 18, 0)

@@ -19,7 +19,6 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 from scipy.linalg import lapack
-from scipy.optimize import linear_sum_assignment
 
 from .assembly import System
 from .errors import FlexoptError
@@ -44,6 +43,54 @@ class Modes:
         return np.sign(self.omega2) * np.sqrt(np.abs(self.omega2)) / (2 * np.pi)
 
 
+def _lowest_pairs(K: np.ndarray, M: np.ndarray, k: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The ``k`` lowest eigenpairs of ``K phi = lambda M phi`` solved *through K*; ``(None, None)`` if ``K``
+    is not positive definite.
+
+    Both matrices are first scaled symmetrically by ``D = diag(K)^(-1/2)`` (Jacobi equilibration: the
+    eigenvalues are unchanged, the DOF units -- metres against radians -- drop out). With the Cholesky
+    factor ``K_s = L L^T`` the pencil becomes the standard problem ``C y = mu y``, ``C = L^-1 M_s L^-T``,
+    ``mu = 1 / lambda``, and the lowest ``lambda`` are the *largest* ``mu``: a symmetric eigen solver
+    gives each ``mu`` to an absolute error of about ``eps mu_max`` (Parlett, The Symmetric Eigenvalue
+    Problem, ch. 4), i.e. the lowest frequency to ``eps`` relative, whatever the conditioning of ``M``.
+    The route through ``M`` (LAPACK dsygvx: Cholesky of ``M``) bounds the error by ``eps lambda_max``
+    instead, up to 4e-4 relative for the lowest modes of finely meshed thin leaves (issue 12). Vectors:
+    ``phi = D L^-T y / sqrt(mu)`` (mass-normalised).
+    """
+    d = K.diagonal()
+    if not (np.all(d > 0) and np.all(M.diagonal() > 0)):  # the route through M reports a singular M
+        return None, None
+    D = 1.0 / np.sqrt(d)
+    Ks = K * D[:, None] * D[None, :]
+    Ms = M * D[:, None] * D[None, :]
+    L, info = lapack.dpotrf(Ks, lower=1, clean=0, overwrite_a=1)
+    if info != 0:
+        return None, None
+    C, info = lapack.dsygst(Ms, L, itype=1, lower=1, overwrite_a=1)
+    n = K.shape[0]
+    mu, Y, _, _, info = lapack.dsyevx(C, compute_v=1, range="I", il=n - k + 1, iu=n, lower=1, abstol=_ABSTOL,
+                                      overwrite_a=1)
+    if info != 0 or not np.all(mu[:k] > 0):
+        return None, None
+    mu, Y = mu[:k][::-1], Y[:, :k][:, ::-1]
+    X, info = lapack.dtrtrs(L, Y, lower=1, trans=1)
+    if info != 0:
+        return None, None
+    return 1.0 / mu, X * D[:, None] / np.sqrt(mu)[None, :]
+
+
+def _lowest_pairs_through_m(K: np.ndarray, M: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """The ``k`` lowest eigenpairs by LAPACK's dsygvx (Cholesky of ``M``): also for an indefinite ``K``.
+
+    Called directly (scipy.linalg.eigh's checks cost a third of a small solve). Only the lower triangles
+    are read, so ``K``'s round-off asymmetry is irrelevant. ``ABSTOL = 2 * underflow`` is LAPACK's
+    setting for the most accurate eigenvalues.
+    """
+    w, V, _, _, info = lapack.dsygvx(K.T, M.T, itype=1, jobz="V", range="I", il=1, iu=k, uplo="L",
+                                     abstol=_ABSTOL)
+    return w[:k], V[:, :k], info
+
+
 def modes_at(sys: System, eq: Equilibrium, k: int, drive: str = "locked") -> Modes:
     """The ``k`` lowest eigenpairs at ``eq`` with the drive ``locked`` or ``free``."""
     s = sys.s
@@ -60,22 +107,18 @@ def modes_at(sys: System, eq: Equilibrium, k: int, drive: str = "locked") -> Mod
     k = min(k, K.shape[0])
     if k == 0:
         return Modes(np.zeros(0), np.zeros((sys.n, 0)), M)
-    # LAPACK's dsygvx (Cholesky of M, reduction, the k lowest pairs) called directly: the scipy.linalg.eigh
-    # wrapper's checks cost a third of the solve on small models. Only the lower triangles are read, so
-    # K's round-off asymmetry is irrelevant; F-ordered transposes avoid copies. ABSTOL = 2 * underflow is
-    # LAPACK's setting for the most accurate eigenvalues: the default (eps * norm) would leave the lowest
-    # eigenvalues of a stiff model with relative errors up to eps * lambda_max / lambda_min.
-    w, V, _, _, info = lapack.dsygvx(K.T, Mr.T, itype=1, jobz="V", range="I", il=1, iu=k, uplo="L",
-                                     abstol=_ABSTOL)
-    if info > K.shape[0]:  # LAPACK: the leading minor of order info - n of M is not positive definite
-        bad = [s.dof_label(int(sys.act_full[d])) for d in dofs[np.diag(M[ix]) <= 0][:5]]
-        raise FlexoptError(
-            "the mass matrix is singular" + (f" (no mass on {', '.join(bad)})" if bad else "")
-            + "; give every moving body mass and inertia or attach it to beams"
-        )
-    if info != 0:
-        raise FlexoptError(f"the eigen solver did not converge (LAPACK dsygvx info {info}); the stiffness "
-                           "matrix may contain non-finite values: check the scene's dimensions")
+    w, V = _lowest_pairs(K, Mr, k)
+    if w is None:  # K not positive definite (unstable) or singular: the pencil route through M
+        w, V, info = _lowest_pairs_through_m(K, Mr, k)
+        if info > K.shape[0]:  # LAPACK: the leading minor of order info - n of M is not positive definite
+            bad = [s.dof_label(int(sys.act_full[d])) for d in dofs[np.diag(M[ix]) <= 0][:5]]
+            raise FlexoptError(
+                "the mass matrix is singular" + (f" (no mass on {', '.join(bad)})" if bad else "")
+                + "; give every moving body mass and inertia or attach it to beams"
+            )
+        if info != 0:
+            raise FlexoptError(f"the eigen solver did not converge (LAPACK dsygvx info {info}); the stiffness "
+                               "matrix may contain non-finite values: check the scene's dimensions")
     w, V = w[:k], V[:, :k]
     phi = np.zeros((sys.n, k))
     phi[dofs] = V if Z is None else Z @ V
@@ -102,6 +145,15 @@ def track(prev: Modes, cur: Modes) -> np.ndarray:
     num = (A.T @ MB) ** 2
     den = np.outer(np.einsum("ij,ij->j", A, cur.M @ A), np.einsum("ij,ij->j", B, MB))
     mac = num / np.where(den > 0, den, 1.0)
+    if mac.size == 0:
+        return np.arange(mac.shape[0])
+    best = np.argmax(mac, axis=1)
+    if mac.shape[0] == mac.shape[1] and np.bincount(best, minlength=len(best)).max() == 1:
+        # every mode's best match is a different mode: that permutation is the assignment of largest total
+        # MAC (each term is at its row's maximum), so the assignment solver is not needed
+        return best
+    from scipy.optimize import linear_sum_assignment  # lazily: scipy.optimize costs 0.1-0.3 s to import
+
     rows, cols = linear_sum_assignment(-mac)
     perm = np.empty(len(rows), dtype=int)
     perm[rows] = cols

@@ -147,10 +147,10 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--log-frequency", action="store_true",
                    help="logarithmic frequency axis in --plot (default: chosen when modes span > 8x)")
     c.add_argument("--progress", action="store_true", help="show progress on stderr even when not a terminal")
-    c.add_argument("--method", choices=["exact", "fd1", "fd2", "manifold", "reduced", "auto"], default="exact",
-                   help="exact (continuation + eigen), Taylor fd1/fd2, quadratic manifold, reduced, or auto")
+    c.add_argument("--method", choices=["exact", "fd1", "fd2", "manifold", "reduced", "hermite", "auto"], default="exact",
+                   help="exact (continuation + eigen), Taylor fd1/fd2, quadratic manifold, reduced, hermite, or auto")
     c.add_argument("--tolerance", type=float, default=0.01,
-                   help="relative error allowed on the first parasitic frequency (for --method auto)")
+                   help="relative error allowed on the first parasitic frequency (for --method hermite and auto)")
     c.add_argument("--strict", action="store_true",
                    help="exit 3 when the result has a warning of kind stress or validity")
     c.set_defaults(func=_cmd_curve)

@@ -38,8 +38,8 @@ __all__ = [
 ]
 
 API_VERSION = "1"
-METHODS = ("exact", "fd1", "fd2", "manifold", "reduced", "auto")
-Method = Literal["exact", "fd1", "fd2", "manifold", "reduced", "auto"]
+METHODS = ("exact", "fd1", "fd2", "manifold", "reduced", "hermite", "auto")
+Method = Literal["exact", "fd1", "fd2", "manifold", "reduced", "hermite", "auto"]
 
 SceneDocument = Annotated[
     dict[str, Any],
@@ -93,7 +93,7 @@ class FrequencyCurveRequest(_Wire):
     stroke: list[FiniteFloat] | None = Field(
         None, description="stroke values in the result's stroke unit: deg or rad, m for translations (SI even when "
         "the scene has a units block); default: the scene's own grid")
-    method: Method = Field("exact", description="exact (continuation + eigen), fd1, fd2, manifold, reduced or auto")
+    method: Method = Field("exact", description="exact (continuation + eigen), fd1, fd2, manifold, reduced, hermite (exact samples + exact stroke derivatives, cubic Hermite) or auto")
     tolerance: PositiveFloat = Field(0.01, description="relative error allowed on the first parasitic "
                                                        "frequency (method auto)")
     shapes: bool = Field(False, description="add the deflected configuration at every stroke point (`shapes`: "

@@ -229,7 +229,7 @@ def test_auto_estimate_bounds_true_error(analyses, exact_curves, name):
             assert est[m] >= true / 2, f"{name} {m}: estimate {est[m]:.3g} < true {true:.3g} / 2"
     c = frequency_curve(an, "auto", tolerance=0.01)
     err = np.abs(c.parasitic_hz / ex.parasitic_hz - 1).max()
-    assert c.method in ("fd1", "fd2", "manifold", "reduced", "exact")
+    assert c.method in ("fd1", "fd2", "manifold", "reduced", "hermite", "exact")
     assert err <= 0.02, f"auto chose {c.method} with error {err:.3g}"
 
 

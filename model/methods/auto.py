@@ -1,0 +1,171 @@
+"""One registry of frequency-curve methods, ``frequency_curve(obj, method)`` and ``auto``.
+
+Methods: ``exact`` (continuation + eigen at every point, model.analysis), ``fd1``/``fd2`` (Taylor,
+:mod:`.taylor`), ``manifold``/``reduced`` (:mod:`.manifold`), ``hermite`` (exact samples and exact
+stroke derivatives joined by cubic Hermite interpolation, :mod:`.hermite`) and ``auto``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from ..analysis import Analysis
+from ..checks import annotate_curve
+from ..errors import FlexoptError
+from ..results import FrequencyCurve
+from ..scene import Scene
+from .common import _curve_from
+from .hermite import hermite_frequency_curve
+from .manifold import eigen_curve
+from .taylor import _prepare, taylor_curve
+
+__all__ = ["METHODS", "AUTO_ORDER", "frequency_curve", "estimate_error", "curve_with_method"]
+
+METHODS = ("exact", "fd1", "fd2", "manifold", "reduced", "hermite", "auto")
+#: Cheapest first: the fast methods :func:`estimate_error` rates.
+AUTO_ORDER = ("fd1", "fd2", "reduced", "manifold", "exact")  # candidates of estimate_error (auto: _auto)
+
+
+def frequency_curve(obj: Scene | Analysis, method: str = "auto", tolerance: float = 0.01,
+                    stroke: np.ndarray | None = None) -> FrequencyCurve:
+    """Stroke-dependent frequencies by ``method`` (one of :data:`METHODS`).
+
+    ``exact``: continuation + eigen at every point. ``fd1``: eq. 10 (first order). ``fd2``: second-order
+    Taylor in eta with degenerate perturbation. ``manifold``: one-shot configuration on the quadratic
+    manifold, full eigen solve, no Newton. ``reduced``: the same configuration, eigenproblem in the basis
+    of the first modes, their modal derivatives and the driving mode (Wu and Tiso 2015). ``hermite``:
+    exact samples with exact stroke derivatives, cubic Hermite along tracked branches, samples added until
+    the estimated error of the first parasitic frequency meets ``tolerance`` (:mod:`.hermite`). ``auto``:
+    ``hermite`` when it meets ``tolerance`` within a sample budget, otherwise ``exact`` (:func:`_auto`).
+    The fast methods' estimator for the Taylor and manifold methods is :func:`estimate_error`.
+    """
+    an = obj if isinstance(obj, Analysis) else Analysis(obj)
+    # every method's curve leaves with the model's checks (warnings) and its provenance (model.checks);
+    # annotating is idempotent, so the exact curve, already annotated by Analysis, is unchanged
+    return annotate_curve(_frequency_curve(an, method, tolerance, stroke), an.scene, an.options)
+
+
+def _frequency_curve(an: Analysis, method: str, tolerance: float, stroke: np.ndarray | None) -> FrequencyCurve:
+    if method not in METHODS:
+        raise FlexoptError(f"unknown method '{method}': choose one of {', '.join(METHODS)}")
+    if not (tolerance > 0):
+        raise FlexoptError(f"tolerance must be positive (a relative error, e.g. 0.01), got {tolerance}")
+    spec = an.scene.stroke
+    values = np.asarray(spec.values() if stroke is None else stroke, dtype=float)
+    if method == "exact":
+        return an.frequency_curve(values)
+    if method == "hermite":
+        return hermite_frequency_curve(an, values, tolerance)[0]
+    if method == "auto":
+        return _auto(an, values, tolerance)
+    if spec.drive == "free":
+        # the Taylor and manifold methods analyse modes with the drive locked (model.methods.taylor): on a
+        # scene whose eigen analysis keeps the drive free they would answer a different question
+        raise FlexoptError(f"method '{method}' computes modes with the drive locked, but scene '{an.scene.name}' "
+                           "asks for the drive free in its eigen analysis (stroke.drive: free): use method "
+                           "'exact', 'hermite' or 'auto', or set stroke.drive to 'locked'")
+    t0 = time.perf_counter()
+    prep = _prepare(an)
+    eta = np.asarray(spec.to_internal(values), dtype=float)
+    # a structure with fewer locked DOFs than requested modes has only that many (wire guides: 5 of 6)
+    n_rep = min(an.scene.modes, len(an.system.free) - an.system.n_con)
+    extra: dict = {"build_seconds": prep.md.build_seconds}
+    if method in ("fd1", "fd2"):
+        hz, labels, par = taylor_curve(prep, eta, 1 if method == "fd1" else 2, n_rep)
+    else:
+        hz, labels, par, dev = eigen_curve(prep, eta, method == "reduced", n_rep)
+        extra["max_drive_deviation"] = dev
+    return _curve_from(an, method, values, hz, labels, par, time.perf_counter() - t0, extra)
+
+
+#: Fewest requested stroke points on one side of 0 for which ``auto`` tries ``hermite`` (it needs four exact
+#: samples per side before it can estimate anything; below this the exact curve is as cheap).
+AUTO_MIN_POINTS = 12
+
+
+def _auto(an: Analysis, values: np.ndarray, tolerance: float) -> FrequencyCurve:
+    """``auto``: on curves with at least ``AUTO_MIN_POINTS`` points per side, ``hermite`` within a sample
+    budget; on shorter curves (an optimiser's screening grid) the cheapest Taylor or manifold method whose
+    :func:`estimate_error` meets ``tolerance``; otherwise (or when neither qualifies) the exact curve.
+
+    Budget: a third of the requested points per side as samples. A sample costs one to three exact points
+    (its continuation step, one eigen solve and the slopes), so the attempt costs at most about the exact
+    curve and measured a fifth to a half of it on the templates (README, Fast methods). When nothing
+    qualifies, ``auto`` costs the attempt plus the exact curve (up to about twice exact on a long curve;
+    the estimator's four exact points more on a short one; nothing more for a drive-free scene, where the
+    locked-drive methods do not apply). The curve's ``solver`` says which method ran (``auto_method``), its
+    estimated error (``auto_estimate``; 0 for exact) and the tolerance; ``solver.seconds`` covers everything
+    auto did.
+    """
+    t0 = time.perf_counter()
+    internal = np.asarray(an.scene.stroke.to_internal(values), dtype=float)
+    per_side = max(int(np.sum(internal > 0)), int(np.sum(internal < 0)))
+    tried: dict = {}
+    if per_side >= AUTO_MIN_POINTS:
+        curve, extra = hermite_frequency_curve(an, values, tolerance, max_samples=max(4, per_side // 3))
+        if curve.method == "hermite" and extra["converged"] and extra["estimated_error"] <= tolerance:
+            return replace(curve, solver={**curve.solver, "seconds": time.perf_counter() - t0,
+                                          "auto_method": "hermite", "auto_estimate": extra["estimated_error"],
+                                          "auto_tolerance": tolerance})
+        tried = {"auto_rejected": f"hermite (estimated error {extra.get('estimated_error', float('nan')):.3g}, "
+                                  f"{extra.get('samples', 0)} samples)"}
+    elif an.scene.stroke.drive == "locked" and not an.system.n_con:
+        # short curves (e.g. an optimiser's screening grid): the Taylor and manifold methods rated by
+        # estimate_error (exact solves at the largest stroke and its half per side)
+        est = estimate_error(an, values)
+        for m in AUTO_ORDER[:-1]:
+            if est[m] <= tolerance:
+                cur = frequency_curve(an, m, tolerance, values)
+                return replace(cur, solver={**cur.solver, "seconds": time.perf_counter() - t0, "auto_method": m,
+                                            "auto_estimate": est[m], "auto_tolerance": tolerance})
+        tried = {"auto_rejected": "fd1, fd2, reduced, manifold (estimated errors "
+                                  + ", ".join(f"{est[m]:.3g}" for m in AUTO_ORDER[:-1]) + ")"}
+    cur = an.frequency_curve(values)
+    return replace(cur, solver={**cur.solver, "seconds": time.perf_counter() - t0, "auto_method": "exact",
+                                "auto_estimate": 0.0, "auto_tolerance": tolerance, **tried})
+
+
+def estimate_error(an: Analysis, values: np.ndarray, n_check: int = 2) -> dict[str, float]:
+    """Estimated max relative error of the first parasitic frequency for each fast method.
+
+    The estimator solves the exact problem at a few check strokes per side (the largest requested stroke
+    and its half; the Taylor and manifold errors grow monotonically with |stroke| on the templates, so the
+    ends dominate) and returns, per method, the largest relative deviation from exact at those points.
+    Cost: ``2 n_check`` exact points instead of the whole curve. Tested (tests/test_modal_derivatives.py)
+    to stay within a factor 2 of the true max error over the whole curve on the templates.
+    """
+    values = np.asarray(values, dtype=float)
+    checks = []
+    for side in (values[values > 0], values[values < 0]):
+        if len(side):
+            far = side[np.argmax(np.abs(side))]
+            checks += [far * (i + 1) / n_check for i in range(n_check)]
+    checks = np.array(sorted(set(checks)))
+    if len(checks) == 0:
+        return {m: 0.0 for m in AUTO_ORDER}
+    ref = an.frequency_curve(checks)
+    # points the exact continuation reached (a truncated curve makes every fast method unusable below)
+    ok = np.array([np.any(np.isclose(c, ref.stroke, rtol=1e-9, atol=1e-12 * np.abs(checks).max()))
+                   for c in checks])
+    exact = ref.parasitic_hz
+    est = {"exact": 0.0}
+    for m in AUTO_ORDER[:-1]:
+        try:
+            c = frequency_curve(an, m, 1.0, checks[ok])
+            est[m] = float(np.max(np.abs(c.parasitic_hz / exact - 1.0))) if len(exact) else 0.0
+        except FlexoptError:
+            est[m] = float("inf")
+        if not np.isfinite(est[m]):
+            est[m] = float("inf")
+    if ref.status != "complete":
+        est = {m: (v if m == "exact" else float("inf")) for m, v in est.items()}
+    return est
+
+
+def curve_with_method(analysis: Analysis, method: str, tolerance: float = 0.01,
+                      stroke: np.ndarray | None = None) -> FrequencyCurve:
+    """CLI entry point: :func:`frequency_curve` on a ready :class:`Analysis` (result has ``.method`` set)."""
+    return frequency_curve(analysis, method, tolerance, stroke)

@@ -1,0 +1,378 @@
+"""The ``hermite`` method: exact samples with exact stroke derivatives, joined by cubic Hermite interpolation.
+
+At a few stroke samples ``s_i`` the equilibrium and the eigenpairs are solved exactly (model.statics,
+model.modal, the same solves as the exact method), and each tracked eigenvalue's stroke derivative is
+computed exactly there (Nelson's formula for a mass-normalised mode; Fox and Kapoor 1968, eq. 9 of seed
+000 with the corrected denominator):
+
+    d lambda_i / ds = phi_i^T (dK/ds - lambda_i dM/ds) phi_i,
+
+with ``dq/ds`` the equilibrium tangent (from the Newton system), ``dK/ds`` the exact directional derivative
+of the element Hessians along it (CasADi third derivative, :meth:`System.hessian_derivative`) carried
+into the chart the exact method uses at ``s`` (:func:`model.methods.taylor._to_reference_chart`, first
+order, plus the drive reaction times the first-order BCH term ``Gamma_e``, which vanishes at stroke 0 but
+not at a loaded sample) and ``dM/ds`` from :func:`model.methods.taylor.mass_derivatives`. Clusters of
+(numerically) equal eigenvalues take the eigenvalues of the cluster
+matrix ``P^T (dK/ds - lambda_c dM/ds) P`` (degenerate perturbation) in ascending order; the gap is
+``SLOPE_CLUSTER_GAP``.
+
+Between samples each tracked branch (modes matched by the mass-weighted MAC, as in the exact method)
+is the cubic Hermite polynomial through both values and both slopes of ``mu = 1 / lambda``
+(``dmu/ds = -lambda' / lambda^2``); its interpolation error is ``h^4 / 384`` times the largest fourth
+derivative of ``mu`` (de Boor, A Practical Guide to Splines, ch. IV). Why ``1 / lambda``: a parasitic
+stiffness of a flexure is a support stiffness in series with a compliance that grows as ``s^2``
+(PHYSICS.md, the 1/700 term), so ``1 / lambda`` is close to a low-order polynomial in the stroke where
+``lambda`` itself falls by orders of magnitude (cross-spring pivot: 325 Hz to 39 Hz over 45 deg).
+
+Adaptive samples (per side of stroke 0): start with 0, s_max/4, s_max/2, 3 s_max/4 and s_max and bisect
+every interval whose error estimate exceeds the tolerance (relative, on the first parasitic frequency,
+the quantity the tolerance is about), down to intervals of s_max/64 or the sample budget. The estimate (:func:`_error`)
+compares the interpolant in ``1 / lambda`` with one in the frequency built from the same samples: no extra
+solve. The estimated error of the curve is the largest remaining interval estimate.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..analysis import Analysis
+from ..errors import FlexoptError
+from ..modal import Modes, modes_at, track
+from ..statics import Equilibrium, StepFailure, solve_point, walk
+from .common import _curve_from
+from .taylor import _clusters, mass_derivatives
+
+__all__ = ["hermite_curve", "stroke_slopes", "HermiteResult"]
+
+#: Relative gap below which eigenvalues are one degenerate cluster for the slopes. Nelson's formula is exact
+#: for every simple eigenvalue, however close its neighbour; only (numerically) repeated ones -- symmetric
+#: pairs, gap at rounding level -- need the cluster matrix. (The Taylor methods use the wider CLUSTER_GAP
+#: because their expansions divide by the gap; here nothing does.)
+SLOPE_CLUSTER_GAP = 1e-6
+#: An interval is refined while a branch within ``MAC_BAND`` times the lowest frequency at either end was
+#: matched across it with a MAC below ``MAC_MIN`` (its identity is uncertain: a crossing in between).
+MAC_MIN, MAC_BAND = 0.9, 1.5
+
+
+@dataclass
+class _Sample:
+    s: float  # internal stroke
+    eq: Equilibrium
+    modes: Modes  # k eigenpairs, ascending at this sample (not yet tracked)
+    slope: np.ndarray  # (k,) d lambda / ds of those modes
+
+
+@dataclass
+class HermiteResult:
+    """Interpolated branches at the requested strokes plus the bookkeeping the caller reports."""
+
+    hz: np.ndarray  # (p, n_rep) tracked branches [Hz]
+    labels: np.ndarray  # (p, n_rep)
+    parasitic: np.ndarray  # (p,)
+    estimate: float  # estimated max relative error of the first parasitic frequency
+    samples: int  # exact samples used (stroke 0 included)
+    converged: bool  # every interval's estimate met the tolerance
+
+
+def stroke_slopes(an: Analysis, eq: Equilibrium, modes: Modes) -> np.ndarray:
+    """Exact ``d lambda_i / ds`` of the eigenpairs ``modes`` at the equilibrium ``eq`` (see module docstring).
+
+    With ``K1 = D3L[t]`` (reference chart of ``eq``), the chart change of :func:`_to_reference_chart` to
+    first order, ``K1' = K1 - (J1^T K + K J1) - g_e Gamma_e'``, is applied as bilinear forms on the modes
+    (``J1 = 1/2 skew(t_rot)`` per master), so no n x n chart matrix is formed:
+    ``Q = P^T K1 P - (K P)^T (J1 P) - (J1 P)^T (K P) - g_e P^T Gamma_e' P - lambda P^T M1 P``.
+    """
+    sys = an.system
+    s = sys.s
+    n = sys.n
+    t = np.asarray(eq.tangent, dtype=float)
+    K = eq.ev.H
+    K1 = sys.hessian_derivative(eq.state, t)
+    M1, _ = mass_derivatives(sys, eq.state, t, np.zeros(n))
+    order = np.argsort(modes.omega2)  # clusters are runs of the ascending eigenvalues
+    lam, P = modes.omega2[order], modes.phi[:, order]
+    nm = len(s.master_names)
+    tg = sys.to_global(t).reshape(nm, 6)[:, 3:]  # rotation part of the tangent per master (global)
+    Pg = sys.to_global(P).reshape(nm, 6, -1)  # modes per master (global)
+    JPg = np.zeros_like(Pg)
+    JPg[:, 3:, :] = 0.5 * np.cross(tg[:, :, None], Pg[:, 3:, :], axis=1)
+    JP = sys.from_global(JPg.reshape(6 * nm, -1))
+    KP = K @ P
+    Q = P.T @ (0.5 * (K1 + K1.T)) @ P - KP.T @ JP - JP.T @ KP
+    if s.drive_kind == "rotation":
+        # first-order BCH term of the chart change times the drive moment g_e (zero at stroke 0 only)
+        e = np.asarray(s.drive_axis, dtype=float)
+        e = e / np.linalg.norm(e)
+        tr = tg[s.drive_master]
+        G = float(tr @ e) / 6.0 * np.eye(3) - (np.outer(tr, e) + np.outer(e, tr)) / 12.0
+        Pr = Pg[s.drive_master, 3:, :]
+        Q -= float(eq.ev.g[sys.drive]) * (Pr.T @ G @ Pr)
+    MP = P.T @ M1 @ P
+    out = np.empty(len(lam))
+    for c in _clusters(lam, SLOPE_CLUSTER_GAP):
+        lc = float(np.mean(lam[c]))
+        A = Q[np.ix_(c, c)] - lc * MP[np.ix_(c, c)]
+        if len(c) == 1:
+            out[c] = A[0, 0]
+        else:
+            out[c] = np.linalg.eigvalsh(0.5 * (A + A.T))  # ascending, to the ascending cluster members
+    res = np.empty(len(lam))
+    res[order] = out
+    return res
+
+
+def _hermite(s0: float, s1: float, y0: np.ndarray, y1: np.ndarray, d0: np.ndarray, d1: np.ndarray,
+             s: np.ndarray) -> np.ndarray:
+    """Cubic Hermite interpolant on [s0, s1] at ``s`` (p,) for each branch: (p, k)."""
+    h = s1 - s0
+    u = ((np.asarray(s) - s0) / h)[:, None]
+    h00 = (1 + 2 * u) * (1 - u) ** 2
+    h10 = u * (1 - u) ** 2
+    h01 = u * u * (3 - 2 * u)
+    h11 = u * u * (u - 1)
+    return h00 * y0 + h10 * h * d0 + h01 * y1 + h11 * h * d1
+
+
+def _hz(mu: np.ndarray) -> np.ndarray:
+    """Frequencies [Hz] from the interpolated compliances ``mu = 1 / omega^2``."""
+    return np.sign(mu) / np.sqrt(np.abs(mu)) / (2 * np.pi)
+
+
+class _Side:
+    """Samples on one side of stroke 0 and their tracked branches."""
+
+    def __init__(self, an: Analysis, first: _Sample, k: int, drive: str) -> None:
+        self.an, self.k, self.drive = an, k, drive
+        self.samples = [first]
+        self.perm: list[np.ndarray] = []
+        self.lam = self.slope = np.zeros((0, k))
+        self.labels: list[list[str]] = []
+
+    def sample(self, start: _Sample, s_new: float, end: _Sample | None = None) -> _Sample:
+        """The exact equilibrium, eigenpairs and slopes at ``s_new``, reached from the sample ``start``.
+
+        Between two samples (``end`` given) Newton starts from the cubic Hermite interpolation of the state
+        through both samples and their tangents (about two iterations); otherwise, or if that fails, the
+        continuation walks from ``start`` with step control.
+        """
+        an = self.an
+        sys = an.system
+        eq = None
+        if end is not None:
+            h = end.s - start.s
+            u = (s_new - start.s) / h
+            delta = sys.difference(end.eq.state, start.eq.state)
+            step = (u * (1 - u) ** 2 * h) * start.eq.tangent + (u * u * (3 - 2 * u)) * delta \
+                + (u * u * (u - 1) * h) * end.eq.tangent
+            try:
+                eq = solve_point(sys, sys.update(start.eq.state, step), s_new, an.options, start.s)
+            except StepFailure:
+                eq = None
+        if eq is None:
+            got: list[Equilibrium] = []
+
+            def accept(e: Equilibrium) -> None:
+                got.append(e)
+                return None
+
+            fail = walk(sys, np.array([s_new]), an.options, accept, start=start.eq)
+            if fail is not None or not got:
+                raise _Fallback(fail.message if fail is not None else "no equilibrium")
+            eq = got[-1]
+        modes = modes_at(sys, eq, self.k, self.drive)
+        if len(modes.omega2) == 0 or modes.omega2[0] <= 0:
+            raise _Fallback("equilibrium unstable at a sample")
+        return _Sample(s_new, eq, modes, stroke_slopes(an, eq, modes))
+
+    def initial(self, smax: float) -> None:
+        """Continuation from stroke 0 to ``smax`` with targets (and samples) at a quarter, half, three
+        quarters and the end (the continuation halves a step that fails; from the second target on its
+        predictor is the cubic through two converged points)."""
+        an = self.an
+        sys = an.system
+        def accept(e: Equilibrium) -> None:
+            if True:
+                modes = modes_at(sys, e, self.k, self.drive)
+                if len(modes.omega2) == 0 or modes.omega2[0] <= 0:
+                    raise _Fallback("equilibrium unstable at a sample")
+                self.add(_Sample(float(e.stroke), e, modes, stroke_slopes(an, e, modes)))
+            return None
+
+        fail = walk(sys, np.linspace(0.0, smax, 5)[1:], an.options, accept, start=self.samples[0].eq)
+        if fail is not None:
+            raise _Fallback(fail.message)
+
+    def add(self, smp: _Sample) -> None:
+        self.samples.append(smp)
+        self.samples.sort(key=lambda x: abs(x.s))
+
+    def retrack(self) -> None:
+        """Branch identities from stroke 0 outwards through every sample (MAC, as the exact method)."""
+        prev = None
+        lam, slope, labels, mac = [], [], [], []
+        for smp in self.samples:
+            m = smp.modes
+            if prev is None:
+                perm = np.arange(len(m.omega2))
+            else:
+                perm = track(prev, m)
+            tm = Modes(m.omega2[perm], m.phi[:, perm], m.M)
+            if prev is not None:  # MAC of each branch's match across the interval (1: same shape)
+                MB = tm.M @ tm.phi
+                num = np.einsum("ik,ik->k", prev.phi, MB) ** 2
+                den = np.einsum("ik,ik->k", prev.phi, tm.M @ prev.phi) * np.einsum("ik,ik->k", tm.phi, MB)
+                mac.append(num / np.where(den > 0, den, 1.0))
+            lam.append(1.0 / tm.omega2)  # interpolated variable: mu = 1 / lambda (see module docstring)
+            slope.append(-smp.slope[perm] / tm.omega2**2)
+            labels.append(self.an._labels(tm)[0])
+            prev = tm
+        self.lam, self.slope, self.labels, self.mac = np.array(lam), np.array(slope), labels, mac
+
+    def strokes(self) -> np.ndarray:
+        return np.array([x.s for x in self.samples])
+
+    def interpolate(self, s: np.ndarray) -> tuple[np.ndarray, list[list[str]]]:
+        """Interpolated eigenvalues (p, k) at strokes ``s`` of this side, with the labels of the nearer sample."""
+        S = self.strokes()
+        a = np.abs(S)
+        idx = np.clip(np.searchsorted(a, np.abs(s), side="right") - 1, 0, len(S) - 2)
+        out = np.empty((len(s), self.lam.shape[1]))
+        labels = []
+        for p, (x, i) in enumerate(zip(s, idx)):
+            out[p] = _hermite(S[i], S[i + 1], self.lam[i], self.lam[i + 1], self.slope[i], self.slope[i + 1],
+                              np.array([x]))[0]
+            near = i if abs(x - S[i]) <= abs(S[i + 1] - x) else i + 1
+            labels.append(self.labels[near])
+        return out, labels
+
+
+class _Fallback(Exception):
+    """The samples cannot be computed (loss of equilibrium, instability): the caller uses the exact method."""
+
+
+def _error(side: _Side, i: int) -> float:
+    """Estimated error of the interpolated first parasitic frequency over the interval [S_i, S_i+1].
+
+    Two cubic Hermite interpolants of the same exact data -- in ``mu = 1 / lambda`` (the one reported) and
+    in ``1 / sqrt(mu)`` (the frequency up to 2 pi) -- have different error terms (fourth derivatives of
+    different functions); where both are accurate they agree, where the branch changes faster than a cubic can follow (pre-asymptotic
+    sampling, a crossing with wrong tracking) they do not. The largest relative difference of the first
+    parasitic frequency on 16 interior points is the estimate: no extra exact solve. Infinite when a low
+    branch's match across the interval is uncertain (``MAC_MIN``).
+    """
+    S = side.strokes()
+    mu, d = side.lam, side.slope
+    # a branch near the first parasitic frequency whose mode shape changed much across the interval may
+    # have been matched to another mode (a crossing between the samples): refine until the match is clear
+    hz0, hz1 = _hz(mu[i]), _hz(mu[i + 1])
+    near = (hz0 <= MAC_BAND * np.nanmin(hz0)) | (hz1 <= MAC_BAND * np.nanmin(hz1))
+    if np.any(side.mac[i][near] < MAC_MIN):
+        return float("inf")
+    x = np.linspace(S[i], S[i + 1], 18)[1:-1]
+    a = _hermite(S[i], S[i + 1], mu[i], mu[i + 1], d[i], d[i + 1], x)
+    # second interpolant in r = mu^(-1/2) (proportional to the frequency): dr/ds = -mu'/(2 mu^(3/2))
+    r0, r1 = mu[i] ** -0.5, mu[i + 1] ** -0.5
+    b = _hermite(S[i], S[i + 1], r0, r1, -0.5 * d[i] * r0**3, -0.5 * d[i + 1] * r1**3, x) ** -2.0
+    left = np.abs(x - S[i]) <= np.abs(S[i + 1] - x)
+    par = np.where(left[:, None], np.array(side.labels[i]) == "parasitic",
+                   np.array(side.labels[i + 1]) == "parasitic")  # (16, k) labels of the nearer sample
+    fa = np.where(par, _hz(a), np.inf).min(axis=1)
+    fb = np.where(par, _hz(b), np.inf).min(axis=1)
+    ok = np.isfinite(fa) & np.isfinite(fb)
+    return float(np.max(np.abs(fa[ok] / fb[ok] - 1), initial=0.0))
+
+
+def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samples: int | None = None
+                  ) -> HermiteResult | None:
+    """Frequencies at the internal strokes ``internal`` by adaptive exact samples and cubic Hermite branches.
+
+    Returns ``None`` when a sample cannot be computed (the continuation fails or an equilibrium is
+    unstable): the caller then computes the exact curve, which reports where and why.
+    ``max_samples`` bounds the exact samples per side (default: unlimited up to intervals of s_max/64).
+    """
+    sys = an.system
+    spec = an.scene.stroke
+    drive = spec.drive
+    n_rep = min(an.scene.modes, (len(sys.free) if drive == "locked" else sys.n) - sys.n_con)
+    k = n_rep + 2
+    if sys.n_con:
+        return None  # the slopes need d(lambda)/ds of rigid-deformation multipliers: not implemented
+    eq0 = solve_point(sys, sys.reference_state(), 0.0, an.options, 0.0)
+    m0 = modes_at(sys, eq0, k, drive)
+    first = _Sample(0.0, eq0, m0, stroke_slopes(an, eq0, m0))
+    hz = np.empty((len(internal), n_rep))
+    labels = np.empty((len(internal), n_rep), dtype=object)
+    par = np.empty(len(internal))
+    estimate, used, converged = 0.0, 1, True
+    try:
+        for sel in (internal >= 0, internal < 0):
+            s_req = internal[sel]
+            if not len(s_req) or np.abs(s_req).max() == 0:
+                if len(s_req):  # only stroke 0 on this side
+                    lab = an._labels(m0)[0]
+                    hz[sel] = _hz(1.0 / m0.omega2)[:n_rep]
+                    labels[sel] = np.array(lab[:n_rep], dtype=object)
+                    par[sel] = an._labels(m0)[1]
+                continue
+            smax = s_req[np.argmax(np.abs(s_req))]
+            side = _Side(an, first, k, drive)
+            # initial samples at s/4, s/2, 3s/4 and s, then bisection of every interval whose estimate
+            # exceeds the tolerance
+            side.initial(smax)
+            side.retrack()
+            h_min = abs(smax) / 64.0
+            while True:
+                S = side.strokes()
+                est = {(S[i], S[i + 1]): _error(side, i) for i in range(len(S) - 1)}
+                todo = [iv for iv, e in est.items() if e > tolerance and abs(iv[1] - iv[0]) > h_min * 1.5]
+                if not todo or (max_samples is not None and len(side.samples) - 1 >= max_samples):
+                    break
+                for a_s, b_s in sorted(todo, key=lambda iv: abs(iv[0])):
+                    if max_samples is not None and len(side.samples) - 1 >= max_samples:
+                        break
+                    left = next(x for x in side.samples if x.s == a_s)
+                    right = next(x for x in side.samples if x.s == b_s)
+                    side.add(side.sample(left, 0.5 * (a_s + b_s), right))
+                side.retrack()
+            side_est = max(est.values())
+            estimate = max(estimate, side_est)
+            converged = converged and side_est <= tolerance
+            used += len(side.samples) - 1
+            lam, labs = side.interpolate(s_req)
+            h = _hz(lam)
+            hz[sel] = h[:, :n_rep]
+            labels[sel] = np.array([lab[:n_rep] for lab in labs], dtype=object)
+            par[sel] = [min((x for x, lab in zip(row, lr) if lab == "parasitic"), default=np.nan)
+                        for row, lr in zip(h, labs)]
+    except _Fallback:
+        return None
+    return HermiteResult(hz, labels, par, estimate, used, converged)
+
+
+def hermite_frequency_curve(an: Analysis, values: np.ndarray, tolerance: float,
+                            max_samples: int | None = None):
+    """The ``hermite`` method as a :class:`~model.results.FrequencyCurve`; the exact curve when a sample fails.
+
+    ``solver`` reports the exact samples used, the estimated max relative error and whether the adaptive
+    refinement met ``tolerance``.
+    """
+    t0 = time.perf_counter()
+    spec = an.scene.stroke
+    internal = np.asarray(spec.to_internal(values), dtype=float)
+    res = hermite_curve(an, internal, tolerance, max_samples)
+    if res is None:
+        ex = an.frequency_curve(values)
+        return ex, {"fallback": "exact (a sample's equilibrium could not be computed)"}
+    if not np.all(np.isfinite(res.hz)):
+        raise FlexoptError("the hermite interpolation produced non-finite frequencies; use method 'exact'")
+    extra = {"samples": res.samples, "estimated_error": res.estimate, "tolerance": tolerance,
+             "converged": res.converged}
+    conv = {"method": "hermite: exact equilibria, eigenpairs and d(lambda)/ds at the samples, cubic Hermite "
+                      "interpolation of each tracked branch's omega^2 between them",
+            "drive_reaction": "not computed by this method (NaN)"}
+    curve = _curve_from(an, "hermite", values, res.hz, res.labels, res.parasitic, time.perf_counter() - t0, extra,
+                        conv)
+    return curve, extra
