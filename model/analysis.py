@@ -99,15 +99,30 @@ class Analysis:
         self.system = System(self.structure)
         self.options = options or NewtonOptions()
 
-    def _labels(self, modes: Modes) -> tuple[list[str], float]:
+    def _labels(self, modes: Modes, tangent: np.ndarray | None = None) -> tuple[list[str], float]:
+        """Labels of the modes (``drive``, ``parasitic``, ``intended``) and the first parasitic frequency.
+
+        With the drive free, the drive mode is the one that moves the drive coordinate itself: the largest
+        mass-weighted MAC with ``tangent``, the equilibrium path's ``d xi / d s`` (how the whole structure
+        follows a change of the drive coordinate: for a rotation drive, the spin of the driven part about
+        the drive's fixed axis at the pivot, with the flexures deforming as the drive bends them). Without
+        the tangent (callers that hold no equilibrium) the mode with the largest kinetic-energy share in the
+        driven master's drive DOF, which misreads a rotor whose centre of mass lies off the pivot axis.
+        """
         s = self.structure
         hz = modes.hz
         part = participation(self.system, modes)
         drive_free = s.scene.stroke.drive == "free"
         labels = ["parasitic"] * len(hz)
-        if drive_free:
-            dd = self.system.drive
-            frac = modes.phi[dd] * (modes.M[dd] @ modes.phi)
+        if drive_free and len(hz):
+            if tangent is not None and np.any(tangent):
+                Mt = modes.M @ tangent
+                num = (modes.phi.T @ Mt) ** 2
+                den = np.einsum("ik,ik->k", modes.phi, modes.M @ modes.phi) * float(tangent @ Mt)
+                frac = num / np.where(den > 0, den, 1.0)
+            else:
+                dd = self.system.drive
+                frac = modes.phi[dd] * (modes.M[dd] @ modes.phi)
             labels[int(np.argmax(np.abs(frac)))] = "drive"
         if part is not None:
             labels = [lab if lab == "drive" else ("parasitic" if p > 0.5 else "intended")
@@ -248,7 +263,7 @@ class Analysis:
                 if prev[0] is not None:
                     perm = track(prev[0], modes)
                     modes = Modes(modes.omega2[perm], modes.phi[:, perm], modes.M)
-                labels, par = self._labels(modes)
+                labels, par = self._labels(modes, eq.tangent)
                 if visit is not None:
                     visit(eq, modes, labels)
                 vm = von_mises(s, self.system, eq)
