@@ -114,6 +114,7 @@ class ConstraintDiagnosis:
     kinematic_modes: tuple[dict[str, dict[str, list[float]]], ...] = field(default=())
     static_modes: tuple[dict[str, dict[str, float]], ...] = field(default=())
     release_candidates: tuple[tuple[str, ...], ...] = field(default=())
+    notes: tuple[str, ...] = field(default=())  # what the diagnosis chose for the user (idealisation, condensing)
 
     @property
     def m(self) -> int:
@@ -195,6 +196,7 @@ class ConstraintDiagnosis:
             "kinematic_modes": [dict(k) for k in self.kinematic_modes],
             "static_modes": [dict(s) for s in self.static_modes],
             "release_candidates": [list(r) for r in self.release_candidates],
+            "notes": list(self.notes),
             "conventions": {
                 "scaling": "SVD of D_cc C / L_c with C = diag(L_c translations, 1 rotations): singular values "
                 "dimensionless; kinematic modes are unit vectors of that scaled problem (translations in L_c "
@@ -215,6 +217,7 @@ class ConstraintDiagnosis:
             f"x(c), rank {self.rank}; nominal degrees of freedom n_dof = {self.n_dof}",
             f"Table 1: {self.classification}",
         ]
+        lines += [f"note: {n}" for n in self.notes]
         if self.rank:
             lines.append(f"smallest non-zero singular value {self.smallest_nonzero_singular_value:.4g}, "
                          f"condition number {self.condition_number:.4g} (L_c = {self.characteristic_length:.4g})")
@@ -231,6 +234,19 @@ class ConstraintDiagnosis:
                 lines.append("  " + name + ": " + ", ".join(f"{k} {v:+.4f}" for k, v in comps.items()))
             lines.append("  release one of these to remove it: " + ", ".join(rel))
         return "\n".join(lines)
+
+
+#: Names of the six deformations as scenes write them (model.scene.MODE_NAMES): eps3/eps5 belong to the
+#: element's first end p, eps4/eps6 to its second end q (seed 002, eq. 2).
+DEFORMATION_NAMES = ("elongation", "torsion", "bending_y", "bending_y", "bending_z", "bending_z")
+
+
+def deformation_label(k: int, p: str, q: str) -> str:
+    """Readable name of deformation ``k`` (0-based) of an element from node ``p`` to ``q``: ``elongation``,
+    ``torsion``, or ``bending_y@p`` / ``bending_z@q`` (the bending deformations are the end rotations
+    relative to the chord at that end node)."""
+    name = DEFORMATION_NAMES[k]
+    return name if k < 2 else f"{name}@{p if k in (2, 4) else q}"
 
 
 def _fmt(v: list[float]) -> str:
@@ -268,6 +284,7 @@ def _partition(s: Structure, kinematic: bool) -> tuple[list[tuple[int, int, int]
             gen_rows += [(kind, i, k) for k in sorted(gen)]
     labels: list[str] = []
     index: dict[tuple[int, int], str] = {}
+    ends: dict[tuple[int, int], tuple[str, str]] = {}
     for kind, member_of in ((0, s.beam_member), (1, s.truss_member)):
         per: dict[int, int] = {}
         tot = np.bincount(member_of, minlength=len(scene.elements)) if len(member_of) else []
@@ -276,10 +293,20 @@ def _partition(s: Structure, kinematic: bool) -> tuple[list[tuple[int, int, int]
             per[int(ie)] = j + 1
             name = scene.elements[int(ie)].name
             index[(kind, i)] = name if tot[int(ie)] == 1 else f"{name}[{j}]"
+            nodes = s.beam_nodes[i] if kind == 0 else s.truss_nodes[i]
+            ends[(kind, i)] = (s.node_names[nodes[0]], s.node_names[nodes[1]])
     for kind, i, k in rigid_rows + gen_rows:
-        labels.append(f"{index[(kind, i)]}.eps{k + 1}")
+        labels.append(f"{index[(kind, i)]}.{deformation_label(k, *ends[(kind, i)])}")
     kinds = ["rigid"] * len(rigid_rows) + ["generalised"] * len(gen_rows)
     return rigid_rows + gen_rows, labels, kinds, len(rigid_rows)
+
+
+def _split_label(s: Structure, row: tuple[int, int, int], label: str) -> tuple[str, str]:
+    """(element label, deformation name) of a row label built by :func:`_partition`."""
+    kind, i, k = row
+    nodes = s.beam_nodes[i] if kind == 0 else s.truss_nodes[i]
+    d = deformation_label(k, s.node_names[nodes[0]], s.node_names[nodes[1]])
+    return label[: -len(d) - 1], d
 
 
 def _columns(s: Structure) -> tuple[np.ndarray, list[str], list[str], np.ndarray]:
@@ -397,9 +424,24 @@ def diagnose(scene: Scene, at_stroke: float | None = None, kinematic: bool | Non
         When the partition has no rows (every deformation released and none generalised) or no columns
         (every coordinate supported or driven), or a deformation is both rigid and generalised.
     """
+    notes: list[str] = []
     kin = scene.kinematic if kinematic is None else bool(kinematic)
-    s = compile_scene(scene)
+    if kinematic is None and not kin and not any(e.rigid or e.generalised for e in scene.elements):
+        kin = True
+        notes.append("kinematic idealisation used: the scene declares no rigid or generalised deformation, so "
+                     "each flexure keeps only its compliant deformations (kinematic_rigid; seed 002 sec. 4.2); "
+                     "--declared (kinematic=false) diagnoses the declared partition instead")
+    full = compile_scene(scene)
+    flex = scene.model_copy(update={"elements": tuple(
+        e.model_copy(update={"segments": 1}) if isinstance(e, Beam) and e.segments != 1 else e
+        for e in scene.elements)})
+    s = compile_scene(flex) if flex.elements != scene.elements else full
+    if s is not full:
+        n_inner = len(full.master_names) - len(s.master_names)
+        notes.append(f"each meshed beam is diagnosed as one flexure: {n_inner} segment-internal nodes condensed, "
+                     "so motions are those of bodies and flexure ends")
     rows, row_labels, row_kind, n_rigid = _partition(s, kin)
+    row_parts = [_split_label(s, r, lab) for r, lab in zip(rows, row_labels)]
     if not rows:
         raise SceneError("elements[].rigid", "no rigid and no generalised deformations: D_cc has no rows, so "
                          "nothing constrains the structure; declare rigid deformations (e.g. "
@@ -411,7 +453,9 @@ def diagnose(scene: Scene, at_stroke: float | None = None, kinematic: bool | Non
     if at_stroke is None:
         X, R = s.master_pos.copy(), np.tile(np.eye(3), (len(s.master_names), 1, 1))
     else:
-        X, R = _state_at(scene, at_stroke)
+        Xf, Rf = _state_at(scene, at_stroke)
+        keep = [full.master_names.index(m) for m in s.master_names]
+        X, R = Xf[keep], Rf[keep]
     Dfull = _jacobian_rows(s, X, R, rows)
     D = Dfull @ T
     pos = np.array([n.position for n in scene.nodes], dtype=float)
@@ -439,8 +483,7 @@ def diagnose(scene: Scene, at_stroke: float | None = None, kinematic: bool | Non
     for j in range(rank, mcount):
         u = _sign_fix(U[:, j])
         mode2: dict[str, dict[str, float]] = {}
-        for lab, val in zip(row_labels, u):
-            el, dname = lab.rsplit(".", 1)
+        for (el, dname), val in zip(row_parts, u):
             if abs(val) >= 1e-12:
                 mode2.setdefault(el, {})[dname] = float(val)
         stat_modes.append(mode2)
@@ -469,4 +512,5 @@ def diagnose(scene: Scene, at_stroke: float | None = None, kinematic: bool | Non
         kinematic_modes=tuple(kin_modes),
         static_modes=tuple(stat_modes),
         release_candidates=tuple(releases),
+        notes=tuple(notes),
     )
