@@ -133,7 +133,9 @@ class Beam(_Strict):
         description="direction of the section's local y axis (the width direction of a rectangle); "
         "its part perpendicular to the beam axis is used, so it must not be parallel to the beam"
     )
-    segments: int = Field(1, ge=1, le=1000, description="number of beam elements along the member")
+    segments: Annotated[int, Field(ge=1, le=1000)] | Literal["auto"] = Field(
+        1, description="number of beam elements along the member, or 'auto': refined until the estimated "
+        "discretisation error of the curve is within the scene's mesh_tolerance (model.mesh)")
     rigid: tuple[DeformationName, ...] = Field(
         (),
         description="deformation modes held rigid (zero), e.g. ['elongation'] for a wire flexure, "
@@ -321,6 +323,10 @@ class Scene(_Strict):
     )
     support_directions: SupportDirections | None = None
     modes: int = Field(6, ge=1, le=50, description="number of modes reported per stroke point")
+    mesh_tolerance: float = Field(
+        1e-3, gt=0, le=0.5, allow_inf_nan=False,
+        description="relative discretisation error of the first parasitic frequency aimed at by beams with "
+        "segments 'auto' (model.mesh)")
 
     @model_validator(mode="after")
     def _references(self) -> "Scene":  # noqa: C901 - one table of checks, read top to bottom

@@ -75,3 +75,45 @@ def test_convergence_rate_is_fourth_order():
         assert abs(slope - ref.MASS_ORDER.value) <= ref.MASS_ORDER.rtol * ref.MASS_ORDER.value, (
             f"{name} mode {k + 1}: observed order {slope:.2f} from errors {err} ({ref.MASS_ORDER.source})")
         assert math.isfinite(slope)
+
+
+def _true_error(name: str, curve, **kw) -> float:
+    """Largest relative difference of ``curve``'s first parasitic frequency from a 40-segment model's, at
+    every 15th stroke point (40 segments: O(h^2) error 1/16 to 1/25 of the 8-10-segment one)."""
+    sub = curve.stroke[::15]
+    fine = Analysis(template(name, segments=40, **kw)).frequency_curve(stroke=sub, mesh_error=False)
+    sel = [int(np.argmin(np.abs(curve.stroke - s))) for s in fine.stroke]
+    return float(np.max(np.abs(curve.parasitic_hz[sel] / fine.parasitic_hz - 1)))
+
+
+@pytest.mark.parametrize("name", ["leaf-spring", "cross-spring-pivot"])
+def test_every_exact_curve_estimates_its_mesh_error(name):
+    c = Analysis(template(name)).frequency_curve()
+    assert c.mesh_error is not None and c.mesh_error > 0 and "Richardson" in c.conventions["mesh"]
+    true = _true_error(name, c)
+    # an estimate, not a bound: within a factor 2 of the error against a fine mesh (measured against 80
+    # segments: 1.04 leaf, 1.07 pivot); the Richardson estimate at the element's O(h^2) rate (model.mesh)
+    assert 0.5 * true <= c.mesh_error <= 2.0 * true, (name, c.mesh_error, true)
+    assert c.to_dict()["mesh_error"] == pytest.approx(c.mesh_error)
+
+
+def test_no_estimate_without_a_mesh_to_coarsen():
+    c = Analysis(template("leaf-spring", segments=1, points=3)).frequency_curve()
+    assert c.mesh_error is None
+
+
+def test_segments_auto_refines_to_the_mesh_tolerance():
+    from flexopt.model import scene_from_dict
+
+    d = template("leaf-spring").model_dump(mode="json")
+    d["elements"][0]["segments"] = "auto"
+    d["mesh_tolerance"] = 2e-3
+    an = Analysis(scene_from_dict(d))
+    c = an.frequency_curve()
+    n = an.scene.elements[0].segments
+    assert isinstance(n, int) and n >= 4 and f"{n} per beam" in c.conventions["mesh"], c.conventions["mesh"]
+    assert c.mesh_error <= 2e-3
+    assert _true_error("leaf-spring", c) <= 2 * 2e-3  # the estimate's factor-2 band (previous test)
+    with pytest.raises(ValueError, match="segments"):
+        d["elements"][0]["segments"] = "many"
+        scene_from_dict(d)
