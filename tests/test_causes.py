@@ -62,6 +62,14 @@ def test_unconnected_part_is_named():
     assert "buckling" not in msg and "unstable" not in msg
 
 
+def test_body_joined_to_nothing_is_named():
+    d = _leaf_plus([{"name": "n9", "position": [0, 0.2, 0]}], [])
+    d["bodies"] = [{"name": "lump", "mass": 0.1, "center_of_mass": [0, 0.2, 0],
+                    "inertia": [[1e-5, 0, 0], [0, 1e-5, 0], [0, 0, 1e-5]], "nodes": ["n9"]}]
+    with pytest.raises(SceneError, match=r"bodies\[0\]: 'lump' is not connected"):
+        Analysis(scene_from_dict(d)).frequency_curve()
+
+
 def test_mechanism_is_named():
     # a node hanging from the tip by one truss swings freely across it: two free motions
     d = _leaf_plus([{"name": "bob", "position": [0.1, 0.0, -0.05]}],
