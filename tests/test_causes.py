@@ -91,3 +91,13 @@ def test_stable_curve_unchanged_by_the_checks():
     c = Analysis(template("leaf-spring", points=5)).frequency_curve()
     assert c.status == "complete" and not c.failures
     assert np.all(c.parasitic_hz > 0)
+
+
+def test_worker_keeps_the_mass_underflow_field():
+    """A worker process reports errors by name; the service rebuilds them with their field (HTTP 422 with
+    loc body.scene.materials.0.density)."""
+    from flexopt.service.worker import _error, raise_error
+
+    with pytest.raises(MassUnderflowError) as e:
+        raise_error(_error(MassUnderflowError("materials[0].density", "mass underflow: x"))[1])
+    assert e.value.field == "materials[0].density"
