@@ -162,13 +162,13 @@ class Analysis:
         """
         sys, opts, drive = self.system, self.options, self.structure.scene.stroke.drive
         hist: list[tuple[float, float]] = [(eq_a.stroke, w2_a)]  # stable (stroke, lowest omega^2)
-        st: dict = {"a": eq_a, "b": float("nan")}
+        st: dict = {"a": eq_a, "b": float("nan"), "w2_b": float("nan")}
 
         def check(eq: Equilibrium) -> WalkFailure | None:
             m = modes_at(sys, eq, 1, drive)
             lam = float(m.omega2[0]) if len(m.omega2) else 1.0
             if not lam > 0:
-                st["b"] = eq.stroke
+                st["b"], st["w2_b"] = eq.stroke, lam
                 return WalkFailure("unstable", eq.stroke, st["a"].stroke, "")
             st["a"] = eq
             hist.append((eq.stroke, lam))
@@ -192,19 +192,17 @@ class Analysis:
             step = (b - a.stroke) / LOSS_SUBSTEPS
         if fail.reason != "unstable":
             return WalkFailure(fail.reason, b, a.stroke, "")
+        # omega^2 -> 0: quadratic through the last three stable points, else the line through the last two,
+        # else (the first substep was already unstable) the line to the unstable point; kept in [a, b]
         pts = np.array(hist[-3:])
-        s_loss = b
-        if len(pts) >= 2:
-            x = pts[:, 0] - a.stroke
-            coef = np.polyfit(x, pts[:, 1], len(pts) - 1)
-            roots = np.roots(coef)
-            roots = roots[np.isreal(roots)].real
-            lo, hi = sorted((0.0, b - a.stroke))
-            inside = roots[(roots >= lo - 1e-12 * abs(hi - lo)) & (roots <= hi + 1e-12 * abs(hi - lo))]
-            if len(inside):
-                s_loss = a.stroke + float(inside[np.argmin(np.abs(inside))])
-            else:  # no root in the bracket (rounding): linear between the last stable and the unstable point
-                s_loss = b
+        if len(pts) == 1:
+            pts = np.array([hist[-1], (b, st["w2_b"])])
+        x = pts[:, 0] - a.stroke
+        roots = np.roots(np.polyfit(x, pts[:, 1], len(pts) - 1))
+        roots = roots[np.isreal(roots)].real
+        hi = b - a.stroke
+        inside = roots[(roots * np.sign(hi) >= 0) & (np.abs(roots) <= abs(hi))]
+        s_loss = a.stroke + float(inside[np.argmin(np.abs(inside))]) if len(inside) else b
         return WalkFailure("unstable", s_loss, a.stroke, "")
 
     def _failure(self, fail: WalkFailure) -> Failure:
