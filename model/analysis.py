@@ -14,11 +14,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from .assembly import System
-from .causes import check_free_motions, check_mass, stiff_axis_drives
 from .elements import von_mises_spec
 from .kernels import compiled
 from .mesh import mesh_error as estimate_mesh_error
 from .mesh import resolve_auto_segments
+from .causes import check_free_motions, check_mass, stiff_axis_drives
 from .modal import Modes, modes_at, participation, track
 from .results import Failure, FrequencyCurve
 from .scene import Scene

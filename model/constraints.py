@@ -111,10 +111,10 @@ class ConstraintDiagnosis:
     rank: int
     n_generalised_coordinates: int  # x(m): 1 with a stroke, 0 without
     n_rigid: int  # rows of e(o)
+    notes: tuple[str, ...] = field(default=())  # what the diagnosis chose for the user (idealisation, condensing)
     kinematic_modes: tuple[dict[str, dict[str, list[float]]], ...] = field(default=())
     static_modes: tuple[dict[str, dict[str, float]], ...] = field(default=())
     release_candidates: tuple[tuple[str, ...], ...] = field(default=())
-    notes: tuple[str, ...] = field(default=())  # what the diagnosis chose for the user (idealisation, condensing)
 
     @property
     def m(self) -> int:
@@ -193,10 +193,10 @@ class ConstraintDiagnosis:
             "kinematically_indeterminate": self.kinematically_indeterminate,
             "exact_constraint": self.exact_constraint,
             "classification": self.classification,
+            "notes": list(self.notes),
             "kinematic_modes": [dict(k) for k in self.kinematic_modes],
             "static_modes": [dict(s) for s in self.static_modes],
             "release_candidates": [list(r) for r in self.release_candidates],
-            "notes": list(self.notes),
             "conventions": {
                 "scaling": "SVD of D_cc C / L_c with C = diag(L_c translations, 1 rotations): singular values "
                 "dimensionless; kinematic modes are unit vectors of that scaled problem (translations in L_c "

@@ -321,12 +321,12 @@ class Scene(_Strict):
         description="exact-constraint diagnosis with the kinematic idealisation: every flexure keeps only "
         "its compliant deformations (see Beam.kinematic_rigid); dynamic analyses ignore it",
     )
-    support_directions: SupportDirections | None = None
-    modes: int = Field(6, ge=1, le=50, description="number of modes reported per stroke point")
     mesh_tolerance: float = Field(
         1e-3, gt=0, le=0.5, allow_inf_nan=False,
         description="relative discretisation error of the first parasitic frequency aimed at by beams with "
         "segments 'auto' (model.mesh)")
+    support_directions: SupportDirections | None = None
+    modes: int = Field(6, ge=1, le=50, description="number of modes reported per stroke point")
 
     @model_validator(mode="after")
     def _references(self) -> "Scene":  # noqa: C901 - one table of checks, read top to bottom
