@@ -136,6 +136,16 @@ class Beam(_Strict):
     segments: Annotated[int, Field(ge=1, le=1000)] | Literal["auto"] = Field(
         1, description="number of beam elements along the member, or 'auto': refined until the estimated "
         "discretisation error of the curve is within the scene's mesh_tolerance (model.mesh)")
+
+    @field_validator("segments", mode="before")
+    @classmethod
+    def _segments(cls, v: object) -> object:
+        # one message for both members of the union (pydantic would report a clause per member)
+        if v == "auto" or (isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 1000):
+            return v
+        if isinstance(v, float) and v.is_integer() and 1 <= v <= 1000:
+            return int(v)
+        raise ValueError(f"segments must be a whole number from 1 to 1000 or 'auto', got {v!r}")
     rigid: tuple[DeformationName, ...] = Field(
         (),
         description="deformation modes held rigid (zero), e.g. ['elongation'] for a wire flexure, "
