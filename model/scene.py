@@ -145,6 +145,9 @@ class Beam(_Strict):
             return v
         if isinstance(v, float) and v.is_integer() and 1 <= v <= 1000:
             return int(v)
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            raise ValueError(f"segments must be greater than or equal to 1 and less than or equal to 1000 "
+                             f"(a whole number) or 'auto', got {v!r}")
         raise ValueError(f"segments must be a whole number from 1 to 1000 or 'auto', got {v!r}")
     rigid: tuple[DeformationName, ...] = Field(
         (),
