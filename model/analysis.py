@@ -22,7 +22,8 @@ from .causes import check_free_motions, check_mass, stiff_axis_drives
 from .modal import Modes, modes_at, participation, track
 from .results import Failure, FrequencyCurve
 from .scene import Scene
-from .statics import Equilibrium, NewtonOptions, WalkFailure, solve_point, walk
+from .errors import EquilibriumError
+from .statics import Equilibrium, NewtonOptions, StepFailure, WalkFailure, solve_point, walk
 from .structure import Structure, compile_scene
 
 __all__ = ["frequency_curve", "Analysis", "von_mises"]
@@ -250,7 +251,14 @@ class Analysis:
         # Branch order is the frequency order at stroke 0 on both sides: tracking starts from the modes of
         # the reference equilibrium, so a mirror-symmetric design gives the same branches left and right.
         self.check()
-        eq0 = solve_point(self.system, self.system.reference_state(), 0.0, self.options, 0.0)
+        try:
+            eq0 = solve_point(self.system, self.system.reference_state(), 0.0, self.options, 0.0)
+        except StepFailure as exc:  # past the checks: e.g. a mechanism in a model too large to search
+            raise EquilibriumError(
+                f"no equilibrium at the stress-free reference (stroke 0): {exc}; the tangent stiffness is "
+                "singular, so some part moves without deforming anything (a mechanism or an unconnected part); "
+                "support it or connect it to the structure", stroke=0.0,
+                last_converged=float("nan"), reason="divergence") from exc
         modes0 = modes_at(self.system, eq0, k_track, s.scene.stroke.drive)
         for side in (internal[internal >= 0], internal[internal < 0][::-1]):
             if len(side) == 0:

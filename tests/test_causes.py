@@ -80,6 +80,19 @@ def test_mechanism_is_named():
     assert "2 free motions beyond the drive" in msg and "'bob'" in msg and "'rod'" in msg, msg
 
 
+def test_mechanism_beyond_the_search_limit_is_an_equilibrium_error(monkeypatch):
+    """Models too large for the SVD search (model.causes.MECHANISM_MAX_COLUMNS) still get a named error,
+    not a traceback, when the reference equilibrium is singular."""
+    import flexopt.model.causes as causes
+    from flexopt.model import EquilibriumError
+
+    monkeypatch.setattr(causes, "MECHANISM_MAX_COLUMNS", 0)
+    d = _leaf_plus([{"name": "bob", "position": [0.1, 0.0, -0.05]}],
+                   [{"kind": "truss", "name": "rod", "nodes": ["tip", "bob"], "material": "steel", "area": 1e-6}])
+    with pytest.raises(EquilibriumError, match="stress-free reference .* a mechanism or an unconnected part"):
+        Analysis(scene_from_dict(d)).frequency_curve()
+
+
 def test_density_1e_300_is_mass_underflow():
     with pytest.raises(MassUnderflowError) as e:
         Analysis(template("leaf-spring", density=1e-300, points=5)).frequency_curve()
