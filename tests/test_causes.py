@@ -89,7 +89,7 @@ def test_mechanism_beyond_the_search_limit_is_an_equilibrium_error(monkeypatch):
     monkeypatch.setattr(causes, "MECHANISM_MAX_COLUMNS", 0)
     d = _leaf_plus([{"name": "bob", "position": [0.1, 0.0, -0.05]}],
                    [{"kind": "truss", "name": "rod", "nodes": ["tip", "bob"], "material": "steel", "area": 1e-6}])
-    with pytest.raises(EquilibriumError, match="stress-free reference .* a mechanism or an unconnected part"):
+    with pytest.raises(EquilibriumError, match="stress-free reference.*a mechanism or an unconnected part"):
         Analysis(scene_from_dict(d)).frequency_curve()
 
 
