@@ -17,13 +17,23 @@ from .assembly import System
 from .checks import annotate_curve
 from .elements import von_mises_spec
 from .kernels import compiled
+from .mesh import mesh_error as estimate_mesh_error
+from .mesh import resolve_auto_segments
+from .causes import check_free_motions, check_mass, stiff_axis_drives
 from .modal import Modes, modes_at, participation, track
 from .results import Failure, FrequencyCurve
 from .scene import Scene
-from .statics import Equilibrium, NewtonOptions, WalkFailure, solve_point, walk
+from .errors import EquilibriumError
+from .statics import Equilibrium, NewtonOptions, StepFailure, WalkFailure, solve_point, walk
 from .structure import Structure, compile_scene
 
 __all__ = ["frequency_curve", "Analysis", "von_mises"]
+
+#: A loss of stability is bracketed by re-walking the failed interval in this many equal steps with the
+#: stability check at each, and the failing step again, ... (Analysis._locate_loss) ...
+LOSS_SUBSTEPS = 8
+#: ... until the bracket is at most this fraction of the stroke at the loss (or of the first interval).
+LOSS_RESOLUTION = 1e-3
 
 DRIVE_CONVENTION = {
     "rotation": "stroke = twist angle about the fixed drive axis (swing-twist); the actuator exerts a moment "
@@ -88,20 +98,38 @@ class Analysis:
     """A compiled scene with its kernels, ready to compute curves (reuse it for repeated calls)."""
 
     def __init__(self, scene: Scene, options: NewtonOptions | None = None) -> None:
+        self.auto_note: str | None = None  # what segments 'auto' resolved to (model.mesh)
+        if any(getattr(e, "segments", 1) == "auto" for e in scene.elements):
+            scene, self.auto_note = resolve_auto_segments(scene, options)
         self.scene = scene
         self.structure = compile_scene(scene)
         self.system = System(self.structure)
         self.options = options or NewtonOptions()
 
-    def _labels(self, modes: Modes) -> tuple[list[str], float]:
+    def _labels(self, modes: Modes, tangent: np.ndarray | None = None) -> tuple[list[str], float]:
+        """Labels of the modes (``drive``, ``parasitic``, ``intended``) and the first parasitic frequency.
+
+        With the drive free, the drive mode is the one that moves the drive coordinate itself: the largest
+        mass-weighted MAC with ``tangent``, the equilibrium path's ``d xi / d s`` (how the whole structure
+        follows a change of the drive coordinate: for a rotation drive, the spin of the driven part about
+        the drive's fixed axis at the pivot, with the flexures deforming as the drive bends them). Without
+        the tangent (callers that hold no equilibrium) the mode with the largest kinetic-energy share in the
+        driven master's drive DOF, which misreads a rotor whose centre of mass lies off the pivot axis.
+        """
         s = self.structure
         hz = modes.hz
         part = participation(self.system, modes)
         drive_free = s.scene.stroke.drive == "free"
         labels = ["parasitic"] * len(hz)
-        if drive_free:
-            dd = self.system.drive
-            frac = modes.phi[dd] * (modes.M[dd] @ modes.phi)
+        if drive_free and len(hz):
+            if tangent is not None and np.any(tangent):
+                Mt = modes.M @ tangent
+                num = (modes.phi.T @ Mt) ** 2
+                den = np.einsum("ik,ik->k", modes.phi, modes.M @ modes.phi) * float(tangent @ Mt)
+                frac = num / np.where(den > 0, den, 1.0)
+            else:
+                dd = self.system.drive
+                frac = modes.phi[dd] * (modes.M[dd] @ modes.phi)
             labels[int(np.argmax(np.abs(frac)))] = "drive"
         if part is not None:
             labels = [lab if lab == "drive" else ("parasitic" if p > 0.5 else "intended")
@@ -109,14 +137,105 @@ class Analysis:
         par = [h for h, lab in zip(hz, labels) if lab == "parasitic"]
         return labels, (min(par) if par else float("nan"))
 
+    def check(self) -> None:
+        """The checks run before continuation (:mod:`model.causes`): mass underflow, parts not connected
+        to anything and mechanisms raise an error that names them. Run once per analysis."""
+        if getattr(self, "_checked", False):
+            return
+        check_mass(self.structure)
+        check_free_motions(self.structure)
+        self._checked = True
+
+    def _locate_loss(self, eq_a: Equilibrium, w2_a: float, target: float) -> Equilibrium | WalkFailure:
+        """Confirm and locate a loss of stability between the stable ``eq_a`` (lowest eigenvalue ``w2_a``)
+        and ``target`` (internal units), where the continuation found the tangent stiffness indefinite or
+        Newton failing.
+
+        The interval is walked again in :data:`LOSS_SUBSTEPS` equal steps with the stability check at each
+        step, and the failing step is subdivided the same way, until the bracket is at most
+        :data:`LOSS_RESOLUTION` of the stroke at the loss. If the small steps reach ``target`` on a stable
+        path the coarse step had jumped to another (unstable) branch: returns the equilibrium at
+        ``target``. Otherwise the loss is where the lowest ``omega^2`` extrapolates to zero: the
+        quadratic through the last three stable points (``omega^2`` of a stability loss falls smoothly to
+        zero, linearly in the stroke at a simple root, so the extrapolation from just before it is
+        accurate to the square of the step; interpolating linearly between the last stable and the first
+        unstable point reads early on a concave ``omega^2``). For a fold (Newton fails, no equilibrium
+        beyond) the end of the last bracket. Returns the failure with the loss and the last stable stroke.
+        """
+        sys, opts, drive = self.system, self.options, self.structure.scene.stroke.drive
+        hist: list[tuple[float, float]] = [(eq_a.stroke, w2_a)]  # stable (stroke, lowest omega^2)
+        st: dict = {"a": eq_a, "b": float("nan"), "w2_b": float("nan")}
+
+        def check(eq: Equilibrium) -> WalkFailure | None:
+            m = modes_at(sys, eq, 1, drive)
+            lam = float(m.omega2[0]) if len(m.omega2) else 1.0
+            if not lam > 0:
+                st["b"], st["w2_b"] = eq.stroke, lam
+                return WalkFailure("unstable", eq.stroke, st["a"].stroke, "")
+            st["a"] = eq
+            hist.append((eq.stroke, lam))
+            return None
+
+        step = (target - eq_a.stroke) / LOSS_SUBSTEPS
+        first = abs(target - eq_a.stroke)
+        while True:
+            a = st["a"]
+            n = max(1, int(np.ceil(abs(target - a.stroke) / abs(step) - 1e-9)))
+            grid = a.stroke + step * np.arange(1, n + 1)
+            grid[-1] = target
+            fail = walk(sys, grid, opts, check, start=a)
+            if fail is None:
+                return st["a"]
+            a = st["a"]
+            b = st["b"] if fail.reason == "unstable" else float(grid[np.abs(grid) > abs(a.stroke)][0])
+            if abs(b - a.stroke) <= LOSS_RESOLUTION * max(abs(b), 1e-6 * first):
+                break
+            target = b
+            step = (b - a.stroke) / LOSS_SUBSTEPS
+        if fail.reason != "unstable":
+            return WalkFailure(fail.reason, b, a.stroke, "")
+        # omega^2 -> 0: quadratic through the last three stable points, else the line through the last two,
+        # else (the first substep was already unstable) the line to the unstable point; kept in [a, b]
+        pts = np.array(hist[-3:])
+        if len(pts) == 1:
+            pts = np.array([hist[-1], (b, st["w2_b"])])
+        x = pts[:, 0] - a.stroke
+        roots = np.roots(np.polyfit(x, pts[:, 1], len(pts) - 1))
+        roots = roots[np.isreal(roots)].real
+        hi = b - a.stroke
+        inside = roots[(roots * np.sign(hi) >= 0) & (np.abs(roots) <= abs(hi))]
+        s_loss = a.stroke + float(inside[np.argmin(np.abs(inside))]) if len(inside) else b
+        return WalkFailure("unstable", s_loss, a.stroke, "")
+
+    def _failure(self, fail: WalkFailure) -> Failure:
+        """The public :class:`Failure` of a located loss (:meth:`_locate_loss`), in the stroke unit, with
+        the cause when the structure shows one (:func:`model.causes.stiff_axis_drives`)."""
+        unit = self.structure.scene.stroke.resolved_unit
+        f = (lambda v: float(np.degrees(v))) if unit == "deg" else float
+        s_loss, s_a = f(fail.stroke), f(fail.last_converged)
+        if fail.reason == "unstable":
+            what = (f"equilibrium becomes unstable at stroke {s_loss:+.5g} {unit} (the tangent stiffness loses "
+                    f"positive definiteness: a parasitic frequency reaches 0 by extrapolation of omega^2; "
+                    f"buckling or a bifurcation)")
+        else:
+            what = (f"no equilibrium found beyond stroke {s_a:+.5g} {unit}: Newton fails by {s_loss:+.5g} {unit} "
+                    f"even with small steps (a limit point, snap-through or loss of equilibrium)")
+        causes = stiff_axis_drives(self.structure)
+        cause = ("; cause: " + "; ".join(causes)) if causes else ""
+        return Failure(fail.reason, s_loss, s_a,
+                       f"{what}; last stable equilibrium at {s_a:+.5g} {unit}{cause}. The curve stops there")
+
     def frequency_curve(
         self, stroke: np.ndarray | None = None, progress: Callable[[int, int], None] | None = None,
         visit: Callable[[Equilibrium, Modes, list[str]], None] | None = None,
+        mesh_error: bool | None = None,
     ) -> FrequencyCurve:
         """The exact frequency curve at ``stroke`` (stroke unit; default: the scene's stroke grid).
 
         ``visit(eq, modes, labels)``, if given, sees every converged point with its tracked modes and their
-        labels (the design sensitivities of :mod:`model.design` are computed there).
+        labels (the design sensitivities of :mod:`model.design` are computed there). ``mesh_error``: estimate
+        the discretisation error (:func:`model.mesh.mesh_error`, about a tenth of the curve's time) into
+        ``FrequencyCurve.mesh_error``; None = unless ``visit`` is given (the optimiser's inner loop).
         """
         t0 = time.perf_counter()
         s = self.structure
@@ -132,52 +251,73 @@ class Analysis:
 
         # Branch order is the frequency order at stroke 0 on both sides: tracking starts from the modes of
         # the reference equilibrium, so a mirror-symmetric design gives the same branches left and right.
-        eq0 = solve_point(self.system, self.system.reference_state(), 0.0, self.options, 0.0)
+        self.check()
+        try:
+            eq0 = solve_point(self.system, self.system.reference_state(), 0.0, self.options, 0.0)
+        except StepFailure as exc:  # past the checks: e.g. a mechanism in a model too large to search
+            raise EquilibriumError(
+                f"no equilibrium at the stress-free reference (stroke 0): {exc}; the tangent stiffness is "
+                "singular, so some part moves without deforming anything (a mechanism or an unconnected part); "
+                "support it or connect it to the structure", stroke=0.0,
+                last_converged=float("nan"), reason="divergence") from exc
         modes0 = modes_at(self.system, eq0, k_track, s.scene.stroke.drive)
         for side in (internal[internal >= 0], internal[internal < 0][::-1]):
             if len(side) == 0:
                 continue
             prev: list[Modes | None] = [modes0]
             prev_w2: list[float] = [float(modes0.omega2[0]) if len(modes0.omega2) else float("nan")]
-            prev_s: list[float] = [0.0]
+            last_eq: list[Equilibrium] = [eq0]  # last accepted (converged, stable) equilibrium
+            bad: list[float] = [float("nan")]  # the target at which accept() found an unstable equilibrium
 
             def accept(eq: Equilibrium) -> WalkFailure | None:
                 modes = modes_at(self.system, eq, k_track, s.scene.stroke.drive)
                 lowest = float(modes.omega2[0]) if len(modes.omega2) else 1.0
-                if lowest <= 0:
-                    a, b = prev_w2[0], lowest
-                    frac = a / (a - b) if np.isfinite(a) and a > b else 1.0
-                    s_loss = prev_s[0] + frac * (eq.stroke - prev_s[0])
-                    return WalkFailure(
-                        "unstable", s_loss, prev_s[0],
-                        "equilibrium becomes unstable (the tangent stiffness loses positive definiteness: "
-                        "bifurcation or buckling, a parasitic frequency reaches 0)",
-                    )
+                if not lowest > 0:  # stop here; _locate_loss confirms and locates it
+                    bad[0] = eq.stroke
+                    return WalkFailure("unstable", eq.stroke, last_eq[0].stroke, "")
                 if prev[0] is not None:
                     perm = track(prev[0], modes)
                     modes = Modes(modes.omega2[perm], modes.phi[:, perm], modes.M)
-                labels, par = self._labels(modes)
+                labels, par = self._labels(modes, eq.tangent)
                 if visit is not None:
                     visit(eq, modes, labels)
                 vm = von_mises(s, self.system, eq)
                 points[eq.stroke] = _Point(eq.stroke, modes.hz[:n_rep].copy(), labels[:n_rep], par,
                                            eq.drive_reaction, vm, eq.iterations)
                 iters.append(eq.iterations)
-                prev[0], prev_w2[0], prev_s[0] = modes, lowest, eq.stroke
+                prev[0], prev_w2[0], last_eq[0] = modes, lowest, eq
                 if progress is not None:
                     progress(len(points), total)
                 return None
 
-            fail = walk(self.system, side, self.options, accept, start=eq0)
-            if fail is not None:
-                conv = spec.resolved_unit == "deg"
-                f = (lambda v: float(np.degrees(v))) if conv else float
-                failures.append(Failure(fail.reason, f(fail.stroke), f(fail.last_converged),
-                                        f"{fail.message} (at stroke {f(fail.stroke):.4g} {spec.resolved_unit}; "
-                                        f"last converged {f(fail.last_converged):.4g})"))
+            targets = side
+            if targets[0] == 0.0:  # the reference itself: eq0, already solved
+                if accept(eq0) is not None:
+                    failures.append(self._failure(WalkFailure("unstable", 0.0, 0.0, "")))
+                    continue
+                targets = targets[1:]
+            while len(targets):
+                fail = walk(self.system, targets, self.options, accept, start=last_eq[0])
+                if fail is None:
+                    break
+                # the requested stroke the walk could not pass: where accept() found instability, else the
+                # first target beyond the last accepted point
+                target = bad[0] if fail.reason == "unstable" else float(
+                    targets[np.abs(targets) > abs(last_eq[0].stroke)][0])
+                reached = self._locate_loss(last_eq[0], prev_w2[0], target)
+                if isinstance(reached, WalkFailure):
+                    failures.append(self._failure(reached))
+                    break
+                # small steps reach the target on a stable path: the coarse step had landed on another
+                # (unstable) equilibrium branch. Keep the point and go on.
+                accept(reached)
+                targets = targets[np.abs(targets) > abs(target)]
 
         keys = sorted(points)
         pts = [points[k] for k in keys]
+        err = None
+        if (mesh_error if mesh_error is not None else visit is None) and keys:
+            err = estimate_mesh_error(self, np.array(keys), {k: points[k].parasitic for k in keys})
         to_unit = np.degrees if spec.resolved_unit == "deg" else (lambda v: np.asarray(v, dtype=float))
         mats = {m.name: m for m in s.scene.materials}
         allow = {e.name: mats[e.material].allowable_stress for e in s.scene.elements}
@@ -203,10 +343,15 @@ class Analysis:
                 "parasitic": "modes with more than half their kinetic energy in the declared support directions"
                 if s.support_projector is not None else "every mode with the drive locked",
                 "warping": ", ".join(f"{n}: {w}" for n, w in zip(s.member_names, s.warping)),
-                "mass": "consistent translational mass (linear interpolation), rotary inertia lumped at nodes",
+                "mesh": "mesh_error: Richardson estimate from the same analysis on meshes with half and a quarter "
+                "of the segments per beam, at a few stroke points (model.mesh)"
+                + (f"; {self.auto_note}" if self.auto_note else ""),
+                "mass": "consistent translational mass of the cubic (Hermite) centre line (Przemieniecki 1968 ch. 11); rotary "
+                "inertia the mean of lumped and consistent (model.elements.beam_mass_spec)",
             },
             solver={"tol": self.options.tol, "seconds": time.perf_counter() - t0,
                     "mean_newton_iterations": float(np.mean(iters)) if iters else 0.0},
+            mesh_error=err,
         )
         return annotate_curve(curve, self.scene, self.options)  # warnings and provenance (model.checks)
 

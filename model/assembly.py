@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .elements import beam_spec, rotation_log_spec, rotation_update_spec, truss_spec
+from .elements import beam_mass_spec, beam_spec, rotation_log_spec, rotation_update_spec, truss_spec
 from .kernels import compiled
 from .rotations import log_so3, skew, twist_angle, twist_gradient
 from .structure import Structure
@@ -126,14 +126,15 @@ class System:
         ct = s.constraints[s.constraints[:, 0] == 1]
         self.con_beam = (np.flatnonzero(s.constraints[:, 0] == 0), cb[:, 1], cb[:, 2])
         self.con_truss = (np.flatnonzero(s.constraints[:, 0] == 1), ct[:, 1])
-        # mass: the translational mass of elements whose nodes sit on their masters (offset 0) and the
-        # bodies' translational mass are constant; the rest is recomputed per state
-        self.mcoef = np.array([[2.0, 1.0], [1.0, 2.0]]) / 6.0
+        # mass: the translational mass of trusses whose nodes sit on their masters (offset 0) and the
+        # bodies' translational mass are constant; the rest (every beam: its cubic mass follows the end
+        # tangents) is recomputed per state
+        self.mcoef = np.array([[2.0, 1.0], [1.0, 2.0]]) / 6.0  # trusses: linear interpolation
+        self.beam_mass_kernel = compiled(beam_mass_spec()) if s.n_beams else None
         moved = np.linalg.norm(s.node_offset, axis=1) > 0
         self._mvar = []
         const = np.zeros(N * N)
-        for nodes, mass, flat in ((s.beam_nodes, s.beam_mass, self.beam_flat),
-                                  (s.truss_nodes, s.truss_mass, self.truss_flat)):
+        for nodes, mass, flat in ((s.truss_nodes, s.truss_mass, self.truss_flat),):
             if not len(nodes):
                 continue
             var = moved[nodes].any(axis=1)
@@ -391,13 +392,16 @@ class System:
     def mass(self, st: State) -> np.ndarray:
         """Mass matrix at ``st`` in the exponential chart (drive basis applied).
 
-        Beams and trusses: consistent mass of linearly interpolated positions, ``m/6 [[2, 1], [1, 2]]``,
-        with node velocities ``v = u_dot - skew(r) psi_dot`` for nodes offset by ``r`` from their master;
-        beam rotary inertia ``rho l0/2 diag(Iy+Iz, Iy, Iz)`` lumped at each end in the element frame,
+        Beams: consistent mass of the cubic (Hermite) centre line through the end positions and tangents
+        (:func:`model.elements.beam_mass_spec`, Przemieniecki 1968 ch. 11); trusses: consistent mass of
+        linearly interpolated positions, ``m/6 [[2, 1], [1, 2]]``; node velocities ``v = u_dot - skew(r)
+        psi_dot`` for nodes offset by ``r`` from their master; beam rotary inertia ``rho l0/2 diag(Iy+Iz, Iy, Iz)`` lumped at each end in the element frame,
         rotated with the node; rigid bodies ``diag(m I, R J R^T)`` at their centre of mass.
         """
         s, N = self.s, self.N
         Mflat = self._mass_const.copy()
+        if s.n_beams:
+            Mflat += np.bincount(self.beam_flat, self.beam_mass_blocks(st).ravel(), minlength=N * N)
         if self._mvar:
             _, _, rn = self.node_states(st)
             for nodes, mass, flat in self._mvar:
@@ -410,6 +414,12 @@ class System:
             Jm += st.R @ s.master_inertia @ st.R.transpose(0, 2, 1)
         np.add.at(Mflat, self._rot_flat, Jm.ravel())
         return self._reduce_mat(Mflat.reshape(N, N))
+
+    def beam_mass_blocks(self, st: State) -> np.ndarray:
+        """The beams' 12 x 12 translational mass blocks at ``st`` (nb, 144, column-major)."""
+        self._fill_inputs(st)
+        nc = 30 + self.s.beam_const.shape[1]
+        return self.beam_mass_kernel(np.hstack([self.beam_in[:, :nc], self.s.beam_mass[:, None]]))
 
     def _trans_mass(self, r: np.ndarray, mass: np.ndarray) -> np.ndarray:
         """Flattened 12 x 12 translational mass blocks of elements whose end offsets are ``r`` (ne, 2, 3)."""

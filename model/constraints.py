@@ -113,6 +113,7 @@ class ConstraintDiagnosis:
     rank: int
     n_generalised_coordinates: int  # x(m): 1 with a stroke, 0 without
     n_rigid: int  # rows of e(o)
+    notes: tuple[str, ...] = field(default=())  # what the diagnosis chose for the user (idealisation, condensing)
     kinematic_modes: tuple[dict[str, dict[str, list[float]]], ...] = field(default=())
     static_modes: tuple[dict[str, dict[str, float]], ...] = field(default=())
     release_candidates: tuple[tuple[str, ...], ...] = field(default=())
@@ -196,6 +197,7 @@ class ConstraintDiagnosis:
             "kinematically_indeterminate": self.kinematically_indeterminate,
             "exact_constraint": self.exact_constraint,
             "classification": self.classification,
+            "notes": list(self.notes),
             "kinematic_modes": [dict(k) for k in self.kinematic_modes],
             "static_modes": [dict(s) for s in self.static_modes],
             "release_candidates": [list(r) for r in self.release_candidates],
@@ -221,6 +223,7 @@ class ConstraintDiagnosis:
             f"x(c), rank {self.rank}; nominal degrees of freedom n_dof = {self.n_dof}",
             f"Table 1: {self.classification}",
         ]
+        lines += [f"note: {n}" for n in self.notes]
         if self.rank:
             lines.append(f"smallest non-zero singular value {self.smallest_nonzero_singular_value:.4g}, "
                          f"condition number {self.condition_number:.4g} (L_c = {self.characteristic_length:.4g})")
@@ -238,6 +241,19 @@ class ConstraintDiagnosis:
             lines.append("  release one of these to remove it: " + ", ".join(rel))
         lines += [f"warning [{w.kind}]: {w.message}" for w in self.warnings]
         return "\n".join(lines)
+
+
+#: Names of the six deformations as scenes write them (model.scene.MODE_NAMES): eps3/eps5 belong to the
+#: element's first end p, eps4/eps6 to its second end q (seed 002, eq. 2).
+DEFORMATION_NAMES = ("elongation", "torsion", "bending_y", "bending_y", "bending_z", "bending_z")
+
+
+def deformation_label(k: int, p: str, q: str) -> str:
+    """Readable name of deformation ``k`` (0-based) of an element from node ``p`` to ``q``: ``elongation``,
+    ``torsion``, or ``bending_y@p`` / ``bending_z@q`` (the bending deformations are the end rotations
+    relative to the chord at that end node)."""
+    name = DEFORMATION_NAMES[k]
+    return name if k < 2 else f"{name}@{p if k in (2, 4) else q}"
 
 
 def _fmt(v: list[float]) -> str:
@@ -275,6 +291,7 @@ def _partition(s: Structure, kinematic: bool) -> tuple[list[tuple[int, int, int]
             gen_rows += [(kind, i, k) for k in sorted(gen)]
     labels: list[str] = []
     index: dict[tuple[int, int], str] = {}
+    ends: dict[tuple[int, int], tuple[str, str]] = {}
     for kind, member_of in ((0, s.beam_member), (1, s.truss_member)):
         per: dict[int, int] = {}
         tot = np.bincount(member_of, minlength=len(scene.elements)) if len(member_of) else []
@@ -283,10 +300,20 @@ def _partition(s: Structure, kinematic: bool) -> tuple[list[tuple[int, int, int]
             per[int(ie)] = j + 1
             name = scene.elements[int(ie)].name
             index[(kind, i)] = name if tot[int(ie)] == 1 else f"{name}[{j}]"
+            nodes = s.beam_nodes[i] if kind == 0 else s.truss_nodes[i]
+            ends[(kind, i)] = (s.node_names[nodes[0]], s.node_names[nodes[1]])
     for kind, i, k in rigid_rows + gen_rows:
-        labels.append(f"{index[(kind, i)]}.eps{k + 1}")
+        labels.append(f"{index[(kind, i)]}.{deformation_label(k, *ends[(kind, i)])}")
     kinds = ["rigid"] * len(rigid_rows) + ["generalised"] * len(gen_rows)
     return rigid_rows + gen_rows, labels, kinds, len(rigid_rows)
+
+
+def _split_label(s: Structure, row: tuple[int, int, int], label: str) -> tuple[str, str]:
+    """(element label, deformation name) of a row label built by :func:`_partition`."""
+    kind, i, k = row
+    nodes = s.beam_nodes[i] if kind == 0 else s.truss_nodes[i]
+    d = deformation_label(k, s.node_names[nodes[0]], s.node_names[nodes[1]])
+    return label[: -len(d) - 1], d
 
 
 def _columns(s: Structure) -> tuple[np.ndarray, list[str], list[str], np.ndarray]:
@@ -404,9 +431,24 @@ def diagnose(scene: Scene, at_stroke: float | None = None, kinematic: bool | Non
         When the partition has no rows (every deformation released and none generalised) or no columns
         (every coordinate supported or driven), or a deformation is both rigid and generalised.
     """
+    notes: list[str] = []
     kin = scene.kinematic if kinematic is None else bool(kinematic)
-    s = compile_scene(scene)
+    if kinematic is None and not kin and not any(e.rigid or e.generalised for e in scene.elements):
+        kin = True
+        notes.append("kinematic idealisation used: the scene declares no rigid or generalised deformation, so "
+                     "each flexure keeps only its compliant deformations (kinematic_rigid; seed 002 sec. 4.2); "
+                     "--declared (kinematic=false) diagnoses the declared partition instead")
+    full = compile_scene(scene)
+    flex = scene.model_copy(update={"elements": tuple(
+        e.model_copy(update={"segments": 1}) if isinstance(e, Beam) and e.segments != 1 else e
+        for e in scene.elements)})
+    s = compile_scene(flex) if flex.elements != scene.elements else full
+    if s is not full:
+        n_inner = len(full.master_names) - len(s.master_names)
+        notes.append(f"each meshed beam is diagnosed as one flexure: {n_inner} segment-internal nodes condensed, "
+                     "so motions are those of bodies and flexure ends")
     rows, row_labels, row_kind, n_rigid = _partition(s, kin)
+    row_parts = [_split_label(s, r, lab) for r, lab in zip(rows, row_labels)]
     if not rows:
         raise SceneError("elements[].rigid", "no rigid and no generalised deformations: D_cc has no rows, so "
                          "nothing constrains the structure; declare rigid deformations (e.g. "
@@ -418,7 +460,9 @@ def diagnose(scene: Scene, at_stroke: float | None = None, kinematic: bool | Non
     if at_stroke is None:
         X, R = s.master_pos.copy(), np.tile(np.eye(3), (len(s.master_names), 1, 1))
     else:
-        X, R = _state_at(scene, at_stroke)
+        Xf, Rf = _state_at(scene, at_stroke)
+        keep = [full.master_names.index(m) for m in s.master_names]
+        X, R = Xf[keep], Rf[keep]
     Dfull = _jacobian_rows(s, X, R, rows)
     D = Dfull @ T
     pos = np.array([n.position for n in scene.nodes], dtype=float)
@@ -446,8 +490,7 @@ def diagnose(scene: Scene, at_stroke: float | None = None, kinematic: bool | Non
     for j in range(rank, mcount):
         u = _sign_fix(U[:, j])
         mode2: dict[str, dict[str, float]] = {}
-        for lab, val in zip(row_labels, u):
-            el, dname = lab.rsplit(".", 1)
+        for (el, dname), val in zip(row_parts, u):
             if abs(val) >= 1e-12:
                 mode2.setdefault(el, {})[dname] = float(val)
         stat_modes.append(mode2)
@@ -476,6 +519,7 @@ def diagnose(scene: Scene, at_stroke: float | None = None, kinematic: bool | Non
         kinematic_modes=tuple(kin_modes),
         static_modes=tuple(stat_modes),
         release_candidates=tuple(releases),
+        notes=tuple(notes),
     )
     settings = {"at_stroke": at_stroke, "kinematic": kin, "rank_rtol": RANK_RTOL, "almost_singular_rtol": NEAR_RTOL}
     return annotate_diagnosis(diag, scene, settings)  # scene checks and provenance (model.checks)

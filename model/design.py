@@ -268,19 +268,15 @@ def _mass_derivative(sys: System, st, psi: np.ndarray, d: StructureDerivative) -
     s, N = sys.s, sys.N
     m = s.node_master
     Rm = st.R[m]
-    r = np.einsum("nij,nj->ni", Rm, s.node_offset)
-    dr = np.cross(psi[m], r) + np.einsum("nij,nj->ni", Rm, d.node_offset)
     out = np.zeros(N * N)
-    if s.n_beams:
-        nodes = s.beam_nodes
-        T = np.zeros((len(nodes), 2, 3, 6))
-        T[..., :3] = np.eye(3)
-        T[..., 3:] = -skew(r[nodes])
-        dT = np.zeros_like(T)
-        dT[..., 3:] = -skew(dr[nodes])
-        blocks = (np.einsum("e,ab,eaik,ebil->eakbl", d.beam_mass, sys.mcoef, T, T)
-                  + np.einsum("e,ab,eaik,ebil->eakbl", s.beam_mass, sys.mcoef, dT, T)
-                  + np.einsum("e,ab,eaik,ebil->eakbl", s.beam_mass, sys.mcoef, T, dT))
+    if s.n_beams:  # the cubic consistent mass (model.elements.beam_mass_spec), differentiated by CasADi
+        nm = len(s.master_names)
+        da = np.hstack([_beam_inputs_change(sys, st, np.zeros((nm, 3)), psi, d.node_offset), d.beam_const,
+                        d.beam_mass[:, None]])
+        sys._fill_inputs(st)
+        nc = _el.BEAM_STATE + _el.BEAM_CONST
+        a = np.hstack([sys.beam_in[:, :nc], s.beam_mass[:, None]])
+        blocks = compiled(_el.beam_mass_jvp_spec())(np.hstack([a, da]))
         out += np.bincount(sys.beam_flat, blocks.ravel(), minlength=N * N)
     nm = len(s.master_names)
     diag = sys.pos[(6 * np.arange(nm)[:, None] + np.arange(3)).ravel()]

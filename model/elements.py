@@ -40,7 +40,7 @@ import casadi as ca
 
 __all__ = ["KernelSpec", "beam_spec", "truss_spec", "BEAM_CONST", "TRUSS_CONST", "beam_input_jvp",
            "beam_segment_design", "beam_von_mises", "beam_von_mises_squared", "rotation_update_spec",
-           "rotation_log_spec"]
+           "rotation_log_spec", "beam_mass_spec", "beam_mass_jvp_spec", "HERMITE_MASS"]
 
 # Layout of a beam's packed input vector.
 BEAM_STATE = 30  # xp(3) Rp(9, column-major) rp(3) xq(3) Rq(9) rq(3)
@@ -390,3 +390,91 @@ def rotation_log_spec() -> KernelSpec:
     out = ca.vertcat(fac * v, ang)
     f = ca.Function("flexopt_rot_log", [a], [out])
     return KernelSpec("flexopt_rot_log", f, 18, 4, 0, 18, 0)
+
+
+# ----------------------------------------------------------------- consistent mass
+#: Integrals ``C_ab = int_0^1 H_a H_b dxi`` of the cubic Hermite shape functions ``H1 = 1 - 3 xi^2 + 2 xi^3``,
+#: ``H2 = xi - 2 xi^2 + xi^3``, ``H3 = 3 xi^2 - 2 xi^3``, ``H4 = xi^3 - xi^2`` (times 420: Przemieniecki's
+#: 156, 22, 54, -13, 4, 13, -3 pattern, Theory of Matrix Structural Analysis, 1968, ch. 11).
+HERMITE_MASS = [[156.0, 22.0, 54.0, -13.0],
+                [22.0, 4.0, 13.0, -3.0],
+                [54.0, 13.0, 156.0, -22.0],
+                [-13.0, -3.0, -22.0, 4.0]]
+#: Input of :func:`beam_mass_spec`: the beam's state (30) and constants (21), then its mass ``rho A l0``.
+BEAM_MASS_IN = BEAM_STATE + BEAM_CONST + 1
+
+
+def _beam_mass_expr() -> tuple[ca.SX, ca.SX]:
+    """The packed input ``a`` (:data:`BEAM_MASS_IN`) and the 12 x 12 translational mass ``M(a)``."""
+    a = ca.SX.sym("a", BEAM_MASS_IN)
+    s, c = a[:BEAM_STATE], a[BEAM_STATE : BEAM_STATE + BEAM_CONST]
+    m = a[BEAM_STATE + BEAM_CONST]
+    Rp, rp = ca.reshape(s[3:12], 3, 3), s[12:15]
+    Rq, rq = ca.reshape(s[18:27], 3, 3), s[27:30]
+    l0, E0 = c[0], ca.reshape(c[1:10], 3, 3)
+    tp, tq = Rp @ E0[:, 0], Rq @ E0[:, 0]
+    Z, I3 = ca.SX.zeros(3, 3), ca.SX.eye(3)
+    B = [ca.horzcat(I3, -_skew(rp), Z, Z), ca.horzcat(Z, -l0 * _skew(tp), Z, Z),
+         ca.horzcat(Z, Z, I3, -_skew(rq)), ca.horzcat(Z, Z, Z, -l0 * _skew(tq))]
+    M = ca.SX.zeros(12, 12)
+    for i in range(4):
+        for j in range(4):
+            M += (m * HERMITE_MASS[i][j] / 420.0) * (B[i].T @ B[j])
+    # rotary inertia: the lumped ends (model.structure) plus -rho l0/12 (w_p - w_q)^T J (w_p - w_q), which
+    # makes the mean of the lumped and the consistent (linear) rotary inertia, rho l0/12 [[5, 1], [1, 5]]
+    # per axis; rho l0 (Iy + Iz, Iy, Iz) = m (ct, ky l0^2 / k1, kz l0^2 / k1) from the kernel constants
+    k1, ky, kz, ct = c[10], c[12], c[13], c[14]
+    D = ca.diag(ca.vertcat(m * ct, m * ky * l0**2 / k1, m * kz * l0**2 / k1))
+    J = (Rp @ E0 @ D @ E0.T @ Rp.T + Rq @ E0 @ D @ E0.T @ Rq.T) / 24.0  # mean of both ends, / 12
+    W = ca.horzcat(Z, I3, Z, -I3)
+    M -= W.T @ J @ W
+    return a, M
+
+
+@lru_cache(maxsize=None)
+def beam_mass_spec() -> KernelSpec:
+    """Consistent translational mass of a beam segment for the cubic (Hermite) shape of its centre line.
+
+    Input ``[state (30), const (21), m]`` (the beam kernels' state and constants and ``m = rho A l0``);
+    output the 12 x 12 mass (column-major) over the increments ``(u, psi)`` of both ends' masters.
+
+    Derivation. The centre line is the cubic Hermite interpolant of the end positions and end tangents,
+    ``x(xi) = H1 x_p + H2 l0 t_p + H3 x_q + H4 l0 t_q`` (``t = R E0 e_x`` the tangent carried by each end
+    node, ``xi = s / l0``), the same cubic the beam's bending energy measures (seed 002, eq. 2: ``eps3..6``
+    are the end rotations relative to the chord of exactly this shape). Its velocity follows from the end
+    velocities ``v = u_dot + psi_dot x r`` (``r`` the node's offset from its master) and tangent rates
+    ``t_dot = psi_dot x t``: ``v(xi) = H1 v_p + H2 l0 psi_dot_p x t_p + H3 v_q + H4 l0 psi_dot_q x t_q =
+    sum_a H_a B_a d_dot``. The kinetic energy ``T = 1/2 int rho A |v|^2 ds = 1/2 d_dot^T M d_dot`` gives
+    ``M = m sum_ab C_ab B_a^T B_b`` with ``C_ab = int_0^1 H_a H_b dxi`` (:data:`HERMITE_MASS` / 420). For a
+    straight segment the lateral blocks are Przemieniecki's consistent beam mass (Theory of Matrix
+    Structural Analysis, 1968, ch. 11: ``m/420 [[156, 22 l], [22 l, 4 l^2], ...]``); the axial
+    direction shares the cubic (rows ``156, 54`` instead of Przemieniecki's linear ``140, 70``), which keeps
+    ``M`` a quadratic polynomial of the end rotations and independent of the positions (the modal
+    derivatives of :mod:`model.derivatives` rely on both); both are consistent (rigid translations and
+    rotations of a straight segment have their exact kinetic energy). Frequencies converge at O(h^4) in
+    bending instead of the O(h^2) of the linearly interpolated mass (shared/PHYSICS.md "Mass
+    discretisation").
+
+    Rotary inertia of the sections (``rho l0 E0 diag(Iy + Iz, Iy, Iz) E0^T`` per segment, ``J_e``) is lumped
+    at the ends by :mod:`model.structure` (``J_e/2`` each); this kernel adds ``-1/12 (w_p - w_q)^T J_e
+    (w_p - w_q)`` (``w`` the end angular velocities, ``J_e`` the mean of its two end orientations), so the
+    total is the mean of the lumped and the consistent (linearly interpolated) rotary inertia, ``J_e/12
+    [[5, 1], [1, 5]]``: the lumped one reads torsion frequencies low by ``(k h)^2 / 24`` and the consistent
+    one high by as much, their mean is fourth-order accurate (the dispersion of a linear element with mass
+    ``alpha M_consistent + (1 - alpha) M_lumped`` is ``(k h)^2 (alpha/6 - 1/12)`` to leading order, zero
+    at ``alpha = 1/2``; Krieg and Key 1973, Int. J. Numer. Meth. Eng.). A rigid rotation has ``w_p = w_q``
+    and its exact kinetic energy.
+    """
+    a, M = _beam_mass_expr()
+    f = ca.Function("flexopt_beam_mass", [a], [ca.vec(M)], ["a"], ["out"])
+    return KernelSpec("flexopt_beam_mass", f, BEAM_MASS_IN, 144, 6, BEAM_STATE, BEAM_CONST)
+
+
+@lru_cache(maxsize=None)
+def beam_mass_jvp_spec() -> KernelSpec:
+    """Directional derivative of :func:`beam_mass_spec`'s output along a change ``da`` of its whole input:
+    ``[a, da]`` (2 x :data:`BEAM_MASS_IN`) -> ``dM`` (144, column-major); for design sensitivities."""
+    a, M = _beam_mass_expr()
+    da = ca.SX.sym("da", a.numel())
+    f = ca.Function("flexopt_beam_mass_jvp", [ca.vertcat(a, da)], [ca.jtimes(ca.vec(M), a, da)])
+    return KernelSpec("flexopt_beam_mass_jvp", f, 2 * BEAM_MASS_IN, 144, 6, BEAM_STATE, BEAM_CONST)

@@ -4,6 +4,7 @@
 
     FlexoptError                      base: every error flexopt raises on purpose
     ├── SceneError                    the scene is malformed or non-physical (names a field and a fix)
+    │   └── MassUnderflowError        masses too small for double precision (e.g. density 1e-300)
     ├── ModelSizeError                the meshed model exceeds the documented size limit
     ├── EquilibriumError              no converged equilibrium at a requested stroke (limit point,
     │                                 bifurcation, divergence); carries the last converged stroke
@@ -18,6 +19,7 @@ __all__ = [
     "FlexoptError",
     "SceneError",
     "ModelSizeError",
+    "MassUnderflowError",
     "EquilibriumError",
     "KernelBuildError",
 ]
@@ -46,6 +48,11 @@ class SceneError(FlexoptError, ValueError):
 
 class ModelSizeError(SceneError):
     """The meshed model is larger than the documented limit (see ``model.structure.MAX_DOFS``)."""
+
+
+class MassUnderflowError(SceneError):
+    """The scene's masses are too small for double precision (e.g. a density of 1e-300): the mass matrix
+    underflows and omega^2 overflows (see ``model.causes.check_mass``)."""
 
 
 class EquilibriumError(FlexoptError):

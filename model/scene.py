@@ -138,7 +138,22 @@ class Beam(_Strict):
         description="direction of the section's local y axis (the width direction of a rectangle); "
         "its part perpendicular to the beam axis is used, so it must not be parallel to the beam"
     )
-    segments: int = Field(1, ge=1, le=1000, description="number of beam elements along the member")
+    segments: Annotated[int, Field(ge=1, le=1000)] | Literal["auto"] = Field(
+        1, description="number of beam elements along the member, or 'auto': refined until the estimated "
+        "discretisation error of the curve is within the scene's mesh_tolerance (model.mesh)")
+
+    @field_validator("segments", mode="before")
+    @classmethod
+    def _segments(cls, v: object) -> object:
+        # one message for both members of the union (pydantic would report a clause per member)
+        if v == "auto" or (isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 1000):
+            return v
+        if isinstance(v, float) and v.is_integer() and 1 <= v <= 1000:
+            return int(v)
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            raise ValueError(f"segments must be greater than or equal to 1 and less than or equal to 1000 "
+                             f"(a whole number) or 'auto', got {v!r}")
+        raise ValueError(f"segments must be a whole number from 1 to 1000 or 'auto', got {v!r}")
     rigid: tuple[DeformationName, ...] = Field(
         (),
         description="deformation modes held rigid (zero), e.g. ['elongation'] for a wire flexure, "
@@ -359,6 +374,10 @@ class Scene(_Strict):
         description="exact-constraint diagnosis with the kinematic idealisation: every flexure keeps only "
         "its compliant deformations (see Beam.kinematic_rigid); dynamic analyses ignore it",
     )
+    mesh_tolerance: float = Field(
+        1e-3, gt=0, le=0.5, allow_inf_nan=False,
+        description="relative discretisation error of the first parasitic frequency aimed at by beams with "
+        "segments 'auto' (model.mesh)")
     support_directions: SupportDirections | None = None
     modes: int = Field(6, ge=1, le=50, description="number of modes reported per stroke point")
     units: Units | None = Field(

@@ -154,7 +154,9 @@ class DiagnosisRequest(_Wire):
 
     scene: SceneDocument
     at_stroke: FiniteFloat | None = Field(None, description="stroke value (stroke unit); null = reference configuration")
-    kinematic: bool | None = Field(None, description="kinematic diagnosis (null: the scene's own setting)")
+    kinematic: bool | None = Field(
+        None, description="kinematic diagnosis (null: the scene's own setting, or the kinematic idealisation "
+        "when the scene declares no rigid or generalised deformation; the result's notes say so)")
 
 
 class ModesRequest(_Wire):

@@ -78,15 +78,16 @@ def _broken(exc: Exception, scene: dict) -> Outcome:
 
 def raise_error(err: dict[str, Any]) -> None:
     """Rebuild and raise a model error reported by a worker."""
-    from ..model.errors import FlexoptError, KernelBuildError, ModelSizeError, SceneError
+    from ..model.errors import FlexoptError, KernelBuildError, MassUnderflowError, ModelSizeError, SceneError
 
     kind, field, message = err["kind"], err["field"], err["message"]
     if kind == "ComputationError":
         from .errors_http import ComputationFailed
 
         raise ComputationFailed(list(field), message)
-    if kind in ("SceneError", "ModelSizeError"):
-        raise (ModelSizeError if kind == "ModelSizeError" else SceneError)(field, message)
+    scene_errors = {c.__name__: c for c in (SceneError, ModelSizeError, MassUnderflowError)}
+    if kind in scene_errors:
+        raise scene_errors[kind](field, message)
     if kind == "KernelBuildError":
         raise KernelBuildError(message)
     raise FlexoptError(message)

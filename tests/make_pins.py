@@ -11,7 +11,9 @@ and says why in the commit.
 History: first made with the LAPACK dsygvx eigen route; regenerated once when the eigen solve moved to the
 route through K (issue 12 item 2): the old values carried the old solver's error (up to 6e-8 relative,
 e.g. the 40-element leaf's lowest mode: 2.7e-8 against an extended-precision reference, now 2.3e-10;
-tests/test_eigen_accuracy.py) and one different branch order in the degenerate pair of the three-fold cross.
+tests/test_eigen_accuracy.py) and one different branch order in the degenerate pair of the three-fold cross;
+regenerated again when the beam's translational mass became the consistent cubic (Hermite) mass (issue 11
+item 6; frequencies move by up to about 1 %, towards the converged values).
 """
 
 from __future__ import annotations
