@@ -25,7 +25,9 @@ Chain of exact derivatives (no finite differences anywhere):
    exact for the mean, and exact for every member while the pair stays degenerate, as it does by
    symmetry in the symmetric hinges; never a division by the gap.
 5. *Stresses.* ``d sigma = dS eps + S d eps`` with ``d eps`` from the same directional derivative, through
-   the von Mises bound of :func:`model.elements.beam_von_mises` and its CasADi Jacobian.
+   the square of the von Mises bound, :func:`model.elements.beam_von_mises_squared`, and its CasADi
+   Jacobian: finite everywhere, also where the stress vanishes (the root's gradient is ``0/0`` there).
+   ``d vm = d(vm^2) / (2 vm)`` where ``vm > 0``.
 
 Scope: beams with rectangular sections and rigid bodies (what the hinge families are made of), without
 rigid deformations (no multipliers). Other scenes get a clear error.
@@ -222,8 +224,9 @@ class PointSensitivity:
     """Derivatives at one equilibrium along each design direction."""
 
     dlam: np.ndarray  # (np, k) d lambda_i / dp of the given modes [1/s^2 per parameter unit]
-    dvm: np.ndarray  # (np, nb, 2) d(von Mises at each segment end) / dp [Pa per parameter unit]
+    dvm: np.ndarray  # (np, nb, 2) d(von Mises at each segment end) / dp [Pa per parameter unit]; NaN where vm = 0
     vm: np.ndarray  # (nb, 2) von Mises at each segment end [Pa]
+    dvm2: np.ndarray  # (np, nb, 2) d(vm^2) / dp [Pa^2 per parameter unit]: finite everywhere
     dxi: np.ndarray  # (np, n) move of the equilibrium (drive basis)
     dreaction: np.ndarray  # (np,) derivative of the actuator's force or moment along the drive
 
@@ -350,10 +353,11 @@ def point_sensitivity(sys: System, eq: Equilibrium, modes: Modes, which: Sequenc
     sig = beam_sigma(s, sys, eq)
     z = np.hstack([sig, s.beam_stress])
     vm_out = _von_mises_jac(len(z))(z.T)
-    vm = vm_out[0].full().T
-    Jvm = vm_out[1].full().T.reshape(len(z), 13, 2).transpose(0, 2, 1)  # (nb, 2, 13)
+    vm2 = vm_out[0].full().T
+    vm = np.sqrt(vm2)
+    Jvm = vm_out[1].full().T.reshape(len(z), 13, 2).transpose(0, 2, 1)  # (nb, 2, 13): d(vm^2)/dz
     dlam = np.zeros((len(dstructs), len(which)))
-    dvm = np.zeros((len(dstructs), s.n_beams, 2))
+    dvm2 = np.zeros((len(dstructs), s.n_beams, 2))
     dxis = np.zeros((len(dstructs), n))
     dreac = np.zeros(len(dstructs))
     for j, d in enumerate(dstructs):
@@ -384,11 +388,13 @@ def point_sensitivity(sys: System, eq: Equilibrium, modes: Modes, which: Sequenc
         e_m = ev.e_beam * s.beam_mask
         dsig = np.einsum("eij,ej->ei", dS, e_m) + np.einsum("eij,ej->ei", s.beam_stiff, de * s.beam_mask)
         dz = np.hstack([dsig, d.beam_stress])
-        dvm[j] = np.einsum("ekz,ez->ek", Jvm, dz)
+        dvm2[j] = np.einsum("ekz,ez->ek", Jvm, dz)
         dxis[j] = dxi
         # reaction = g at the drive DOF: its change at fixed state plus along the equilibrium's move
         dreac[j] = dg[sys.drive] + A[sys.drive] @ dxi
-    return PointSensitivity(dlam, dvm, vm, dxis, dreac)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dvm = np.where(vm > 0, dvm2 / (2 * vm), np.nan)
+    return PointSensitivity(dlam, dvm, vm, dvm2, dxis, dreac)
 
 
 _VM_JAC: dict[int, ca.Function] = {}
@@ -396,5 +402,5 @@ _VM_JAC: dict[int, ca.Function] = {}
 
 def _von_mises_jac(n: int) -> ca.Function:
     if n not in _VM_JAC:
-        _VM_JAC[n] = _el.beam_von_mises().map(n)
+        _VM_JAC[n] = _el.beam_von_mises_squared().map(n)
     return _VM_JAC[n]

@@ -39,7 +39,7 @@ from functools import lru_cache
 import casadi as ca
 
 __all__ = ["KernelSpec", "beam_spec", "truss_spec", "BEAM_CONST", "TRUSS_CONST", "beam_input_jvp",
-           "beam_segment_design", "beam_von_mises"]
+           "beam_segment_design", "beam_von_mises", "beam_von_mises_squared"]
 
 # Layout of a beam's packed input vector.
 BEAM_STATE = 30  # xp(3) Rp(9, column-major) rp(3) xq(3) Rq(9) rq(3)
@@ -296,14 +296,19 @@ def beam_segment_design(warping: str) -> ca.Function:
     return ca.Function("flexopt_segment_" + warping, [x, n], [out, ca.jacobian(out, x)])
 
 
-def _von_mises_expr() -> tuple[ca.SX, ca.SX]:
+def _von_mises_squared_expr() -> tuple[ca.SX, ca.SX]:
     z = ca.SX.sym("z", 13)
     sig, (A, Iy, Iz, cy, cz, tau, l0) = z[0:6], [z[6 + i] for i in range(7)]
     N = ca.fabs(sig[0]) / A
     T = ca.fabs(l0 * sig[1]) * tau
-    ends = [ca.sqrt((N + ca.fabs(l0 * sig[iy]) * cz / Iy + ca.fabs(l0 * sig[iz]) * cy / Iz) ** 2 + 3 * T**2)
+    ends = [(N + ca.fabs(l0 * sig[iy]) * cz / Iy + ca.fabs(l0 * sig[iz]) * cy / Iz) ** 2 + 3 * T**2
             for iy, iz in ((2, 4), (3, 5))]
     return z, ca.vertcat(*ends)
+
+
+def _von_mises_expr() -> tuple[ca.SX, ca.SX]:
+    z, vm2 = _von_mises_squared_expr()
+    return z, ca.sqrt(vm2)
 
 
 @lru_cache(maxsize=None)
@@ -317,6 +322,18 @@ def beam_von_mises() -> ca.Function:
     """
     z, vm = _von_mises_expr()
     return ca.Function("flexopt_von_mises", [z], [vm, ca.jacobian(vm, z)])
+
+
+@lru_cache(maxsize=None)
+def beam_von_mises_squared() -> ca.Function:
+    """The square of :func:`beam_von_mises` at both segment ends and its Jacobian (2 x 13).
+
+    Same input and formula (the square of the bound, before the root). Its gradient is finite everywhere,
+    also where the stress vanishes (an unstressed design, the stroke's zero), where the root's gradient is
+    ``0/0``: constraints on the stress use this form (``(sigma / sigma_allow)^2 <= 1``).
+    """
+    z, vm2 = _von_mises_squared_expr()
+    return ca.Function("flexopt_von_mises_squared", [z], [vm2, ca.jacobian(vm2, z)])
 
 
 @lru_cache(maxsize=None)

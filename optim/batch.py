@@ -16,7 +16,10 @@ the cases of one case function: the case id does not include ``fn``.
 What is stored: the result of every case the function returned or raised from. What is not: a case the
 executor could not run (a lost Dask worker, ``KilledWorker``): it is returned as a failure record but not
 stored, so the next run tries it again. A process pool whose worker dies is broken for every case; the
-batch stops with a ``RuntimeError`` (finished cases are stored; rerun to resume).
+batch stops with a ``RuntimeError`` (finished cases are stored; rerun to resume). A Dask cluster left
+without workers would wait forever (its scheduler keeps the cases queued for workers that may come back):
+after ``no_worker_timeout`` seconds without any worker the batch stops with :class:`NoWorkers`
+(finished cases are stored and carried by the exception).
 """
 
 from __future__ import annotations
@@ -30,14 +33,17 @@ import os
 import sys
 import tempfile
 import threading
+import time
 from collections import deque
 from collections.abc import Callable
 from pathlib import Path
 
-__all__ = ["BatchCancelled", "case_id", "case_seed", "dask_executor", "run_cases"]
+__all__ = ["BatchCancelled", "NoWorkers", "case_id", "case_seed", "dask_executor", "run_cases"]
 
 _FAILURE_KEYS = frozenset({"id", "error", "kind"})
 _POLL = 0.2  # seconds between looks at the cancel event while cases run
+_WORKER_POLL = 1.0  # seconds between asks for the executor's worker count (an RPC to a Dask scheduler)
+NO_WORKER_TIMEOUT = 60.0  # default: seconds a batch waits for a cluster without workers before it stops
 
 
 class BatchCancelled(Exception):
@@ -53,6 +59,24 @@ class BatchCancelled(Exception):
     def __init__(self, results: list[dict | None]) -> None:
         super().__init__(f"cancelled after {sum(r is not None for r in results)} of {len(results)} cases; "
                          "rerun with the same store to resume")
+        self.results = results
+
+
+class NoWorkers(RuntimeError):
+    """The executor had no workers for longer than the timeout: the batch stopped.
+
+    Attributes
+    ----------
+    results
+        As :class:`BatchCancelled`: the record of every finished case (stored ones included), ``None``
+        for a case that did not finish.
+    """
+
+    def __init__(self, results: list[dict | None], timeout: float) -> None:
+        done = sum(r is not None for r in results)
+        super().__init__(f"the cluster had no workers for {timeout:g} s: stopped after {done} of {len(results)} "
+                         "cases (the finished ones are kept in the store); start workers (`dask worker "
+                         "SCHEDULER_ADDRESS`) and rerun with the same store to resume")
         self.results = results
 
 
@@ -155,6 +179,10 @@ def dask_executor(address: str, **client_kwargs: object) -> cf.Executor:
                          "'flexopt[cluster]'") from exc
 
     class _OwningClientExecutor(ClientExecutor):
+        def worker_count(self) -> int:
+            """Workers the scheduler knows now (run_cases stops a batch left without any)."""
+            return len(self._client.scheduler_info(n_workers=-1).get("workers", {}))
+
         # ClientExecutor.shutdown waits for (or cancels) the futures but leaves the client connected
         def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
             try:
@@ -220,7 +248,8 @@ class _Bar:
 
 def run_cases(cases: list[dict], fn: str, *, executor: cf.Executor | None = None, workers: int | None = None,
               store: str | os.PathLike | None = None, progress: Callable[[dict], None] | None = None,
-              cancel: threading.Event | None = None, retry_failed: bool = False) -> list[dict]:
+              cancel: threading.Event | None = None, retry_failed: bool = False,
+              no_worker_timeout: float = NO_WORKER_TIMEOUT) -> list[dict]:
     """Run ``fn`` on every case, in parallel; results in the order of ``cases``.
 
     Parameters
@@ -245,6 +274,9 @@ def run_cases(cases: list[dict], fn: str, *, executor: cf.Executor | None = None
         cannot be stopped: they finish and are stored, then :class:`BatchCancelled` is raised.
     retry_failed
         Run the cases whose stored record is a failure again (by default it is returned as it is).
+    no_worker_timeout
+        Seconds an executor that reports its workers (``executor.worker_count()``, as :func:`dask_executor`'s
+        does) may have none while cases wait, before the batch stops with :class:`NoWorkers`.
 
     Returns
     -------
@@ -260,10 +292,14 @@ def run_cases(cases: list[dict], fn: str, *, executor: cf.Executor | None = None
         ``fn`` is not ``"module:function"``, cannot be imported on a worker, or a case is not strict JSON.
     RuntimeError
         The executor broke (a worker process died): finished cases are stored, rerun to resume.
+    NoWorkers
+        A cluster had no workers for ``no_worker_timeout`` seconds (a ``RuntimeError``; carries the results).
     """
     _split(fn)
     if workers is not None and workers < 1:
         raise ValueError(f"workers must be at least 1, got {workers}")
+    if not no_worker_timeout > 0:
+        raise ValueError(f"no_worker_timeout must be a positive number of seconds, got {no_worker_timeout!r}")
     root = Path(store) if store is not None else None
     if root is not None:
         root.mkdir(parents=True, exist_ok=True)
@@ -303,6 +339,21 @@ def run_cases(cases: list[dict], fn: str, *, executor: cf.Executor | None = None
     queue = deque(todo.items())
     running: dict[cf.Future, str] = {}
     stopped = False
+    count = None if own else getattr(ex, "worker_count", None)
+    looked, idle_since = time.monotonic(), None
+
+    def starved() -> bool:
+        """True once the executor has had no workers for ``no_worker_timeout`` seconds."""
+        nonlocal looked, idle_since
+        now = time.monotonic()
+        if count is None or now - looked < _WORKER_POLL:
+            return False
+        looked = now
+        if count() > 0:
+            idle_since = None
+            return False
+        idle_since = now if idle_since is None else idle_since
+        return now - idle_since >= no_worker_timeout
 
     def cancelled() -> bool:
         return cancel is not None and cancel.is_set()
@@ -353,6 +404,10 @@ def run_cases(cases: list[dict], fn: str, *, executor: cf.Executor | None = None
             for f in finished:
                 finish(f, running.pop(f))
             fill()
+            if running and starved():
+                for f in running:
+                    f.cancel()
+                raise NoWorkers(results, no_worker_timeout)
     finally:
         bar.close()
         if own:

@@ -9,9 +9,23 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, field_validator, model_validator
 
-__all__ = ["Family", "Problem"]
+__all__ = ["Envelope", "Family", "Problem"]
+
+
+class Envelope(BaseModel):
+    """The space every family must fit in: a cylinder around the stroke's axis (through the origin, the hinge
+    centre of the templates), the same for every family so that they are compared in one space."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    shape: Literal["cylinder"] = "cylinder"
+    radius: PositiveFloat = Field(description="largest distance of any scene node or leaf edge (node +- "
+                                  "width/2 across the leaf) from the stroke axis [m]")
+    half_height: PositiveFloat | None = Field(default=None, description="largest distance of any scene node or "
+                                              "leaf edge along the axis from the origin's plane [m] (default: "
+                                              "unbounded)")
 
 
 class Family(BaseModel):
@@ -67,19 +81,34 @@ class Problem(BaseModel):
                                  "raises the lower bound of every parameter named '*thickness*'")
     max_drive: float | None = Field(default=None, gt=0, description="largest actuation moment [N m] or "
                                     "force [N] along the stroke (optional)")
-    envelope: float | None = Field(default=None, gt=0, description="largest distance of any scene node from "
-                                   "the origin (the hinge centre of the templates) [m] (optional)")
+    envelope: PositiveFloat | Envelope | None = Field(
+        default=None, description="the space every family must fit in, the same for all: a cylinder around "
+        "the stroke axis ({\"radius\", \"half_height\"} [m]), or a number: a sphere of that radius [m] about "
+        "the origin (the hinge centre of the templates); scene nodes and leaf edges are constrained, rigid "
+        "bodies are not (optional)")
+    body_mass: PositiveFloat | None = Field(
+        default=None, description="moving-body mass [kg] given to every family (the templates' 'body_mass'), so "
+        "that they are compared with the same payload; default: each template's own (0.1 kg for every hinge "
+        "family); the result reports each family's mass and warns when they differ")
+    solver: Literal["slsqp", "trust-constr"] = Field(
+        default="slsqp", description="'slsqp' (scipy SLSQP, active set) or 'trust-constr' (scipy's "
+        "interior-point / trust-region method, with BFGS Hessians of the constraints)")
+    kkt_tolerance: float = Field(default=1e-2, gt=0, lt=1, description="largest first-order optimality "
+                                 "residual (KKT, relative to the objective's gradient) of a converged start")
     starts: int = Field(default=4, ge=1, le=64, description="multi-start: starts per family (the first is the "
-                        "template's defaults clipped into the bounds, the others a Latin hypercube)")
+                        "template's defaults clipped into the bounds, start k >= 1 the k-th point of a scrambled "
+                        "Halton sequence seeded by (seed, family): adding starts keeps the earlier ones)")
     screen: int = Field(default=0, ge=0, le=256, description="fast-method screening: each start first "
                         "evaluates this many Latin-hypercube candidates of its own with the modal-derivative "
                         "'auto' method (the cheapest method whose estimated error meets screen_tolerance; exact "
                         "where none does) and starts from the one with the highest estimated worst case")
     screen_tolerance: float = Field(default=0.02, gt=0, lt=0.5, description="error tolerance of the screening")
-    seed: int = Field(default=0, ge=0, description="base seed of the Latin hypercube (deterministic)")
+    seed: int = Field(default=0, ge=0, description="base seed of the start sequence and the screening (deterministic)")
     max_iterations: int = Field(default=30, ge=1, le=500, description="SLSQP iterations per start and round")
-    refine_rounds: int = Field(default=3, ge=0, le=10, description="verification rounds: the stroke of the "
-                               "verified minimum is added to the samples and the search resumed")
+    refine_rounds: int = Field(default=3, ge=0, le=10, description="verification rounds: what the "
+                               "verification found (the stroke of the verified minimum or stress peak, or the "
+                               "stressed member's constraints) is added to the search and the search resumed; "
+                               "a round that would add nothing stops with the reason")
     verify_points: int = Field(default=181, ge=31, le=2001, description="exact stroke points of the verification")
     tolerance: float = Field(default=1e-3, gt=0, lt=0.1, description="relative tolerance of the search "
                              "(SLSQP ftol) and of the verified-versus-searched worst case")

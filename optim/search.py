@@ -4,50 +4,85 @@ Formulation (epigraph)
 ----------------------
 With the design scaled to the unit box, ``x = (p - lower) / (upper - lower)``, the search solves
 
-    maximise t   subject to   f_k(s_j; x) / f_ref >= t      for the ``modes`` lowest parasitic modes k
-                                                            at every stroke sample s_j,
-                              sigma_j(x) <= sigma_allow / safety_factor,   |F_j(x)| <= max_drive,
+    maximise t   subject to   f_k(s_j; x) / f_ref >= t        for the ``modes`` lowest parasitic modes k
+                                                              at every stroke sample s_j,
+                              (sigma_e(s_j; x) / sigma_allow)^2 <= 1   at every segment end e,
+                              (F_j(x) / max_drive)^2 <= 1,   every node inside the envelope,
                               0 <= x <= 1,
 
-by SLSQP with exact gradients (:mod:`model.design`: the implicit function theorem through each sampled
-equilibrium, ``d lambda = phi^T (dK - lambda dM) phi``, cluster means for repeated eigenvalues). The
-minimum over the stroke is not differentiable where the worst sample or the lowest mode switches; the
-epigraph keeps every sample and several modes as smooth constraints, so a switch changes which
-constraints are active but never hides the minimum (a KS aggregate would smooth it at the price of a
-bias that depends on its parameter). ``f_ref`` is the starting design's worst case (scaling only).
+by SLSQP (or scipy's ``trust-constr``) with exact gradients (:mod:`model.design`: the implicit function
+theorem through each sampled equilibrium, ``d lambda = phi^T (dK - lambda dM) phi``, cluster means for
+repeated eigenvalues). The minimum over the stroke is not differentiable where the worst sample or the
+lowest mode switches; the epigraph keeps every sample and several modes as smooth constraints, so a switch
+changes which constraints are active but never hides the minimum. The stress limit is treated the same
+way: one constraint per segment end and sample (never the maximum over the segments, whose kinks stall
+SLSQP), squared so that its gradient is finite where the stress vanishes (the root's gradient is 0/0 at
+the stroke's zero of an unstressed hinge). Every segment end's row is passed to the solver (a subset
+chosen at the round's start, e.g. the ends above half the peak stress, was measured to miss the ends a
+moving crossing point makes critical); rows that duplicate another (mirrored leaves, mirrored nodes) are
+passed once. ``f_ref`` is the start's worst case (scaling only).
 
 Fidelity ladder
 ---------------
 The search sees ``samples`` exact stroke points; the result is then *verified* with the exact method on
-``verify_points`` (181 by default) points. If the verified minimum lies between samples and is lower than
-the searched one by more than ``tolerance``, its stroke is added to the samples and the search resumes
-from the current design (``refine_rounds`` times at most). Both figures are reported; a result whose
-final verification failed (lost equilibrium, violated stress) is reported as such, never as an optimum.
+``verify_points`` (181 by default) points. If the verified minimum (or stress peak) lies between samples,
+its stroke is added and the search resumes (``refine_rounds`` times at most). A round that would add
+nothing (the violation lies at a stroke already sampled) stops with the reason: never an identical rerun.
+
+Optimality and status
+---------------------
+Every start reports the solver's exit and a first-order optimality measure: the KKT residual
+``min_{mu >= 0} || grad f - sum mu_i grad c_i ||`` over the constraints and bounds active within
+``tolerance`` (non-negative least squares; ``grad f`` has unit norm), with the largest violation and the
+active bounds. ``status`` is "optimal" (solver converged, KKT residual within ``kkt_tolerance``, verified
+and feasible), "unconverged" (verified and feasible, but the solver stopped or the residual is large),
+"infeasible" (the verification violates the stress limit) or "failed" (an evaluation or the verification
+failed). The ranking uses "optimal" starts only; the others are listed with their status.
+
+A design whose evaluation fails (equilibrium lost along the stroke) is never given to the solver as a
+value: the solver stops, and the search steps back to the last good design and resumes inside a box
+around it half as wide as the failed step (a trust region), at most ``_STEP_BACKS`` times per round.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import time
-from dataclasses import dataclass
+import warnings
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
-from scipy.optimize import minimize
+from scipy.optimize import BFGS, Bounds, NonlinearConstraint, minimize, nnls
 from scipy.stats import qmc
 
 from ..model.analysis import Analysis
 from ..model.design import point_sensitivity, structure_derivative, trace_template
 from ..model.errors import FlexoptError
+from ..model.results import ResultWarning
 from ..model.templates import TEMPLATES
 
-from .problem import Family, Problem
+from .problem import Envelope, Family, Problem
 
-__all__ = ["run_case", "cases", "optimise", "summarise"]
+__all__ = ["run_case", "cases", "optimise", "summarise", "start_point"]
+
+_STEP_BACKS = 4  # failed evaluations per round before the start is reported as failed
+_BOUND_TOL = 1e-6  # a scaled design variable this close to 0 or 1 is on its bound
+
+
+class _EvaluationFailed(Exception):
+    """An evaluation failed: the solver must not see a value there (see the module docstring)."""
+
+    def __init__(self, x: np.ndarray, message: str) -> None:
+        super().__init__(message)
+        self.x = x
 
 
 @dataclass
 class _Eval:
     x: np.ndarray
-    con: np.ndarray  # constraint values (>= 0 feasible), scaled
+    con: np.ndarray  # constraint values (>= 0 feasible), scaled; frequency rows without the epigraph's t
     jac: np.ndarray  # (n_con, n_x + 1)
     worst_hz: float
     stroke_at_worst: float
@@ -55,6 +90,10 @@ class _Eval:
     ok: bool
     message: str = ""
     strokes: np.ndarray | None = None  # stroke (user unit) of each constraint row; nan for the envelope
+    kinds: np.ndarray | None = None  # "frequency", "stress", "drive", "envelope" per row
+    labels: list[str] = field(default_factory=list)  # what each row bounds, for the report
+    members: np.ndarray | None = None  # scene member of each stress row ("" for others)
+    stress_ratio: np.ndarray | None = None  # sigma / sigma_allow of each row (0 for non-stress rows)
 
 
 def _bounds(fam: Family, prob: Problem) -> tuple[list[str], np.ndarray, np.ndarray]:
@@ -84,19 +123,35 @@ class _Family:
         if unknown:
             raise FlexoptError(f"families[].design: template '{fam.template}' has no parameters {unknown}; "
                                f"its parameters are {sorted(defaults)}")
+        if prob.body_mass is not None:
+            if "body_mass" not in defaults:
+                raise FlexoptError(f"body_mass: template '{fam.template}' has no moving body ('body_mass'); "
+                                   "remove body_mass from the problem or this family")
+            if "body_mass" in fam.design or fam.fixed.get("body_mass", prob.body_mass) != prob.body_mass:
+                raise FlexoptError(f"families[].{fam.template}: body_mass is set by the problem "
+                                   f"({prob.body_mass:g} kg, the same for every family); remove it from the family")
         self.stroke = float(prob.stroke if prob.stroke is not None else defaults.get("stroke", 45.0))
         self.samples = np.linspace(-self.stroke, self.stroke, prob.samples)
         self.f_ref: float | None = None
-        self.keep: np.ndarray | None = None  # constraint rows passed to SLSQP (see dedupe)
+        self.keep: np.ndarray | None = None  # constraint rows passed to the solver (see select)
         self._last: _Eval | None = None
         self._good: _Eval | None = None  # the last successful evaluation
         self.evaluations = 0
 
     def params(self, x: np.ndarray) -> dict:
         p = dict(self.fam.fixed)
+        if self.prob.body_mass is not None:
+            p["body_mass"] = self.prob.body_mass
         p.update({k: float(v) for k, v in zip(self.names, self.lo + np.clip(x, 0, 1) * (self.hi - self.lo))})
         p["stroke"] = self.stroke
         return p
+
+    def moving_mass(self) -> float | None:
+        """The moving body's mass of this family [kg] (the template's 'body_mass'), None if it has none."""
+        d = TEMPLATES[self.fam.template][1]
+        if "body_mass" not in d:
+            return None
+        return float(self.params(np.zeros(len(self.names))).get("body_mass", d["body_mass"]))
 
     def default_x(self) -> np.ndarray:
         d = TEMPLATES[self.fam.template][1]
@@ -110,36 +165,28 @@ class _Family:
         try:
             ev = self._evaluate(x)
         except FlexoptError as exc:
-            ev = self._failed(x, str(exc))
+            ev = _Eval(x.copy(), np.empty(0), np.empty((0, len(x) + 1)), float("nan"), float("nan"), float("nan"),
+                       False, str(exc))
         self._last = ev
         if ev.ok:
             self._good = ev
         return ev
 
-    def _failed(self, x: np.ndarray, message: str) -> _Eval:
-        # an infeasible point: every frequency constraint violated; the gradient of the last good point
-        # (if any) steers SLSQP's line search back
-        good = self._good
-        if good is None:  # only the start design can fail without a previous good point: run_case stops
-            n = len(self.samples) * self.prob.modes
-            return _Eval(x.copy(), -np.ones(n), np.zeros((n, len(x) + 1)), float("nan"), float("nan"),
-                         float("nan"), False, message)
-        return _Eval(x.copy(), -np.ones(len(good.con)), good.jac, float("nan"), float("nan"), float("nan"), False,
-                     message, good.strokes)
-
     def _evaluate(self, x: np.ndarray) -> _Eval:
         prob = self.prob
         ds = trace_template(self.fam.template, self.params(x), self.names)
         an = Analysis(ds.scene)
+        s = an.structure
         scale = self.hi - self.lo
-        dstructs = [structure_derivative(an.structure, ds.scene_dict, d) for d in ds.dscene]
-        rows_f: list[tuple[float, np.ndarray, float]] = []
-        rows_g: list[tuple[float, np.ndarray, float]] = []
+        dstructs = [structure_derivative(s, ds.scene_dict, d) for d in ds.dscene]
+        rows_f: list[tuple[float, np.ndarray, float, str]] = []
+        rows_g: list[tuple[float, np.ndarray, float, str, str, float, str]] = []  # value, grad, stroke, kind, ...
         unit = ds.scene.stroke.resolved_unit
         to_user = (lambda v: float(np.degrees(v))) if unit == "deg" else float
         pts: dict[float, tuple[float, float]] = {}
         mats = {m.name: m for m in ds.scene.materials}
         allow = min(mats[e.material].allowable_stress for e in ds.scene.elements) / prob.safety_factor
+        member = [s.member_names[i] for i in s.beam_member]
 
         def visit(eq, modes, labels):
             par = [i for i in np.argsort(modes.omega2) if labels[i] == "parasitic"][: prob.modes]
@@ -149,24 +196,39 @@ class _Family:
             ps = point_sensitivity(an.system, eq, modes, par, dstructs)
             lam = modes.omega2[par]
             hz = np.sqrt(np.maximum(lam, 0)) / (2 * np.pi)
+            su = to_user(eq.stroke)
             for k in range(len(par)):
                 dhz = ps.dlam[:, k] / (8 * np.pi**2 * max(hz[k], 1e-300)) * scale
-                rows_f.append((hz[k], dhz, to_user(eq.stroke)))
-            i = np.unravel_index(np.argmax(ps.vm), ps.vm.shape)
-            vm = float(ps.vm[i])
-            rows_g.append((1.0 - vm / allow, -ps.dvm[:, i[0], i[1]] * scale / allow, to_user(eq.stroke)))
+                rows_f.append((hz[k], dhz, su, f"parasitic mode {k + 1} at stroke {su:.6g}"))
+            # one smooth row per segment end: 1 - (sigma / allow)^2 >= 0
+            for b in range(s.n_beams):
+                for end in range(2):
+                    r = float(ps.vm[b, end]) / allow
+                    rows_g.append((1.0 - r * r, -ps.dvm2[:, b, end] * scale / allow**2, su, "stress",
+                                   f"stress in {member[b]} (segment {b}, end {end}) at stroke {su:.6g}", r, member[b]))
             if prob.max_drive is not None:
-                r = eq.drive_reaction
-                rows_g.append((1.0 - abs(r) / prob.max_drive, -np.sign(r) * ps.dreaction * scale / prob.max_drive,
-                               to_user(eq.stroke)))
-            pts[eq.stroke] = (float(hz[0]), vm)
+                r = eq.drive_reaction / prob.max_drive
+                rows_g.append((1.0 - r * r, -2.0 * r * ps.dreaction * scale / prob.max_drive, su, "drive",
+                               f"drive force or moment at stroke {su:.6g}", 0.0, ""))
+            pts[eq.stroke] = (float(hz[0]), float(np.max(ps.vm)))
 
-        if prob.envelope is not None:  # every scene node within a sphere of radius envelope
-            R2 = prob.envelope**2
-            for k, node in enumerate(ds.scene_dict["nodes"]):
-                pos = np.asarray(node["position"], float)
-                dpos = np.array([d["nodes"][k]["position"] for d in ds.dscene], float)  # (np, 3)
-                rows_g.append((1.0 - float(pos @ pos) / R2, -2.0 * (dpos @ pos) * scale / R2, float("nan")))
+        if prob.envelope is not None:
+            for pos, dpos, name in _envelope_points(ds.scene_dict, ds.dscene):
+                if not isinstance(prob.envelope, Envelope):  # a sphere about the origin
+                    R2 = prob.envelope**2
+                    rows_g.append((1.0 - float(pos @ pos) / R2, -2.0 * (dpos @ pos) * scale / R2, float("nan"),
+                                   "envelope", f"{name} on the envelope (sphere)", 0.0, ""))
+                    continue
+                axis = np.asarray(ds.scene.stroke.axis, float)
+                axis = axis / float(np.linalg.norm(axis))
+                a, da = float(pos @ axis), dpos @ axis
+                R2 = prob.envelope.radius**2
+                rows_g.append((1.0 - (float(pos @ pos) - a * a) / R2, -2.0 * (dpos @ pos - a * da) * scale / R2,
+                               float("nan"), "envelope", f"{name} on the envelope's radius", 0.0, ""))
+                if prob.envelope.half_height is not None:
+                    H2 = prob.envelope.half_height**2
+                    rows_g.append((1.0 - a * a / H2, -2.0 * a * da * scale / H2, float("nan"), "envelope",
+                                   f"{name} on the envelope's end", 0.0, ""))
         curve = an.frequency_curve(stroke=self.samples, visit=visit)
         if curve.status != "complete":
             raise FlexoptError(curve.failures[0].message if curve.failures else "the stroke was not completed")
@@ -174,69 +236,205 @@ class _Family:
         if self.f_ref is None:
             self.f_ref = float(f.min())
         nx = len(x)
-        con, jac = [], []
-        for hz, d, _ in rows_f:  # f / f_ref - t >= 0
-            con.append(hz / self.f_ref)
-            jac.append(np.concatenate([d / self.f_ref, [-1.0]]))
-        for v, d, _ in rows_g:
-            con.append(v)
-            jac.append(np.concatenate([d, [0.0]]))
+        con = [hz / self.f_ref for hz, *_ in rows_f] + [r[0] for r in rows_g]
+        jac = ([np.concatenate([d / self.f_ref, [-1.0]]) for _, d, *_ in rows_f]
+               + [np.concatenate([r[1], [0.0]]) for r in rows_g])
         k = int(np.argmin(f))
-        strokes = np.array([r[2] for r in rows_f] + [r[2] for r in rows_g])
+        nf = len(rows_f)
         return _Eval(x.copy(), np.array(con), np.array(jac).reshape(len(con), nx + 1), float(f.min()),
-                     rows_f[k][2], max(v[1] for v in pts.values()), True, strokes=strokes)
+                     rows_f[k][2], max(v[1] for v in pts.values()), True,
+                     strokes=np.array([r[2] for r in rows_f] + [r[2] for r in rows_g]),
+                     kinds=np.array(["frequency"] * nf + [r[3] for r in rows_g]),
+                     labels=[r[3] for r in rows_f] + [r[4] for r in rows_g],
+                     members=np.array([""] * nf + [r[6] for r in rows_g]),
+                     stress_ratio=np.array([0.0] * nf + [r[5] for r in rows_g]))
+
+    def n_frequency(self) -> int:
+        return len(self.samples) * self.prob.modes
 
     def reduce_symmetric(self, ev: _Eval) -> bool:
-        """Keep only the non-negative samples when every constraint row at ``-s`` equals the one at ``s``
-        (values and gradients to 1e-6 of their scale: the mirrored equilibria agree to the
-        Newton tolerance, about 1e-8): a design space symmetric in the stroke (a mirror or
-        a 180-degree turn that maps the stroke to its negative) would otherwise give SLSQP pairs of
-        identical constraints, whose linear dependence breaks its least-squares subproblem. The dense
-        verification still covers the whole stroke, so a design that breaks the symmetry is caught."""
+        """Keep only the non-negative samples when the constraint rows at ``-s`` are those at ``s`` (as a set:
+        a mirror maps one leaf's segment ends onto the other's; values and gradients to 1e-6 of their scale,
+        the mirrored equilibria agree to the Newton tolerance, about 1e-8): a design space symmetric in the
+        stroke would otherwise give the solver pairs of identical constraints, whose linear dependence breaks
+        SLSQP's least-squares subproblem. The dense verification still covers the whole stroke, so a
+        design that breaks the symmetry is caught."""
         if not ev.ok or ev.strokes is None or not np.any(self.samples < 0):
             return False
         rows = np.column_stack([ev.con, ev.jac])
         tol = 1e-6 * max(float(np.abs(rows).max()), 1e-300)
         for s_ in self.samples[self.samples < 0]:
             a, b = rows[ev.strokes == s_], rows[ev.strokes == -s_]
-            if a.shape != b.shape or np.abs(a - b).max(initial=0.0) > tol:
+            if a.shape != b.shape:
                 return False
+            used = np.zeros(len(b), dtype=bool)
+            for r in a:  # pair each row at -s with an unused equal row at +s
+                d = np.abs(b - r).max(axis=1, initial=0.0)
+                d[used] = np.inf
+                j = int(np.argmin(d)) if len(d) else -1
+                if j < 0 or d[j] > tol:
+                    return False
+                used[j] = True
         self.samples = self.samples[self.samples >= 0]
         self._last = self._good = None
         return True
 
-    def dedupe(self, ev: _Eval) -> None:
-        """Pass SLSQP each distinct constraint once: rows equal to an earlier one (value and gradient to 1e-9
-        of the scale) at the start design, such as the envelope rows of mirrored nodes, are the same
-        function of the design in a symmetric family, and duplicates make its subproblem singular."""
-        if not ev.ok:
-            return
+    def select(self, ev: _Eval) -> None:
+        """Choose the rows passed to the solver at the start of a round: each distinct row once. Rows equal to
+        an earlier one (value and gradient to 1e-9 of the scale), such as the envelope rows of mirrored nodes
+        or the mirrored leaves' stresses, are the same function of the design in a symmetric family, and
+        duplicates make SLSQP's subproblem singular.
+
+        Raises
+        ------
+        FlexoptError
+            When a row is not finite (a NaN would make every comparison false and drop all rows but one).
+        """
+        assert ev.ok and ev.kinds is not None and ev.stress_ratio is not None and ev.members is not None
         rows = np.column_stack([ev.con, ev.jac])
+        bad = np.flatnonzero(~np.all(np.isfinite(rows), axis=1))
+        if len(bad):
+            raise FlexoptError(f"constraint rows {[ev.labels[i] for i in bad[:3]]} are not finite at design "
+                               f"{self.params(ev.x)}: a gradient is undefined there (report this as a bug)")
         tol = 1e-9 * max(float(np.abs(rows).max()), 1e-300)
         keep: list[int] = []
         for i in range(len(rows)):
-            if all(np.abs(rows[i] - rows[j]).max() > tol for j in keep):
-                keep.append(i)
-        self.keep = np.array(keep)
+            if not keep or np.abs(rows[keep] - rows[i]).max(axis=1).min() > tol:
+                keep.append(int(i))
+        self.keep = np.array(keep, dtype=int)
 
-    # the epigraph's frequency constraints are relative to t, the last variable
-    def constraints(self):
-        def fun(z):
-            ev = self.evaluate(z[:-1])
-            c = ev.con.copy()
-            nf = len(self.samples) * self.prob.modes
-            c[:nf] -= z[-1]
-            return c if self.keep is None else c[self.keep]
+    def dedupe(self, ev: _Eval) -> None:
+        """Alias of :meth:`select` (the selection includes the removal of duplicate rows)."""
+        self.select(ev)
 
-        def jac(z):
-            j = self.evaluate(z[:-1]).jac
-            return j if self.keep is None else j[self.keep]
+    def _checked(self, z: np.ndarray) -> _Eval:
+        ev = self.evaluate(z[:-1])
+        if not ev.ok:
+            raise _EvaluationFailed(np.asarray(z[:-1], float).copy(), ev.message)
+        return ev
 
-        return [{"type": "ineq", "fun": fun, "jac": jac}]
+    def fun(self, z: np.ndarray) -> np.ndarray:
+        """The solver's constraint values (>= 0) at ``z = (x, t)``: the epigraph's frequency rows minus t."""
+        c = self._checked(z).con.copy()
+        c[: self.n_frequency()] -= z[-1]
+        return c if self.keep is None else c[self.keep]
+
+    def jac(self, z: np.ndarray) -> np.ndarray:
+        j = self._checked(z).jac
+        return j if self.keep is None else j[self.keep]
+
+
+def _envelope_points(scene: dict, dscene: tuple[dict, ...]) -> list[tuple[np.ndarray, np.ndarray, str]]:
+    """Points that must lie in the envelope, with their derivatives ``(np, 3)`` along the design: every scene
+    node, and both edges of every rectangular leaf at its end nodes (node +- width/2 along the section's
+    width direction ``y_axis``), so that the leaves' width counts. Rigid bodies are mass properties without a
+    shape here and are not bounded; the thickness (t/2, well below a millimetre) is neglected."""
+    pos = {n["name"]: (np.asarray(n["position"], float), np.array([d["nodes"][k]["position"] for d in dscene], float))
+           for k, n in enumerate(scene["nodes"])}
+    out = [(p, dp, f"node {name}") for name, (p, dp) in pos.items()]
+    for k, el in enumerate(scene["elements"]):
+        sec = el.get("section") or {}
+        if el.get("kind") != "beam" or sec.get("kind") != "rectangular":
+            continue
+        y = np.asarray(el["y_axis"], float)
+        dy = np.array([d["elements"][k]["y_axis"] for d in dscene], float)
+        ny = float(np.linalg.norm(y))
+        u = y / ny
+        du = (dy - np.outer(dy @ u, u)) / ny  # derivative of the unit vector y / |y|
+        w = float(sec["width"])
+        dw = np.array([float(d["elements"][k]["section"]["width"]) for d in dscene])
+        for node in el["nodes"]:
+            p, dp = pos[node]
+            for sign, side in ((1.0, "+"), (-1.0, "-")):
+                out.append((p + sign * 0.5 * w * u, dp + sign * 0.5 * (np.outer(dw, u) + w * du),
+                            f"edge {side} of {el['name']} at node {node}"))
+    return out
+
+
+def start_point(fam: _Family, prob: Problem, family_index: int, start: int) -> np.ndarray:
+    """Start ``start`` of a family in the unit box: 0 the template's defaults clipped into the bounds, k >= 1
+    the k-th point of a scrambled Halton sequence seeded by ``(seed, family_index)`` (Owen scrambling,
+    scipy.stats.qmc). Each start depends only on its own index, so adding starts keeps the earlier ones,
+    and the sequence fills the box evenly however many starts are drawn."""
+    if start == 0:
+        return fam.default_x()
+    seq = qmc.Halton(d=len(fam.names), scramble=True, seed=np.random.default_rng([prob.seed, family_index]))
+    seq.fast_forward(start - 1)
+    return seq.random(1)[0]
+
+
+def _trust_constr_options(prob: Problem) -> dict:
+    # measured (bench/bench_optim.py): with scipy's defaults (barrier 0.1, gtol 1e-8 loosened to the search's
+    # tolerance) the interior point stops about 0.6 % inside an active bound; a small initial barrier and
+    # tight barrier and gradient tolerances let it reach the bound in a few iterations more
+    return {"maxiter": prob.max_iterations * 10, "gtol": prob.tolerance * 1e-5, "xtol": prob.tolerance * 1e-7,
+            "barrier_tol": prob.tolerance * 1e-7, "initial_barrier_parameter": prob.tolerance}
+
+
+def _solve(fam: _Family, prob: Problem, x: np.ndarray, t0: float, lo: np.ndarray, hi: np.ndarray) -> dict:
+    """One solver run from ``(x, t0)`` inside the box ``[lo, hi]``; raises _EvaluationFailed."""
+    n = len(x)
+    z0 = np.concatenate([np.clip(x, lo, hi), [t0]])
+    obj = (lambda z: -z[-1])
+    grad = (lambda z: np.concatenate([np.zeros(n), [-1.0]]))
+    if prob.solver == "slsqp":
+        res = minimize(obj, z0, jac=grad, method="SLSQP", bounds=list(zip(lo, hi)) + [(None, None)],
+                       constraints=[{"type": "ineq", "fun": fam.fun, "jac": fam.jac}],
+                       options={"maxiter": prob.max_iterations, "ftol": prob.tolerance * 1e-2})
+        return {"z": res.x, "success": bool(res.status == 0), "code": int(res.status), "message": str(res.message),
+                "iterations": int(res.nit)}
+    con = NonlinearConstraint(fam.fun, 0.0, np.inf, jac=fam.jac, hess=BFGS())
+    bounds = Bounds(np.concatenate([lo, [-np.inf]]), np.concatenate([hi, [np.inf]]))
+    with warnings.catch_warnings():
+        # BFGS skips its update where a constraint is linear in the step (the envelope, the epigraph's t)
+        warnings.filterwarnings("ignore", message="delta_grad == 0.0", category=UserWarning)
+        res = minimize(obj, z0, jac=grad, hess=lambda z: np.zeros((n + 1, n + 1)), method="trust-constr",
+                       bounds=bounds, constraints=[con], options=_trust_constr_options(prob))
+    return {"z": res.x, "success": bool(res.status in (1, 2)), "code": int(res.status), "message": str(res.message),
+            "iterations": int(res.nit)}
+
+
+def _optimality(fam: _Family, ev: _Eval, tol: float) -> dict:
+    """First-order optimality at ``ev`` (all constraint rows, not only those passed to the solver):
+    the KKT residual ``min_{mu >= 0} || grad f - J_A^T mu ||`` over the constraints and bounds active within
+    ``tol`` (scipy.optimize.nnls; a scaled variable within ``tol`` of 0 or 1 is on its bound, which an
+    interior-point solver approaches without touching), the largest violation, and what is active."""
+    nf = fam.n_frequency()
+    n = len(ev.x)
+    t = float(ev.con[:nf].min())
+    c = ev.con.copy()
+    c[:nf] -= t
+    act = np.flatnonzero(c <= tol)
+    cols = [ev.jac[i] for i in act]
+    names = [ev.labels[i] for i in act]
+    bounds = {}
+    for j, k in enumerate(fam.names):
+        e = np.zeros(n + 1)
+        if ev.x[j] <= tol:
+            e[j] = 1.0
+            cols.append(e)
+            names.append(f"{k} at its lower bound")
+            bounds[k] = "lower"
+        elif ev.x[j] >= 1 - tol:
+            e[j] = -1.0
+            cols.append(e)
+            names.append(f"{k} at its upper bound")
+            bounds[k] = "upper"
+    g = np.zeros(n + 1)
+    g[-1] = -1.0  # gradient of the objective -t
+    A = np.array(cols).T if cols else np.zeros((n + 1, 0))
+    if A.shape[1]:
+        mu, resid = nnls(A, g)
+    else:
+        mu, resid = np.zeros(0), float(np.linalg.norm(g))
+    active = [nm for nm, m in zip(names, mu) if m > 1e-9]
+    return {"kkt_residual": float(resid), "max_violation": float(max(0.0, -float(c.min()))),
+            "active": active, "active_bounds": bounds,
+            "active_kinds": sorted({str(ev.kinds[i]) for i, m in zip(act, mu) if m > 1e-9})}
 
 
 def _verify(fam: _Family, x: np.ndarray, points: int) -> dict:
-    """The exact curve of design ``x`` on ``points`` stroke points: worst and zero-stroke frequency."""
+    """The exact curve of design ``x`` on ``points`` stroke points: worst and zero-stroke frequency, stress."""
     from ..model.templates import template
 
     params = fam.params(x)
@@ -254,23 +452,17 @@ def _verify(fam: _Family, x: np.ndarray, points: int) -> dict:
     ph = curve.parasitic_hz
     i = int(np.argmin(ph))
     zero = float(ph[int(np.argmin(np.abs(curve.stroke)))])
-    per_point = np.nanmax(np.array(list(curve.max_von_mises.values())), axis=0)
-    stress = float(per_point.max())
+    members = list(curve.max_von_mises)
+    per_member = np.nan_to_num(np.array([curve.max_von_mises[m] for m in members]), nan=-np.inf)
+    im, ip = np.unravel_index(int(np.argmax(per_member)), per_member.shape)
+    stress = float(per_member[im, ip])
     out.update(worst_hz=float(ph[i]), stroke_at_worst=float(curve.stroke[i]), zero_stroke_hz=zero,
                ratio=float(ph[i] / zero), max_stress=stress, allowable_stress=allow,
                stress_ratio=stress * fam.prob.safety_factor / allow,
-               stroke_at_max_stress=float(curve.stroke[int(np.argmax(per_point))]),
+               stroke_at_max_stress=float(curve.stroke[ip]), member_at_max_stress=members[im],
                max_drive=float(np.max(np.abs(curve.drive_reaction))), drive_unit=curve.drive_reaction_unit,
                scene=scene.model_dump(mode="json"))
     return out
-
-
-def _start_points(fam: _Family, prob: Problem, family_index: int) -> np.ndarray:
-    pts = [fam.default_x()]
-    if prob.starts > 1:
-        sampler = qmc.LatinHypercube(d=len(fam.names), seed=np.random.default_rng([prob.seed, family_index]))
-        pts += list(sampler.random(prob.starts - 1))
-    return np.array(pts)
 
 
 def _screen(fam: _Family, prob: Problem, family_index: int, start: int, x0: np.ndarray) -> tuple[np.ndarray, dict]:
@@ -299,6 +491,102 @@ def _screen(fam: _Family, prob: Problem, family_index: int, start: int, x0: np.n
     return best, {"candidates": len(cands), "scored": scored, "methods": methods, "best_estimate_hz": best_f}
 
 
+def _search(fam: _Family, prob: Problem, x: np.ndarray) -> dict:
+    """One round of the search from the good design ``x``, stepping back after a failed evaluation.
+
+    A failed evaluation stops the solver (it never sees a value there); the search resumes from the last
+    good design inside a box around it of half the failed step's size (a trust region), and once a run
+    ends inside such a box on its edge, from there in the whole box again. ``_STEP_BACKS`` failures at most.
+    """
+    n = len(x)
+    lo, hi = np.zeros(n), np.ones(n)
+    backs, resumes, iterations = 0, 0, 0
+    steps: list[dict] = []
+    while True:
+        good = fam.evaluate(x)
+        if not good.ok:
+            return {"x": x, "success": False, "code": -1, "iterations": iterations, "steps": steps,
+                    "failed": good.message, "message": "evaluation failed"}
+        t0 = good.worst_hz / fam.f_ref
+        try:
+            out = _solve(fam, prob, x, t0, lo, hi)
+        except _EvaluationFailed as exc:
+            backs += 1
+            good = fam._good
+            assert good is not None
+            steps.append({"failed_at": fam.params(exc.x), "message": str(exc)})
+            if backs > _STEP_BACKS:
+                return {"x": good.x, "success": False, "code": -1, "iterations": iterations, "steps": steps,
+                        "failed": f"{backs} evaluations failed (last: {exc}); stopped at the last good design",
+                        "message": "evaluations failed"}
+            r = 0.5 * max(float(np.abs(exc.x - good.x).max()), 1e-6)
+            x, lo, hi = good.x.copy(), np.maximum(good.x - r, 0.0), np.minimum(good.x + r, 1.0)
+            continue
+        iterations += out["iterations"]
+        x = np.clip(out["z"][:-1], 0.0, 1.0)
+        edge = np.any((x <= lo + _BOUND_TOL) & (lo > 0)) or np.any((x >= hi - _BOUND_TOL) & (hi < 1))
+        if edge and resumes < _STEP_BACKS:
+            resumes += 1
+            lo, hi = np.zeros(n), np.ones(n)
+            continue
+        out.update(x=x, iterations=iterations, steps=steps, failed=None)
+        return out
+
+
+def _refine(fam: _Family, verified: dict, low: bool, stressed: bool, symmetric: bool) -> tuple[list[str], str]:
+    """What the verification found that the search did not see, added to the search; or why nothing can be."""
+    added: list[str] = []
+    why: list[str] = []
+    tol = 1e-9 * max(fam.stroke, 1.0)
+
+    def sampled(s_: float) -> bool:
+        return bool(np.any(np.abs(fam.samples - (abs(s_) if symmetric else s_)) <= tol))
+
+    def add(s_: float) -> None:
+        new = [abs(s_)] if symmetric else [s_, -s_]
+        fam.samples = np.unique(np.concatenate([fam.samples, new]))
+
+    if low:
+        s_ = verified["stroke_at_worst"]
+        if not sampled(s_):
+            add(s_)
+            added.append(f"stroke {s_:.6g} (verified minimum)")
+        else:
+            why.append(f"the verified minimum ({verified['worst_hz']:.6g} Hz) lies at the sampled stroke {s_:.6g}: "
+                       "the searched modes miss it (raise 'modes')")
+    if stressed:
+        s_, m = verified["stroke_at_max_stress"], verified["member_at_max_stress"]
+        if not sampled(s_):
+            add(s_)
+            added.append(f"stroke {s_:.6g} (verified stress peak)")
+        else:
+            why.append(f"the stress limit is exceeded at the sampled stroke {s_:.6g} in {m}, whose constraints the "
+                       "solver had: it stopped at an infeasible design")
+    if added:
+        fam._last = fam._good = None
+    return added, "; ".join(why)
+
+
+def _provenance(prob: Problem) -> dict:
+    """Where a result comes from: flexopt's version, the problem's SHA-256 (canonical JSON) and the solver."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        ver = version("flexopt")
+    except PackageNotFoundError:  # pragma: no cover - running from a source tree without installing
+        ver = "0+unknown"
+    blob = json.dumps(prob.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+    settings = {"method": prob.solver, "max_iterations": prob.max_iterations, "tolerance": prob.tolerance,
+                "kkt_tolerance": prob.kkt_tolerance, "refine_rounds": prob.refine_rounds,
+                "stress_rows": "every segment end at every sample", "step_backs": _STEP_BACKS,
+                "starts": "template defaults, then a scrambled Halton sequence seeded by (seed, family)"}
+    if prob.solver == "slsqp":
+        settings["ftol"] = prob.tolerance * 1e-2
+    else:
+        settings.update(_trust_constr_options(prob), hessian="BFGS")
+    return {"flexopt": ver, "problem_sha256": hashlib.sha256(blob.encode()).hexdigest(), "solver": settings}
+
+
 def run_case(case: dict) -> dict:
     """One start of one family: search, verify, refine (the unit of work of a batch; JSON in and out)."""
     t0 = time.perf_counter()
@@ -306,63 +594,73 @@ def run_case(case: dict) -> dict:
     fi, si = int(case["family"]), int(case["start"])
     fam_spec = prob.families[fi]
     fam = _Family(prob, fam_spec)
-    x0 = _start_points(fam, prob, fi)[si]
+    x0 = start_point(fam, prob, fi, si)
     screening = None
     if prob.screen:
         x0, screening = _screen(fam, prob, fi, si, x0)
     initial = _verify(fam, x0, prob.verify_points)
     x = x0.copy()
-    history = []
+    history: list[dict] = []
     status, message = "optimal", ""
     verified: dict = {}
     searched = fam.evaluate(x)
     symmetric = fam.reduce_symmetric(searched)
-    rounds = prob.refine_rounds + 1
-    res = None
+    run: dict | None = None
+    low = False
     if not searched.ok:
-        status, message, rounds = "failed", f"the start design fails: {searched.message}", 0
-    for rnd in range(rounds):
-        ev0 = fam.evaluate(x)
-        fam.dedupe(ev0)
-        t_start = ev0.worst_hz / fam.f_ref if ev0.ok else 0.0
-        res = minimize(
-            lambda z: -z[-1], np.concatenate([x, [t_start]]),
-            jac=lambda z: np.concatenate([np.zeros(len(x)), [-1.0]]),
-            method="SLSQP", bounds=[(0.0, 1.0)] * len(x) + [(None, None)],
-            constraints=fam.constraints(), options={"maxiter": prob.max_iterations, "ftol": prob.tolerance * 1e-2},
-        )
-        x = np.clip(res.x[:-1], 0, 1)
-        searched = fam.evaluate(x)
-        history.append({"round": rnd, "samples": fam.samples.tolist(), "slsqp_status": int(res.status),
-                        "slsqp_message": str(res.message), "iterations": int(res.nit),
-                        "searched_worst_hz": searched.worst_hz})
-        if not searched.ok:
-            status, message = "failed", searched.message
-            break
-        verified = _verify(fam, x, prob.verify_points)
-        if verified["status"] != "complete":
-            status, message = "failed", "; ".join(verified["failures"])
-            break
-        low = verified["worst_hz"] < searched.worst_hz * (1 - prob.tolerance)
-        stressed = verified["stress_ratio"] > 1 + prob.tolerance
-        if not (low or stressed) or rnd == prob.refine_rounds:
-            if low:
-                status = "unconverged"
-                message = (f"the verified minimum ({verified['worst_hz']:.5g} Hz) is still below the searched one "
-                           f"({searched.worst_hz:.5g} Hz) after {prob.refine_rounds} refinement rounds")
-            break
-        # the verified minimum (or the stress peak) lies between the samples: add its stroke and resume
-        new = [s_ for s_, bad in ((verified["stroke_at_worst"], low), (verified["stroke_at_max_stress"], stressed))
-               if bad]
-        new = [abs(s_) for s_ in new] if symmetric else new + [-s_ for s_ in new]
-        fam.samples = np.unique(np.concatenate([fam.samples, new]))
-        fam._last = fam._good = None
+        status, message = "failed", f"the start design fails: {searched.message}"
+    else:
+        for rnd in range(prob.refine_rounds + 1):
+            ev0 = fam.evaluate(x)
+            if not ev0.ok:
+                status, message = "failed", ev0.message
+                break
+            fam.select(ev0)
+            run = _search(fam, prob, x)
+            x = run["x"]
+            searched = fam.evaluate(x)
+            history.append({"round": rnd, "samples": fam.samples.tolist(), "solver_status": run["code"],
+                            "solver_message": run["message"], "iterations": run["iterations"],
+                            "constraints": int(len(fam.keep)), "step_backs": run["steps"],
+                            "searched_worst_hz": searched.worst_hz})
+            if run["failed"] or not searched.ok:
+                status, message = "failed", run["failed"] or searched.message
+                break
+            verified = _verify(fam, x, prob.verify_points)
+            if verified["status"] != "complete":
+                status, message = "failed", "; ".join(verified["failures"])
+                break
+            low = verified["worst_hz"] < searched.worst_hz * (1 - prob.tolerance)
+            stressed = verified["stress_ratio"] > 1 + prob.tolerance
+            if not (low or stressed):
+                break
+            if rnd == prob.refine_rounds:
+                message = f"the verification still differs from the search after {prob.refine_rounds} refinement rounds"
+                break
+            added, why = _refine(fam, verified, low, stressed, symmetric)
+            history[-1]["added"] = added
+            if not added:
+                message = why
+                break
+    opt = _optimality(fam, searched, prob.tolerance) if searched.ok else None
     if status == "optimal":
-        if verified.get("stress_ratio", 0) > 1 + prob.tolerance:
-            status, message = "infeasible", "the verified stress exceeds allowable / safety_factor"
-        elif res.status not in (0,):
-            status, message = "iteration limit" if res.status == 9 else "stopped", str(res.message)
+        assert run is not None and opt is not None
+        if verified["stress_ratio"] > 1 + prob.tolerance:
+            status = "infeasible"
+            message = message or "the verified stress exceeds allowable / safety_factor"
+        elif opt["max_violation"] > prob.tolerance:
+            status, message = "infeasible", f"a constraint is violated by {opt['max_violation']:.3g} (scaled)"
+        elif low:
+            status = "unconverged"
+            message = message or (f"the verified minimum ({verified['worst_hz']:.5g} Hz) is below the searched one "
+                                  f"({searched.worst_hz:.5g} Hz)")
+        elif not run["success"]:
+            status, message = "unconverged", f"the solver stopped: {run['message']}"
+        elif opt["kkt_residual"] > prob.kkt_tolerance:
+            status, message = "unconverged", (f"KKT residual {opt['kkt_residual']:.3g} above kkt_tolerance "
+                                              f"{prob.kkt_tolerance:g}")
     params = fam.params(x)
+    notes = _case_warnings(fam, si, status, message, verified, opt)
     return {
         "family": fam_spec.template, "family_index": fi, "start": si, "status": status, "message": message,
         "design": {k: params[k] for k in fam.names},
@@ -371,9 +669,34 @@ def run_case(case: dict) -> dict:
         "searched": {"worst_hz": searched.worst_hz, "stroke_at_worst": searched.stroke_at_worst,
                      "samples": len(fam.samples), "mirror_symmetric": symmetric,
                      "max_stress": searched.max_stress},
+        "solver": {"method": prob.solver, "status": run["code"] if run else None,
+                   "message": run["message"] if run else None, "converged": bool(run and run["success"])},
+        "optimality": opt, "moving_mass": fam.moving_mass(),
         "verified": verified, "initial": initial, "history": history, "screening": screening,
         "evaluations": fam.evaluations, "seconds": time.perf_counter() - t0,
+        "warnings": [w.to_dict() for w in notes], "provenance": _provenance(prob),
     }
+
+
+def _case_warnings(fam: _Family, start: int, status: str, message: str, verified: dict,
+                   opt: dict | None) -> list[ResultWarning]:
+    out: list[ResultWarning] = []
+    name = fam.fam.template
+    if verified.get("stress_ratio", 0.0) > 1 + fam.prob.tolerance:
+        out.append(ResultWarning("stress", f"{name} start {start}: the verified peak stress is "
+                                 f"{verified['stress_ratio']:.3f} times allowable / safety_factor in "
+                                 f"{verified['member_at_max_stress']} at stroke {verified['stroke_at_max_stress']:.4g}; "
+                                 "this design is not an optimum", element=verified["member_at_max_stress"],
+                                 value=verified["stress_ratio"]))
+    if status in ("unconverged", "failed"):
+        out.append(ResultWarning("notice", f"{name} start {start}: {status} ({message}); it is not ranked",
+                                 value=None if opt is None else opt["kkt_residual"]))
+    if opt is not None and opt["active_bounds"]:
+        which = ", ".join(f"{k} ({side})" for k, side in opt["active_bounds"].items())
+        out.append(ResultWarning("notice", f"{name} start {start}: stopped by the design bounds {which}: the design "
+                                 "is the bounds' result, not the family's; widen them (or bound the family by an "
+                                 "envelope) to compare families fairly"))
+    return out
 
 
 def cases(problem: Problem | dict) -> list[dict]:
@@ -384,38 +707,67 @@ def cases(problem: Problem | dict) -> list[dict]:
 
 
 def summarise(prob: Problem, results: list[dict]) -> dict:
-    """Best verified start per family and the ranking of families by verified worst-case frequency."""
+    """Best *optimal* start per family (converged, verified, feasible) and the ranking of families by verified
+    worst-case frequency; every other start is listed with its status and message."""
     fams = []
+    notes: list[dict] = []
     for i, fam in enumerate(prob.families):
         rs = [r for r in results if r.get("family_index") == i]
-        ok = [r for r in rs if r.get("status") in ("optimal", "iteration limit", "stopped")
-              and r["verified"].get("worst_hz") is not None]
+        ok = [r for r in rs if r.get("status") == "optimal" and r["verified"].get("worst_hz") is not None]
         best = max(ok, key=lambda r: r["verified"]["worst_hz"]) if ok else None
-        fams.append({"template": fam.template, "best": best, "starts": len(rs),
-                     "failed": [{"start": r.get("start"), "status": r.get("status"),
-                                 "message": r.get("message") or r.get("error")} for r in rs if r not in ok]})
+        table = [{"start": r.get("start"), "status": r.get("status", "failed"),
+                  "message": r.get("message") or r.get("error"),
+                  "worst_hz": (r.get("verified") or {}).get("worst_hz"),
+                  "stress_ratio": (r.get("verified") or {}).get("stress_ratio"),
+                  "kkt_residual": (r.get("optimality") or {}).get("kkt_residual"),
+                  "active_bounds": (r.get("optimality") or {}).get("active_bounds"),
+                  "seconds": r.get("seconds")} for r in rs]
+        worst = [r["verified"]["worst_hz"] for r in ok]
+        fams.append({"template": fam.template, "best": best, "starts": len(rs), "optimal_starts": len(ok),
+                     "spread": (max(worst) - min(worst)) / max(worst) if worst else None,
+                     "moving_mass": next((r.get("moving_mass") for r in rs if "moving_mass" in r), None),
+                     "start_table": table,
+                     "failed": [{"start": t["start"], "status": t["status"], "message": t["message"]}
+                                for t, r in zip(table, rs) if r not in ok]})
+        if best is not None:
+            notes += list(best.get("warnings", []))
+        elif rs:
+            notes.append(ResultWarning("notice", f"{fam.template}: no start reached a converged, verified, "
+                                          "feasible optimum; the family is not ranked").to_dict())
+    masses = {f["template"]: f["moving_mass"] for f in fams if f["moving_mass"] is not None}
+    if len(set(masses.values())) > 1:
+        notes.append(ResultWarning("notice", f"the families move different masses ({masses} kg): they are not "
+                                      "compared with the same payload; set the problem's body_mass").to_dict())
+    if prob.envelope is None and len(prob.families) > 1:
+        notes.append(ResultWarning("notice", "no envelope: each family is bounded only by its own design box, "
+                                      "so the ranking compares boxes as much as topologies; set 'envelope'").to_dict())
     ranking = sorted((f for f in fams if f["best"] is not None), key=lambda f: -f["best"]["verified"]["worst_hz"])
     return {"problem": prob.model_dump(mode="json"), "families": fams,
             "ranking": [{"template": f["template"], "worst_hz": f["best"]["verified"]["worst_hz"],
                          "zero_stroke_hz": f["best"]["verified"]["zero_stroke_hz"],
-                         "ratio": f["best"]["verified"]["ratio"], "design": f["best"]["design"]}
-                        for f in ranking]}
+                         "ratio": f["best"]["verified"]["ratio"], "design": f["best"]["design"],
+                         "status": f["best"]["status"], "kkt_residual": f["best"]["optimality"]["kkt_residual"],
+                         "active_bounds": f["best"]["optimality"]["active_bounds"],
+                         "active": f["best"]["optimality"]["active"]}
+                        for f in ranking],
+            "warnings": notes, "provenance": _provenance(prob)}
 
 
-def optimise(problem: Problem | dict, *, executor=None, workers: int | None = None, store=None, progress=None,
-             cancel=None) -> dict:
+def optimise(problem: Problem | dict, *, executor: Any = None, workers: int | None = None, store: Any = None,
+             progress: Any = None, cancel: Any = None, no_worker_timeout: float | None = None) -> dict:
     """Optimise every family of ``problem`` (multi-start), in parallel, resumable through ``store``.
 
     ``executor``: any ``concurrent.futures.Executor`` (default: a local process pool of ``workers``; a
-    Dask cluster through :func:`optim.batch.dask_executor`). Returns :func:`summarise`'s dictionary.
+    Dask cluster through :func:`optim.batch.dask_executor`, whose lack of workers for longer than
+    ``no_worker_timeout`` seconds ends the run, see :func:`optim.batch.run_cases`). Returns
+    :func:`summarise`'s dictionary.
     """
     from .batch import run_cases
 
     prob = Problem.model_validate(problem)
     for fam in prob.families:  # fail fast, in the caller, on a bad family
         _Family(prob, fam)
+    kw = {} if no_worker_timeout is None else {"no_worker_timeout": no_worker_timeout}
     results = run_cases(cases(prob), "flexopt.optim.search:run_case", executor=executor, workers=workers, store=store,
-                        progress=progress, cancel=cancel)
+                        progress=progress, cancel=cancel, **kw)
     return summarise(prob, results)
-
-

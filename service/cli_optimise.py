@@ -21,6 +21,8 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     o.add_argument("--workers", type=int, default=None, help="local worker processes (default: CPU count)")
     o.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://host:8786")
     o.add_argument("--store", metavar="DIR", help="write each finished case here; rerun to resume")
+    o.add_argument("--no-worker-timeout", type=float, default=60.0, metavar="SECONDS",
+                   help="with --scheduler: stop when the cluster has had no workers this long (default 60)")
     o.add_argument("--json", action="store_true", help="print the whole result as JSON")
     o.add_argument("--plot", metavar="FILE.png", help="frequency against stroke before and after, per family")
     o.add_argument("--scenes", metavar="DIR", help="write the scene JSON of each family's optimum here")
@@ -41,6 +43,7 @@ def _cmd_optimise(args: argparse.Namespace) -> int:
     from pydantic import ValidationError
 
     from ..optim import Problem, optimise
+    from ..optim.batch import NoWorkers
 
     try:
         raw = json.loads(Path(args.spec).read_text())
@@ -58,7 +61,11 @@ def _cmd_optimise(args: argparse.Namespace) -> int:
 
         executor = dask_executor(args.scheduler)
     try:
-        result = optimise(prob, executor=executor, workers=args.workers, store=args.store)
+        result = optimise(prob, executor=executor, workers=args.workers, store=args.store,
+                          no_worker_timeout=args.no_worker_timeout)
+    except NoWorkers as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 3
     finally:
         if executor is not None:
             executor.shutdown()  # also closes the Dask client

@@ -262,3 +262,47 @@ def test_an_unreachable_scheduler_says_how_to_fix_it() -> None:
 
     with pytest.raises(ValueError, match="cannot reach the Dask scheduler at 'tcp://127.0.0.1:9'.*dask scheduler"):
         dask_executor("tcp://127.0.0.1:9", timeout="1s")
+
+
+@pytest.mark.slow
+def test_a_dask_cluster_survives_a_lost_worker_and_stops_when_it_has_none(tmp_path: Path, marks: Path) -> None:
+    """A real LocalCluster of two worker processes. Killing one while both run a case: the scheduler reruns
+    that case on the other (it ran twice), the batch completes and stores each case once. Then every worker
+    is closed while a case is waiting for one: the batch stops with NoWorkers after the stated timeout (it
+    used to wait forever), keeping the case that finished."""
+    import os
+    import signal
+
+    distributed = pytest.importorskip("distributed")
+    from flexopt.optim.batch import NoWorkers, dask_executor
+
+    hold = [{"base_seed": 1, "k": k, "hold": 2.0, "marker_dir": str(marks)} for k in range(2)]
+    tail = [{"base_seed": 1, "k": 2, "marker_dir": str(marks)},
+            {"base_seed": 1, "k": 3, "hold": 120.0, "marker_dir": str(marks)}]
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        with dask_executor(cluster.scheduler_address, timeout="30s") as ex:
+            def kill_one() -> None:
+                while _runs(marks) < 2:  # both cases are running
+                    time.sleep(0.05)
+                pid = next(iter(ex._client.run(os.getpid).values()))
+                os.kill(pid, signal.SIGKILL)
+
+            killer = threading.Thread(target=kill_one, daemon=True)
+            killer.start()
+            out = run_cases(hold, SEEDED, executor=ex, store=tmp_path)
+            killer.join(5)
+            assert _runs(marks) == 3, "the case of the killed worker ran again"
+            assert [r["id"] for r in out] == [case_id(c) for c in hold]
+            assert sorted(p.name for p in tmp_path.glob("*.json")) == sorted(f"{case_id(c)}.json" for c in hold)
+
+            def close_all(event: dict) -> None:
+                if event["status"] == "done":  # the quick case finished: no worker is left for the other
+                    cluster.scale(0)
+
+            t0 = time.perf_counter()
+            with pytest.raises(NoWorkers, match="no workers for 2 s.*1 of 2 cases") as err:
+                run_cases(tail, SEEDED, executor=ex, store=tmp_path, progress=close_all, no_worker_timeout=2.0)
+            assert time.perf_counter() - t0 < 30
+    assert err.value.results[0]["id"] == case_id(tail[0]) and err.value.results[1] is None
+    assert (tmp_path / f"{case_id(tail[0])}.json").exists() and not (tmp_path / f"{case_id(tail[1])}.json").exists()
