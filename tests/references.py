@@ -114,3 +114,20 @@ def cantilever_torsion_hz(L: float, w: float, t: float) -> float:
 EXTREME_WHY = ("12 beam elements with linear-interpolation mass: discretisation error below 0.5 % on the first "
                "bending and torsion modes at any slenderness (the beam is Euler-Bernoulli, so the closed forms "
                "hold for stubby leaves too), bound 1 %")
+
+
+# Exact-constraint counts of the topology filter (optim/topology/screen.py): (free motions with the drive
+# held, beyond the intended ones; self-stress states), kinematic idealisation (a sheet fixes its three in-plane
+# motions: elongation and in-plane bending rigid; seed 002 sec. 4.2). Integers: compared exactly.
+CONSTRAINT_COUNTS: dict[str, tuple[int, int, str]] = {
+    "folded-sheet-guide-5": (0, 0, "seed 002 sec. 4.2, Figure 3b: D_cc square and non-singular (exact constraint)"),
+    "folded-sheet-guide-6": (0, 1, "seed 002 sec. 4.3, Figure 5b: overconstrained, one self-stress (in-plane "
+                             "bending in every sheet)"),
+    "folded-sheet-guide-5a": (1, 1, "seed 002 sec. 4.3, Figure 5a: 'both underconstrained' and overconstrained"),
+    "R:+-@": (0, 1, "hand count: two sheets fix 3 + 3 rotor motions, 5 rotor coordinates besides the drive, both "
+              "sheets fix the axial translation: rank 5, so 0 free and 6 - 5 = 1 self-stress"),
+    "R:++": (2, 3, "hand count: two parallel sheets in one plane fix only that plane's 3 motions: 5 - 3 = 2 free "
+             "(translation along the plane's normal, rotation about the leaf direction), 6 - 3 = 3 self-stresses"),
+    "R:+-|-+": (0, 2, "hand count: each pivot stage fixes 5 of its body's 6 motions with 1 self-stress; the "
+                "intermediate body's rotation about the axis is the series arrangement's intended motion"),
+}

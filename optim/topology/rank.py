@@ -84,8 +84,13 @@ class TopologySpec(BaseModel):
     @classmethod
     def _descriptors(cls, v: list[str] | None) -> list[str] | None:
         if v is not None:
+            from ...model.errors import SceneError
+
             for d in v:
-                parse(d)  # SceneError is a ValueError: pydantic reports it on this field
+                try:
+                    parse(d)
+                except SceneError as exc:
+                    raise ValueError(str(exc).removeprefix("template.topology: ")) from None
         return v
 
 
