@@ -92,8 +92,6 @@ class _Eval:
     strokes: np.ndarray | None = None  # stroke (user unit) of each constraint row; nan for the envelope
     kinds: np.ndarray | None = None  # "frequency", "stress", "drive", "envelope" per row
     labels: list[str] = field(default_factory=list)  # what each row bounds, for the report
-    members: np.ndarray | None = None  # scene member of each stress row ("" for others)
-    stress_ratio: np.ndarray | None = None  # sigma / sigma_allow of each row (0 for non-stress rows)
 
 
 def _bounds(fam: Family, prob: Problem) -> tuple[list[str], np.ndarray, np.ndarray]:
@@ -180,7 +178,7 @@ class _Family:
         scale = self.hi - self.lo
         dstructs = [structure_derivative(s, ds.scene_dict, d) for d in ds.dscene]
         rows_f: list[tuple[float, np.ndarray, float, str]] = []
-        rows_g: list[tuple[float, np.ndarray, float, str, str, float, str]] = []  # value, grad, stroke, kind, ...
+        rows_g: list[tuple[float, np.ndarray, float, str, str]] = []  # value, gradient, stroke, kind, label
         unit = ds.scene.stroke.resolved_unit
         to_user = (lambda v: float(np.degrees(v))) if unit == "deg" else float
         pts: dict[float, tuple[float, float]] = {}
@@ -205,11 +203,11 @@ class _Family:
                 for end in range(2):
                     r = float(ps.vm[b, end]) / allow
                     rows_g.append((1.0 - r * r, -ps.dvm2[:, b, end] * scale / allow**2, su, "stress",
-                                   f"stress in {member[b]} (segment {b}, end {end}) at stroke {su:.6g}", r, member[b]))
+                                   f"stress in {member[b]} (segment {b}, end {end}) at stroke {su:.6g}"))
             if prob.max_drive is not None:
                 r = eq.drive_reaction / prob.max_drive
                 rows_g.append((1.0 - r * r, -2.0 * r * ps.dreaction * scale / prob.max_drive, su, "drive",
-                               f"drive force or moment at stroke {su:.6g}", 0.0, ""))
+                               f"drive force or moment at stroke {su:.6g}"))
             pts[eq.stroke] = (float(hz[0]), float(np.max(ps.vm)))
 
         if prob.envelope is not None:
@@ -217,18 +215,18 @@ class _Family:
                 if not isinstance(prob.envelope, Envelope):  # a sphere about the origin
                     R2 = prob.envelope**2
                     rows_g.append((1.0 - float(pos @ pos) / R2, -2.0 * (dpos @ pos) * scale / R2, float("nan"),
-                                   "envelope", f"{name} on the envelope (sphere)", 0.0, ""))
+                                   "envelope", f"{name} on the envelope (sphere)"))
                     continue
                 axis = np.asarray(ds.scene.stroke.axis, float)
                 axis = axis / float(np.linalg.norm(axis))
                 a, da = float(pos @ axis), dpos @ axis
                 R2 = prob.envelope.radius**2
                 rows_g.append((1.0 - (float(pos @ pos) - a * a) / R2, -2.0 * (dpos @ pos - a * da) * scale / R2,
-                               float("nan"), "envelope", f"{name} on the envelope's radius", 0.0, ""))
+                               float("nan"), "envelope", f"{name} on the envelope's radius"))
                 if prob.envelope.half_height is not None:
                     H2 = prob.envelope.half_height**2
                     rows_g.append((1.0 - a * a / H2, -2.0 * a * da * scale / H2, float("nan"), "envelope",
-                                   f"{name} on the envelope's end", 0.0, ""))
+                                   f"{name} on the envelope's end"))
         curve = an.frequency_curve(stroke=self.samples, visit=visit)
         if curve.status != "complete":
             raise FlexoptError(curve.failures[0].message if curve.failures else "the stroke was not completed")
@@ -245,9 +243,7 @@ class _Family:
                      rows_f[k][2], max(v[1] for v in pts.values()), True,
                      strokes=np.array([r[2] for r in rows_f] + [r[2] for r in rows_g]),
                      kinds=np.array(["frequency"] * nf + [r[3] for r in rows_g]),
-                     labels=[r[3] for r in rows_f] + [r[4] for r in rows_g],
-                     members=np.array([""] * nf + [r[6] for r in rows_g]),
-                     stress_ratio=np.array([0.0] * nf + [r[5] for r in rows_g]))
+                     labels=[r[3] for r in rows_f] + [r[4] for r in rows_g])
 
     def n_frequency(self) -> int:
         return len(self.samples) * self.prob.modes
@@ -290,7 +286,7 @@ class _Family:
         FlexoptError
             When a row is not finite (a NaN would make every comparison false and drop all rows but one).
         """
-        assert ev.ok and ev.kinds is not None and ev.stress_ratio is not None and ev.members is not None
+        assert ev.ok
         rows = np.column_stack([ev.con, ev.jac])
         bad = np.flatnonzero(~np.all(np.isfinite(rows), axis=1))
         if len(bad):
@@ -302,10 +298,6 @@ class _Family:
             if not keep or np.abs(rows[keep] - rows[i]).max(axis=1).min() > tol:
                 keep.append(int(i))
         self.keep = np.array(keep, dtype=int)
-
-    def dedupe(self, ev: _Eval) -> None:
-        """Alias of :meth:`select` (the selection includes the removal of duplicate rows)."""
-        self.select(ev)
 
     def _checked(self, z: np.ndarray) -> _Eval:
         ev = self.evaluate(z[:-1])
