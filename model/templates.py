@@ -147,7 +147,7 @@ PARAMETER_UNITS: dict[str, str] = {
 }
 #: Templates whose ``stroke`` parameter is a translation [m]; in the others it is a rotation [deg].
 _TRANSLATION_TEMPLATES = frozenset({"parallel-leaf-spring", "wire-guide-5", "wire-guide-parallel",
-                                    "folded-sheet-guide-5", "folded-sheet-guide-6", "folded-sheet-guide-5a"})
+                                    "wire-guide-topology", "folded-sheet-guide-5", "folded-sheet-guide-6", "folded-sheet-guide-5a"})
 
 
 def parameter_unit(name: str, parameter: str) -> str | None:
@@ -313,27 +313,61 @@ def _wire_guide(p: dict, parallel: bool) -> dict:
     moves to x = -0.8a (above the first, at z = +0.5c): the two lateral wires are parallel and meet the
     same constraint line pattern, so one constraint is repeated (a self-stress) and the rotation about the
     vertical axis through x = -0.8a is free (a mechanism). Square wires of side ``wire_diameter``."""
+    return _wire_block(p, ["z--", "z-+", "z+0", "y--", "y-+"] if parallel else ["z--", "z-+", "z+0", "y-0", "y+0"],
+                       "wire-guide-parallel" if parallel else "wire-guide-5")
+
+
+_STEP = {"-": -1.0, "0": 0.0, "+": 1.0}
+
+
+def guide_layout(descriptor: str) -> list[str]:
+    """Read a wire-guide descriptor ``T:<wire>,<wire>,...`` (the grammar of optim/topology/grammar.py).
+
+    A wire is its direction and two places: ``z<i><j>`` a vertical wire under the block at
+    ``(0.8 a i, 0.75 b j, -c)``, ``y<i><k>`` a lateral wire on the face y = -b at ``(0.8 a i, -b, 0.5 c k)``,
+    each of ``i, j, k`` one of ``-``, ``0``, ``+`` (the block is ``2a x 2b x 2c``, guided along x; seed 002
+    Figure 3a is ``T:z--,z-+,z+0,y-0,y+0``).
+
+    Raises
+    ------
+    SceneError
+        On a malformed descriptor or a wire given twice.
+    """
+    where = "template.topology"
+    if not isinstance(descriptor, str) or not descriptor.startswith("T:"):
+        raise SceneError(where, f"guide topology '{descriptor}' must start with 'T:', e.g. 'T:z--,z-+,z+0,y-0,y+0'")
+    wires = descriptor[2:].split(",")
+    for w in wires:
+        if len(w) != 3 or w[0] not in "yz" or w[1] not in _STEP or w[2] not in _STEP:
+            raise SceneError(where, f"guide topology '{descriptor}': wire '{w}' must be 'z' or 'y' and two of "
+                             "'-', '0', '+' (e.g. 'z-+')")
+    if len(set(wires)) != len(wires):
+        raise SceneError(where, f"guide topology '{descriptor}' places a wire twice")
+    return wires
+
+
+def _wire_block(p: dict, wires: list[str], name: str) -> dict:
+    """A block guided along x by wire flexures placed by :func:`guide_layout`'s tokens (square wires of side
+    ``wire_diameter`` and length ``wire_length``, their ground ends supported; kinematic: a wire keeps its
+    elongation rigid)."""
     a, b, c = p["body_length"] / 2, p["body_width"] / 2, p["body_height"] / 2
     Lw, d = p["wire_length"], p["wire_diameter"]
     nodes, elements, supports, carried = [], [], [], []
-
-    def wire(name: str, at: tuple[float, float, float], direction: tuple[float, float, float]) -> None:
-        base = [at[i] - Lw * direction[i] for i in range(3)]
-        nodes.extend([{"name": f"{name}_body", "position": list(at)}, {"name": f"{name}_ground", "position": base}])
-        carried.append(f"{name}_body")
-        supports.append({"node": f"{name}_ground"})
-        elements.append({"kind": "beam", "name": name, "nodes": [f"{name}_ground", f"{name}_body"],
+    for k, tok in enumerate(wires, start=1):
+        i, j = _STEP[tok[1]], _STEP[tok[2]]
+        at, direction = (((0.8 * a * i, 0.75 * b * j, -c), (0, 0, 1)) if tok[0] == "z"
+                         else ((0.8 * a * i, -b, 0.5 * c * j), (0, 1, 0)))
+        wname = f"wire{k}"
+        base = [at[q] - Lw * direction[q] for q in range(3)]
+        nodes.extend([{"name": f"{wname}_body", "position": list(at)}, {"name": f"{wname}_ground", "position": base}])
+        carried.append(f"{wname}_body")
+        supports.append({"node": f"{wname}_ground"})
+        elements.append({"kind": "beam", "name": wname, "nodes": [f"{wname}_ground", f"{wname}_body"],
                          "material": "steel", "section": {"kind": "rectangular", "width": d, "thickness": d},
                          "y_axis": [1, 0, 0], "segments": int(p["segments"]), "rigid": []})
-
-    wire("wire1", (-0.8 * a, -0.75 * b, -c), (0, 0, 1))
-    wire("wire2", (-0.8 * a, 0.75 * b, -c), (0, 0, 1))
-    wire("wire3", (0.8 * a, 0.0, -c), (0, 0, 1))
-    wire("wire4", (-0.8 * a, -b, -0.5 * c if parallel else 0.0), (0, 1, 0))
-    wire("wire5", (-0.8 * a, -b, 0.5 * c) if parallel else (0.8 * a, -b, 0.0), (0, 1, 0))
     m = p["body_mass"]
     return {
-        "name": "wire-guide-parallel" if parallel else "wire-guide-5",
+        "name": name,
         "materials": [_steel(p)], "nodes": nodes,
         "bodies": [{"name": "slider", "mass": m, "center_of_mass": [0, 0, 0],
                     "inertia": _box_inertia(m, 2 * a, 2 * b, 2 * c), "nodes": carried}],
@@ -419,6 +453,9 @@ TEMPLATES.update({
     "truss12": (_truss12, dict(_COMMON, half_width=1.0, height=1.0, area=1e-4)),
     "wire-guide-5": (lambda p: _wire_guide(p, False), dict(_WIRE)),
     "wire-guide-parallel": (lambda p: _wire_guide(p, True), dict(_WIRE)),
+    # a generated wire guide (optim/topology): wires placed by a descriptor, see guide_layout
+    "wire-guide-topology": (lambda p: _wire_block(p, guide_layout(p["topology"]), f"guide {p['topology']}"),
+                            dict(_WIRE, topology="T:z--,z-+,z+0,y-0,y+0")),
     "folded-sheet-guide-5": (lambda p: _folded_sheet_guide(p, 5), dict(_FOLDED)),
     "folded-sheet-guide-6": (lambda p: _folded_sheet_guide(p, 6), dict(_FOLDED)),
     # Figure 5a: five flexures, the second side's two with parallel fold lines (90 and 270 degrees): the

@@ -102,6 +102,20 @@ def table(result: dict) -> str:
              f"(screen {result['seconds']['screen']:.1f} s, optimisation {result['seconds']['optimise']:.1f} s)",
              "rank  topology          family                   dof  self-stress  worst [Hz]  zero [Hz]  worst/zero  design"]
     by_name = {r["topology"]: r for r in result["candidates"]}
+    if result["spec"]["motion"] == "translation":
+        lines[0] += f", {c['accepted']} accepted (guides: screened, not optimised)"
+        lines[1] = "rank  guide                          self-stress  condition number of D_cc"
+        lines += [f"{i:>4}  {n:<30} {by_name[n]['overconstraints']:>11}  {by_name[n]['condition_number']:.4g}"
+                  for i, n in enumerate(result["ranking"][:50], start=1)]
+        if len(result["ranking"]) > 50:
+            lines.append(f"      ... {len(result['ranking']) - 50} more (--json lists every candidate)")
+        rej = [r for r in result["candidates"] if r["status"] == "rejected"]
+        if rej:
+            lines.append("rejected by the exact-constraint filter:")
+            lines += [f"      {r['topology']:<30} {r['reason']}" for r in rej[:50]]
+            if len(rej) > 50:
+                lines.append(f"      ... {len(rej) - 50} more (--json lists every candidate)")
+        return "\n".join(lines)
     for i, name in enumerate(result["ranking"], start=1):
         r = by_name[name]
         design = ", ".join(f"{k}={v:.4g}" for k, v in r["design"].items())
@@ -126,7 +140,10 @@ def plot_ranking(result: dict, path: str) -> None:
     import matplotlib.pyplot as plt
 
     by_name = {r["topology"]: r for r in result["candidates"]}
-    rows = [by_name[n] for n in result["ranking"]]
+    rows = [by_name[n] for n in result["ranking"] if by_name[n]["worst_case_hz"] is not None]
+    if not rows:
+        print("no optimised candidate to plot", file=sys.stderr)
+        return
     fig, ax = plt.subplots(figsize=(max(6.0, 0.35 * len(rows) + 2), 4.2))
     xs = range(len(rows))
     ax.bar(xs, [r["zero_stroke_hz"] for r in rows], color="0.85", label="zero stroke")

@@ -128,6 +128,10 @@ CONSTRAINT_COUNTS: dict[str, tuple[int, int, str]] = {
               "sheets fix the axial translation: rank 5, so 0 free and 6 - 5 = 1 self-stress"),
     "R:++": (2, 3, "hand count: two parallel sheets in one plane fix only that plane's 3 motions: 5 - 3 = 2 free "
              "(translation along the plane's normal, rotation about the leaf direction), 6 - 3 = 3 self-stresses"),
+    "T:z--,z-+,z+0,y-0,y+0": (0, 0, "seed 002 sec. 4.1, Figure 3a: five wires, D_cc square and non-singular"),
+    "T:z--,z-+,z+0,y--,y-+": (1, 1, "hand count: the two lateral wires at x = -0.8a are parallel and in one "
+                              "vertical line, so they fix the same translation y there (a self-stress) and leave the "
+                              "rotation about the vertical through that line free"),
     "R:+-|-+": (0, 2, "hand count: each pivot stage fixes 5 of its body's 6 motions with 1 self-stress; the "
                 "intermediate body's rotation about the axis is the series arrangement's intended motion"),
 }

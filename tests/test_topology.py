@@ -13,6 +13,8 @@ from flexopt.model.errors import SceneError
 from flexopt.model.templates import TEMPLATES, template
 from flexopt.optim.topology import (FAMILIES, canonical, enumerate_topologies, family_of, parse, screen_scene,
                                     screen_topology)
+from flexopt.optim.topology.grammar import canonical_guide, enumerate_guides, parse_guide
+from flexopt.optim.topology.screen import screen_guide
 from tests.references import CONSTRAINT_COUNTS
 
 
@@ -118,6 +120,26 @@ def test_filter_on_seed_002_guides(name: str) -> None:
         # the free motion: the cylinder turns about the axis normal to the two parallel fold lines' plane
         assert r["free_motions"][0].startswith("cylinder rotates about (+0, +1, +0)"), r["free_motions"]
         assert r["reason"].startswith("underconstrained: 1 free motion: cylinder")
+
+
+def test_guides_generated_and_screened() -> None:
+    # pairs of wires at 18 places (9 vertical, 9 lateral), up to the mirror x -> -x (Burnside): 153 pairs; the
+    # mirror fixes the 6 pairs {p, mirror(p)} of the 12 places off x = 0 and the 15 pairs of the 6 places on it:
+    # (153 + 21) / 2 = 87
+    assert len(enumerate_guides(2)) == 87
+    g = parse_guide("T:z--,z-+,z+0,y-0,y+0")
+    assert parse_guide(str(g)) == g and str(canonical_guide(g)) == str(canonical_guide("T:y+0,z+-,z++,z-0,y-0"))
+    same = template("wire-guide-topology", topology=str(g)).model_dump()
+    fig3a = template("wire-guide-5").model_dump()
+    assert {k: v for k, v in same.items() if k != "name"} == {k: v for k, v in fig3a.items() if k != "name"}
+    for d in ("T:z--,z-+,z+0,y-0,y+0", "T:z--,z-+,z+0,y--,y-+"):
+        free, stress, source = CONSTRAINT_COUNTS[d]
+        r = screen_guide(parse_guide(d))
+        assert (len(r["free_motions"]), r["overconstraints"]) == (free, stress), source
+    r = screen_guide(parse_guide("T:z--,z-+,y-0,y+0"))
+    assert r["status"] == "rejected" and "4 wires fix at most 4" in r["reason"]
+    with pytest.raises(SceneError, match="places a wire twice"):
+        parse_guide("T:z--,z--,z+0,y-0,y+0")
 
 
 def test_spec_errors_name_the_field() -> None:

@@ -27,6 +27,13 @@ Examples, the four hand-made families (:data:`FAMILIES`):
 The scene of a descriptor is built by one builder, ``model.templates``' ``topology-hinge`` (which reads the
 descriptor with :func:`model.templates.topology_layout`, so the grammar and the scene cannot disagree).
 
+A straight guide (``T:<wire>,<wire>,...``, template ``wire-guide-topology``, read by
+:func:`model.templates.guide_layout`) is a block guided along x by wire flexures, each placed by its
+direction and a discrete place: ``z<i><j>`` vertical under the block at ``(0.8 a i, 0.75 b j, -c)``,
+``y<i><k>`` lateral on the face y = -b at ``(0.8 a i, -b, 0.5 c k)`` (``i, j, k`` in ``-``, ``0``, ``+``);
+seed 002's Figure 3a guide is ``T:z--,z-+,z+0,y-0,y+0``. Its symmetries: the mirror x -> -x (every ``i``
+negated) and the order of the wires.
+
 Symmetry
 --------
 Two descriptors name the same hinge (up to a mirror image, which has the same frequencies and stresses)
@@ -41,10 +48,11 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass
 
-from ...model.templates import topology_layout
+from ...model.templates import guide_layout, topology_layout
 
 __all__ = ["Leaf", "Stage", "Topology", "parse", "canonical", "family_of", "enumerate_topologies", "FAMILIES",
-           "design_parameters"]
+           "design_parameters", "GuideTopology", "parse_guide", "canonical_guide", "enumerate_guides",
+           "GUIDE_PLACES"]
 
 
 @dataclass(frozen=True, order=True)
@@ -214,3 +222,49 @@ def enumerate_topologies(max_flexures: int, max_stages: int, planes: str = "+-",
                 c = canonical(Topology(tuple(stages)))
                 seen.setdefault(str(c), c)
     return sorted(seen.values(), key=lambda t: (t.flexures, len(t.stages), str(t)))
+
+
+# ---------------------------------------------------------------------------------------------- guides
+#: Every place of a wire: nine vertical (z) and nine lateral (y).
+GUIDE_PLACES: tuple[str, ...] = tuple(d + i + j for d in "zy" for i in "-0+" for j in "-0+")
+
+
+@dataclass(frozen=True)
+class GuideTopology:
+    """A straight guide: wire flexures at discrete places (``str`` gives its descriptor)."""
+
+    wires: tuple[str, ...]
+
+    def __str__(self) -> str:
+        return "T:" + ",".join(self.wires)
+
+    @property
+    def flexures(self) -> int:
+        """Number of wire flexures."""
+        return len(self.wires)
+
+    def to_dict(self) -> dict:
+        """A JSON form: the descriptor and the wires."""
+        return {"descriptor": str(self), "flexures": self.flexures, "wires": list(self.wires)}
+
+
+def parse_guide(descriptor: str) -> GuideTopology:
+    """The guide of a descriptor (``parse_guide(str(g)) == g``); SceneError on a malformed one."""
+    return GuideTopology(tuple(guide_layout(descriptor)))
+
+
+def canonical_guide(g: GuideTopology | str) -> GuideTopology:
+    """The representative of a guide's class under the mirror x -> -x and the order of the wires."""
+    g = parse_guide(g) if isinstance(g, str) else g
+    flip = {"-": "+", "+": "-", "0": "0"}
+    images = [tuple(sorted(g.wires)), tuple(sorted(w[0] + flip[w[1]] + w[2] for w in g.wires))]
+    return GuideTopology(min(images, key=lambda ws: "T:" + ",".join(ws)))
+
+
+def enumerate_guides(wires: int) -> list[GuideTopology]:
+    """Every guide of exactly ``wires`` wires at different places (:data:`GUIDE_PLACES`), one per class."""
+    seen: dict[str, GuideTopology] = {}
+    for combo in itertools.combinations(GUIDE_PLACES, wires):
+        c = canonical_guide(GuideTopology(combo))
+        seen.setdefault(str(c), c)
+    return sorted(seen.values(), key=str)

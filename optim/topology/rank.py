@@ -22,7 +22,7 @@ import time
 from collections.abc import Callable
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, field_validator
+from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationInfo, field_validator
 
 from ..problem import Envelope, Family, Problem
 from .grammar import Topology, canonical, design_parameters, enumerate_topologies, family_of, parse
@@ -38,10 +38,13 @@ class TopologySpec(BaseModel):
 
     format: Literal["flexopt-topology"] = "flexopt-topology"
     version: Literal[1] = 1
-    motion: Literal["rotation"] = Field(default="rotation", description="the intended motion: a rotation "
-                                        "about the z axis through the origin (the generator builds hinges; "
-                                        "guides are screened from their scenes, see optim/topology/screen.py)")
-    stroke: PositiveFloat = Field(default=45.0, le=180.0, description="half range of the rotation [deg]")
+    motion: Literal["rotation", "translation"] = Field(
+        default="rotation", description="the intended motion: 'rotation' about the z axis through the origin "
+        "(hinges of leaf flexures, screened, optimised and ranked) or 'translation' along x (straight guides of "
+        "wire flexures: screened and ranked by the condition number of their constraints; no shape "
+        "optimisation yet)")
+    stroke: PositiveFloat = Field(default=45.0, le=180.0, description="half range of the rotation [deg] "
+                                  "(rotation only)")
     envelope: Envelope = Field(default_factory=lambda: Envelope(radius=0.035, half_height=0.02),
                                description="the cylinder around the axis every candidate must fit in [m]")
     safety_factor: float = Field(default=1.5, ge=1.0, le=20.0, description="von Mises stress below allowable / "
@@ -62,12 +65,12 @@ class TopologySpec(BaseModel):
                                         "(monolithic hinges live with them); false rejects them")
     topologies: list[str] | None = Field(default=None, max_length=256, description="search only these "
                                          "descriptors (e.g. ['R:+-@']) instead of the enumeration")
-    starts: int = Field(default=1, ge=1, le=16, description="optimiser starts per candidate (the first from the "
+    starts: int = Field(default=2, ge=1, le=16, description="optimiser starts per candidate (the first from the "
                         "template's defaults clipped into the bounds, then a scrambled Halton sequence)")
     seed: int = Field(default=0, ge=0, description="seed of the starts (deterministic)")
-    segments: int = Field(default=6, ge=2, le=40, description="beam elements per leaf in the optimisation")
-    samples: int = Field(default=5, ge=3, le=61, description="stroke samples of the search")
-    verify_points: int = Field(default=61, ge=31, le=2001, description="exact stroke points of the verification")
+    segments: int = Field(default=8, ge=2, le=40, description="beam elements per leaf in the optimisation")
+    samples: int = Field(default=9, ge=3, le=61, description="stroke samples of the search")
+    verify_points: int = Field(default=121, ge=31, le=2001, description="exact stroke points of the verification")
     refine_rounds: int = Field(default=1, ge=0, le=10, description="verification rounds (optim.Problem)")
     max_iterations: int = Field(default=30, ge=1, le=500, description="solver iterations per start and round")
     min_thickness: float = Field(default=50e-6, gt=0, description="smallest manufacturable thickness [m]")
@@ -82,13 +85,15 @@ class TopologySpec(BaseModel):
 
     @field_validator("topologies")
     @classmethod
-    def _descriptors(cls, v: list[str] | None) -> list[str] | None:
+    def _descriptors(cls, v: list[str] | None, info: ValidationInfo) -> list[str] | None:
         if v is not None:
             from ...model.errors import SceneError
+            from .grammar import parse_guide
 
+            read = parse_guide if info.data.get("motion") == "translation" else parse
             for d in v:
                 try:
-                    parse(d)
+                    read(d)
                 except SceneError as exc:
                     raise ValueError(str(exc).removeprefix("template.topology: ")) from None
         return v
@@ -187,6 +192,8 @@ def run_topology_search(spec: TopologySpec | dict, *, executor: Any = None, work
     from .screen import screen_topology
 
     spec = TopologySpec.model_validate(spec)
+    if spec.motion == "translation":
+        return _guide_search(spec)
     t0 = time.perf_counter()
     tops = _candidates(spec)
     records: list[dict] = []
@@ -249,3 +256,36 @@ def _fill(rec: dict, starts: list[dict]) -> None:
                moving_mass=b.get("moving_mass"), scene=v.get("scene"), curve={"stroke": v.get("stroke"),
                                                                               "parasitic_hz": v.get("parasitic_hz")},
                warnings=b.get("warnings", []))
+
+
+def _guide_search(spec: TopologySpec) -> dict:
+    """Straight guides: every arrangement of up to ``max_flexures`` wires (or the listed descriptors) screened;
+    the accepted ones ranked by the condition number of their scaled D_cc (smaller: further from a singular,
+    compliant arrangement). No shape optimisation (the optimiser's families are hinges)."""
+    from .grammar import canonical_guide, enumerate_guides
+    from .screen import screen_guide
+
+    t0 = time.perf_counter()
+    if spec.topologies is not None:
+        guides = list({str(canonical_guide(d)): canonical_guide(d) for d in spec.topologies}.values())
+    else:
+        guides = [g for n in range(1, spec.max_flexures + 1) for g in enumerate_guides(n)]
+    records = []
+    for g in guides:
+        sc = screen_guide(g, spec.allow_overconstraints)
+        records.append({"topology": str(g), "family": None, "flexures": g.flexures, "stages": 1, "dof": sc["dof"],
+                        "intended_dof": 1, "overconstraints": sc["overconstraints"], "self_stress": sc["self_stress"],
+                        "release": sc["release"], "free_motions": sc["free_motions"],
+                        "condition_number": sc["condition_number"],
+                        "status": "accepted" if sc["status"] == "accepted" else "rejected", "reason": sc["reason"],
+                        "worst_case_hz": None, "zero_stroke_hz": None, "ratio": None, "design": None})
+    ranked = sorted((r for r in records if r["status"] == "accepted"), key=lambda r: r["condition_number"])
+    counts: dict[str, Any] = {"generated": len(records), "rejected": len(records) - len(ranked), "rejected_by": {},
+                              "untraceable": 0, "optimised": 0, "accepted": len(ranked), "failed": 0}
+    for r in records:
+        if r["status"] == "rejected":
+            kind = r["reason"].split(":", 1)[0]
+            counts["rejected_by"][kind] = counts["rejected_by"].get(kind, 0) + 1
+    return {"format": "flexopt-topology-result", "version": 1, "spec": spec.model_dump(mode="json"),
+            "counts": counts, "candidates": records, "ranking": [r["topology"] for r in ranked],
+            "best": ranked[0] if ranked else None, "seconds": {"screen": time.perf_counter() - t0, "optimise": 0.0}}

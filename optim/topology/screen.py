@@ -27,9 +27,9 @@ from ...model.scene import Scene
 from ...model.structure import compile_scene
 from ...model.templates import template
 
-from .grammar import Topology
+from .grammar import GuideTopology, Topology
 
-__all__ = ["screen_scene", "screen_topology", "name_motion"]
+__all__ = ["screen_scene", "screen_topology", "screen_guide", "name_motion"]
 
 
 def _master_motion(d: ConstraintDiagnosis, v: np.ndarray) -> dict[str, np.ndarray]:
@@ -100,7 +100,8 @@ def screen_scene(scene: Scene, intended: list[str] | None = None, allow_overcons
         the drive free: 1 + intended + unintended), ``free_motions`` (the unintended ones, named),
         ``intended_motions``, ``overconstraints`` (count), ``self_stress`` (per state: the flexures that
         fight), ``release`` (per state: deformations to release), ``classification`` (Table 1), ``m``,
-        ``n``, ``rank``, ``almost_singular``.
+        ``n``, ``rank``, ``almost_singular``, ``condition_number`` (of the scaled D_cc: how far from singular
+        the constraint arrangement is; seed 002 sec. 3).
     """
     d = diagnose(scene, kinematic=True)
     A = _allowed(d, scene, intended or [])
@@ -125,7 +126,8 @@ def screen_scene(scene: Scene, intended: list[str] | None = None, allow_overcons
            "overconstraints": d.statically_indeterminate,
            "self_stress": [f"self-stress among {', '.join(els)}" for els in stress],
            "release": [list(r) for r in d.release_candidates], "classification": d.classification,
-           "m": d.m, "n": d.n, "rank": d.rank, "almost_singular": d.almost_singular}
+           "m": d.m, "n": d.n, "rank": d.rank, "almost_singular": d.almost_singular,
+           "condition_number": d.condition_number if d.rank else None}
     reason = None
     if free:
         reason = f"underconstrained: {n_free} free motion{'s' * (n_free > 1)}: " + "; ".join(free)
@@ -144,3 +146,18 @@ def screen_topology(t: Topology, allow_overconstraints: bool = True) -> dict:
     defaults for the shape: the verdict is generic in the continuous parameters)."""
     scene = template("topology-hinge", topology=str(t), flexure_level=1, segments=1)
     return screen_scene(scene, t.intermediate_masters, allow_overconstraints)
+
+
+def screen_guide(g: GuideTopology, allow_overconstraints: bool = True) -> dict:
+    """:func:`screen_scene` of a wire guide (template ``wire-guide-topology``, one segment per wire). A guide
+    of fewer than five wires is rejected by counting, without a diagnosis: each wire fixes at most one of the
+    five motions besides the stroke."""
+    if g.flexures < 5:
+        n = 5 - g.flexures
+        return {"dof": 1 + n, "free_motions": [], "intended_motions": 0, "overconstraints": None, "self_stress": [],
+                "release": [], "classification": None, "m": None, "n": None, "rank": None, "almost_singular": None,
+                "condition_number": None,
+                "status": "rejected", "reason": f"underconstrained: {g.flexures} wires fix at most {g.flexures} of "
+                f"the 5 motions besides the stroke (at least {n} free)"}
+    scene = template("wire-guide-topology", topology=str(g), segments=1)
+    return screen_scene(scene, [], allow_overconstraints)
