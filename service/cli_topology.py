@@ -36,7 +36,7 @@ def _first_error(exc: Exception) -> str:
 
 
 def _file_name(descriptor: str) -> str:
-    """A file name for a descriptor ('R:+-@|x+-' -> 'R_p-m-at_s_x-p-m' is unreadable; keep it short and safe)."""
+    """A file name for a descriptor: 'R:+-@|-+' -> 'R_pmc_mp' (+ p, - m, 0 o, @ c, : and | _)."""
     table = {"+": "p", "-": "m", "0": "o", "|": "_", "@": "c", ":": "_"}
     return "".join(table.get(c, c) for c in descriptor)
 

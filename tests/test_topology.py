@@ -183,8 +183,9 @@ def test_search_restricted_to_a_family_reproduces_its_optimum(tmp_path, capsys) 
     raw = {"topologies": ["R:-+@"], "segments": 4, "samples": 5, "verify_points": 31, "refine_rounds": 1}
     f = tmp_path / "spec.json"
     f.write_text(json.dumps(raw))
+    store = tmp_path / "store"
     code = main(["topology", str(f), "--json", "--workers", "1", "--scenes", str(tmp_path / "sc"),
-                 "--plot", str(tmp_path / "rank.png")])
+                 "--plot", str(tmp_path / "rank.png"), "--store", str(store)])
     out = json.loads(capsys.readouterr().out)
     assert code == 0, out
     best = out["best"]
@@ -196,3 +197,10 @@ def test_search_restricted_to_a_family_reproduces_its_optimum(tmp_path, capsys) 
     prob["families"][0]["fixed"].pop("mid_mass")
     ref = optimise(prob, workers=1)["ranking"][0]["worst_hz"]
     assert abs(best["worst_case_hz"] - ref) <= 0.01 * ref, (best["worst_case_hz"], ref)
+    # resumable: a rerun with the same store finds every case there and runs none
+    from flexopt.optim.topology import run_topology_search
+
+    events: list[dict] = []
+    again = run_topology_search(raw, store=store, progress=events.append)
+    assert [e["status"] for e in events] == ["skipped"] * len(events) and events
+    assert again["best"]["worst_case_hz"] == best["worst_case_hz"]
