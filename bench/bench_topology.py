@@ -4,7 +4,8 @@ optimised), its time, and its ranking beside the four hand-made families optimis
 templates under the identical problem (same envelope, stress limit, mass, design bounds, starts, mesh).
 
 Run from the repository root: ``python bench/bench_topology.py [--workers 2] [--starts 1] [--segments 6]
-[--store DIR] [--spec FILE] [--topologies DESCRIPTOR ...]``. Prints markdown tables for the README. Wall-clock time of one run (quote ``uptime``).
+[--store DIR] [--spec FILE] [--topologies DESCRIPTOR ...]``. Prints markdown tables for the README.
+Wall-clock time of one run (quote ``uptime``).
 
 Published reference for the worst/zero-stroke ratio: seed 000 (the paper this project starts from) quotes an
 optimised large-stroke hinge that loses about 25 % of its first parasitic frequency at +-45 deg (ratio
@@ -70,7 +71,8 @@ def main() -> None:
     res = run_topology_search(spec, workers=a.workers, store=a.store, progress=progress)
     wall = time.perf_counter() - t0
     c = res["counts"]
-    print("| generated | rejected | of which | untraceable | optimised | failed | screen [s] | optimisation [s] | total [s] |")
+    print("| generated | rejected | of which | untraceable | optimised | failed | screen [s] | optimisation [s] | "
+          "total [s] |")
     print("|---|---|---|---|---|---|---|---|---|")
     by = "; ".join(f"{n} {k}" for k, n in sorted(c["rejected_by"].items())) or "-"
     print(f"| {c['generated']} | {c['rejected']} | {by} | {c['untraceable']} | {c['optimised']} | {c['failed']} | "
@@ -119,8 +121,8 @@ def main() -> None:
         print(f"\nbest: `{best['topology']}` {best['worst_case_hz']:.2f} Hz (ratio {best['ratio']:.3f}) {verdict}: "
               f"{bf['family']} `{bf['topology']}` {bf['worst_case_hz']:.2f} Hz (ratio {bf['ratio']:.3f}); "
               f"published reference ratio about {PUBLISHED_RATIO} (seed 000: about 25 % lost at +-45 deg)")
-        same = [r["topology"] for r in res["candidates"] if r["status"] == "optimised" and "crossing" in (r["design"] or {})
-                and abs(r["design"]["crossing"] - 0.5) < 1e-3]
+        same = [r["topology"] for r in res["candidates"] if r["status"] == "optimised"
+                and "crossing" in (r["design"] or {}) and abs(r["design"]["crossing"] - 0.5) < 1e-3]
         print(f"{len(same)} of the candidates with a designed crossing ('@') end at the midpoint (|crossing - 0.5| < "
               "1e-3): the same design as their midpoint variant")
 

@@ -147,7 +147,8 @@ PARAMETER_UNITS: dict[str, str] = {
 }
 #: Templates whose ``stroke`` parameter is a translation [m]; in the others it is a rotation [deg].
 _TRANSLATION_TEMPLATES = frozenset({"parallel-leaf-spring", "wire-guide-5", "wire-guide-parallel",
-                                    "wire-guide-topology", "folded-sheet-guide-5", "folded-sheet-guide-6", "folded-sheet-guide-5a"})
+                                    "wire-guide-topology", "folded-sheet-guide-5", "folded-sheet-guide-6",
+                                    "folded-sheet-guide-5a"})
 
 
 def parameter_unit(name: str, parameter: str) -> str | None:
@@ -720,7 +721,8 @@ def _topology_hinge(p: dict) -> dict:
                              _leaf(p, f"{tag}b", f"{tag}_rb", f"{tag}_1", wi, n_half)]
                 mr = p["density"] * wi * p["rigid_thickness"] * rho * L
                 jr = mr * (rho * L) ** 2 / 12.0
-                bodies.append({"name": f"{tag}_rigid", "mass": mr, "center_of_mass": [(ra[j] + rb[j]) / 2 for j in range(3)],
+                bodies.append({"name": f"{tag}_rigid", "mass": mr,
+                               "center_of_mass": [(ra[j] + rb[j]) / 2 for j in range(3)],
                                "inertia": [[jr, 0, 0], [0, jr, 0], [0, 0, jr]], "nodes": [f"{tag}_ra", f"{tag}_rb"]})
             else:
                 elements.append(_leaf(p, tag, f"{tag}_0", f"{tag}_1", wi, n))

@@ -100,7 +100,8 @@ def table(result: dict) -> str:
     lines = [f"{c['generated']} topologies generated, {c['rejected']} rejected ({by or 'none'}), "
              f"{c['untraceable']} untraceable, {c['optimised']} optimised, {c['failed']} failed "
              f"(screen {result['seconds']['screen']:.1f} s, optimisation {result['seconds']['optimise']:.1f} s)",
-             "rank  topology          family                   dof  self-stress  worst [Hz]  zero [Hz]  worst/zero  design"]
+             "rank  topology          family                   dof  self-stress  worst [Hz]  zero [Hz]  worst/zero  "
+             "design"]
     by_name = {r["topology"]: r for r in result["candidates"]}
     if result["spec"]["motion"] == "translation":
         lines[0] += f", {c['accepted']} accepted (guides: screened, not optimised)"

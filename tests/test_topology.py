@@ -66,8 +66,9 @@ def test_descriptors_round_trip_to_scenes() -> None:
         scene = template("topology-hinge", topology=str(t))
         assert scene.name == f"topology {t}"
         assert sum(e.name.count("l") > 0 for e in scene.elements) >= t.flexures
-    for bad, words in (("+-", "must start with 'R:'"), ("R:+*", "'*' is not a leaf plane"), ("R:x++", "different planes"),
-                       ("R:+-|", "stage 2 has no leaves"), ("R:x+r-", "cannot cross in one plane")):
+    for bad, words in (("+-", "must start with 'R:'"), ("R:+*", "'*' is not a leaf plane"),
+                       ("R:x++", "different planes"), ("R:+-|", "stage 2 has no leaves"),
+                       ("R:x+r-", "cannot cross in one plane")):
         with pytest.raises(SceneError, match=words.replace("(", r"\(")):
             parse(bad)
 
@@ -81,7 +82,8 @@ def test_families_recognised_and_built_alike(name: str) -> None:
     shared = {k: v for k, v in TEMPLATES[name][1].items() if k in TEMPLATES["topology-hinge"][1]}
     grid = np.array([0.0, 30.0])
     fam = Analysis(template(name, segments=4)).frequency_curve(stroke=grid).modes_hz
-    top = Analysis(template("topology-hinge", topology=d, **dict(shared, segments=4))).frequency_curve(stroke=grid).modes_hz
+    top_scene = template("topology-hinge", topology=d, **dict(shared, segments=4))
+    top = Analysis(top_scene).frequency_curve(stroke=grid).modes_hz
     np.testing.assert_allclose(top, fam, rtol=1e-6)
 
 

@@ -192,7 +192,8 @@ def _stage_patterns(k: int, planes: str, inplane: bool, free_crossing: bool, rei
                 out += [Stage(lv, False, fc) for fc in ((False, True) if free_crossing else (False,))]
     if inplane and k >= 2:
         for combo in itertools.combinations(sorted(planes), k):
-            out += [Stage(tuple(Leaf(p) for p in combo), True, fc) for fc in ((False, True) if free_crossing else (False,))]
+            leaves = tuple(Leaf(p) for p in combo)
+            out += [Stage(leaves, True, fc) for fc in ((False, True) if free_crossing else (False,))]
     return out
 
 
