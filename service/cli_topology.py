@@ -120,6 +120,8 @@ def table(result: dict) -> str:
     for i, name in enumerate(result["ranking"], start=1):
         r = by_name[name]
         design = ", ".join(f"{k}={v:.4g}" for k, v in r["design"].items())
+        if r.get("same_design_as"):
+            design += f" (crossing at the midpoint: the design of {r['same_design_as']})"
         lines.append(f"{i:>4}  {name:<17} {r['family'] or '-':<24} {r['dof']:>3}  {r['overconstraints']:>11}  "
                      f"{r['worst_case_hz']:>10.2f} {r['zero_stroke_hz']:>10.2f}  {r['ratio']:>10.3f}  {design}")
     for r in result["candidates"]:

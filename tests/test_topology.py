@@ -192,6 +192,7 @@ def test_search_restricted_to_a_family_reproduces_its_optimum(tmp_path, capsys) 
     assert code == 0, out
     best = out["best"]
     assert best["family"] == "cross-spring-pivot" and best["topology"] == "R:+-@"
+    assert best["same_design_as"] is None  # 'R:+-' is not among the candidates
     assert (tmp_path / "rank.png").stat().st_size > 0 and len(list((tmp_path / "sc").iterdir())) == 1
     prob = candidate_problem(parse("R:+-@"), TopologySpec(**raw)).model_dump(mode="json")
     prob["families"][0]["template"] = "cross-spring-pivot"
@@ -206,3 +207,14 @@ def test_search_restricted_to_a_family_reproduces_its_optimum(tmp_path, capsys) 
     again = run_topology_search(raw, store=store, progress=events.append)
     assert [e["status"] for e in events] == ["skipped"] * len(events) and events
     assert again["best"]["worst_case_hz"] == best["worst_case_hz"]
+
+
+def test_designed_crossing_at_the_midpoint_is_marked_as_the_same_design() -> None:
+    from flexopt.optim.topology.rank import _mark_same_designs
+
+    recs = [{"topology": "R:+-|-+", "status": "optimised", "design": {"length": 0.06}},
+            {"topology": "R:+-@|-+", "status": "optimised", "design": {"crossing": 0.5004}},
+            {"topology": "R:+-@", "status": "optimised", "design": {"crossing": 0.58}},
+            {"topology": "R:+-|-+@", "status": "failed", "design": None}]
+    _mark_same_designs(recs)
+    assert [r["same_design_as"] for r in recs] == [None, "R:+-|-+", None, None]

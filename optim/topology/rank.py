@@ -182,7 +182,8 @@ def run_topology_search(spec: TopologySpec | dict, *, executor: Any = None, work
         JSON-serialisable: ``spec``, ``counts`` (generated, rejected by reason kind, untraceable, optimised,
         failed), ``candidates`` (each ``topology``, ``family``, ``dof``, ``intended_dof``,
         ``overconstraints``, ``self_stress``, ``release``, ``status`` (``rejected`` with ``reason``,
-        ``optimised``, ``untraceable`` or ``failed`` with ``reason``), ``worst_case_hz``,
+        ``optimised``, ``untraceable`` or ``failed`` with ``reason``), ``same_design_as`` (a designed
+        crossing that ends at the midpoint: the descriptor without '@'), ``worst_case_hz``,
         ``zero_stroke_hz``, ``ratio``, ``design``, ``stress_ratio``, ``kkt_residual``, ``active_bounds``,
         ``starts``), ``ranking`` (descriptors of the optimised candidates, best first), ``best`` (the first
         candidate of the ranking, or None), ``seconds`` (``screen``, ``optimise``).
@@ -222,6 +223,7 @@ def run_topology_search(spec: TopologySpec | dict, *, executor: Any = None, work
         rs = results[k:k + prob.starts]
         k += prob.starts
         _fill(records[i], rs)
+    _mark_same_designs(records)
     ranked = sorted((r for r in records if r["status"] == "optimised"), key=lambda r: -r["worst_case_hz"])
     counts: dict[str, Any] = {"generated": len(records), "rejected": sum(r["status"] == "rejected" for r in records),
                               "rejected_by": {}, "untraceable": sum(r["status"] == "untraceable" for r in records),
@@ -234,6 +236,19 @@ def run_topology_search(spec: TopologySpec | dict, *, executor: Any = None, work
             "counts": counts, "candidates": records, "ranking": [r["topology"] for r in ranked],
             "best": ranked[0] if ranked else None,
             "seconds": {"screen": t_screen, "optimise": time.perf_counter() - t0 - t_screen}}
+
+
+def _mark_same_designs(records: list[dict], tol: float = 1e-3) -> None:
+    """``same_design_as``: for a candidate with a designed crossing ('@') whose optimum crosses at the midpoint
+    (within ``tol``), the candidate without '@', whose scene is then the same; None otherwise."""
+    by_name = {r["topology"]: r for r in records}
+    for r in records:
+        r["same_design_as"] = None
+        if r["status"] != "optimised" or "crossing" not in r["design"] or abs(r["design"]["crossing"] - 0.5) > tol:
+            continue
+        base = str(canonical(r["topology"].replace("@", "")))
+        if base != r["topology"] and base in by_name:
+            r["same_design_as"] = base
 
 
 def _fill(rec: dict, starts: list[dict]) -> None:
