@@ -150,7 +150,8 @@ def test_spec_errors_name_the_field() -> None:
     from flexopt.optim.topology import TopologySpec
 
     for bad, field in (({"max_flexure": 3}, "max_flexure"), ({"planes": "+x"}, "planes"),
-                       ({"topologies": ["R:+*"]}, "topologies"), ({"format": "flexopt-problem"}, "format")):
+                       ({"topologies": ["R:+*"]}, "topologies"), ({"format": "flexopt-problem"}, "format"),
+                       ({"motion": "translation", "topologies": ["R:+-@"]}, "topologies")):
         with pytest.raises(ValidationError) as exc:
             TopologySpec.model_validate(bad)
         assert exc.value.errors()[0]["loc"][0] == field
