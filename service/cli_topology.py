@@ -44,7 +44,7 @@ def _file_name(descriptor: str) -> str:
 def _cmd_topology(args: argparse.Namespace) -> int:
     from pydantic import ValidationError
 
-    from ..optim.topology.rank import TopologySpec, example_spec
+    from ..optim.topology.spec import TopologySpec, example_spec
 
     if args.example:
         print(json.dumps(example_spec(), indent=2))

@@ -219,3 +219,13 @@ def test_designed_crossing_at_the_midpoint_is_marked_as_the_same_design() -> Non
             {"topology": "R:+-|-+@", "status": "failed", "design": None}]
     _mark_same_designs(recs)
     assert [r["same_design_as"] for r in recs] == [None, "R:+-|-+", None, None]
+
+
+def test_the_spec_imports_without_casadi() -> None:
+    import subprocess
+    import sys
+
+    code = ("import sys; from flexopt.optim.topology import TopologySpec; TopologySpec(topologies=None)\n"
+            "bad = [m for m in ('casadi', 'scipy') if m in sys.modules]; print(bad); sys.exit(1 if bad else 0)")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False)
+    assert r.returncode == 0, f"the spec loaded {r.stdout.strip()} {r.stderr}"
