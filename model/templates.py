@@ -147,7 +147,8 @@ PARAMETER_UNITS: dict[str, str] = {
 }
 #: Templates whose ``stroke`` parameter is a translation [m]; in the others it is a rotation [deg].
 _TRANSLATION_TEMPLATES = frozenset({"parallel-leaf-spring", "wire-guide-5", "wire-guide-parallel",
-                                    "folded-sheet-guide-5", "folded-sheet-guide-6"})
+                                    "wire-guide-topology", "folded-sheet-guide-5", "folded-sheet-guide-6",
+                                    "folded-sheet-guide-5a"})
 
 
 def parameter_unit(name: str, parameter: str) -> str | None:
@@ -313,27 +314,61 @@ def _wire_guide(p: dict, parallel: bool) -> dict:
     moves to x = -0.8a (above the first, at z = +0.5c): the two lateral wires are parallel and meet the
     same constraint line pattern, so one constraint is repeated (a self-stress) and the rotation about the
     vertical axis through x = -0.8a is free (a mechanism). Square wires of side ``wire_diameter``."""
+    return _wire_block(p, ["z--", "z-+", "z+0", "y--", "y-+"] if parallel else ["z--", "z-+", "z+0", "y-0", "y+0"],
+                       "wire-guide-parallel" if parallel else "wire-guide-5")
+
+
+_STEP = {"-": -1.0, "0": 0.0, "+": 1.0}
+
+
+def guide_layout(descriptor: str) -> list[str]:
+    """Read a wire-guide descriptor ``T:<wire>,<wire>,...`` (the grammar of optim/topology/grammar.py).
+
+    A wire is its direction and two places: ``z<i><j>`` a vertical wire under the block at
+    ``(0.8 a i, 0.75 b j, -c)``, ``y<i><k>`` a lateral wire on the face y = -b at ``(0.8 a i, -b, 0.5 c k)``,
+    each of ``i, j, k`` one of ``-``, ``0``, ``+`` (the block is ``2a x 2b x 2c``, guided along x; seed 002
+    Figure 3a is ``T:z--,z-+,z+0,y-0,y+0``).
+
+    Raises
+    ------
+    SceneError
+        On a malformed descriptor or a wire given twice.
+    """
+    where = "template.topology"
+    if not isinstance(descriptor, str) or not descriptor.startswith("T:"):
+        raise SceneError(where, f"guide topology '{descriptor}' must start with 'T:', e.g. 'T:z--,z-+,z+0,y-0,y+0'")
+    wires = descriptor[2:].split(",")
+    for w in wires:
+        if len(w) != 3 or w[0] not in "yz" or w[1] not in _STEP or w[2] not in _STEP:
+            raise SceneError(where, f"guide topology '{descriptor}': wire '{w}' must be 'z' or 'y' and two of "
+                             "'-', '0', '+' (e.g. 'z-+')")
+    if len(set(wires)) != len(wires):
+        raise SceneError(where, f"guide topology '{descriptor}' places a wire twice")
+    return wires
+
+
+def _wire_block(p: dict, wires: list[str], name: str) -> dict:
+    """A block guided along x by wire flexures placed by :func:`guide_layout`'s tokens (square wires of side
+    ``wire_diameter`` and length ``wire_length``, their ground ends supported; kinematic: a wire keeps its
+    elongation rigid)."""
     a, b, c = p["body_length"] / 2, p["body_width"] / 2, p["body_height"] / 2
     Lw, d = p["wire_length"], p["wire_diameter"]
     nodes, elements, supports, carried = [], [], [], []
-
-    def wire(name: str, at: tuple[float, float, float], direction: tuple[float, float, float]) -> None:
-        base = [at[i] - Lw * direction[i] for i in range(3)]
-        nodes.extend([{"name": f"{name}_body", "position": list(at)}, {"name": f"{name}_ground", "position": base}])
-        carried.append(f"{name}_body")
-        supports.append({"node": f"{name}_ground"})
-        elements.append({"kind": "beam", "name": name, "nodes": [f"{name}_ground", f"{name}_body"],
+    for k, tok in enumerate(wires, start=1):
+        i, j = _STEP[tok[1]], _STEP[tok[2]]
+        at, direction = (((0.8 * a * i, 0.75 * b * j, -c), (0, 0, 1)) if tok[0] == "z"
+                         else ((0.8 * a * i, -b, 0.5 * c * j), (0, 1, 0)))
+        wname = f"wire{k}"
+        base = [at[q] - Lw * direction[q] for q in range(3)]
+        nodes.extend([{"name": f"{wname}_body", "position": list(at)}, {"name": f"{wname}_ground", "position": base}])
+        carried.append(f"{wname}_body")
+        supports.append({"node": f"{wname}_ground"})
+        elements.append({"kind": "beam", "name": wname, "nodes": [f"{wname}_ground", f"{wname}_body"],
                          "material": "steel", "section": {"kind": "rectangular", "width": d, "thickness": d},
                          "y_axis": [1, 0, 0], "segments": int(p["segments"]), "rigid": []})
-
-    wire("wire1", (-0.8 * a, -0.75 * b, -c), (0, 0, 1))
-    wire("wire2", (-0.8 * a, 0.75 * b, -c), (0, 0, 1))
-    wire("wire3", (0.8 * a, 0.0, -c), (0, 0, 1))
-    wire("wire4", (-0.8 * a, -b, -0.5 * c if parallel else 0.0), (0, 1, 0))
-    wire("wire5", (-0.8 * a, -b, 0.5 * c) if parallel else (0.8 * a, -b, 0.0), (0, 1, 0))
     m = p["body_mass"]
     return {
-        "name": "wire-guide-parallel" if parallel else "wire-guide-5",
+        "name": name,
         "materials": [_steel(p)], "nodes": nodes,
         "bodies": [{"name": "slider", "mass": m, "center_of_mass": [0, 0, 0],
                     "inertia": _box_inertia(m, 2 * a, 2 * b, 2 * c), "nodes": carried}],
@@ -344,7 +379,7 @@ def _wire_guide(p: dict, parallel: bool) -> dict:
     }
 
 
-def _folded_sheet_guide(p: dict, count: int) -> dict:
+def _folded_sheet_guide(p: dict, count: int, variant: str = "") -> dict:
     """Figures 3b (five) and 5b (six) of seed 002, geometry reconstructed from the figures.
 
     The moving part is a solid cylinder (mass ``body_mass``, radius ``body_radius``, length ``body_length``)
@@ -367,7 +402,9 @@ def _folded_sheet_guide(p: dict, count: int) -> dict:
     has the rate of sheet A's elongation and would make D_cc singular).
     """
     R, Lb, Ls = p["body_radius"], p["body_length"], p["sheet_length"]
-    if count == 5:
+    if variant == "a":  # Figure 5a: the second side's two flexures at 90 and 270 degrees, fold lines parallel
+        places = [(-Lb / 2, 90.0), (-Lb / 2, 210.0), (-Lb / 2, 330.0), (Lb / 4, 90.0), (Lb / 4, 270.0)]
+    elif count == 5:
         places = [(-Lb / 2, 90.0), (-Lb / 2, 210.0), (-Lb / 2, 330.0), (Lb / 4, 30.0), (Lb / 4, 150.0)]
     else:
         places = [(-Lb / 2, 90.0), (-Lb / 2, 210.0), (-Lb / 2, 330.0), (Lb / 4, 30.0), (Lb / 4, 150.0),
@@ -398,7 +435,7 @@ def _folded_sheet_guide(p: dict, count: int) -> dict:
     Jx = m * R * R / 2
     Jt = m * (3 * R * R + Lb * Lb) / 12
     return {
-        "name": f"folded-sheet-guide-{count}",
+        "name": f"folded-sheet-guide-{count}{variant}",
         "materials": [_steel(p)], "nodes": nodes,
         "bodies": [{"name": "cylinder", "mass": m, "center_of_mass": [0, 0, 0],
                     "inertia": [[Jx, 0, 0], [0, Jt, 0], [0, 0, Jt]], "nodes": carried}],
@@ -417,8 +454,15 @@ TEMPLATES.update({
     "truss12": (_truss12, dict(_COMMON, half_width=1.0, height=1.0, area=1e-4)),
     "wire-guide-5": (lambda p: _wire_guide(p, False), dict(_WIRE)),
     "wire-guide-parallel": (lambda p: _wire_guide(p, True), dict(_WIRE)),
+    # a generated wire guide (optim/topology): wires placed by a descriptor, see guide_layout
+    "wire-guide-topology": (lambda p: _wire_block(p, guide_layout(p["topology"]), f"guide {p['topology']}"),
+                            dict(_WIRE, topology="T:z--,z-+,z+0,y-0,y+0")),
     "folded-sheet-guide-5": (lambda p: _folded_sheet_guide(p, 5), dict(_FOLDED)),
     "folded-sheet-guide-6": (lambda p: _folded_sheet_guide(p, 6), dict(_FOLDED)),
+    # Figure 5a: five flexures, the second side's two with parallel fold lines (90 and 270 degrees): the
+    # paper's kinematic analysis finds it under- and overconstrained at once (one free motion, one
+    # self-stress); tests/test_topology.py checks that the topology filter finds it so
+    "folded-sheet-guide-5a": (lambda p: _folded_sheet_guide(p, 5, "a"), dict(_FOLDED)),
 })
 
 
@@ -535,3 +579,168 @@ def design_space(name: str) -> dict[str, tuple[float, float]]:
     if name not in DESIGN_SPACES:
         raise SceneError("template", f"'{name}' is not an optimiser family; choose one of {sorted(DESIGN_SPACES)}")
     return dict(DESIGN_SPACES[name])
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Generated hinge topologies (optim/topology): one builder for every descriptor the topology grammar writes.
+# The descriptor is read here (model/ must not import optim/); optim/topology/grammar.py wraps this reader
+# in its Topology type, so the scene and the grammar always agree.
+
+#: Leaf plane angles about the hinge axis: "+" the leaf direction (sin a/2, cos a/2, 0) (a = ``angle``),
+#: "-" its mirror (-sin a/2, cos a/2, 0), "0" radial (0, 1, 0); leaves run from the previous body (y < 0)
+#: to the next (y > 0) and cross the axis at the fraction ``crossing`` of their length.
+_PLANES = "+-0"
+
+
+def topology_layout(descriptor: str) -> list[dict]:
+    """Read a hinge topology descriptor into its stages (the grammar of optim/topology/grammar.py).
+
+    ``R:<stage>|<stage>...``: stages in series from ground to the rotor (intermediate bodies between them).
+    A stage is ``[x]<leaf><leaf>...[@]``: leaves stacked along the axis from +z to -z, or with ``x`` crossing
+    in one plane and joined at their crossing point; ``@`` makes the crossing fraction a design parameter
+    (otherwise the leaves cross at their midpoints). A leaf is a plane ``+``, ``-`` or ``0`` (see
+    :data:`_PLANES`), an optional width multiple ``2``-``9`` and an optional ``r`` (middle part rigid).
+
+    Returns
+    -------
+    list of dict
+        Per stage ``{"inplane": bool, "free_crossing": bool, "leaves": [(plane, multiple, reinforced)]}``.
+
+    Raises
+    ------
+    SceneError
+        On a malformed descriptor, naming the position and what is allowed there.
+    """
+    where = "template.topology"
+    if not isinstance(descriptor, str) or not descriptor.startswith("R:"):
+        raise SceneError(where, f"topology '{descriptor}' must start with 'R:' (a rotation about the z axis), "
+                         "e.g. 'R:+-@' (the cross-spring pivot)")
+    stages = []
+    for k, text in enumerate(descriptor[2:].split("|"), start=1):
+        inplane = text.startswith("x")
+        body = text[1:] if inplane else text
+        free = body.endswith("@")
+        body = body[:-1] if free else body
+        leaves, i = [], 0
+        while i < len(body):
+            c = body[i]
+            if c not in _PLANES:
+                raise SceneError(where, f"topology '{descriptor}', stage {k}: '{c}' is not a leaf plane; a leaf "
+                                 "is '+', '-' or '0', then an optional width multiple 2-9 and an optional 'r'")
+            i += 1
+            mult = 1
+            if i < len(body) and body[i] in "23456789":
+                mult, i = int(body[i]), i + 1
+            rein = i < len(body) and body[i] == "r"
+            i += rein
+            leaves.append((c, mult, bool(rein)))
+        if not leaves:
+            raise SceneError(where, f"topology '{descriptor}': stage {k} has no leaves")
+        if inplane and (len(leaves) < 2 or len({lf[0] for lf in leaves}) < len(leaves)):
+            raise SceneError(where, f"topology '{descriptor}', stage {k}: leaves crossing in one plane ('x') need "
+                             "at least two leaves in different planes")
+        if inplane and any(lf[2] for lf in leaves):
+            raise SceneError(where, f"topology '{descriptor}', stage {k}: a reinforced leaf ('r') cannot cross in "
+                             "one plane ('x'): its rigid middle would hold the joint")
+        stages.append({"inplane": inplane, "free_crossing": free, "leaves": leaves})
+    return stages
+
+
+def _topology_hinge(p: dict) -> dict:
+    """A generated hinge topology (``topology``: see :func:`topology_layout`), built like the families.
+
+    Every leaf has length ``length``, thickness ``thickness`` and width ``width`` times its multiple (width
+    along the axis z); it crosses the axis at the fraction ``crossing`` of its length (0.5 unless a stage
+    says ``@``). Layers (a stacked leaf, or one in-plane crossing) are stacked along z with ``gap`` between
+    them and centred on z = 0: stage 1's layers in the middle, each later stage's first half above and
+    second half below the earlier ones (so ``R:+-|-+`` is the double cross hinge). Ground holds stage 1's
+    start nodes; intermediate body k (mass ``mid_mass``, at the origin) joins stage k's ends and stage
+    k+1's starts; the rotor (``body_mass``, inertia ``body_mass body_radius^2 / 2`` about each axis) holds
+    the last stage's ends, its centre ``body_offset`` beyond the farthest leaf end. An in-plane crossing
+    joins its leaves at a node on the axis (each half ``segments // 2`` elements). A reinforced leaf
+    (``r``) is rigid over the middle fraction ``rigid_fraction`` of its length: a rigid body of the leaf's
+    width, ``rigid_thickness`` thick, steel. ``flexure_level`` 1 builds each leaf as one segment between its
+    ends (the reinforcement and the in-plane halves condensed into the flexure, as the kinematic screen
+    sees it: seed 002, section 4.2). Traceable (casadi maths on the continuous parameters)."""
+    stages = topology_layout(p["topology"])
+    L, w, t_gap = p["length"], p["width"], p["gap"]
+    half = p["angle"] * ca.pi / 360.0
+    sx, cy = ca.sin(half), ca.cos(half)
+    dirs = {"+": (sx, cy), "-": (-sx, cy), "0": (0.0, 1.0)}
+    level = int(p["flexure_level"])
+    n = 1 if level else int(p["segments"])
+    n_half = max(n // 2, 1)
+    # layers (top to bottom): (stage index, leaf indices, width multiple)
+    order: list[tuple[int, list[int], int]] = []
+    for k, st in enumerate(stages):
+        own = ([(k, list(range(len(st["leaves"]))), max(lf[1] for lf in st["leaves"]))] if st["inplane"]
+               else [(k, [i], lf[1]) for i, lf in enumerate(st["leaves"])])
+        up = (len(own) + 1) // 2
+        order = own if k == 0 else own[:up] + order + own[up:]
+    total = sum(m for *_, m in order) * w + (len(order) - 1) * t_gap
+    z_of: dict[tuple[int, int], Any] = {}
+    top = total / 2.0
+    for k, idx, m in order:
+        for i in idx:
+            z_of[(k, i)] = top - m * w / 2.0
+        top = top - m * w - t_gap
+    nodes: list[tuple[str, list]] = []
+    elements: list[dict] = []
+    bodies: list[dict] = []
+    starts: list[list[str]] = []
+    ends: list[list[str]] = []
+    rho = p["rigid_fraction"]
+    for k, st in enumerate(stages):
+        lam = p["crossing"] if st["free_crossing"] else 0.5
+        s0, s1 = [], []
+        centre = f"s{k + 1}_centre"
+        if st["inplane"]:
+            nodes.append((centre, [0.0, 0.0, z_of[(k, 0)]]))
+        for i, (plane, mult, rein) in enumerate(st["leaves"]):
+            ux, uy = dirs[plane]
+            z = z_of[(k, i)]
+            tag = f"s{k + 1}l{i + 1}"
+            a = [-ux * L * lam, -uy * L * lam, z]
+            b = [ux * L * (1 - lam), uy * L * (1 - lam), z]
+            nodes += [(f"{tag}_0", a), (f"{tag}_1", b)]
+            s0.append(f"{tag}_0")
+            s1.append(f"{tag}_1")
+            wi = mult * w
+            if st["inplane"] and not level:
+                elements += [_leaf(p, f"{tag}a", f"{tag}_0", centre, wi, n_half),
+                             _leaf(p, f"{tag}b", centre, f"{tag}_1", wi, n_half)]
+            elif st["inplane"]:
+                elements += [_leaf(p, f"{tag}a", f"{tag}_0", centre, wi, 1),
+                             _leaf(p, f"{tag}b", centre, f"{tag}_1", wi, 1)]
+            elif rein and not level:
+                f0, f1 = (1 - rho) / 2.0, (1 + rho) / 2.0
+                ra = [a[j] + (b[j] - a[j]) * f0 for j in range(3)]
+                rb = [a[j] + (b[j] - a[j]) * f1 for j in range(3)]
+                nodes += [(f"{tag}_ra", ra), (f"{tag}_rb", rb)]
+                elements += [_leaf(p, f"{tag}a", f"{tag}_0", f"{tag}_ra", wi, n_half),
+                             _leaf(p, f"{tag}b", f"{tag}_rb", f"{tag}_1", wi, n_half)]
+                mr = p["density"] * wi * p["rigid_thickness"] * rho * L
+                jr = mr * (rho * L) ** 2 / 12.0
+                bodies.append({"name": f"{tag}_rigid", "mass": mr,
+                               "center_of_mass": [(ra[j] + rb[j]) / 2 for j in range(3)],
+                               "inertia": [[jr, 0, 0], [0, jr, 0], [0, 0, jr]], "nodes": [f"{tag}_ra", f"{tag}_rb"]})
+            else:
+                elements.append(_leaf(p, tag, f"{tag}_0", f"{tag}_1", wi, n))
+        starts.append(s0)
+        ends.append(s1)
+    for k in range(len(stages) - 1):
+        name = "intermediate" if len(stages) == 2 else f"intermediate{k + 1}"
+        bodies.append(_rotor(p["mid_mass"], p["body_radius"], [0.0, 0.0, 0.0], ends[k] + starts[k + 1], name=name))
+    last = stages[-1]
+    lam = p["crossing"] if last["free_crossing"] else 0.5
+    reach = (1.0 if any(lf[0] == "0" for lf in last["leaves"]) else cy) * L * (1 - lam)
+    bodies.append(_rotor(p["body_mass"], p["body_radius"], [0, reach + p["body_offset"], 0], ends[-1]))
+    out = _hinge(p, "topology-hinge", nodes, bodies, elements, starts[0])
+    out["name"] = f"topology {p['topology']}"
+    return out
+
+
+TEMPLATES["topology-hinge"] = (_topology_hinge, dict(_HINGE, topology="R:+-@", crossing=0.5, mid_mass=0.02,
+                                                     rigid_fraction=1.0 / 3.0, rigid_thickness=2e-3,
+                                                     flexure_level=0))
+PARAMETER_UNITS.update({"rigid_thickness": "m", "rigid_fraction": ""})

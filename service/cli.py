@@ -162,6 +162,8 @@ def _parser() -> argparse.ArgumentParser:
     _add_serve(sub)
     from .cli_optimise import add_parser as _add_optimise  # optimisation batch; optim loads only on run
     _add_optimise(sub)
+    from .cli_topology import add_parser as _add_topology  # topology search; optim loads only on run
+    _add_topology(sub)
     return p
 
 

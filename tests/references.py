@@ -166,3 +166,24 @@ STIFF_AXIS_LOSS = Ref(
     "issue 11 asks for 0.1 %; at 40 segments the model's O(h^2) buckling error is +0.025 % (measured: +0.41 % at "
     "10, +0.10 % at 20), and the omega^2 extrapolation adds far less",
 )
+
+
+# Exact-constraint counts of the topology filter (optim/topology/screen.py): (free motions with the drive
+# held, beyond the intended ones; self-stress states), kinematic idealisation (a sheet fixes its three in-plane
+# motions: elongation and in-plane bending rigid; seed 002 sec. 4.2). Integers: compared exactly.
+CONSTRAINT_COUNTS: dict[str, tuple[int, int, str]] = {
+    "folded-sheet-guide-5": (0, 0, "seed 002 sec. 4.2, Figure 3b: D_cc square and non-singular (exact constraint)"),
+    "folded-sheet-guide-6": (0, 1, "seed 002 sec. 4.3, Figure 5b: overconstrained, one self-stress (in-plane "
+                             "bending in every sheet)"),
+    "folded-sheet-guide-5a": (1, 1, "seed 002 sec. 4.3, Figure 5a: 'both underconstrained' and overconstrained"),
+    "R:+-@": (0, 1, "hand count: two sheets fix 3 + 3 rotor motions, 5 rotor coordinates besides the drive, both "
+              "sheets fix the axial translation: rank 5, so 0 free and 6 - 5 = 1 self-stress"),
+    "R:++": (2, 3, "hand count: two parallel sheets in one plane fix only that plane's 3 motions: 5 - 3 = 2 free "
+             "(translation along the plane's normal, rotation about the leaf direction), 6 - 3 = 3 self-stresses"),
+    "T:z--,z-+,z+0,y-0,y+0": (0, 0, "seed 002 sec. 4.1, Figure 3a: five wires, D_cc square and non-singular"),
+    "T:z--,z-+,z+0,y--,y-+": (1, 1, "hand count: the two lateral wires at x = -0.8a are parallel and in one "
+                              "vertical line, so they fix the same translation y there (a self-stress) and leave the "
+                              "rotation about the vertical through that line free"),
+    "R:+-|-+": (0, 2, "hand count: each pivot stage fixes 5 of its body's 6 motions with 1 self-stress; the "
+                "intermediate body's rotation about the axis is the series arrangement's intended motion"),
+}

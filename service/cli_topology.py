@@ -1,0 +1,164 @@
+"""``flexopt topology``: generate hinge topologies, screen them by exact constraint, optimise and rank them.
+
+Registered by service.cli through :func:`add_parser`; imports optim lazily.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+__all__ = ["add_parser", "plot_ranking"]
+
+
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Add the ``topology`` subcommand to an argparse subparsers object."""
+    o = subparsers.add_parser("topology", help="topology search: generate, screen, optimise and rank hinges")
+    o.add_argument("spec", nargs="?", help="search spec JSON (format flexopt-topology; see --example)")
+    o.add_argument("--example", action="store_true", help="print the default spec and exit")
+    o.add_argument("--workers", type=int, default=None, help="local worker processes (default: CPU count)")
+    o.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://host:8786")
+    o.add_argument("--store", metavar="DIR", help="write each finished case here; rerun to resume")
+    o.add_argument("--json", action="store_true", help="print the whole result as JSON")
+    o.add_argument("--plot", metavar="FILE.png", help="bar chart of the ranking (worst case and zero stroke)")
+    o.add_argument("--scenes", metavar="DIR", help="write the scene JSON of each optimised candidate here")
+    o.set_defaults(func=_cmd_topology)
+    return o
+
+
+def _first_error(exc: Exception) -> str:
+    e = exc.errors()[0]  # type: ignore[attr-defined]
+    loc = ".".join(str(p) for p in e.get("loc", ()))
+    return f"{loc or 'spec'}: {str(e.get('msg')).removeprefix('Value error, ')}"
+
+
+def _file_name(descriptor: str) -> str:
+    """A file name for a descriptor: 'R:+-@|-+' -> 'R_pmc_mp' (+ p, - m, 0 o, @ c, : and | _)."""
+    table = {"+": "p", "-": "m", "0": "o", "|": "_", "@": "c", ":": "_"}
+    return "".join(table.get(c, c) for c in descriptor)
+
+
+def _cmd_topology(args: argparse.Namespace) -> int:
+    from pydantic import ValidationError
+
+    from ..optim.topology.spec import TopologySpec, example_spec
+
+    if args.example:
+        print(json.dumps(example_spec(), indent=2))
+        return 0
+    if args.spec is None:
+        raise ValueError("give a spec file (flexopt topology --example > spec.json) or --example")
+    try:
+        raw = json.loads(Path(args.spec).read_text())
+    except OSError as exc:
+        raise ValueError(f"cannot read '{args.spec}': {exc.strerror}") from exc
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"'{args.spec}' is not JSON: {exc.msg} at line {exc.lineno}") from exc
+    try:
+        spec = TopologySpec.model_validate(raw)
+    except ValidationError as exc:
+        raise ValueError(f"spec.{_first_error(exc)}") from None
+    from ..optim.batch import NoWorkers
+    from ..optim.topology import run_topology_search
+
+    executor = None
+    if args.scheduler:
+        from ..optim.batch import dask_executor
+
+        executor = dask_executor(args.scheduler)
+    try:
+        result = run_topology_search(spec, executor=executor, workers=args.workers, store=args.store)
+    except NoWorkers as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 3
+    finally:
+        if executor is not None:
+            executor.shutdown()
+    if args.scenes:
+        out = Path(args.scenes)
+        out.mkdir(parents=True, exist_ok=True)
+        for c in result["candidates"]:
+            if c.get("scene"):
+                (out / f"{_file_name(c['topology'])}.json").write_text(json.dumps(c["scene"], indent=2))
+        print(f"scenes written to {out}/", file=sys.stderr)
+    if args.plot:
+        plot_ranking(result, args.plot)
+    if args.json:
+        print(json.dumps({k: v for k, v in result.items()}))
+    else:
+        print(table(result))
+    return 0 if result["best"] is not None else 1
+
+
+def table(result: dict) -> str:
+    """The ranking and the rejected candidates as text."""
+    c = result["counts"]
+    by = ", ".join(f"{n} {k}" for k, n in sorted(c["rejected_by"].items()))
+    lines = [f"{c['generated']} topologies generated, {c['rejected']} rejected ({by or 'none'}), "
+             f"{c['untraceable']} untraceable, {c['optimised']} optimised, {c['failed']} failed "
+             f"(screen {result['seconds']['screen']:.1f} s, optimisation {result['seconds']['optimise']:.1f} s)",
+             "rank  topology          family                   dof  self-stress  worst [Hz]  zero [Hz]  worst/zero  "
+             "design"]
+    by_name = {r["topology"]: r for r in result["candidates"]}
+    if result["spec"]["motion"] == "translation":
+        lines[0] += f", {c['accepted']} accepted (guides: screened, not optimised)"
+        lines[1] = "rank  guide                          self-stress  condition number of D_cc"
+        lines += [f"{i:>4}  {n:<30} {by_name[n]['overconstraints']:>11}  {by_name[n]['condition_number']:.4g}"
+                  for i, n in enumerate(result["ranking"][:50], start=1)]
+        if len(result["ranking"]) > 50:
+            lines.append(f"      ... {len(result['ranking']) - 50} more (--json lists every candidate)")
+        rej = [r for r in result["candidates"] if r["status"] == "rejected"]
+        if rej:
+            lines.append("rejected by the exact-constraint filter:")
+            lines += [f"      {r['topology']:<30} {r['reason']}" for r in rej[:50]]
+            if len(rej) > 50:
+                lines.append(f"      ... {len(rej) - 50} more (--json lists every candidate)")
+        return "\n".join(lines)
+    for i, name in enumerate(result["ranking"], start=1):
+        r = by_name[name]
+        design = ", ".join(f"{k}={v:.4g}" for k, v in r["design"].items())
+        if r.get("same_design_as"):
+            design += f" (crossing at the midpoint: the design of {r['same_design_as']})"
+        lines.append(f"{i:>4}  {name:<17} {r['family'] or '-':<24} {r['dof']:>3}  {r['overconstraints']:>11}  "
+                     f"{r['worst_case_hz']:>10.2f} {r['zero_stroke_hz']:>10.2f}  {r['ratio']:>10.3f}  {design}")
+    for r in result["candidates"]:
+        if r["status"] in ("failed", "untraceable"):
+            lines.append(f"   -  {r['topology']:<17} {r['family'] or '-':<24} {r['status']}: {r['reason']}")
+    rej = [r for r in result["candidates"] if r["status"] == "rejected"]
+    if rej:
+        lines.append("rejected by the exact-constraint filter:")
+        lines += [f"      {r['topology']:<17} {r['reason']}" for r in rej]
+    return "\n".join(lines)
+
+
+def plot_ranking(result: dict, path: str) -> None:
+    """Worst-case and zero-stroke first parasitic frequency of every optimised candidate, best first; the
+    hand-made families labelled."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    by_name = {r["topology"]: r for r in result["candidates"]}
+    rows = [by_name[n] for n in result["ranking"] if by_name[n]["worst_case_hz"] is not None]
+    if not rows:
+        print("no optimised candidate to plot", file=sys.stderr)
+        return
+    fig, ax = plt.subplots(figsize=(max(6.0, 0.35 * len(rows) + 2), 4.2))
+    xs = range(len(rows))
+    ax.bar(xs, [r["zero_stroke_hz"] for r in rows], color="0.85", label="zero stroke")
+    ax.bar(xs, [r["worst_case_hz"] for r in rows], color=["C3" if r["family"] else "C0" for r in rows],
+           label="worst case over the stroke (red: a hand-made family)")
+    ax.set_xticks(list(xs), [r["topology"] + (f"\n{r['family']}" if r["family"] else "") for r in rows],
+                  rotation=90, fontsize=7)
+    ax.set_ylabel("first parasitic frequency [Hz]")
+    ax.set_yscale("log")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3, axis="y")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    print(f"plot written to {path}", file=sys.stderr)
