@@ -42,6 +42,9 @@ MECHANISM_MAX_COLUMNS = 600
 #: Largest ``omega^2`` scale ``E / (rho l0^2)`` of a segment accepted [1/s^2]: 1e200 is a frequency of
 #: 1e99 Hz, beyond any structure, and still 1e108 below the overflow of a double.
 OMEGA2_CEILING = 1e200
+#: Densities of real solids [kg/m^3] (aerogels about 1 to osmium 22590, with margin): a mass underflow with
+#: a density in this range comes from the section or the length, and is reported there.
+DENSITY_PLAUSIBLE = (0.1, 1e5)
 
 
 def check_mass(structure: Structure) -> None:
@@ -69,6 +72,29 @@ def check_mass(structure: Structure) -> None:
             l0 = float(s.truss_const[rows[0], 0]) if len(rows) else 1.0
             small = float(s.truss_mass[rows[0]]) if len(rows) else 1.0
         w2 = mat.E / (mat.density * l0**2) if mat.density * l0**2 > 0 else float("inf")
+        if small < MASS_FLOOR and DENSITY_PLAUSIBLE[0] <= mat.density <= DENSITY_PLAUSIBLE[1]:
+            # a density of a real solid: the section (or the length) is what underflows, e.g. a thickness of
+            # 1e-103 m (rotary inertia ~ t^3); name the dimension, not the material
+            sec = getattr(el, "section", None)
+            if isinstance(sec, RectangularSection):
+                dim = "thickness" if sec.thickness <= sec.width else "width"
+                where, value = f"elements[{ie}].section.{dim}", getattr(sec, dim)
+                what = f"its section {dim} {value:.3g} m"
+            else:
+                where, what = f"elements[{ie}].section", "its section constants"
+            raise MassUnderflowError(
+                where,
+                f"mass underflow: element '{el.name}' has a segment mass or rotary inertia of {small:.3g} "
+                f"(double precision ends near 2.2e-308) from {what} with density {mat.density:.3g} kg/m^3; give "
+                "the section dimensions in metres (a leaf is typically 1e-5 to 1e-2 m thick)")
+        if not w2 < OMEGA2_CEILING and small >= MASS_FLOOR and DENSITY_PLAUSIBLE[0] <= mat.density <= DENSITY_PLAUSIBLE[1]:
+            # a real solid's density and a resolvable mass: the modulus is what makes omega^2 overflow
+            i = mat_index[mat.name]
+            raise MassUnderflowError(
+                f"materials[{i}].E",
+                f"omega^2 overflow: Young's modulus {mat.E:.3g} of material '{mat.name}' over its density "
+                f"{mat.density:.3g} kg/m^3 gives element '{el.name}' an omega^2 of order {w2:.3g} 1/s^2, beyond "
+                "what a double holds; give E in Pa (steel: 2.1e11 Pa)")
         if small < MASS_FLOOR or not w2 < OMEGA2_CEILING:
             i = mat_index[mat.name]
             raise MassUnderflowError(

@@ -65,6 +65,14 @@ def _extreme_fields(doc: Any, path: str = "") -> list[str]:
     return out
 
 
+def _model_error(exc: Exception, scene: dict) -> Outcome:
+    """A model error of a valid scene: as it is when it names its field; when it names none (e.g. a singular
+    reference equilibrium) and the scene holds extreme numbers, those numbers are the likely cause, named."""
+    if not getattr(exc, "field", "") and _extreme_fields(scene):
+        return _broken(exc, scene)
+    return _error(exc)
+
+
 def _broken(exc: Exception, scene: dict) -> Outcome:
     """A computation that broke on a valid scene (overflow, division by zero, a failed solve): name the
     scene's extreme numbers as the likely cause, or the scene as a whole."""
@@ -123,7 +131,7 @@ def curve(spec: str) -> Outcome:
             out["shapes"] = shapes
         return True, json.dumps(_finite(out), allow_nan=False).encode()
     except FlexoptError as exc:
-        return _error(exc)
+        return _model_error(exc, s["scene"])
     except Exception as exc:  # noqa: BLE001 - overflow, zero division, a failed solve: named, never a 500
         return _broken(exc, s["scene"])
 
@@ -151,7 +159,7 @@ def modes(spec: str) -> Outcome:
         from ..model.errors import FlexoptError
 
         if isinstance(exc, FlexoptError):
-            return _error(exc)
+            return _model_error(exc, s["scene"])
         return _broken(exc, s["scene"])
 
 
@@ -198,7 +206,7 @@ def diagnosis(spec: str) -> Outcome:
         d = diagnose(Scene.model_validate(s["scene"]), at_stroke=s["at_stroke"], kinematic=s["kinematic"])
         return True, json.dumps(_finite(d.to_dict()), allow_nan=False).encode()
     except FlexoptError as exc:
-        return _error(exc)
+        return _model_error(exc, s["scene"])
     except Exception as exc:  # noqa: BLE001 - overflow, zero division, a failed solve: named, never a 500
         return _broken(exc, s["scene"])
 

@@ -100,6 +100,15 @@ def test_density_1e_300_is_mass_underflow():
     assert msg.startswith("materials[0].density: mass underflow") and "buckling" not in msg, msg
 
 
+def test_thickness_1e_103_is_mass_underflow_of_the_section():
+    # steel's density is a real solid's: what underflows is the section (rotary inertia ~ t^3 = 1e-309), so
+    # the error names the thickness, not the material
+    with pytest.raises(MassUnderflowError) as e:
+        Analysis(template("leaf-spring", thickness=1e-103, points=5)).frequency_curve()
+    msg = str(e.value)
+    assert msg.startswith("elements[0].section.thickness: mass underflow") and "metres" in msg, msg
+
+
 def test_stable_curve_unchanged_by_the_checks():
     c = Analysis(template("leaf-spring", points=5)).frequency_curve()
     assert c.status == "complete" and not c.failures

@@ -485,7 +485,7 @@ async function runDiagnosis() {
 // ------------------------------------------------------------------------------------- optimisation
 const DEFAULT_PROBLEM = {
   families: [{ template: "cross-spring-pivot", design: { thickness: [1e-4, 4e-4], width: [0.01, 0.04] } }],
-  stroke: 20, samples: 5, modes: 1, starts: 2, max_iterations: 6, refine_rounds: 0, verify_points: 31,
+  stroke: 20, samples: 5, modes: 1, starts: 2, max_iterations: 30, refine_rounds: 1, verify_points: 31,
 };
 
 async function submitOptimisation() {
