@@ -42,7 +42,7 @@ from ..analysis import Analysis
 from ..errors import FlexoptError
 from ..modal import Modes, modes_at, track
 from ..statics import Equilibrium, StepFailure, solve_point, walk
-from .common import _curve_from
+from .common import CLUSTER_GAP, _curve_from
 from .taylor import _clusters, mass_derivatives
 
 __all__ = ["hermite_curve", "stroke_slopes", "HermiteResult"]
@@ -222,12 +222,18 @@ class _Side:
             tm = Modes(m.omega2[perm], m.phi[:, perm], m.M)
             if prev is not None:  # MAC of each branch's match across the interval (1: same shape)
                 MB = tm.M @ tm.phi
-                num = np.einsum("ik,ik->k", prev.phi, MB) ** 2
-                den = np.einsum("ik,ik->k", prev.phi, tm.M @ prev.phi) * np.einsum("ik,ik->k", tm.phi, MB)
-                mac.append(num / np.where(den > 0, den, 1.0))
+                num = (prev.phi.T @ MB) ** 2  # (k, k): every previous shape against every new one
+                den = np.einsum("ik,ik->k", prev.phi, tm.M @ prev.phi)[:, None] * np.einsum("ik,ik->k", tm.phi, MB)
+                full = num / np.where(den > 0, den, 1.0)
+                # a (nearly) repeated pair turns freely within its plane along the stroke: the match of a
+                # branch is its shape's share in its new cluster's subspace (modes within CLUSTER_GAP), not in
+                # one mode of it
+                w2 = tm.omega2
+                same = np.abs(w2[:, None] / w2[None, :] - 1) <= CLUSTER_GAP
+                mac.append(np.minimum((full * same).sum(axis=1), 1.0))
             lam.append(1.0 / tm.omega2)  # interpolated variable: mu = 1 / lambda (see module docstring)
             slope.append(-smp.slope[perm] / tm.omega2**2)
-            labels.append(self.an._labels(tm)[0])
+            labels.append(self.an._labels(tm, smp.eq.tangent)[0])
             prev = tm
         self.lam, self.slope, self.labels, self.mac = np.array(lam), np.array(slope), labels, mac
 
@@ -312,10 +318,10 @@ def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samp
             s_req = internal[sel]
             if not len(s_req) or np.abs(s_req).max() == 0:
                 if len(s_req):  # only stroke 0 on this side
-                    lab = an._labels(m0)[0]
+                    lab = an._labels(m0, eq0.tangent)[0]
                     hz[sel] = _hz(1.0 / m0.omega2)[:n_rep]
                     labels[sel] = np.array(lab[:n_rep], dtype=object)
-                    par[sel] = an._labels(m0)[1]
+                    par[sel] = an._labels(m0, eq0.tangent)[1]
                 continue
             smax = s_req[np.argmax(np.abs(s_req))]
             side = _Side(an, first, k, drive)
