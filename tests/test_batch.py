@@ -245,7 +245,7 @@ def test_dask_local_cluster_gives_the_pool_results() -> None:
     try:
         # close order: the executor closes its client first, then the cluster stops its workers
         with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                      dashboard_address=None) as cluster:
+                                      dashboard_address=":0") as cluster:  # a free port: 8787 may be taken
             with dask_executor(cluster.scheduler_address, timeout="30s") as ex:
                 out = run_cases(cases, LEAF, executor=ex, cancel=cancel)
                 assert ex._client.status == "running"
@@ -280,7 +280,7 @@ def test_a_dask_cluster_survives_a_lost_worker_and_stops_when_it_has_none(tmp_pa
     tail = [{"base_seed": 1, "k": 2, "marker_dir": str(marks)},
             {"base_seed": 1, "k": 3, "hold": 120.0, "marker_dir": str(marks)}]
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
+                                  dashboard_address=":0") as cluster:  # a free port: 8787 may be taken
         with dask_executor(cluster.scheduler_address, timeout="30s") as ex:
             def kill_one() -> None:
                 while _runs(marks) < 2:  # both cases are running
