@@ -35,31 +35,41 @@ def _first_error(exc: Exception) -> str:
     if callable(errs):
         e = errs()[0]
         loc = ".".join(str(p) for p in e.get("loc", ()))
-        return f"{loc or 'spec'}: {e.get('msg')}"
+        return f"{loc or 'spec'}: {str(e.get('msg')).removeprefix('Value error, ')}"
     return str(exc)
 
 
-def _cmd_optimise(args: argparse.Namespace) -> int:
+def read_spec(path: str, model: Any) -> Any:
+    """The JSON file ``path`` validated as the pydantic ``model``; one-line ValueError naming the field."""
     from pydantic import ValidationError
 
+    try:
+        raw = json.loads(Path(path).read_text())
+    except OSError as exc:
+        raise ValueError(f"cannot read '{path}': {exc.strerror}") from exc
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"'{path}' is not JSON: {exc.msg} at line {exc.lineno}") from exc
+    try:
+        return model.model_validate(raw)
+    except ValidationError as exc:
+        raise ValueError(f"spec.{_first_error(exc)}") from None
+
+
+def executor_for(scheduler: str | None) -> Any:
+    """A Dask client's executor for ``scheduler`` (an address), or None for the local process pool."""
+    if not scheduler:
+        return None
+    from ..optim.batch import dask_executor
+
+    return dask_executor(scheduler)
+
+
+def _cmd_optimise(args: argparse.Namespace) -> int:
     from ..optim import Problem, optimise
     from ..optim.batch import NoWorkers
 
-    try:
-        raw = json.loads(Path(args.spec).read_text())
-    except OSError as exc:
-        raise ValueError(f"cannot read '{args.spec}': {exc.strerror}") from exc
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"'{args.spec}' is not JSON: {exc.msg} at line {exc.lineno}") from exc
-    try:
-        prob = Problem.model_validate(raw)
-    except ValidationError as exc:
-        raise ValueError(f"spec.{_first_error(exc)}") from None
-    executor = None
-    if args.scheduler:
-        from ..optim.batch import dask_executor
-
-        executor = dask_executor(args.scheduler)
+    prob = read_spec(args.spec, Problem)
+    executor = executor_for(args.scheduler)
     try:
         result = optimise(prob, executor=executor, workers=args.workers, store=args.store,
                           no_worker_timeout=args.no_worker_timeout)

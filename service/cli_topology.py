@@ -29,12 +29,6 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     return o
 
 
-def _first_error(exc: Exception) -> str:
-    e = exc.errors()[0]  # type: ignore[attr-defined]
-    loc = ".".join(str(p) for p in e.get("loc", ()))
-    return f"{loc or 'spec'}: {str(e.get('msg')).removeprefix('Value error, ')}"
-
-
 def _file_name(descriptor: str) -> str:
     """A file name for a descriptor: 'R:+-@|-+' -> 'R_pmc_mp' (+ p, - m, 0 o, @ c, : and | _)."""
     table = {"+": "p", "-": "m", "0": "o", "|": "_", "@": "c", ":": "_"}
@@ -42,33 +36,19 @@ def _file_name(descriptor: str) -> str:
 
 
 def _cmd_topology(args: argparse.Namespace) -> int:
-    from pydantic import ValidationError
-
     from ..optim.topology.spec import TopologySpec, example_spec
+    from .cli_optimise import executor_for, read_spec
 
     if args.example:
         print(json.dumps(example_spec(), indent=2))
         return 0
     if args.spec is None:
         raise ValueError("give a spec file (flexopt topology --example > spec.json) or --example")
-    try:
-        raw = json.loads(Path(args.spec).read_text())
-    except OSError as exc:
-        raise ValueError(f"cannot read '{args.spec}': {exc.strerror}") from exc
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"'{args.spec}' is not JSON: {exc.msg} at line {exc.lineno}") from exc
-    try:
-        spec = TopologySpec.model_validate(raw)
-    except ValidationError as exc:
-        raise ValueError(f"spec.{_first_error(exc)}") from None
+    spec = read_spec(args.spec, TopologySpec)
     from ..optim.batch import NoWorkers
     from ..optim.topology import run_topology_search
 
-    executor = None
-    if args.scheduler:
-        from ..optim.batch import dask_executor
-
-        executor = dask_executor(args.scheduler)
+    executor = executor_for(args.scheduler)
     try:
         result = run_topology_search(spec, executor=executor, workers=args.workers, store=args.store)
     except NoWorkers as exc:
