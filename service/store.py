@@ -313,7 +313,15 @@ class JobStore:
             shared = s.scalar(select(func.count()).select_from(Job).where(Job.spec == spec)) if spec else 0
             s.commit()
         shutil.rmtree(self.job_dir(job_id), ignore_errors=True)
-        if spec and not shared:  # its cases are no other job's (a case's id covers the whole problem)
+        if spec and not shared and job["kind"] == "topology-search":
+            # its cases are those its progress recorded; two searches can share a candidate's case, so a case
+            # another job recorded stays
+            with Session(self.engine) as s:
+                for cid in {p.get("id") for p in job["partial"] if isinstance(p.get("id"), str)}:
+                    if cid.isalnum() and not s.scalar(select(func.count()).select_from(Job)
+                                                      .where(Job.partial.contains(f'"{cid}"'))):
+                        (self.case_dir() / f"{cid}.json").unlink(missing_ok=True)
+        elif spec and not shared:  # its cases are no other job's (a case's id covers the whole problem)
             for path in self.case_files(json.loads(spec)):
                 path.unlink(missing_ok=True)
         return job

@@ -85,8 +85,11 @@ def test_topology_search_job_over_http(tmp_path: Path) -> None:
             with pytest.raises(NotFound):
                 c.optimisation(h.id)
         assert _cases(tmp_path) == before
+        ids = {p["id"] for p in job["partial"]}
+        assert len(ids) == 1 and {f"{i}.json" for i in ids} <= set(before), "the search's case, recorded"
         assert httpx.delete(f"{srv.url}/v1/topology-searches/{job_id}", headers=a_hdr).json()["status"] == "succeeded"
         assert httpx.get(f"{srv.url}/v1/topology-searches/{job_id}", headers=a_hdr).status_code == 404
+        assert not {f"{i}.json" for i in ids} & set(_cases(tmp_path)), "and removed with the last job using it"
     finally:
         srv.__exit__()
 
