@@ -111,3 +111,31 @@ def test_async_client_submits_and_cancels_a_topology_search(tmp_path: Path) -> N
         _until(lambda: httpx.get(f"{srv.url}/v1/topology-searches/{job.id}").json()["status"] == "cancelled", 120)
     finally:
         srv.__exit__()
+
+
+@pytest.mark.slow
+def test_restarted_topology_search_resumes_from_its_finished_cases(tmp_path: Path) -> None:
+    from flexopt.service.jobs import JobStore
+    from flexopt.service.settings import Settings
+
+    spec = {**TINY, "topologies": ["R:+-", "R:+-@"], "starts": 4}  # 8 cases of a second or two each
+    srv = _server(tmp_path)
+    with Client(srv.url, max_retries=0) as c:
+        h = c.submit_topology_search(spec)
+        _until(lambda: h.status().progress.get("done", 0) >= 1)
+    srv.__exit__()  # the server stops mid-search: its job process is stopped and the job requeued
+    store = JobStore(Settings(data_dir=tmp_path).job_store_url(), tmp_path)
+    assert store.get(h.id)["status"] == "queued", "requeued by the stopping server"
+    before = _cases(tmp_path)
+    assert 1 <= len(before) < 8
+    srv = _server(tmp_path)
+    try:
+        with Client(srv.url, max_retries=0) as c:
+            job = _until(lambda: (j := c.optimisation(h.id)).status in ("succeeded", "failed") and j, timeout=240)
+            assert job.status == "succeeded" and job.attempts == 2, job.error
+            after = _cases(tmp_path)
+            assert len(after) == 8 and all(after[k] == v for k, v in before.items()), "finished cases kept"
+            assert job.progress == {"done": 8, "total": 8} and job.result["best"] is not None
+    finally:
+        srv.__exit__()
+        store.engine.dispose()
