@@ -166,7 +166,7 @@ def test_optimisation_from_the_page_shows_progress_and_ranking(url: str, browser
     page.goto(f"{url}/")
     page.wait_for_function("() => document.querySelectorAll('#template option').length > 0")
     tiny = {"families": [{"template": "cross-spring-pivot", "design": {"thickness": [1e-4, 4e-4]}}], "stroke": 10,
-            "samples": 3, "modes": 1, "starts": 1, "max_iterations": 30, "refine_rounds": 0, "verify_points": 31}
+            "samples": 3, "modes": 1, "starts": 1, "max_iterations": 2, "refine_rounds": 0, "verify_points": 31}
     page.fill("#problem", json.dumps(tiny))
     page.get_by_test_id("optimise").click()
     page.wait_for_function("() => window.flexopt.job && ['succeeded', 'failed', 'cancelled']"
