@@ -38,6 +38,7 @@ from pydantic import ValidationError
 from starlette.exceptions import HTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from ..optim.topology.spec import TopologySpec, example_spec  # pydantic only (no CasADi)
 from . import errors_http, worker
 from .errors_http import Busy, ComputationFailed, ComputeTimeout
 from .middleware import JsonOnly, RequestLog
@@ -624,6 +625,63 @@ def _router(settings: Settings) -> APIRouter:
         job = await asyncio.to_thread(_store(request).delete, job_id, request.state.owner)
         if job is None:
             raise HTTPException(404, f"no optimisation job '{job_id}'")
+        errors_http.log.info("job deleted or cancelled", extra={"event": "job.delete", "job_id": job_id,
+                                                                "status": job["status"],
+                                                                "request_id": request.state.request_id})
+        return Job(**job)
+
+    # ------------------------------------------------------------------ topology searches (jobs of their own kind)
+    _TOPO = "topology-search"
+
+    def _topology_job(job: dict | None, job_id: str) -> Job:
+        if job is None or job["kind"] != _TOPO:
+            raise HTTPException(404, f"no topology search '{job_id}'")
+        return Job(**job)
+
+    @v1.get("/topology-searches/example", response_model=TopologySpec,
+            summary="The default topology-search spec (TopologySpec defaults), to edit and submit")
+    async def topology_example() -> dict[str, Any]:
+        return example_spec()
+
+    @v1.post("/topology-searches", status_code=202, response_model=Job,
+             summary="Submit a topology search: generate, screen, optimise and rank hinge topologies as a job",
+             responses={**_ERRORS, **_JOBS, 429: {"model": Problem, "description": "too many unfinished jobs "
+                                                                                   "of this API key"}})
+    async def submit_topology_search(spec: TopologySpec, request: Request, response: Response,
+                                     idempotency_key: str | None = Header(default=None, max_length=200)) -> Job:
+        body = spec.model_dump(mode="json")
+        where = _nonfinite(spec.model_dump())  # the rest (bounds, descriptors) was checked by TopologySpec itself
+        if where is not None:
+            raise RequestValidationError([{"loc": ("body", *where), "type": "value_error",
+                                           "msg": "must be a finite number (Infinity and NaN are not accepted)"}])
+        job, created = await asyncio.to_thread(_store(request).submit, {**body, "kind": _TOPO}, idempotency_key,
+                                               request.state.owner, _runtime(request).settings.max_active_jobs)
+        response.headers["Location"] = f"/v1/topology-searches/{job['id']}"
+        if created:
+            errors_http.log.info("job submitted", extra={"event": "job.submitted", "job_id": job["id"],
+                                                         "request_id": request.state.request_id})
+        return Job(**job)
+
+    @v1.get("/topology-searches/{job_id}", response_model=Job, responses={404: {"model": Problem}, **_JOBS},
+            summary="Status, progress {done, total} of the optimised cases, and the result once succeeded")
+    async def get_topology_search(job_id: str, request: Request) -> Job:
+        return _topology_job(await asyncio.to_thread(_store(request).get, job_id, request.state.owner), job_id)
+
+    @v1.get("/topology-searches", response_model=JobPage, responses=_JOBS,
+            summary="Topology searches of this API key, newest first")
+    async def list_topology_searches(request: Request, offset: int = Query(0, ge=0, le=1_000_000_000),
+                                     limit: int = Query(20, ge=1, le=100)) -> JobPage:
+        items, total = await asyncio.to_thread(_store(request).page, offset, limit, request.state.owner, None, _TOPO)
+        return JobPage(items=[Job(**j) for j in items], total=total, offset=offset, limit=limit)
+
+    @v1.delete("/topology-searches/{job_id}", response_model=Job, responses={404: {"model": Problem}, **_JOBS},
+               summary="Cancel an unfinished topology search (running: after the cases in progress), or remove "
+                       "a finished one")
+    async def cancel_topology_search(job_id: str, request: Request) -> Job:
+        _topology_job(await asyncio.to_thread(_store(request).get, job_id, request.state.owner), job_id)
+        job = await asyncio.to_thread(_store(request).delete, job_id, request.state.owner)
+        if job is None:  # removed in between
+            raise HTTPException(404, f"no topology search '{job_id}'")
         errors_http.log.info("job deleted or cancelled", extra={"event": "job.delete", "job_id": job_id,
                                                                 "status": job["status"],
                                                                 "request_id": request.state.request_id})

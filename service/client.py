@@ -30,7 +30,7 @@ import httpx
 import uuid
 from collections.abc import Awaitable, Callable
 
-from .schemas import FieldError, FrequencyCurveOut, Health, Job, JobPage, OptimisationProblem, Problem, TemplateInfo
+from .schemas import FieldError, FrequencyCurveOut, Health, Job, JobPage, Problem, TemplateInfo
 
 __all__ = [
     "Client",
@@ -56,7 +56,7 @@ _DONE = frozenset({"succeeded", "failed", "cancelled"})
 
 
 def _spec_json(spec: Any) -> dict[str, Any]:
-    return spec.model_dump(mode="json") if isinstance(spec, OptimisationProblem) else dict(spec)
+    return spec.model_dump(mode="json") if hasattr(spec, "model_dump") else dict(spec)  # a pydantic spec or its JSON
 
 
 Format = Literal["json", "csv", "png"]
@@ -265,6 +265,19 @@ class Client(_Base):
         r = self._request("POST", "/v1/optimisations", json=_spec_json(spec), headers={"Idempotency-Key": key})
         return JobHandle(self, Job.model_validate(r.json()))
 
+    def submit_topology_search(self, spec: Any = None, idempotency_key: str | None = None) -> "JobHandle":
+        """Submit a topology search (a ``TopologySpec``, its JSON, or None for the defaults) as a job; retries
+        and idempotency as :meth:`submit_optimisation`. ``.wait()`` returns ``run_topology_search``'s dict."""
+        key = idempotency_key or str(uuid.uuid4())
+        r = self._request("POST", "/v1/topology-searches", json=_spec_json(spec if spec is not None else {}),
+                          headers={"Idempotency-Key": key})
+        return JobHandle(self, Job.model_validate(r.json()))
+
+    def topology_searches(self, offset: int = 0, limit: int = 20) -> JobPage:
+        """A page of topology searches, newest first."""
+        return JobPage.model_validate(self._request("GET", "/v1/topology-searches",
+                                                    params={"offset": offset, "limit": limit}).json())
+
     def optimisation(self, job_id: str) -> Job:
         """The current state of a job."""
         return Job.model_validate(self._request("GET", f"/v1/optimisations/{job_id}").json())
@@ -362,6 +375,13 @@ class AsyncClient(_Base):
         r = await self._request("POST", "/v1/optimisations", json=_spec_json(spec), headers={"Idempotency-Key": key})
         return AsyncJobHandle(self, Job.model_validate(r.json()))
 
+    async def submit_topology_search(self, spec: Any = None, idempotency_key: str | None = None) -> "AsyncJobHandle":
+        """Submit a topology search; see :meth:`Client.submit_topology_search`."""
+        key = idempotency_key or str(uuid.uuid4())
+        r = await self._request("POST", "/v1/topology-searches", json=_spec_json(spec if spec is not None else {}),
+                                headers={"Idempotency-Key": key})
+        return AsyncJobHandle(self, Job.model_validate(r.json()))
+
     async def optimisation(self, job_id: str) -> Job:
         """The current state of a job."""
         return Job.model_validate((await self._request("GET", f"/v1/optimisations/{job_id}")).json())
@@ -402,7 +422,7 @@ class JobHandle:
                     raise JobFailed(job)
                 return job.result
             if deadline is not None and time.monotonic() > deadline:
-                raise TimeoutError(f"optimisation job {self.id} still {job.status} after {timeout} s")
+                raise TimeoutError(f"job {self.id} still {job.status} after {timeout} s")
             time.sleep(poll)
 
 
@@ -435,5 +455,5 @@ class AsyncJobHandle:
                     raise JobFailed(job)
                 return job.result
             if deadline is not None and time.monotonic() > deadline:
-                raise TimeoutError(f"optimisation job {self.id} still {job.status} after {timeout} s")
+                raise TimeoutError(f"job {self.id} still {job.status} after {timeout} s")
             await asyncio.sleep(poll)

@@ -125,7 +125,13 @@ def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
     threading.Thread(target=watch, daemon=True, name="flexopt-lease").start()
     workers = int(os.environ["FLEXOPT_JOB_WORKERS"]) if os.environ.get("FLEXOPT_JOB_WORKERS") else None
     try:
-        result = optimise(spec, workers=workers, store=cases, progress=progress, cancel=cancel)
+        if spec.get("kind") == "topology-search":  # same batch machinery, same case store: a rerun resumes
+            from ..optim.topology import run_topology_search
+
+            search = {k: v for k, v in spec.items() if k != "kind"}
+            result = run_topology_search(search, workers=workers, store=cases, progress=progress, cancel=cancel)
+        else:
+            result = optimise(spec, workers=workers, store=cases, progress=progress, cancel=cancel)
         blob = json.dumps(_finite(result), allow_nan=False)
     except BatchCancelled:
         if interrupted.is_set():
@@ -146,7 +152,8 @@ def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
         return 1
     finally:
         cancel.set()
-    reasons = _all_failed(result)
+    # a topology search whose candidates were all rejected or failed is still an answer: each says why
+    reasons = None if spec.get("kind") == "topology-search" else _all_failed(result)
     verdict = {"status": "failed", "error": reasons} if reasons is not None else {"status": "succeeded"}
     for wait in (0.5, 1, 2, 4, 8, 16, 30):  # the verdict outlasts a busy or briefly unreachable database
         try:

@@ -220,14 +220,17 @@ class Job(_Wire):
     """An optimisation job: status, progress, finished cases so far and the final result."""
 
     id: str
-    kind: Literal["optimisation", "frequency-curve"] = Field(
-        "optimisation", description="an optimisation, or a frequency curve too costly for a request")
+    kind: Literal["optimisation", "frequency-curve", "topology-search"] = Field(
+        "optimisation", description="an optimisation, a frequency curve too costly for a request, or a topology "
+                                    "search")
     status: Literal["queued", "running", "cancelling", "succeeded", "failed", "cancelled"]
     progress: dict[str, Any] = Field(description="{'done': cases finished, 'total': cases}")
     partial: list[dict[str, Any]] = Field(description="summary of every finished case (family, start, verified "
                                                       "worst-case frequency, design)")
     result: dict[str, Any] | None = Field(description="optim.optimise's result once succeeded: per family the best "
-                                                      "verified design, curves before and after, the ranking")
+                                                      "verified design, curves before and after, the ranking (a "
+                                                      "topology search: run_topology_search's candidates, ranking "
+                                                      "and best)")
     error: str | None = None
     attempts: int = Field(description="runs started (a server restart resumes a running job)")
     created: str

@@ -117,12 +117,15 @@ class Job(_Base):
     lease_until: Mapped[float | None] = mapped_column(Float, nullable=True)  # epoch seconds
 
     def to_dict(self) -> dict[str, Any]:
-        kind = "frequency-curve" if '"kind": "frequency-curve"' in (self.spec or "") else "optimisation"
+        kind = next((k for k in KINDS if f'"kind": "{k}"' in (self.spec or "")), "optimisation")
         return {"id": self.id, "kind": kind, "status": self.status, "progress": json.loads(self.progress or "{}"),
                 "partial": json.loads(self.partial or "[]"),
                 "result": json.loads(self.result) if self.result else None, "error": self.error,
                 "attempts": self.attempts, "created": self.created, "updated": self.updated}
 
+
+#: kinds of job besides an optimisation, marked by a ``"kind"`` key in the stored spec
+KINDS = ("frequency-curve", "topology-search")
 
 # columns added after the first release: added to an older database at start (all nullable or defaulted)
 _ADDED = {"owner": "VARCHAR(64) NOT NULL DEFAULT ''", "lease_holder": "VARCHAR(300)", "lease_until": "FLOAT"}
@@ -252,10 +255,12 @@ class JobStore:
 
     @_guarded
     def page(self, offset: int, limit: int, owner: str | None = None,
-             status: str | None = None) -> tuple[list[dict], int]:
-        """Jobs newest first (of ``owner``, with ``status``, when given) and how many there are in all."""
+             status: str | None = None, kind: str | None = None) -> tuple[list[dict], int]:
+        """Jobs newest first (of ``owner``, with ``status``, of ``kind`` (one of :data:`KINDS`), when given) and
+        how many there are in all."""
         where = [w for w in (Job.owner == owner if owner is not None else None,
-                             Job.status == status if status else None) if w is not None]
+                             Job.status == status if status else None,
+                             Job.spec.contains(f'"kind": "{kind}"') if kind else None) if w is not None]
         with Session(self.engine) as s:
             total = s.scalar(select(func.count()).select_from(Job).where(*where)) or 0
             rows = s.scalars(select(Job).where(*where).order_by(Job.created.desc(), Job.id.desc())
@@ -308,7 +313,15 @@ class JobStore:
             shared = s.scalar(select(func.count()).select_from(Job).where(Job.spec == spec)) if spec else 0
             s.commit()
         shutil.rmtree(self.job_dir(job_id), ignore_errors=True)
-        if spec and not shared:  # its cases are no other job's (a case's id covers the whole problem)
+        if spec and not shared and job["kind"] == "topology-search":
+            # its cases are those its progress recorded; two searches can share a candidate's case, so a case
+            # another job recorded stays
+            with Session(self.engine) as s:
+                for cid in {p.get("id") for p in job["partial"] if isinstance(p.get("id"), str)}:
+                    if cid.isalnum() and not s.scalar(select(func.count()).select_from(Job)
+                                                      .where(Job.partial.contains(f'"{cid}"'))):
+                        (self.case_dir() / f"{cid}.json").unlink(missing_ok=True)
+        elif spec and not shared:  # its cases are no other job's (a case's id covers the whole problem)
             for path in self.case_files(json.loads(spec)):
                 path.unlink(missing_ok=True)
         return job

@@ -180,3 +180,34 @@ def test_optimisation_from_the_page_shows_progress_and_ranking(url: str, browser
     best = job["result"]["ranking"][0]
     assert cells[1] == "cross-spring-pivot" and float(cells[2]) == pytest.approx(best["worst_hz"], rel=1e-4)
     page.close()
+
+
+def test_topology_search_from_the_page_shows_ranking_with_thumbnails(url: str, browser: object, shots: Path) -> None:
+    import json
+
+    from flexopt.optim.topology.spec import TopologySpec
+
+    page = browser.new_page(viewport={"width": 1400, "height": 1100})
+    page.goto(f"{url}/")
+    page.wait_for_function("() => document.querySelector('#topo-spec').value.length > 0")
+    assert json.loads(page.input_value("#topo-spec")) == TopologySpec().model_dump(mode="json"), "the defaults"
+    tiny = {"topologies": ["R:+-", "R:++"], "segments": 4, "samples": 5, "verify_points": 31, "refine_rounds": 1,
+            "starts": 1}
+    page.fill("#topo-spec", json.dumps(tiny))
+    page.get_by_test_id("topology").click()
+    page.wait_for_function("() => window.flexopt.topoJob && ['succeeded', 'failed', 'cancelled']"
+                           ".includes(window.flexopt.topoJob.status)", timeout=180_000)
+    job = page.evaluate("() => window.flexopt.topoJob")
+    assert job["status"] == "succeeded", job.get("error")
+    table = page.get_by_test_id("topo-ranking")
+    page.wait_for_function("() => document.querySelectorAll('#topo-ranking svg.thumb').length === 2")
+    first = table.locator("tr").nth(1)
+    cells = first.locator("td").all_inner_texts()
+    best = job["result"]["best"]
+    assert cells[0] == "1" and cells[2] == "R:+-" and float(cells[7]) == pytest.approx(best["worst_case_hz"], rel=1e-3)
+    assert first.locator("svg.thumb line.leaf").count() == 2, "the two leaves of the optimised design"
+    second = table.locator("tr").nth(2).locator("td").all_inner_texts()
+    assert second[2] == "R:++" and second[6].startswith("rejected: underconstrained")
+    assert table.locator("tr").nth(2).locator("svg.thumb line.leaf").count() == 2, "drawn from the template"
+    page.locator("section", has=table).screenshot(path=str(shots / "web_topology.png"))
+    page.close()

@@ -3,7 +3,8 @@
 "use strict";
 
 const $ = (id) => document.getElementById(id);
-const state = { scene: null, fileScene: null, curve: null, shapes: null, templates: [], diagnosis: null, job: null };
+const state = { scene: null, fileScene: null, curve: null, shapes: null, templates: [], diagnosis: null, job: null,
+  topoJob: null, topoThumbs: {} };
 window.flexopt = state;
 
 // ------------------------------------------------------------------------------------------------- API
@@ -520,6 +521,102 @@ async function pollJob(id) {
   else $("cancel-opt").disabled = true;
 }
 
+// ---------------------------------------------------------------------------------- topology search
+const SVG_NS = "http://www.w3.org/2000/svg";
+const esc = (t) => String(t).replace(/[&<>"]/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;" })[c]);
+
+function thumbnail(scene, size = 96) { // a small oblique top view (x right, y up, z towards the viewer): leaves and bodies
+  const pos = Object.fromEntries(scene.nodes.map((n) => [n.name, n.position]));
+  const P = (p) => [p[0] + 0.45 * p[2], p[1] + 0.3 * p[2]];
+  const pts = Object.values(pos).map(P).concat((scene.bodies || []).map((b) => P(b.center_of_mass)));
+  const lo = [0, 1].map((k) => Math.min(...pts.map((p) => p[k]))), hi = [0, 1].map((k) => Math.max(...pts.map((p) => p[k])));
+  const span = Math.max(hi[0] - lo[0], hi[1] - lo[1], 1e-9), pad = 8, sc = (size - 2 * pad) / span;
+  const XY = (p) => { const q = P(p); return [pad + (q[0] - lo[0]) * sc + ((size - 2 * pad) - (hi[0] - lo[0]) * sc) / 2,
+    size - pad - (q[1] - lo[1]) * sc - ((size - 2 * pad) - (hi[1] - lo[1]) * sc) / 2]; };
+  const parts = [];
+  for (const b of scene.bodies || []) { // a body: spokes from its centre of mass to its nodes
+    const c = XY(b.center_of_mass), col = b.name === "rotor" || b.name === "slider" ? "#e67e22" : "#7f8c8d";
+    for (const n of b.nodes) { const q = XY(pos[n]); parts.push(`<line x1="${c[0]}" y1="${c[1]}" x2="${q[0]}" y2="${q[1]}" stroke="${col}" stroke-width="3" stroke-linecap="round" opacity="0.7"/>`); }
+    parts.push(`<circle cx="${c[0]}" cy="${c[1]}" r="3.5" fill="${col}"><title>${esc(b.name)}</title></circle>`);
+  }
+  for (const e of scene.elements) { // a leaf or wire
+    const [p, q] = e.nodes.map((n) => XY(pos[n]));
+    parts.push(`<line class="leaf" x1="${p[0]}" y1="${p[1]}" x2="${q[0]}" y2="${q[1]}" stroke="#2471a3" stroke-width="2"><title>${esc(e.name)}</title></line>`);
+  }
+  for (const s of scene.supports || []) { // ground
+    if (!s.node || !pos[s.node]) continue;
+    const q = XY(pos[s.node]);
+    parts.push(`<rect x="${q[0] - 3}" y="${q[1] - 3}" width="6" height="6" fill="#222"/>`);
+  }
+  return `<svg xmlns="${SVG_NS}" class="thumb" width="${size}" height="${size}" viewBox="0 0 ${size} ${size}">${parts.join("")}</svg>`;
+}
+
+async function submitTopology() {
+  let spec;
+  try { spec = JSON.parse($("topo-spec").value); } catch (e) { status(`topology spec is not valid JSON: ${e.message}`, true); return; }
+  const job = await busy("submitting topology search", () => api("POST", "/v1/topology-searches", spec));
+  state.topoJob = job;
+  state.topoThumbs = {};
+  $("cancel-topo").disabled = false;
+  pollTopology(job.id);
+}
+
+function topoRows(result) { // the ranking first (best first), then every other candidate as generated
+  const c = result.candidates, order = Object.fromEntries(result.ranking.map((t, i) => [t, i]));
+  return c.slice().sort((a, b) => (order[a.topology] ?? 1e9) - (order[b.topology] ?? 1e9));
+}
+
+const fmtHz = (v) => (v == null ? "" : (+v).toPrecision(4));
+
+function renderTopology(job) {
+  const p = job.progress || {}, done = p.done || 0, total = p.total || 0;
+  const what = total ? `${done} of ${total} optimisation cases` : (job.status === "running" ? "generating and screening" : "");
+  $("topo-progress").innerHTML = `search ${job.id}: <b>${job.status}</b>${what ? ", " + what : ""}` +
+    `<div class="bar"><div style="width:${total ? (100 * done) / total : 0}%"></div></div>` + (job.error ? `<div class="error">${esc(job.error)}</div>` : "");
+  const t = $("topo-ranking");
+  if (!job.result) { t.innerHTML = ""; return; }
+  const r = job.result, n = r.counts;
+  $("topo-progress").innerHTML += `<div class="note">${n.generated} generated, ${n.rejected} rejected, ${n.untraceable} untraceable, ` +
+    `${n.optimised} optimised, ${n.failed} failed; best: ${r.best ? esc(r.best.topology) : "none"}</div>`;
+  const rows = topoRows(r);
+  t.innerHTML = `<tr><th>rank</th><th>topology</th><th class="l">descriptor</th><th class="l">family</th><th>dof</th><th>overconstraints</th>` +
+    `<th class="l">status / reason</th><th>worst-case [Hz]</th><th>at stroke 0 [Hz]</th></tr>` +
+    rows.map((c, i) => { const rank = r.ranking.indexOf(c.topology);
+      return `<tr data-topology="${esc(c.topology)}"><td>${rank >= 0 ? rank + 1 : ""}</td><td class="thumbcell" id="thumb-${i}"></td>` +
+        `<td class="l"><code>${esc(c.topology)}</code></td><td class="l">${esc(c.family || "-")}</td><td>${c.dof ?? ""}</td>` +
+        `<td>${c.overconstraints ?? ""}</td><td class="l reason">${esc(c.status)}${c.reason ? ": " + esc(c.reason) : ""}</td>` +
+        `<td>${fmtHz(c.worst_case_hz)}</td><td>${fmtHz(c.zero_stroke_hz)}</td></tr>`; }).join("");
+  drawThumbnails(rows, r.spec.motion).catch((e) => status(`thumbnails: ${e.message}`, true));
+}
+
+async function drawThumbnails(rows, motion) { // the optimised design's scene, else the template's default sizes
+  const tpl = motion === "translation" ? "wire-guide-topology" : "topology-hinge";
+  for (const [i, c] of rows.slice(0, 80).entries()) {
+    let scene = c.scene || state.topoThumbs[c.topology];
+    if (!scene) {
+      try { scene = await api("POST", `/v1/templates/${tpl}/scene`, { parameters: { topology: c.topology } }); }
+      catch (e) { $(`thumb-${i}`).textContent = "-"; continue; }
+      state.topoThumbs[c.topology] = scene;
+    }
+    const cell = $(`thumb-${i}`);
+    if (cell) cell.innerHTML = thumbnail(scene);
+  }
+}
+
+async function pollTopology(id) {
+  const job = await api("GET", `/v1/topology-searches/${id}`);
+  state.topoJob = job;
+  renderTopology(job);
+  if (["queued", "running", "cancelling"].includes(job.status)) setTimeout(() => pollTopology(id), 1000);
+  else $("cancel-topo").disabled = true;
+}
+
+async function initTopology() {
+  $("topo-spec").value = JSON.stringify(await api("GET", "/v1/topology-searches/example"), null, 1);
+  $("topology").onclick = () => submitTopology().catch(() => {});
+  $("cancel-topo").onclick = async () => { if (state.topoJob) renderTopology(await api("DELETE", `/v1/topology-searches/${state.topoJob.id}`)); };
+}
+
 // ------------------------------------------------------------------------------------------- start
 async function init() {
   const [health, templates] = await Promise.all([api("GET", "/health"), api("GET", "/v1/templates")]);
@@ -549,6 +646,7 @@ async function init() {
   $("problem").value = JSON.stringify(DEFAULT_PROBLEM, null, 1);
   $("optimise").onclick = () => submitOptimisation().catch(() => {});
   $("cancel-opt").onclick = async () => { if (state.job) renderJob(await api("DELETE", `/v1/optimisations/${state.job.id}`)); };
+  await initTopology();
   if (q.get("template")) await computeCurve();
 }
 
