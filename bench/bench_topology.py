@@ -25,22 +25,9 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from flexopt.optim import optimise  # noqa: E402
 from flexopt.optim.topology import FAMILIES, parse, run_topology_search  # noqa: E402
-from flexopt.optim.topology.rank import TopologySpec, candidate_problem  # noqa: E402
+from flexopt.optim.topology.rank import TopologySpec, family_problem  # noqa: E402
 
 PUBLISHED_RATIO = 0.75  # seed 000: an optimised hinge loses about 25 % at +-45 deg
-
-
-def _family_problem(name: str, descriptor: str, spec: TopologySpec) -> dict:
-    """The candidate's problem with the family's own template in place of topology-hinge (same bounds)."""
-    prob = candidate_problem(parse(descriptor), spec).model_dump(mode="json")
-    fam = prob["families"][0]
-    fam["template"] = name
-    fam["fixed"] = {k: v for k, v in fam["fixed"].items() if k not in ("topology",)}
-    if name in ("cross-spring-pivot", "three-fold-cross-hinge", "cartwheel-hinge"):
-        fam["fixed"].pop("mid_mass", None)
-    if name == "cartwheel-hinge":
-        fam["fixed"].pop("gap", None)
-    return prob
 
 
 def main() -> None:
@@ -84,7 +71,7 @@ def main() -> None:
     for name, d in FAMILIES.items():
         from flexopt.optim.topology import canonical
 
-        out = optimise(_family_problem(name, d, spec), workers=a.workers)
+        out = optimise(family_problem(name, d, spec), workers=a.workers)
         best = out["ranking"][0] if out["ranking"] else None
         fam_rows[str(canonical(d))] = (name, best)
     t_fam = time.perf_counter() - t1

@@ -23,10 +23,11 @@ from collections.abc import Callable
 from typing import Any
 
 from ..problem import Family, Problem
-from .grammar import Topology, canonical, design_parameters, enumerate_topologies, family_of
+from .grammar import Topology, canonical, design_parameters, enumerate_topologies, family_of, parse
 from .spec import TopologySpec, example_spec
 
-__all__ = ["TopologySpec", "example_spec", "run_topology_search", "design_space", "candidate_problem"]
+__all__ = ["TopologySpec", "example_spec", "run_topology_search", "design_space", "candidate_problem",
+           "family_problem"]
 
 
 def _layers(t: Topology) -> tuple[int, int]:
@@ -61,6 +62,21 @@ def candidate_problem(t: Topology, spec: TopologySpec) -> Problem:
                    min_thickness=spec.min_thickness, envelope=spec.envelope, body_mass=spec.body_mass,
                    solver=spec.solver, starts=spec.starts, seed=spec.seed, max_iterations=spec.max_iterations,
                    refine_rounds=spec.refine_rounds, verify_points=spec.verify_points)
+
+
+def family_problem(name: str, descriptor: str, spec: TopologySpec) -> dict:
+    """The problem of candidate ``descriptor`` with the hand-made family ``name``'s own template in place of
+    ``topology-hinge`` (same design bounds, envelope, mass and limits): the reference a search restricted to
+    that family must reproduce (tests/test_topology.py, bench/bench_topology.py)."""
+    prob = candidate_problem(parse(descriptor), spec).model_dump(mode="json")
+    fam = prob["families"][0]
+    fam["template"] = name
+    fam["fixed"] = {k: v for k, v in fam["fixed"].items() if k != "topology"}
+    if name in ("cross-spring-pivot", "three-fold-cross-hinge", "cartwheel-hinge"):
+        fam["fixed"].pop("mid_mass", None)  # no intermediate body
+    if name == "cartwheel-hinge":
+        fam["fixed"].pop("gap", None)  # the leaves cross in one plane
+    return prob
 
 
 def _traceable(t: Topology, prob: Problem) -> str | None:
