@@ -123,7 +123,13 @@ def mesh_error(an: "Analysis", strokes: np.ndarray, fine: dict[float, float]) ->
           and e.segments >= 2]
     r = min(n / (n // 2) for n in ns)  # refinement ratio (2 for even counts; the smallest is conservative)
     sides = _estimate_points(np.asarray(strokes, dtype=float))
-    sub = Analysis(half_scene, an.options)
+    # the coarse model depends only on the scene and the options: compiled once per analysis and reused by
+    # every curve it computes (a repeated curve re-solves the coarse points but does not rebuild the model)
+    cached = getattr(an, "_mesh_sub", None)
+    if cached is not None and cached.options is an.options:
+        sub = cached
+    else:
+        sub = an._mesh_sub = Analysis(half_scene, an.options)
     f2: dict[float, float] = {}
     for side in sides:
         f2.update(_first_parasitic(sub, side))
