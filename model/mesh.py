@@ -22,7 +22,8 @@ templates are within 10 % of the error against 80 segments (leaf 7.7e-4 vs 7.4e-
 
 Cost: the coarse model holds half the fine model's degrees of freedom and is solved at ``2
 ESTIMATE_POINTS + 1`` stroke points instead of the curve's ``points`` (continuation over the longer steps
-may halve them a few times), plus compiling the coarse structure: measured on the default 91-point
+may halve them a few times), plus compiling the coarse structure (once per ``Analysis``, reused by every
+curve it computes): measured on the default 91-point
 templates (medians of 4 interleaved runs, 2 shared cores at load 5-7, ``python bench/bench_mesh.py``)
 between -25 % and +27 % of the curve's time, i.e. below the noise of that machine. Curves computed with a ``visit`` callback (the optimiser's inner loop) skip it unless
 asked.
@@ -123,7 +124,13 @@ def mesh_error(an: "Analysis", strokes: np.ndarray, fine: dict[float, float]) ->
           and e.segments >= 2]
     r = min(n / (n // 2) for n in ns)  # refinement ratio (2 for even counts; the smallest is conservative)
     sides = _estimate_points(np.asarray(strokes, dtype=float))
-    sub = Analysis(half_scene, an.options)
+    # the coarse model depends only on the scene and the options: compiled once per analysis and reused by
+    # every curve it computes (a repeated curve re-solves the coarse points but does not rebuild the model)
+    cached = getattr(an, "_mesh_sub", None)
+    if cached is not None and cached.options is an.options:
+        sub = cached
+    else:
+        sub = an._mesh_sub = Analysis(half_scene, an.options)
     f2: dict[float, float] = {}
     for side in sides:
         f2.update(_first_parasitic(sub, side))

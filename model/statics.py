@@ -118,10 +118,15 @@ def _newton_step(sys: System, ev: Assembled, dd: np.ndarray, rhs_drive: float) -
     if nr:
         J[: len(f), n:] = ev.G[:, f].T
         J[len(f) + 1 :, :n] = ev.G
-    rhs = np.concatenate([ev.g[f], [rhs_drive], ev.c])
-    e_drive = np.zeros(len(rhs))
-    e_drive[len(f)] = 1.0
-    sol = np.linalg.solve(J, np.column_stack([-rhs, e_drive]))
+    b = np.zeros((n + nr, 2), order="F")
+    b[: len(f), 0] = -ev.g[f]
+    b[len(f), 0] = -rhs_drive
+    b[len(f) + 1 :, 0] = -ev.c
+    b[len(f), 1] = 1.0
+    # LAPACK's dgesv directly (the routine np.linalg.solve calls, without its per-call checks)
+    _, _, sol, info = lapack.dgesv(J, b, overwrite_a=1, overwrite_b=1)
+    if info > 0:
+        raise np.linalg.LinAlgError(f"singular Newton matrix (LAPACK dgesv info {info})")
     return sol[:n, 0], sol[n:, 0], sol[:n, 1], sol[n:, 1]
 
 

@@ -53,7 +53,8 @@ __all__ = ["hermite_curve", "stroke_slopes", "HermiteResult"]
 #: because their expansions divide by the gap; here nothing does.)
 SLOPE_CLUSTER_GAP = 1e-6
 #: An interval is refined while a branch within ``MAC_BAND`` times the lowest frequency at either end was
-#: matched across it with a MAC below ``MAC_MIN`` (its identity is uncertain: a crossing in between).
+#: matched across it with a MAC below ``MAC_MIN`` (its identity is uncertain: a crossing in between); for a
+#: branch in a cluster of nearly equal eigenvalues, the MAC with the cluster's subspace (``_Side.retrack``).
 MAC_MIN, MAC_BAND = 0.9, 1.5
 
 
@@ -222,17 +223,25 @@ class _Side:
             tm = Modes(m.omega2[perm], m.phi[:, perm], m.M)
             if prev is not None:  # MAC of each branch's match across the interval (1: same shape)
                 MB = tm.M @ tm.phi
-                num = (prev.phi.T @ MB) ** 2  # (k, k): every previous shape against every new one
-                den = np.einsum("ik,ik->k", prev.phi, tm.M @ prev.phi)[:, None] * np.einsum("ik,ik->k", tm.phi, MB)
+                num = (prev.phi.T @ MB) ** 2  # (previous branch, current branch)
+                den = np.outer(np.einsum("ik,ik->k", prev.phi, tm.M @ prev.phi), np.einsum("ik,ik->k", tm.phi, MB))
                 full = num / np.where(den > 0, den, 1.0)
-                # a (nearly) repeated pair turns freely within its plane along the stroke: the match of a
-                # branch is its shape's share in its new cluster's subspace (modes within CLUSTER_GAP), not in
-                # one mode of it
-                w2 = tm.omega2
-                same = np.abs(w2[:, None] / w2[None, :] - 1) <= CLUSTER_GAP
-                mac.append(np.minimum((full * same).sum(axis=1), 1.0))
+                # a branch in a cluster of nearly equal eigenvalues at the previous sample (relative gap
+                # CLUSTER_GAP, as the modal derivatives) is matched by its shape's share in the cluster's
+                # subspace: inside a cluster the individual shapes are arbitrary mixtures that rotate freely
+                # as the eigenvalues split (the pivot's mirror-leaf pairs at stroke 0: single-mode MAC 0.46
+                # however short the interval), so only the subspace tells a crossing from a rotation
+                match = np.diag(full).copy()
+                order = np.argsort(prev.omega2)
+                for c in _clusters(prev.omega2[order], CLUSTER_GAP):
+                    if len(c) > 1:
+                        idx = order[c]
+                        match[idx] = full[np.ix_(idx, idx)].sum(axis=0)
+                mac.append(match)
             lam.append(1.0 / tm.omega2)  # interpolated variable: mu = 1 / lambda (see module docstring)
             slope.append(-smp.slope[perm] / tm.omega2**2)
+            # labels as the exact method gives them: with the drive free, the drive mode is the one most
+            # like the equilibrium path's tangent
             labels.append(self.an._labels(tm, smp.eq.tangent)[0])
             prev = tm
         self.lam, self.slope, self.labels, self.mac = np.array(lam), np.array(slope), labels, mac
@@ -318,10 +327,10 @@ def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samp
             s_req = internal[sel]
             if not len(s_req) or np.abs(s_req).max() == 0:
                 if len(s_req):  # only stroke 0 on this side
-                    lab = an._labels(m0, eq0.tangent)[0]
+                    lab, par0 = an._labels(m0, eq0.tangent)
                     hz[sel] = _hz(1.0 / m0.omega2)[:n_rep]
                     labels[sel] = np.array(lab[:n_rep], dtype=object)
-                    par[sel] = an._labels(m0, eq0.tangent)[1]
+                    par[sel] = par0
                 continue
             smax = s_req[np.argmax(np.abs(s_req))]
             side = _Side(an, first, k, drive)
