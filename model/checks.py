@@ -32,6 +32,7 @@ Checks and their limits (each a module constant, so tests and the README quote t
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import math
@@ -307,8 +308,9 @@ def scene_hash(scene: Scene) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
+@functools.lru_cache(maxsize=1)
 def _version() -> str:
-    from .. import __version__
+    from .. import __version__  # looked up once per process (importlib.metadata reads the installed files)
 
     return str(__version__)
 

@@ -12,13 +12,7 @@ Subpackages load on first attribute access, so ``import flexopt`` stays cheap (n
 from __future__ import annotations
 
 import importlib
-from importlib.metadata import PackageNotFoundError, version
 from typing import Any
-
-try:
-    __version__ = version("flexopt")
-except PackageNotFoundError:  # pragma: no cover - running from a checkout that is not installed
-    __version__ = "0+unknown"
 
 __all__ = ["__version__", "model", "optim", "service", "client"]
 
@@ -26,4 +20,11 @@ __all__ = ["__version__", "model", "optim", "service", "client"]
 def __getattr__(name: str) -> Any:
     if name in ("model", "optim", "service", "client"):
         return importlib.import_module(f".{name}", __name__)
+    if name == "__version__":  # looked up on first use: importlib.metadata costs about 35 ms at start-up
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            return version("flexopt")
+        except PackageNotFoundError:  # pragma: no cover - a checkout that is not installed
+            return "0+unknown"
     raise AttributeError(f"module 'flexopt' has no attribute {name!r}")
