@@ -198,22 +198,6 @@ def _mode_shapes(an: Analysis, eq: Equilibrium, modes: Modes, labels: list[str],
     return tuple(out)
 
 
-def _stress_warnings(an: Analysis, c: Configuration, unit: str) -> list[ResultWarning]:
-    s = an.structure
-    mats = {mt.name: mt for mt in s.scene.materials}
-    out = []
-    for i, el in enumerate(s.scene.elements):
-        allow = mats[el.material].allowable_stress
-        util = c.von_mises[i] / allow
-        if np.isfinite(util) and util > 1.0:
-            out.append(ResultWarning(
-                "stress", f"member '{el.name}': von Mises stress {c.von_mises[i] / 1e6:.4g} MPa is "
-                f"{util:.3g} times the allowable {allow / 1e6:.4g} MPa at stroke {c.stroke:.4g} {unit}; "
-                "reduce the stroke or the thickness", element=el.name, stroke_range=(c.stroke, c.stroke),
-                value=float(util)))
-    return out
-
-
 def shapes_along(an: Analysis, stroke: Sequence[float], modes: bool = True, strict: bool = True) -> list[Shapes]:
     """Deflected configurations (and, with ``modes``, mode shapes) at the stroke values ``stroke``
     (stroke unit), in ascending stroke order, computed by the exact continuation of
@@ -260,16 +244,18 @@ def shapes_along(an: Analysis, stroke: Sequence[float], modes: bool = True, stri
         "stress": STRESS_CONVENTION,
         **{k: v for k, v in curve.conventions.items() if k in ("drive", "drive_in_eigen_analysis", "parasitic")},
     }
-    # the scene's own checks (beam-theory validity, units, mesh) come with the curve (model.checks); stress is
-    # checked per point here, so the curve's stress ranges are not repeated
-    common = tuple(w for w in curve.warnings if w.kind != "stress")
+    # every check comes with the curve (model.checks, one stress check for curves and shapes alike): each
+    # point keeps the scene-wide warnings and the stress ranges it lies in
+    def applies(w: ResultWarning, stroke: float) -> bool:
+        return w.stroke_range is None or min(w.stroke_range) <= stroke <= max(w.stroke_range)
+
     out = []
     for key in sorted(found):
         c, ms = found[key]
         out.append(Shapes(scene=s.scene.name, stroke_unit=spec.resolved_unit, stroke_kind=spec.kind,
                           node_names=s.node_names, members=members, bodies=bodies, allowable_stress=allow,
                           configuration=c, modes=ms,
-                          warnings=(*_stress_warnings(an, c, spec.resolved_unit), *common),
+                          warnings=tuple(w for w in curve.warnings if applies(w, c.stroke)),
                           conventions=conventions, provenance=dict(curve.provenance)))
     return out
 
