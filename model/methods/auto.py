@@ -43,9 +43,11 @@ def frequency_curve(obj: Scene | Analysis, method: str = "auto", tolerance: floa
     The fast methods' estimator for the Taylor and manifold methods is :func:`estimate_error`.
     """
     an = obj if isinstance(obj, Analysis) else Analysis(obj)
-    # every method's curve leaves with the model's checks (warnings) and its provenance (model.checks);
-    # annotating is idempotent, so the exact curve, already annotated by Analysis, is unchanged
-    return annotate_curve(_frequency_curve(an, method, tolerance, stroke), an.scene, an.options)
+    curve = _frequency_curve(an, method, tolerance, stroke)
+    if method == "exact":  # Analysis.frequency_curve has attached the checks and the provenance already
+        return curve
+    # every other method's curve leaves with the model's checks (warnings) and its provenance (model.checks)
+    return annotate_curve(curve, an.scene, an.options)
 
 
 def _frequency_curve(an: Analysis, method: str, tolerance: float, stroke: np.ndarray | None) -> FrequencyCurve:
