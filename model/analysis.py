@@ -343,8 +343,8 @@ class Analysis:
                 "parasitic": "modes with more than half their kinetic energy in the declared support directions"
                 if s.support_projector is not None else "every mode with the drive locked",
                 "warping": ", ".join(f"{n}: {w}" for n, w in zip(s.member_names, s.warping)),
-                "mesh": "mesh_error: Richardson estimate from the same analysis on meshes with half and a quarter "
-                "of the segments per beam, at a few stroke points (model.mesh)"
+                "mesh": "mesh_error: Richardson estimate (order 2) from the same analysis on a mesh with half the "
+                "segments per beam, at a few stroke points (model.mesh)"
                 + (f"; {self.auto_note}" if self.auto_note else ""),
                 "mass": "consistent translational mass of the cubic (Hermite) centre line (Przemieniecki 1968 ch. 11); rotary "
                 "inertia the mean of lumped and consistent (model.elements.beam_mass_spec)",
