@@ -166,17 +166,11 @@ def run_topology_search(spec: TopologySpec | dict, *, executor: Any = None, work
         _fill(records[i], rs)
     _mark_same_designs(records)
     ranked = sorted((r for r in records if r["status"] == "optimised"), key=lambda r: -r["worst_case_hz"])
-    counts: dict[str, Any] = {"generated": len(records), "rejected": sum(r["status"] == "rejected" for r in records),
-                              "rejected_by": {}, "untraceable": sum(r["status"] == "untraceable" for r in records),
-                              "optimised": len(ranked), "failed": sum(r["status"] == "failed" for r in records)}
-    for r in records:
-        if r["status"] == "rejected":
-            kind = r["reason"].split(":", 1)[0]
-            counts["rejected_by"][kind] = counts["rejected_by"].get(kind, 0) + 1
-    return {"format": "flexopt-topology-result", "version": 1, "spec": spec.model_dump(mode="json"),
-            "counts": counts, "candidates": records, "ranking": [r["topology"] for r in ranked],
-            "best": ranked[0] if ranked else None,
-            "seconds": {"screen": t_screen, "optimise": time.perf_counter() - t0 - t_screen}}
+    counts = {"generated": len(records), "rejected": sum(r["status"] == "rejected" for r in records),
+              "untraceable": sum(r["status"] == "untraceable" for r in records),
+              "optimised": len(ranked), "failed": sum(r["status"] == "failed" for r in records)}
+    return _result(spec, records, ranked, counts,
+                   {"screen": t_screen, "optimise": time.perf_counter() - t0 - t_screen})
 
 
 def _mark_same_designs(records: list[dict], tol: float = 1e-3) -> None:
@@ -236,12 +230,23 @@ def _guide_search(spec: TopologySpec) -> dict:
                         "status": "accepted" if sc["status"] == "accepted" else "rejected", "reason": sc["reason"],
                         "worst_case_hz": None, "zero_stroke_hz": None, "ratio": None, "design": None})
     ranked = sorted((r for r in records if r["status"] == "accepted"), key=lambda r: r["condition_number"])
-    counts: dict[str, Any] = {"generated": len(records), "rejected": len(records) - len(ranked), "rejected_by": {},
-                              "untraceable": 0, "optimised": 0, "accepted": len(ranked), "failed": 0}
+    counts = {"generated": len(records), "rejected": len(records) - len(ranked), "untraceable": 0, "optimised": 0,
+              "accepted": len(ranked), "failed": 0}
+    return _result(spec, records, ranked, counts, {"screen": time.perf_counter() - t0, "optimise": 0.0})
+
+
+def _result(spec: TopologySpec, records: list[dict], ranked: list[dict], counts: dict[str, int],
+            seconds: dict[str, float]) -> dict:
+    """The search's JSON answer (hinges and guides alike): counts with the rejections by reason, every
+    candidate, the ranking and the best."""
+    rejected_by: dict[str, int] = {}
     for r in records:
         if r["status"] == "rejected":
             kind = r["reason"].split(":", 1)[0]
-            counts["rejected_by"][kind] = counts["rejected_by"].get(kind, 0) + 1
+            rejected_by[kind] = rejected_by.get(kind, 0) + 1
+    counts_out: dict[str, Any] = {"generated": counts["generated"], "rejected": counts["rejected"],
+                                  "rejected_by": rejected_by,
+                                  **{k: v for k, v in counts.items() if k not in ("generated", "rejected")}}
     return {"format": "flexopt-topology-result", "version": 1, "spec": spec.model_dump(mode="json"),
-            "counts": counts, "candidates": records, "ranking": [r["topology"] for r in ranked],
-            "best": ranked[0] if ranked else None, "seconds": {"screen": time.perf_counter() - t0, "optimise": 0.0}}
+            "counts": counts_out, "candidates": records, "ranking": [r["topology"] for r in ranked],
+            "best": ranked[0] if ranked else None, "seconds": seconds}
