@@ -28,7 +28,7 @@ import numpy as np
 from .elements import KernelSpec
 from .errors import KernelBuildError
 
-__all__ = ["CompiledKernel", "compiled", "cache_dir", "KernelPerformanceWarning"]
+__all__ = ["CompiledKernel", "compiled", "cache_dir", "shared_library", "KernelPerformanceWarning"]
 
 _WRAPPER = r"""
 #include <stdlib.h>
@@ -62,6 +62,45 @@ def _compiler() -> str | None:
     return os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
 
 
+_FLAGS = ("-O2", "-shared", "-fPIC", "-fno-math-errno")
+
+
+def shared_library(name: str, key_parts: tuple[str, ...], source, cc: str | None = None) -> ctypes.CDLL:
+    """Compile C code to a shared library once and load it from the disk cache afterwards.
+
+    ``key_parts`` identify the code (hashed with the compiler and its flags: the library is rebuilt when
+    any of them changes); ``source()`` returns the C source and is called only on a cache miss, so code
+    generation costs nothing once cached. The library is written to a temporary file and renamed
+    atomically, so concurrent processes never load half a file. Raises KernelBuildError when the compiler
+    fails or no compiler is found.
+    """
+    cc = cc or _compiler()
+    if cc is None:
+        raise KernelBuildError(f"no C compiler found to build '{name}'; install gcc or set CC")
+    key = hashlib.sha256()
+    for part in (*key_parts, cc, " ".join(_FLAGS)):
+        key.update(part.encode())
+    directory = cache_dir()
+    lib_path = directory / f"{name}-{key.hexdigest()[:24]}.so"
+    if not lib_path.exists():
+        directory.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(dir=directory) as tmp:
+            src = Path(tmp) / (name + ".c")
+            src.write_text(source())
+            tmp_lib = Path(tmp) / "lib.so"
+            proc = subprocess.run([cc, *_FLAGS, str(src), "-o", str(tmp_lib), "-lm"], capture_output=True, text=True)
+            if proc.returncode != 0:
+                raise KernelBuildError(
+                    f"compiling '{name}' failed ({cc}): {proc.stderr[-2000:]}; check the C compiler or unset CC"
+                )
+            os.replace(tmp_lib, lib_path)
+    try:
+        return ctypes.CDLL(str(lib_path))
+    except OSError as exc:  # a corrupt cache entry: rebuild once
+        lib_path.unlink(missing_ok=True)
+        raise KernelBuildError(f"loading '{name}' from {lib_path} failed: {exc}; retry") from exc
+
+
 class CompiledKernel:
     """A batch evaluator of one element kernel: ``out[k] = f(in[k])`` for every row ``k``."""
 
@@ -91,35 +130,15 @@ class CompiledKernel:
             batch=name + "_batch", name=name, n_in=self.n_in, n_out=self.n_out,
             sz_arg=max(f.sz_arg(), 1), sz_res=max(f.sz_res(), 1), sz_iw=f.sz_iw(), sz_w=f.sz_w(),
         )
-        flags = ["-O2", "-shared", "-fPIC", "-fno-math-errno"]
-        key = hashlib.sha256()
-        for part in (f.serialize(), wrapper, cc, " ".join(flags), ca.__version__):
-            key.update(part.encode())
-        directory = cache_dir()
-        lib_path = directory / f"{name}-{key.hexdigest()[:24]}.so"
-        if not lib_path.exists():
-            directory.mkdir(parents=True, exist_ok=True)
-            with tempfile.TemporaryDirectory(dir=directory) as tmp:
+
+        def source() -> str:
+            with tempfile.TemporaryDirectory() as tmp:
                 cg = ca.CodeGenerator(name + ".c", {"with_header": False, "casadi_int": "long long"})
                 cg.add(f)
                 cg.generate(tmp + os.sep)
-                src = Path(tmp) / (name + ".c")
-                src.write_text(src.read_text() + wrapper)
-                tmp_lib = Path(tmp) / "kernel.so"
-                proc = subprocess.run(
-                    [cc, *flags, str(src), "-o", str(tmp_lib), "-lm"], capture_output=True, text=True
-                )
-                if proc.returncode != 0:
-                    raise KernelBuildError(
-                        f"compiling kernel '{name}' failed ({cc}): {proc.stderr[-2000:]}; "
-                        "check the C compiler or unset CC"
-                    )
-                os.replace(tmp_lib, lib_path)
-        try:
-            lib = ctypes.CDLL(str(lib_path))
-        except OSError as exc:  # a corrupt cache entry: rebuild once
-            lib_path.unlink(missing_ok=True)
-            raise KernelBuildError(f"loading kernel '{name}' from {lib_path} failed: {exc}; retry") from exc
+                return (Path(tmp) / (name + ".c")).read_text() + wrapper
+
+        lib = shared_library(name, (f.serialize(), wrapper, ca.__version__), source, cc)
         fn = getattr(lib, name + "_batch")
         fn.restype = ctypes.c_int
         fn.argtypes = [ctypes.c_longlong, ctypes.c_void_p, ctypes.c_void_p]

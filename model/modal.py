@@ -17,9 +17,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as sla
-from scipy.linalg import blas, lapack
 
+from . import linalg as _linalg
 from .assembly import System
 from .errors import FlexoptError
 from .statics import Equilibrium
@@ -60,6 +59,8 @@ def _lowest_pairs(K: np.ndarray, M: np.ndarray, k: int) -> tuple[np.ndarray | No
     instead, up to 4e-4 relative for the lowest modes of finely meshed thin leaves (issue 12). Vectors:
     ``phi = D L^-T y / sqrt(mu)`` (mass-normalised).
     """
+    from scipy.linalg import blas, lapack  # lazily: the compiled driver (model.linalg) needs no scipy.linalg
+
     d = K.diagonal()
     if not (np.all(d > 0) and np.all(M.diagonal() > 0)):  # the route through M reports a singular M
         return None, None
@@ -93,6 +94,8 @@ def _lowest_pairs_through_m(K: np.ndarray, M: np.ndarray, k: int) -> tuple[np.nd
     are read, so ``K``'s round-off asymmetry is irrelevant. ``ABSTOL = 2 * underflow`` is LAPACK's
     setting for the most accurate eigenvalues.
     """
+    from scipy.linalg import lapack
+
     w, V, _, _, info = lapack.dsygvx(K.T, M.T, itype=1, jobz="V", range="I", il=1, iu=k, uplo="L",
                                      abstol=_ABSTOL)
     return w[:k], V[:, :k], info
@@ -109,12 +112,18 @@ def modes_at(sys: System, eq: Equilibrium, k: int, drive: str = "locked") -> Mod
     Mr = M[ix]
     Z = None
     if sys.n_con:
-        Z = sla.null_space(eq.ev.G[:, dofs])
+        from scipy.linalg import null_space
+
+        Z = null_space(eq.ev.G[:, dofs])
         K, Mr = Z.T @ K @ Z, Z.T @ Mr @ Z
     k = min(k, K.shape[0])
     if k == 0:
         return Modes(np.zeros(0), np.zeros((sys.n, 0)), M)
-    w, V = _lowest_pairs(K, Mr, k)
+    fast = _linalg.lowest_pairs(K, Mr, k)  # the compiled driver (None without a C compiler)
+    if fast is None:
+        w, V = _lowest_pairs(K, Mr, k)
+    else:
+        w, V = fast if fast is not False else (None, None)
     if w is None:  # K not positive definite (unstable) or singular: the pencil route through M
         w, V, info = _lowest_pairs_through_m(K, Mr, k)
         if info > K.shape[0]:  # LAPACK: the leading minor of order info - n of M is not positive definite

@@ -23,8 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import lapack
-
+from . import linalg
 from .assembly import Assembled, State, System
 
 __all__ = ["NewtonOptions", "Equilibrium", "solve_point", "StepFailure"]
@@ -81,6 +80,17 @@ def _scaled_residual(sys: System, ev: Assembled, dval: float, s_target: float) -
     return res
 
 
+def _solve(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, int]:
+    """``A x = b`` by LU with partial pivoting; ``A`` (C order) and ``b`` (Fortran order) are overwritten.
+    The compiled driver (model.linalg) without Python between the LAPACK calls; scipy's dgesv without it."""
+    info = linalg.solve(A, b)
+    if info is None:
+        from scipy.linalg import lapack
+
+        _, _, b, info = lapack.dgesv(A, b, overwrite_a=1, overwrite_b=1)
+    return b, info
+
+
 def _newton_step(sys: System, ev: Assembled, dd: np.ndarray, rhs_drive: float) -> tuple[np.ndarray, np.ndarray,
                                                                                       np.ndarray, np.ndarray]:
     """Solve the Newton system for the correction and the path tangent.
@@ -103,8 +113,8 @@ def _newton_step(sys: System, ev: Assembled, dd: np.ndarray, rhs_drive: float) -
         rhs[:, 1] = -Afd / dd_d
         if len(f) == 0:
             sol = rhs
-        else:  # LAPACK's dgesv directly: scipy's wrappers cost more than a 60-DOF factorisation
-            _, _, sol, info = lapack.dgesv(A[sys.ix_free], rhs, overwrite_a=1, overwrite_b=1)
+        else:  # LAPACK directly (model.linalg): scipy's wrappers cost more than a 60-DOF factorisation
+            sol, info = _solve(A[sys.ix_free], rhs)
             if info > 0:
                 raise np.linalg.LinAlgError(f"singular tangent stiffness (LAPACK dgesv info {info})")
         dxi = np.empty(n)
@@ -123,8 +133,7 @@ def _newton_step(sys: System, ev: Assembled, dd: np.ndarray, rhs_drive: float) -
     b[len(f), 0] = -rhs_drive
     b[len(f) + 1 :, 0] = -ev.c
     b[len(f), 1] = 1.0
-    # LAPACK's dgesv directly (the routine np.linalg.solve calls, without its per-call checks)
-    _, _, sol, info = lapack.dgesv(J, b, overwrite_a=1, overwrite_b=1)
+    sol, info = _solve(J, b)
     if info > 0:
         raise np.linalg.LinAlgError(f"singular Newton matrix (LAPACK dgesv info {info})")
     return sol[:n, 0], sol[n:, 0], sol[:n, 1], sol[n:, 1]
