@@ -26,6 +26,7 @@ from .scene import Scene
 from .errors import EquilibriumError
 from .statics import Equilibrium, NewtonOptions, StepFailure, WalkFailure, solve_point, walk
 from .structure import Structure, compile_scene
+from .symmetry import StrokeSymmetry, stroke_symmetry
 
 __all__ = ["frequency_curve", "Analysis", "von_mises"]
 
@@ -92,6 +93,30 @@ class _Point:
     reaction: float
     vm: np.ndarray
     iterations: int
+
+
+def _mirror_tol(internal: np.ndarray) -> float:
+    """Strokes closer than this are one point for mirroring: a grid like linspace(-a, a, n) is symmetric
+    only to rounding (its values at -s and s differ by a few ulps)."""
+    return 1e-12 * float(np.max(np.abs(internal), initial=0.0))
+
+
+def _nearest(solved: np.ndarray, v: float, tol: float) -> float | None:
+    """The solved stroke within ``tol`` of ``v`` (the dictionary key itself), or None."""
+    i = int(np.argmin(np.abs(solved - v)))
+    return float(solved[i]) if abs(solved[i] - v) <= tol else None
+
+
+def _one_side(internal: np.ndarray) -> np.ndarray:
+    """The non-negative strokes that give every requested point of a stroke-symmetric design: the requested
+    non-negative ones and the image of each negative one not already among them (within rounding)."""
+    tol = _mirror_tol(internal)
+    pos = sorted(float(v) for v in internal if v >= 0)
+    for v in sorted(float(-v) for v in internal if v < 0):
+        if not pos or np.min(np.abs(np.array(pos) - v)) > tol:
+            pos.append(v)
+            pos.sort()
+    return np.array(pos)
 
 
 class Analysis:
@@ -207,6 +232,40 @@ class Analysis:
         s_loss = a.stroke + float(inside[np.argmin(np.abs(inside))]) if len(inside) else b
         return WalkFailure("unstable", s_loss, a.stroke, "")
 
+    @property
+    def symmetry(self) -> StrokeSymmetry | None:
+        """The design's symmetry that reverses the stroke (:func:`model.symmetry.stroke_symmetry`), or None."""
+        if not hasattr(self, "_symmetry"):
+            self._symmetry = stroke_symmetry(self.scene)
+        return self._symmetry
+
+    def _mirrored(self, sym: StrokeSymmetry, internal: np.ndarray, points: dict, failures: list
+                  ) -> tuple[dict, list]:
+        """The requested points of both sides from the solved side of positive strokes (see
+        :meth:`frequency_curve`), and the failures of both sides (a loss at ``s`` is one at ``-s``)."""
+        names = list(self.structure.member_names)
+        perm = np.array([names.index(sym.element_map[m]) for m in names])
+        out: dict = {}
+        solved = np.array(sorted(points))
+        for v in internal:
+            p = points.get(_nearest(solved, abs(float(v)), _mirror_tol(internal))) if len(solved) else None
+            if p is None:
+                continue
+            if v >= 0:
+                out[float(v)] = p
+            else:
+                out[float(v)] = _Point(float(v), p.hz, p.labels, p.parasitic, -p.reaction, p.vm[perm], p.iterations)
+        both: list = []
+        if np.any(internal > 0) or not np.any(internal < 0):
+            both += failures
+        if np.any(internal < 0):
+            for f in failures:
+                # the failure's message has the signed strokes in it: built again for the mirrored numbers
+                wf = WalkFailure(f.reason, -self.structure.scene.stroke.to_internal(f.stroke),
+                                 -self.structure.scene.stroke.to_internal(f.last_converged), "")
+                both.append(self._failure(wf))
+        return out, both
+
     def _failure(self, fail: WalkFailure) -> Failure:
         """The public :class:`Failure` of a located loss (:meth:`_locate_loss`), in the stroke unit, with
         the cause when the structure shows one (:func:`model.causes.stiff_axis_drives`)."""
@@ -228,7 +287,7 @@ class Analysis:
     def frequency_curve(
         self, stroke: np.ndarray | None = None, progress: Callable[[int, int], None] | None = None,
         visit: Callable[[Equilibrium, Modes, list[str]], None] | None = None,
-        mesh_error: bool | None = None,
+        mesh_error: bool | None = None, mirror: bool = True,
     ) -> FrequencyCurve:
         """The exact frequency curve at ``stroke`` (stroke unit; default: the scene's stroke grid).
 
@@ -236,6 +295,11 @@ class Analysis:
         labels (the design sensitivities of :mod:`model.design` are computed there). ``mesh_error``: estimate
         the discretisation error (:func:`model.mesh.mesh_error`, about a tenth of the curve's time) into
         ``FrequencyCurve.mesh_error``; None = unless ``visit`` is given (the optimiser's inner loop).
+        ``mirror``: when the design has a symmetry that reverses the stroke (:attr:`symmetry`), solve the
+        side of positive strokes only and give each point at ``-s`` from the one at ``s`` (same frequencies
+        and labels, opposite drive reaction, each member's stresses those of its image); the exact curve on
+        both sides agrees with it to the Newton tolerance (about 1e-10 relative on the templates). Not with
+        ``visit``, which sees every equilibrium solved.
         """
         t0 = time.perf_counter()
         s = self.structure
@@ -261,7 +325,13 @@ class Analysis:
                 "support it or connect it to the structure", stroke=0.0,
                 last_converged=float("nan"), reason="divergence") from exc
         modes0 = modes_at(self.system, eq0, k_track, s.scene.stroke.drive)
-        for side in (internal[internal >= 0], internal[internal < 0][::-1]):
+        sym = self.symmetry if (mirror and visit is None) else None
+        if sym is not None:  # one side: every requested |s|; the other side is its image (_mirrored)
+            sides = (_one_side(internal),)
+            total = len(sides[0])
+        else:
+            sides = (internal[internal >= 0], internal[internal < 0][::-1])
+        for side in sides:
             if len(side) == 0:
                 continue
             prev: list[Modes | None] = [modes0]
@@ -313,11 +383,15 @@ class Analysis:
                 accept(reached)
                 targets = targets[np.abs(targets) > abs(target)]
 
+        solved = dict(points)
+        if sym is not None:
+            points, failures = self._mirrored(sym, internal, points, failures)
         keys = sorted(points)
         pts = [points[k] for k in keys]
         err = None
         if (mesh_error if mesh_error is not None else visit is None) and keys:
-            err = estimate_mesh_error(self, np.array(keys), {k: points[k].parasitic for k in keys})
+            # on a symmetric design the other side's estimate is the same: the solved side only
+            err = estimate_mesh_error(self, np.array(sorted(solved)), {k: p.parasitic for k, p in solved.items()})
         to_unit = np.degrees if spec.resolved_unit == "deg" else (lambda v: np.asarray(v, dtype=float))
         mats = {m.name: m for m in s.scene.materials}
         allow = {e.name: mats[e.material].allowable_stress for e in s.scene.elements}

@@ -1,0 +1,248 @@
+"""Symmetry of a design that reverses the stroke: a mirror plane or a half-turn axis.
+
+An isometry ``x -> c + S (x - c)`` with ``S`` a reflection ``I - 2 n n^T`` (about the plane through ``c``
+with normal ``n``) or a half-turn ``2 u u^T - I`` (rotation by 180 deg about the axis through ``c`` along
+``u``) that maps the whole scene onto itself -- every node onto a node, every element onto an element of the
+same kind, material, section, segments and mapped section orientation, every body onto a body of the same
+mass, mapped centre of mass and inertia ``S J S``, every support onto an equivalent support, the declared
+support directions onto themselves, and the driven node or body onto itself -- maps each equilibrium of the
+scene onto an equilibrium of the same scene (the strain energy is invariant: every element goes to an
+identical element in the mapped configuration). A rotation ``R(theta, a)`` becomes ``S R S^T =
+R(det(S) theta, S a)``: the stroke is reversed by a reflection whose plane contains the drive axis
+(``n . a = 0``) and by a half-turn about an axis perpendicular to it (``S a = -a``); a translation along
+``a`` by a reflection with ``n`` parallel to ``a`` or a half-turn with ``u`` perpendicular to it. The image
+of the equilibrium at ``s`` is then the equilibrium at ``-s`` (the continuation's branch from the
+symmetric reference), with the mass matrix congruent under ``S``: the same natural frequencies, the same
+shares of kinetic energy in the (mapped) support directions, the drive reaction with the opposite sign and
+each member's stresses those of its image member. The frequency curve is even in the stroke, and one side
+gives the other (:meth:`model.analysis.Analysis.frequency_curve`, ``hermite``).
+
+Every comparison is exact up to a relative tolerance of :data:`TOL` (positions: of the design's size), and
+any doubt -- an end-specific rigid deformation (eps3..eps6) or warping condition on an element whose image
+runs the other way, a partial support whose image is another set of directions, a body without a partner
+-- means "no symmetry". The fixed point ``c`` is the centroid of the nodes (any symmetry of the node set
+fixes it). Candidate reflection normals are the differences of node pairs (an image pair's difference is
+parallel to ``n``) and, when the nodes and the drive axis span only a plane, that plane's normal; candidate
+half-turn axes the directions of node-pair midpoints and of nodes from ``c`` (they lie on the axis) and,
+the cross products of the drive axis with the differences of node pairs (a pair whose midpoint is ``c``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .scene import Beam, RectangularSection, Scene, Truss
+
+__all__ = ["StrokeSymmetry", "stroke_symmetry", "TOL"]
+
+#: Relative tolerance (of the largest node distance from the centroid) for positions, and relative tolerance
+#: of every compared number (masses, inertias, section data).
+TOL = 1e-9
+_DOF = {"x": 0, "y": 1, "z": 2, "rx": 3, "ry": 4, "rz": 5}
+_END_SPECIFIC = {"eps3", "eps4", "eps5", "eps6"}
+
+
+@dataclass(frozen=True)
+class StrokeSymmetry:
+    """A symmetry of the design that reverses the stroke: a reflection or a half-turn."""
+
+    kind: str  # "reflection" (about a plane) | "half-turn" (rotation by 180 deg about an axis)
+    point: tuple[float, float, float]  # a fixed point (on the plane or the axis) [m]
+    vector: tuple[float, float, float]  # unit normal of the plane, or direction of the axis
+    node_map: dict[str, str]  # each node's image
+    element_map: dict[str, str]  # each element's image (the member whose stresses it has at -s)
+
+    def describe(self) -> str:
+        v, c = np.round(self.vector, 6) + 0.0, np.round(self.point, 6) + 0.0
+        where = f"({c[0]:g}, {c[1]:g}, {c[2]:g}) m"
+        if self.kind == "reflection":
+            return f"mirror plane through {where} with normal ({v[0]:g}, {v[1]:g}, {v[2]:g})"
+        return f"half-turn about the axis through {where} along ({v[0]:g}, {v[1]:g}, {v[2]:g})"
+
+
+def _close(a: float, b: float) -> bool:
+    return abs(a - b) <= TOL * max(abs(a), abs(b), 1e-300)
+
+
+def _perp_unit(v: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+    w = v - (v @ t) * t
+    nw = np.linalg.norm(w)
+    return None if nw == 0 else w / nw
+
+
+def _projector(vectors: list[np.ndarray]) -> np.ndarray:
+    if not vectors:
+        return np.zeros((3, 3))
+    A = np.array(vectors, dtype=float).T
+    U, sv, _ = np.linalg.svd(A, full_matrices=False)
+    U = U[:, sv > 1e-12 * sv.max()]
+    return U @ U.T
+
+
+def _check(scene: Scene, c: np.ndarray, S: np.ndarray, X: dict[str, np.ndarray], scale: float
+           ) -> tuple[dict, dict] | None:
+    """The node and element maps of ``x -> c + S (x - c)`` (``S`` symmetric orthogonal) if it maps the scene
+    onto itself, else None."""
+    names = list(X)
+    P = np.array([X[k] for k in names])
+    img = (P - c) @ S.T + c
+    d = np.linalg.norm(img[:, None, :] - P[None, :, :], axis=2)
+    j = np.argmin(d, axis=1)
+    if np.any(d[np.arange(len(names)), j] > TOL * scale) or len(set(j.tolist())) != len(names):
+        return None
+    nmap = {names[i]: names[int(j[i])] for i in range(len(names))}
+    mats = {m.name: m for m in scene.materials}
+
+    # elements: a partner of the same kind and properties on the mirrored nodes
+    by_nodes: dict[frozenset, list] = {}
+    for e in scene.elements:
+        by_nodes.setdefault(frozenset(e.nodes), []).append(e)
+    used: set[str] = set()
+    emap: dict[str, str] = {}
+    for e in scene.elements:
+        p, q = e.nodes
+        cands = [f for f in by_nodes.get(frozenset((nmap[p], nmap[q])), []) if f.name not in used]
+        match = None
+        for f in cands:
+            if f.kind != e.kind or mats[f.material] != mats[e.material] or f.segments != e.segments:
+                continue
+            if f.rigid != e.rigid or f.generalised != e.generalised or f.kinematic_rigid != e.kinematic_rigid:
+                continue
+            reversed_ = f.nodes != (nmap[p], nmap[q])
+            if isinstance(e, Truss):
+                if f.area != e.area:
+                    continue
+            elif isinstance(e, Beam):
+                if f.section != e.section:
+                    continue
+                ends = set(e.rigid) | set(e.generalised) | set(e.kinematic_rigid or ())
+                warp_one = isinstance(e.section, RectangularSection) and e.section.warping == "one_end"
+                if reversed_ and (ends & _END_SPECIFIC or warp_one):
+                    continue  # end-specific data on an element the mirror runs the other way: no claim
+                t = X[q] - X[p]
+                t = t / np.linalg.norm(t)
+                tf = X[f.nodes[1]] - X[f.nodes[0]]
+                tf = tf / np.linalg.norm(tf)
+                y_img = _perp_unit(S @ np.asarray(e.y_axis, float), tf)
+                y_f = _perp_unit(np.asarray(f.y_axis, float), tf)
+                # a doubly symmetric section (all the model has): its y axis matters up to sign
+                if y_img is None or y_f is None or abs(abs(float(y_img @ y_f)) - 1.0) > TOL * 10:
+                    continue
+            match = f
+            break
+        if match is None:
+            return None
+        used.add(match.name)
+        emap[e.name] = match.name
+
+    # bodies: mass, mirrored centre of mass and inertia, the mirrored set of attached nodes
+    free_bodies = {b.name: b for b in scene.bodies}
+    bmap: dict[str, str] = {}
+    for b in scene.bodies:
+        com = S @ (np.asarray(b.center_of_mass, float) - c) + c
+        J = S @ np.asarray(b.inertia, float) @ S
+        nodes = {nmap[k] for k in b.nodes}
+        jscale = max(np.abs(J).max(), 1e-300)
+        hit = None
+        for f in free_bodies.values():
+            if (_close(f.mass, b.mass) and np.linalg.norm(np.asarray(f.center_of_mass, float) - com) <= TOL * scale
+                    and np.abs(np.asarray(f.inertia, float) - J).max() <= TOL * jscale and set(f.nodes) == nodes):
+                hit = f
+                break
+        if hit is None:
+            return None
+        bmap[b.name] = hit.name
+        del free_bodies[hit.name]
+
+    # supports: the mirrored node or body with the mirrored set of fixed directions
+    def fixed(sup) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+        idx = [_DOF[d] for d in sup.dofs]
+        E = np.eye(3)
+        return (_projector([E[i] for i in idx if i < 3]), _projector([E[i - 3] for i in idx if i >= 3]))
+
+    remaining = list(scene.supports)
+    for sup in scene.supports:
+        target = ("node", nmap[sup.node]) if sup.node is not None else ("body", bmap[sup.body])
+        Pt, Pr = fixed(sup)
+        Pt, Pr = S @ Pt @ S, S @ Pr @ S
+        hit = None
+        for other in remaining:
+            o_target = ("node", other.node) if other.node is not None else ("body", other.body)
+            if o_target != target:
+                continue
+            Ot, Or = fixed(other)
+            if np.abs(Ot - Pt).max() <= 1e-9 and np.abs(Or - Pr).max() <= 1e-9:
+                hit = other
+                break
+        if hit is None:
+            return None
+        remaining.remove(hit)
+
+    # declared support directions map onto themselves
+    sd = scene.support_directions
+    if sd is not None:
+        for vecs in (sd.translations, sd.rotations):
+            Pv = _projector([np.asarray(v, float) for v in vecs])
+            if np.abs(S @ Pv @ S - Pv).max() > 1e-9:
+                return None
+
+    # the driven node or body onto itself
+    st = scene.stroke
+    if st.node is not None and nmap[st.node] != st.node:
+        return None
+    if st.body is not None and bmap.get(st.body) != st.body:
+        return None
+    return nmap, emap
+
+
+def stroke_symmetry(scene: Scene) -> StrokeSymmetry | None:
+    """A symmetry of ``scene`` that reverses its stroke (see the module docstring), or None."""
+    st = scene.stroke
+    if st is None:
+        return None
+    X = {nd.name: np.asarray(nd.position, dtype=float) for nd in scene.nodes}
+    P = np.array(list(X.values()))
+    c = P.mean(axis=0)
+    scale = max(float(np.linalg.norm(P - c, axis=1).max()), 1e-300)
+    a = np.asarray(st.axis, dtype=float)
+    a = a / np.linalg.norm(a)
+    # candidate reflections (normal n: S = I - 2 n n^T) and half-turns (axis u: S = 2 u u^T - I)
+    normals: list[np.ndarray] = []
+    axes: list[np.ndarray] = []
+    iu = np.triu_indices(len(P), 1)
+    diffs = (P[:, None, :] - P[None, :, :])[iu]
+    mids = np.vstack([(P[:, None, :] + P[None, :, :])[iu] - 2 * c, P - c])  # pair midpoints, single nodes
+    if st.kind == "translation":
+        normals.append(a)  # reflection reversing the translation: n parallel to a
+    else:
+        # reflection reversing the rotation: the plane contains a; a mirror pair's difference is along n
+        normals += [d for d in diffs if abs(d @ a) <= TOL * scale]
+        span = np.vstack([a[None, :], (P - c) / scale])
+        _, sv, Vt = np.linalg.svd(span)
+        if len(sv) < 3 or sv[2] <= TOL * sv[0]:  # nodes and axis in one plane: every node its own image
+            normals.append(Vt[2])
+    # half-turn about u through c, u perpendicular to a (reverses rotations and translations along a): a
+    # pair's midpoint lies on the axis and its difference is perpendicular to it
+    axes += [m for m in mids if abs(m @ a) <= TOL * scale]
+    axes += [np.cross(a, d) for d in diffs]  # a pair about c itself: the axis is perpendicular to d and a
+    for kind, vecs in (("reflection", normals), ("half-turn", axes)):
+        seen: list[np.ndarray] = []
+        for v in vecs:
+            nv = np.linalg.norm(v)
+            if nv <= TOL * scale:
+                continue
+            v = v / nv
+            if kind == "half-turn" and abs(v @ a) > 1e-9:
+                continue
+            if any(abs(abs(float(v @ m)) - 1.0) < 1e-12 for m in seen):
+                continue
+            seen.append(v)
+            S = np.eye(3) - 2.0 * np.outer(v, v) if kind == "reflection" else 2.0 * np.outer(v, v) - np.eye(3)
+            maps = _check(scene, c, S, X, scale)
+            if maps is not None:
+                k = int(np.argmax(np.abs(v)))
+                v = v if v[k] > 0 else -v
+                return StrokeSymmetry(kind, tuple(float(x) for x in c), tuple(float(x) for x in v), *maps)
+    return None
