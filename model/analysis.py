@@ -26,7 +26,7 @@ from .scene import Scene
 from .errors import EquilibriumError
 from .statics import Equilibrium, NewtonOptions, StepFailure, WalkFailure, solve_point, walk
 from .structure import Structure, compile_scene
-from .symmetry import StrokeSymmetry, stroke_symmetry
+from .symmetry import StrokeSymmetry, mirror_tol, nearest, one_side, stroke_symmetry
 
 __all__ = ["frequency_curve", "Analysis", "von_mises"]
 
@@ -93,30 +93,6 @@ class _Point:
     reaction: float
     vm: np.ndarray
     iterations: int
-
-
-def _mirror_tol(internal: np.ndarray) -> float:
-    """Strokes closer than this are one point for mirroring: a grid like linspace(-a, a, n) is symmetric
-    only to rounding (its values at -s and s differ by a few ulps)."""
-    return 1e-12 * float(np.max(np.abs(internal), initial=0.0))
-
-
-def _nearest(solved: np.ndarray, v: float, tol: float) -> float | None:
-    """The solved stroke within ``tol`` of ``v`` (the dictionary key itself), or None."""
-    i = int(np.argmin(np.abs(solved - v)))
-    return float(solved[i]) if abs(solved[i] - v) <= tol else None
-
-
-def _one_side(internal: np.ndarray) -> np.ndarray:
-    """The non-negative strokes that give every requested point of a stroke-symmetric design: the requested
-    non-negative ones and the image of each negative one not already among them (within rounding)."""
-    tol = _mirror_tol(internal)
-    pos = sorted(float(v) for v in internal if v >= 0)
-    for v in sorted(float(-v) for v in internal if v < 0):
-        if not pos or np.min(np.abs(np.array(pos) - v)) > tol:
-            pos.append(v)
-            pos.sort()
-    return np.array(pos)
 
 
 class Analysis:
@@ -248,7 +224,7 @@ class Analysis:
         out: dict = {}
         solved = np.array(sorted(points))
         for v in internal:
-            p = points.get(_nearest(solved, abs(float(v)), _mirror_tol(internal))) if len(solved) else None
+            p = points.get(nearest(solved, abs(float(v)), mirror_tol(internal))) if len(solved) else None
             if p is None:
                 continue
             if v >= 0:
@@ -327,7 +303,7 @@ class Analysis:
         modes0 = modes_at(self.system, eq0, k_track, s.scene.stroke.drive)
         sym = self.symmetry if (mirror and visit is None) else None
         if sym is not None:  # one side: every requested |s|; the other side is its image (_mirrored)
-            sides = (_one_side(internal),)
+            sides = (one_side(internal),)
             total = len(sides[0])
         else:
             sides = (internal[internal >= 0], internal[internal < 0][::-1])
@@ -420,6 +396,9 @@ class Analysis:
                 "mesh": "mesh_error: Richardson estimate (order 2) from the same analysis on a mesh with half the "
                 "segments per beam, at a few stroke points (model.mesh)"
                 + (f"; {self.auto_note}" if self.auto_note else ""),
+                **({"symmetry": f"negative strokes mirrored from positive ones: {sym.describe()} maps the design "
+                    "onto itself and reverses the stroke (model.symmetry); mirror=False solves both sides"}
+                   if sym is not None and np.any(internal < 0) else {}),
                 "mass": "consistent translational mass of the cubic (Hermite) centre line (Przemieniecki 1968 ch. 11); rotary "
                 "inertia the mean of lumped and consistent (model.elements.beam_mass_spec)",
             },

@@ -35,7 +35,7 @@ import numpy as np
 
 from .scene import Beam, RectangularSection, Scene, Truss
 
-__all__ = ["StrokeSymmetry", "stroke_symmetry", "TOL"]
+__all__ = ["StrokeSymmetry", "stroke_symmetry", "one_side", "nearest", "mirror_tol", "TOL"]
 
 #: Relative tolerance (of the largest node distance from the centroid) for positions, and relative tolerance
 #: of every compared number (masses, inertias, section data).
@@ -246,3 +246,27 @@ def stroke_symmetry(scene: Scene) -> StrokeSymmetry | None:
                 v = v if v[k] > 0 else -v
                 return StrokeSymmetry(kind, tuple(float(x) for x in c), tuple(float(x) for x in v), *maps)
     return None
+
+
+def mirror_tol(internal: np.ndarray) -> float:
+    """Strokes closer than this are one point for mirroring: a grid like linspace(-a, a, n) is symmetric
+    only to rounding (its values at -s and s differ by a few ulps)."""
+    return 1e-12 * float(np.max(np.abs(internal), initial=0.0))
+
+
+def nearest(solved: np.ndarray, v: float, tol: float) -> float | None:
+    """The solved stroke within ``tol`` of ``v`` (the dictionary key itself), or None."""
+    i = int(np.argmin(np.abs(solved - v)))
+    return float(solved[i]) if abs(solved[i] - v) <= tol else None
+
+
+def one_side(internal: np.ndarray) -> np.ndarray:
+    """The non-negative strokes that give every requested point of a stroke-symmetric design: the requested
+    non-negative ones and the image of each negative one not already among them (within rounding)."""
+    tol = mirror_tol(internal)
+    pos = sorted(float(v) for v in internal if v >= 0)
+    for v in sorted(float(-v) for v in internal if v < 0):
+        if not pos or np.min(np.abs(np.array(pos) - v)) > tol:
+            pos.append(v)
+            pos.sort()
+    return np.array(pos)

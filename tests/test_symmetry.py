@@ -102,3 +102,17 @@ def test_uneven_grid_and_failures_are_mirrored_like_the_two_sided_solve() -> Non
         assert x.reason == y.reason
         assert abs(x.stroke - y.stroke) <= 1e-6 * abs(x.stroke)  # the loss is located to 1e-4 of itself
         assert x.message.split(" (")[0] == y.message.split(" (")[0]
+
+
+@pytest.mark.parametrize("name", ["cross-spring-pivot", "parallel-leaf-spring"])
+def test_hermite_samples_one_side_of_a_symmetric_design(name: str) -> None:
+    from flexopt.model.methods.hermite import hermite_curve
+
+    an = Analysis(template(name))
+    internal = an.scene.stroke.to_internal(an.scene.stroke.values())
+    one = hermite_curve(an, internal, 0.01)
+    both = hermite_curve(an, internal, 0.01, mirror=False)
+    # the two-sided run samples the negative side at the images of the positive side's samples: the same
+    # interpolants up to the equilibria's Newton tolerance
+    assert np.allclose(one.hz, both.hz, rtol=1e-7, atol=0)
+    assert one.samples < both.samples and 2 * one.samples >= both.samples

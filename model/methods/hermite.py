@@ -42,6 +42,7 @@ from ..analysis import Analysis
 from ..errors import FlexoptError
 from ..modal import Modes, modes_at, track
 from ..statics import Equilibrium, StepFailure, solve_point, walk
+from ..symmetry import mirror_tol, nearest, one_side
 from .common import CLUSTER_GAP, _curve_from
 from .taylor import _clusters, mass_derivatives
 
@@ -300,14 +301,26 @@ def _error(side: _Side, i: int) -> float:
     return float(np.max(np.abs(fa[ok] / fb[ok] - 1), initial=0.0))
 
 
-def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samples: int | None = None
-                  ) -> HermiteResult | None:
+def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samples: int | None = None,
+                  mirror: bool = True) -> HermiteResult | None:
     """Frequencies at the internal strokes ``internal`` by adaptive exact samples and cubic Hermite branches.
 
     Returns ``None`` when a sample cannot be computed (the continuation fails or an equilibrium is
     unstable): the caller then computes the exact curve, which reports where and why.
     ``max_samples`` bounds the exact samples per side (default: unlimited up to intervals of s_max/64).
+    ``mirror``: on a design whose symmetry reverses the stroke (:mod:`model.symmetry`) only the side of
+    positive strokes is sampled and each point at ``-s`` takes the interpolated branches at ``s`` (as the
+    exact method does, :meth:`Analysis.frequency_curve`).
     """
+    if mirror and an.symmetry is not None and np.any(internal < 0):
+        pos = one_side(internal)
+        res = hermite_curve(an, pos, tolerance, max_samples, mirror=False)
+        if res is None:
+            return None
+        tol = mirror_tol(internal)
+        idx = [int(np.flatnonzero(pos == nearest(pos, abs(float(v)), tol))[0]) for v in internal]
+        return HermiteResult(res.hz[idx], res.labels[idx], res.parasitic[idx], res.estimate, res.samples,
+                             res.converged)
     sys = an.system
     spec = an.scene.stroke
     drive = spec.drive
@@ -385,6 +398,8 @@ def hermite_frequency_curve(an: Analysis, values: np.ndarray, tolerance: float,
         raise FlexoptError("the hermite interpolation produced non-finite frequencies; use method 'exact'")
     extra = {"samples": res.samples, "estimated_error": res.estimate, "tolerance": tolerance,
              "converged": res.converged}
+    if an.symmetry is not None and np.any(internal < 0):
+        extra["mirrored"] = f"negative strokes from positive ones by the design's symmetry ({an.symmetry.describe()})"
     conv = {"method": "hermite: exact equilibria, eigenpairs and d(lambda)/ds at the samples, cubic Hermite "
                       "interpolation of each tracked branch's omega^2 between them",
             "drive_reaction": "not computed by this method (NaN)"}
