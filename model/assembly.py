@@ -175,6 +175,12 @@ class System:
             self._c_beam = (i64(s.beam_nodes), i64(self.beam_dofs), i64(self.beam_dofs_full), i64(self.beam_flat))
             self._c_truss = (i64(s.truss_nodes), i64(self.truss_dofs), i64(self.truss_dofs_full),
                              i64(self.truss_flat))
+            # their addresses, taken once (``ndarray.ctypes.data`` costs 1.6 us a call, a dozen calls a point)
+            P = cassembly.ptr
+            self._a_master, self._a_offset = P(self._c_master), P(self._c_offset)
+            self._a_beam = tuple(P(a) for a in self._c_beam)
+            self._a_truss = tuple(P(a) for a in self._c_truss)
+            self._a_beam_in, self._a_truss_in = P(self.beam_in), P(self.truss_in)
 
     # ------------------------------------------------------------------ state
     def reference_state(self) -> State:
@@ -302,9 +308,10 @@ class System:
         s, c, P = self.s, self._c, cassembly.ptr
         X = np.ascontiguousarray(st.X, dtype=np.float64)
         R = np.ascontiguousarray(st.R, dtype=np.float64)
+        px, pr = P(X), P(R)
         if s.n_beams:
             bi = self.beam_in
-            c.fill_beams(s.n_beams, P(self._c_beam[0]), P(self._c_master), P(self._c_offset), P(X), P(R), P(bi),
+            c.fill_beams(s.n_beams, self._a_beam[0], self._a_master, self._a_offset, px, pr, self._a_beam_in,
                          bi.shape[1])
             k, el, mode = self.con_beam
             if len(k):
@@ -313,8 +320,8 @@ class System:
                 bi[:, 30 + s.beam_const.shape[1]:] = lam
         if len(s.truss_nodes):
             ti = self.truss_in
-            c.fill_trusses(len(s.truss_nodes), P(self._c_truss[0]), P(self._c_master), P(self._c_offset), P(X),
-                           P(R), P(ti), ti.shape[1])
+            c.fill_trusses(len(s.truss_nodes), self._a_truss[0], self._a_master, self._a_offset, px, pr,
+                           self._a_truss_in, ti.shape[1])
             ti[:, 15] = 0.0
             k, el = self.con_truss
             ti[el, 15] = st.lam[k]
@@ -323,11 +330,11 @@ class System:
         """``bincount`` of the element gradients (active and full numbering) and Hessians, compiled when
         available (the same sums in the same order)."""
         _, dofs, dofs_full, flat = idx
-        if self._c is not None:
+        if self._c is not None:  # idx: the addresses of the int64 index arrays (see __init__)
             out = np.ascontiguousarray(out)
             g, gf, H = np.zeros(N), np.zeros(self.n_full), np.zeros(N * N)
             P = cassembly.ptr
-            self._c.scatter(out.shape[0], P(out), out.shape[1], P(dofs), P(dofs_full), P(flat), P(g), P(gf), P(H))
+            self._c.scatter(out.shape[0], P(out), out.shape[1], dofs, dofs_full, flat, P(g), P(gf), P(H))
             return g, gf, H
         return (np.bincount(dofs.ravel(), out[:, :12].ravel(), minlength=N),
                 np.bincount(dofs_full.ravel(), out[:, :12].ravel(), minlength=self.n_full),
@@ -347,7 +354,7 @@ class System:
         if s.n_beams:
             out = self.beam_kernel(self.beam_in)
             gb, gfb, Hb = self._scatter(out, (None, self.beam_dofs, self.beam_dofs_full, self.beam_flat)
-                                        if self._c is None else self._c_beam, N)
+                                        if self._c is None else self._a_beam, N)
             g += gb
             g_full += gfb
             Hflat += Hb
@@ -360,7 +367,7 @@ class System:
         if len(s.truss_nodes):
             out = self.truss_kernel(self.truss_in)
             gt, gft, Ht = self._scatter(out, (None, self.truss_dofs, self.truss_dofs_full, self.truss_flat)
-                                        if self._c is None else self._c_truss, N)
+                                        if self._c is None else self._a_truss, N)
             g += gt
             g_full += gft
             Hflat += Ht
@@ -457,8 +464,8 @@ class System:
             blocks = self.beam_mass_blocks(st)
             if self._c is not None:  # compiled scatter (model.cassembly): the bincount's sums, in its order
                 Mb = np.zeros(N * N)
-                self._c.scatter_blocks(len(blocks), cassembly.ptr(np.ascontiguousarray(blocks)),
-                                       cassembly.ptr(self._c_beam[3]), cassembly.ptr(Mb))
+                self._c.scatter_blocks(len(blocks), cassembly.ptr(np.ascontiguousarray(blocks)), self._a_beam[3],
+                                       cassembly.ptr(Mb))
                 Mflat += Mb
             else:
                 Mflat += np.bincount(self.beam_flat, blocks.ravel(), minlength=N * N)

@@ -121,5 +121,6 @@ def library():
 
 def ptr(a: np.ndarray) -> int:
     """The data address of a C-contiguous array (checked: a strided view would be misread)."""
-    assert a.flags.c_contiguous, "compiled assembly needs C-contiguous arrays"
+    if not a.flags.c_contiguous:
+        raise ValueError("compiled assembly needs C-contiguous arrays")
     return a.ctypes.data
