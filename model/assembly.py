@@ -11,7 +11,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import cassembly
 from .elements import beam_mass_spec, beam_spec, rotation_log_spec, rotation_update_spec, truss_spec
 from .kernels import compiled
 from .rotations import log_so3, skew, twist_angle, twist_gradient
@@ -166,21 +165,6 @@ class System:
         self._rot_log = compiled(rotation_log_spec())
         self._rot_in = np.zeros((len(rm), 12))
         self._log_in = np.zeros((len(rm), 18))
-        # compiled fill and scatter (model.cassembly) and the contiguous int64 index arrays they read
-        self._c = cassembly.library()
-        if self._c is not None:
-            i64 = lambda a: np.ascontiguousarray(a, dtype=np.int64)  # noqa: E731
-            self._c_master = i64(s.node_master)
-            self._c_offset = np.ascontiguousarray(s.node_offset, dtype=np.float64)
-            self._c_beam = (i64(s.beam_nodes), i64(self.beam_dofs), i64(self.beam_dofs_full), i64(self.beam_flat))
-            self._c_truss = (i64(s.truss_nodes), i64(self.truss_dofs), i64(self.truss_dofs_full),
-                             i64(self.truss_flat))
-            # their addresses, taken once (``ndarray.ctypes.data`` costs 1.6 us a call, a dozen calls a point)
-            P = cassembly.ptr
-            self._a_master, self._a_offset = P(self._c_master), P(self._c_offset)
-            self._a_beam = tuple(P(a) for a in self._c_beam)
-            self._a_truss = tuple(P(a) for a in self._c_truss)
-            self._a_beam_in, self._a_truss_in = P(self.beam_in), P(self.truss_in)
 
     # ------------------------------------------------------------------ state
     def reference_state(self) -> State:
@@ -277,9 +261,6 @@ class System:
 
     # ------------------------------------------------------------ kernels
     def _fill_inputs(self, st: State) -> None:
-        if self._c is not None:
-            self._fill_compiled(st)
-            return
         xn, Rn, rn = self.node_states(st)
         s = self.s
         if s.n_beams:
@@ -303,43 +284,6 @@ class System:
             k, el = self.con_truss
             ti[el, 15] = st.lam[k]
 
-    def _fill_compiled(self, st: State) -> None:
-        """:meth:`_fill_inputs` in one compiled call per element type (model.cassembly)."""
-        s, c, P = self.s, self._c, cassembly.ptr
-        X = np.ascontiguousarray(st.X, dtype=np.float64)
-        R = np.ascontiguousarray(st.R, dtype=np.float64)
-        px, pr = P(X), P(R)
-        if s.n_beams:
-            bi = self.beam_in
-            c.fill_beams(s.n_beams, self._a_beam[0], self._a_master, self._a_offset, px, pr, self._a_beam_in,
-                         bi.shape[1])
-            k, el, mode = self.con_beam
-            if len(k):
-                lam = np.zeros((s.n_beams, 6))
-                lam[el, mode] = st.lam[k]
-                bi[:, 30 + s.beam_const.shape[1]:] = lam
-        if len(s.truss_nodes):
-            ti = self.truss_in
-            c.fill_trusses(len(s.truss_nodes), self._a_truss[0], self._a_master, self._a_offset, px, pr,
-                           self._a_truss_in, ti.shape[1])
-            ti[:, 15] = 0.0
-            k, el = self.con_truss
-            ti[el, 15] = st.lam[k]
-
-    def _scatter(self, out: np.ndarray, idx: tuple, N: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``bincount`` of the element gradients (active and full numbering) and Hessians, compiled when
-        available (the same sums in the same order)."""
-        _, dofs, dofs_full, flat = idx
-        if self._c is not None:  # idx: the addresses of the int64 index arrays (see __init__)
-            out = np.ascontiguousarray(out)
-            g, gf, H = np.zeros(N), np.zeros(self.n_full), np.zeros(N * N)
-            P = cassembly.ptr
-            self._c.scatter(out.shape[0], P(out), out.shape[1], dofs, dofs_full, flat, P(g), P(gf), P(H))
-            return g, gf, H
-        return (np.bincount(dofs.ravel(), out[:, :12].ravel(), minlength=N),
-                np.bincount(dofs_full.ravel(), out[:, :12].ravel(), minlength=self.n_full),
-                np.bincount(flat, out[:, 12:156].ravel(), minlength=N * N))
-
     def evaluate(self, st: State) -> Assembled:
         """Gradient, Hessian and constraint rows at ``st`` (one kernel call per element type)."""
         s, N = self.s, self.N
@@ -353,11 +297,9 @@ class System:
         e_truss = np.zeros(len(s.truss_nodes))
         if s.n_beams:
             out = self.beam_kernel(self.beam_in)
-            gb, gfb, Hb = self._scatter(out, (None, self.beam_dofs, self.beam_dofs_full, self.beam_flat)
-                                        if self._c is None else self._a_beam, N)
-            g += gb
-            g_full += gfb
-            Hflat += Hb
+            g += np.bincount(self.beam_dofs.ravel(), out[:, :12].ravel(), minlength=N)
+            g_full += np.bincount(self.beam_dofs_full.ravel(), out[:, :12].ravel(), minlength=self.n_full)
+            Hflat += np.bincount(self.beam_flat, out[:, 12:156].ravel(), minlength=N * N)
             e_beam = out[:, 156:162]
             k, el, mode = self.con_beam
             if len(k):
@@ -366,11 +308,9 @@ class System:
                 np.add.at(G, (k[:, None], self.beam_dofs[el]), De[el, :, mode])
         if len(s.truss_nodes):
             out = self.truss_kernel(self.truss_in)
-            gt, gft, Ht = self._scatter(out, (None, self.truss_dofs, self.truss_dofs_full, self.truss_flat)
-                                        if self._c is None else self._a_truss, N)
-            g += gt
-            g_full += gft
-            Hflat += Ht
+            g += np.bincount(self.truss_dofs.ravel(), out[:, :12].ravel(), minlength=N)
+            g_full += np.bincount(self.truss_dofs_full.ravel(), out[:, :12].ravel(), minlength=self.n_full)
+            Hflat += np.bincount(self.truss_flat, out[:, 12:156].ravel(), minlength=N * N)
             e_truss = out[:, 156]
             k, el = self.con_truss
             if len(k):
@@ -461,14 +401,7 @@ class System:
         s, N = self.s, self.N
         Mflat = self._mass_const.copy()
         if s.n_beams:
-            blocks = self.beam_mass_blocks(st)
-            if self._c is not None:  # compiled scatter (model.cassembly): the bincount's sums, in its order
-                Mb = np.zeros(N * N)
-                self._c.scatter_blocks(len(blocks), cassembly.ptr(np.ascontiguousarray(blocks)), self._a_beam[3],
-                                       cassembly.ptr(Mb))
-                Mflat += Mb
-            else:
-                Mflat += np.bincount(self.beam_flat, blocks.ravel(), minlength=N * N)
+            Mflat += np.bincount(self.beam_flat, self.beam_mass_blocks(st).ravel(), minlength=N * N)
         if self._mvar:
             _, _, rn = self.node_states(st)
             for nodes, mass, flat in self._mvar:
