@@ -7,6 +7,7 @@ outwards in each direction separately, so a mirror-symmetric design gives an eve
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -26,7 +27,7 @@ from .scene import Scene
 from .errors import EquilibriumError
 from .statics import Equilibrium, NewtonOptions, StepFailure, WalkFailure, solve_point, walk
 from .structure import Structure, compile_scene
-from .symmetry import StrokeSymmetry, mirror_tol, nearest, one_side, stroke_symmetry
+from .symmetry import StrokeSymmetry, image_indices, one_side, stroke_symmetry
 
 __all__ = ["frequency_curve", "Analysis", "von_mises"]
 
@@ -208,12 +209,10 @@ class Analysis:
         s_loss = a.stroke + float(inside[np.argmin(np.abs(inside))]) if len(inside) else b
         return WalkFailure("unstable", s_loss, a.stroke, "")
 
-    @property
+    @functools.cached_property
     def symmetry(self) -> StrokeSymmetry | None:
         """The design's symmetry that reverses the stroke (:func:`model.symmetry.stroke_symmetry`), or None."""
-        if not hasattr(self, "_symmetry"):
-            self._symmetry = stroke_symmetry(self.scene)
-        return self._symmetry
+        return stroke_symmetry(self.scene)
 
     def _mirrored(self, sym: StrokeSymmetry, internal: np.ndarray, points: dict, failures: list
                   ) -> tuple[dict, list]:
@@ -223,10 +222,10 @@ class Analysis:
         perm = np.array([names.index(sym.element_map[m]) for m in names])
         out: dict = {}
         solved = np.array(sorted(points))
-        for v in internal:
-            p = points.get(nearest(solved, abs(float(v)), mirror_tol(internal))) if len(solved) else None
-            if p is None:
+        for v, i in zip(internal, image_indices(solved, internal)):
+            if i is None:
                 continue
+            p = points[float(solved[i])]
             if v >= 0:
                 out[float(v)] = p
             else:

@@ -19,14 +19,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import linalg as _linalg
+from .linalg import TRSM_MAX as _TRSM_MAX
 from .assembly import System
 from .errors import FlexoptError
 from .statics import Equilibrium
 
 _ABSTOL = 2.0 * float(np.finfo(float).tiny)
-#: Up to this order ``C = L^-1 M_s L^-T`` is formed by two triangular solves (BLAS dtrsm), above it by
-#: LAPACK dsygst (half the flops): whole eigen solve measured 324 vs 384 us at n = 59, even at n = 89-119.
-_TRSM_MAX = 80
 
 __all__ = ["Modes", "modes_at", "track", "participation"]
 
@@ -49,6 +47,10 @@ def _lowest_pairs(K: np.ndarray, M: np.ndarray, k: int) -> tuple[np.ndarray | No
     """The ``k`` lowest eigenpairs of ``K phi = lambda M phi`` solved *through K*; ``(None, None)`` if ``K``
     is not positive definite.
 
+    The compiled driver (:func:`model.linalg.lowest_pairs`: the same algorithm in one C call, MRRR for the
+    wanted pairs and extended-precision Rayleigh quotients) when it is available; otherwise, or when its
+    LAPACK reports a failure, the scipy route below.
+
     Both matrices are first scaled symmetrically by ``D = diag(K)^(-1/2)`` (Jacobi equilibration: the
     eigenvalues are unchanged, the DOF units -- metres against radians -- drop out). With the Cholesky
     factor ``K_s = L L^T`` the pencil becomes the standard problem ``C y = mu y``, ``C = L^-1 M_s L^-T``,
@@ -59,7 +61,10 @@ def _lowest_pairs(K: np.ndarray, M: np.ndarray, k: int) -> tuple[np.ndarray | No
     instead, up to 4e-4 relative for the lowest modes of finely meshed thin leaves (issue 12). Vectors:
     ``phi = D L^-T y / sqrt(mu)`` (mass-normalised).
     """
-    from scipy.linalg import blas, lapack  # lazily: the compiled driver (model.linalg) needs no scipy.linalg
+    fast = _linalg.lowest_pairs(K, M, k)
+    if fast is not None:
+        return fast if fast is not False else (None, None)
+    from scipy.linalg import blas, lapack  # lazily: the compiled driver needs no scipy.linalg
 
     d = K.diagonal()
     if not (np.all(d > 0) and np.all(M.diagonal() > 0)):  # the route through M reports a singular M
@@ -119,11 +124,7 @@ def modes_at(sys: System, eq: Equilibrium, k: int, drive: str = "locked") -> Mod
     k = min(k, K.shape[0])
     if k == 0:
         return Modes(np.zeros(0), np.zeros((sys.n, 0)), M)
-    fast = _linalg.lowest_pairs(K, Mr, k)  # the compiled driver (None without a C compiler)
-    if fast is None:
-        w, V = _lowest_pairs(K, Mr, k)
-    else:
-        w, V = fast if fast is not False else (None, None)
+    w, V = _lowest_pairs(K, Mr, k)
     if w is None:  # K not positive definite (unstable) or singular: the pencil route through M
         w, V, info = _lowest_pairs_through_m(K, Mr, k)
         if info > K.shape[0]:  # LAPACK: the leading minor of order info - n of M is not positive definite

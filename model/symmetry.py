@@ -35,7 +35,7 @@ import numpy as np
 
 from .scene import Beam, RectangularSection, Scene, Truss
 
-__all__ = ["StrokeSymmetry", "stroke_symmetry", "one_side", "nearest", "mirror_tol", "TOL"]
+__all__ = ["StrokeSymmetry", "stroke_symmetry", "one_side", "image_indices", "mirror_tol", "TOL"]
 
 #: Relative tolerance (of the largest node distance from the centroid) for positions, and relative tolerance
 #: of every compared number (masses, inertias, section data).
@@ -254,10 +254,15 @@ def mirror_tol(internal: np.ndarray) -> float:
     return 1e-12 * float(np.max(np.abs(internal), initial=0.0))
 
 
-def nearest(solved: np.ndarray, v: float, tol: float) -> float | None:
-    """The solved stroke within ``tol`` of ``v`` (the dictionary key itself), or None."""
-    i = int(np.argmin(np.abs(solved - v)))
-    return float(solved[i]) if abs(solved[i] - v) <= tol else None
+def image_indices(solved: np.ndarray, internal: np.ndarray) -> list[int | None]:
+    """For each requested stroke, the index in ``solved`` (sorted non-negative strokes) of the point that
+    gives it -- the one at ``|s|``, within :func:`mirror_tol` -- or None when it was not solved."""
+    tol = mirror_tol(internal)
+    out: list[int | None] = []
+    for v in np.abs(np.asarray(internal, dtype=float)):
+        i = int(np.argmin(np.abs(solved - v))) if len(solved) else -1
+        out.append(i if i >= 0 and abs(solved[i] - v) <= tol else None)
+    return out
 
 
 def one_side(internal: np.ndarray) -> np.ndarray:

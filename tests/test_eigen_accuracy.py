@@ -6,7 +6,8 @@ quotient evaluated in extended precision (``numpy.longdouble``) and the shifted 
 it measures only the error the eigen solver adds. The solver under test factorises through ``K`` and
 takes each eigenvalue as the extended-precision Rayleigh quotient of its vector (model/linalg.py); the
 former route through ``M`` (LAPACK dsygvx) erred by up to 3e-4, the float64 route through ``K`` without the
-Rayleigh quotient (model/modal.py ``_lowest_pairs``, the fallback without a C compiler) by up to 4.4e-8.
+Rayleigh quotient (the scipy route of model/modal.py ``_lowest_pairs``, taken without a C compiler) by up
+to 4.4e-8.
 """
 
 from __future__ import annotations

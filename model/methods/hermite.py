@@ -42,7 +42,7 @@ from ..analysis import Analysis
 from ..errors import FlexoptError
 from ..modal import Modes, modes_at, track
 from ..statics import Equilibrium, StepFailure, solve_point, walk
-from ..symmetry import mirror_tol, nearest, one_side
+from ..symmetry import image_indices, one_side
 from .common import CLUSTER_GAP, _curve_from
 from .taylor import _clusters, mass_derivatives
 
@@ -77,6 +77,7 @@ class HermiteResult:
     estimate: float  # estimated max relative error of the first parasitic frequency
     samples: int  # exact samples used (stroke 0 included)
     converged: bool  # every interval's estimate met the tolerance
+    mirrored: str | None = None  # the symmetry that gave the negative strokes (None: both sides sampled)
 
 
 def stroke_slopes(an: Analysis, eq: Equilibrium, modes: Modes) -> np.ndarray:
@@ -317,10 +318,9 @@ def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samp
         res = hermite_curve(an, pos, tolerance, max_samples, mirror=False)
         if res is None:
             return None
-        tol = mirror_tol(internal)
-        idx = [int(np.flatnonzero(pos == nearest(pos, abs(float(v)), tol))[0]) for v in internal]
+        idx = image_indices(pos, internal)  # every |s| is in pos by construction
         return HermiteResult(res.hz[idx], res.labels[idx], res.parasitic[idx], res.estimate, res.samples,
-                             res.converged)
+                             res.converged, an.symmetry.describe())
     sys = an.system
     spec = an.scene.stroke
     drive = spec.drive
@@ -398,8 +398,8 @@ def hermite_frequency_curve(an: Analysis, values: np.ndarray, tolerance: float,
         raise FlexoptError("the hermite interpolation produced non-finite frequencies; use method 'exact'")
     extra = {"samples": res.samples, "estimated_error": res.estimate, "tolerance": tolerance,
              "converged": res.converged}
-    if an.symmetry is not None and np.any(internal < 0):
-        extra["mirrored"] = f"negative strokes from positive ones by the design's symmetry ({an.symmetry.describe()})"
+    if res.mirrored is not None:
+        extra["mirrored"] = f"negative strokes from positive ones by the design's symmetry ({res.mirrored})"
     conv = {"method": "hermite: exact equilibria, eigenpairs and d(lambda)/ds at the samples, cubic Hermite "
                       "interpolation of each tracked branch's omega^2 between them",
             "drive_reaction": "not computed by this method (NaN)"}
