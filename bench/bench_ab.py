@@ -25,12 +25,8 @@ import sys
 from pathlib import Path
 
 ROOT = str(Path(__file__).resolve().parents[1])
-CASES = [
-    ("leaf-spring, 10 elements", "leaf-spring", {"segments": 10}),
-    ("leaf-spring, 40 elements", "leaf-spring", {"segments": 40}),
-    ("cross-spring-pivot, 2 x 8 elements", "cross-spring-pivot", {}),
-    ("parallel-leaf-spring, 2 x 10 elements", "parallel-leaf-spring", {}),
-]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_curve import CASES  # noqa: E402  (the cases of the README's speed table, so the rows match)
 
 _CHILD = """
 import json, statistics, time

@@ -1,7 +1,8 @@
-"""Rotation helpers on numpy arrays: exact exponential map, quaternions, swing-twist angle.
+"""Rotation helpers on numpy arrays: logarithm, quaternions, swing-twist angle.
 
 Orientations are stored as rotation matrices and updated by ``R <- expm(psi) R`` with the spatial rotation
-vector ``psi``; no angle set is stored, so nothing is singular at any stroke.
+vector ``psi`` (the compiled Rodrigues kernel, :func:`model.elements.rotation_update_spec`); no angle set is
+stored, so nothing is singular at any stroke.
 """
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ import math
 
 import numpy as np
 
-__all__ = ["expm_so3", "log_so3", "quaternion", "twist_angle", "twist_gradient", "skew"]
+__all__ = ["log_so3", "quaternion", "twist_angle", "twist_gradient", "skew"]
 
 
 def skew(v: np.ndarray) -> np.ndarray:
@@ -23,38 +24,9 @@ def skew(v: np.ndarray) -> np.ndarray:
          np.stack([-v[..., 1], v[..., 0], z], -1)], -2)
 
 
-def expm_so3(psi: np.ndarray) -> np.ndarray:
-    """``exp(skew(psi))`` for rotation vectors ``psi`` (..., 3), exact at any angle.
-
-    Rodrigues' formula ``I + a K + b K^2`` with ``K = skew(psi)``, ``a = sin(t)/t``, ``b = (1 - cos t)/t^2``
-    (``t = |psi|``), ``b`` written as ``2 sin^2(t/2)/t^2`` to avoid cancellation and both replaced by their
-    Taylor series below ``t = 1e-4`` (error below 1e-17). Written out in numpy: scipy's Rotation costs more
-    in object construction than the formula for the handful of masters a Newton update rotates.
-    """
-    psi = np.asarray(psi, dtype=float)
-    v = psi.reshape(-1, 3)
-    t2 = np.einsum("ij,ij->i", v, v)
-    t = np.sqrt(t2)
-    small = t < 1e-4
-    ts = np.where(small, 1.0, t)
-    a = np.where(small, 1.0 - t2 / 6.0, np.sin(ts) / ts)
-    h = np.sin(0.5 * ts) / ts
-    b = np.where(small, 0.5 - t2 / 24.0, 2.0 * h * h)
-    x, y, z = v[:, 0], v[:, 1], v[:, 2]
-    R = np.empty((len(v), 3, 3))
-    R[:, 0, 0] = 1.0 - b * (y * y + z * z)
-    R[:, 1, 1] = 1.0 - b * (x * x + z * z)
-    R[:, 2, 2] = 1.0 - b * (x * x + y * y)
-    bxy, bxz, byz = b * x * y, b * x * z, b * y * z
-    R[:, 0, 1], R[:, 1, 0] = bxy - a * z, bxy + a * z
-    R[:, 0, 2], R[:, 2, 0] = bxz + a * y, bxz - a * y
-    R[:, 1, 2], R[:, 2, 1] = byz - a * x, byz + a * x
-    return R.reshape(psi.shape[:-1] + (3, 3))
-
-
 def log_so3(R: np.ndarray) -> np.ndarray:
-    """Rotation vectors (..., 3) of rotation matrices (..., 3, 3), the inverse of :func:`expm_so3` for
-    angles below pi.
+    """Rotation vectors (..., 3) of rotation matrices (..., 3, 3), the inverse of the exponential map
+    (Rodrigues' formula, compiled in :func:`model.elements.rotation_update_spec`) for angles below pi.
 
     Through the unit quaternion (Shepperd's method, vectorised: the largest of ``w, x, y, z`` is found
     first, so no division by a small number) and ``psi = 2 atan2(|v|, w) v/|v|`` with the series

@@ -587,6 +587,17 @@ def _router(settings: Settings) -> APIRouter:
             raise HTTPException(503, "the job store is not open yet; retry")
         return store
 
+    async def _submit(request: Request, response: Response, body: dict, idempotency_key: str | None,
+                      collection: str) -> Job:
+        """Store a job (or find the one this idempotency key made), point Location at it, log a new one."""
+        job, created = await asyncio.to_thread(_store(request).submit, body, idempotency_key, request.state.owner,
+                                               _runtime(request).settings.max_active_jobs)
+        response.headers["Location"] = f"/v1/{collection}/{job['id']}"
+        if created:
+            errors_http.log.info("job submitted", extra={"event": "job.submitted", "job_id": job["id"],
+                                                         "request_id": request.state.request_id})
+        return Job(**job)
+
     _JOBS = {503: {"model": Problem, "description": "the job store is unavailable; see Retry-After"}}
 
     @v1.post("/optimisations", status_code=202, response_model=Job, summary="Submit an optimisation job",
@@ -595,13 +606,7 @@ def _router(settings: Settings) -> APIRouter:
     async def submit_optimisation(spec: OptimisationProblem, request: Request, response: Response,
                                   idempotency_key: str | None = Header(default=None, max_length=200)) -> Job:
         await asyncio.to_thread(_check_problem, spec)  # fail now, not in the job
-        job, created = await asyncio.to_thread(_store(request).submit, spec.model_dump(mode="json"), idempotency_key,
-                                         request.state.owner, _runtime(request).settings.max_active_jobs)
-        response.headers["Location"] = f"/v1/optimisations/{job['id']}"
-        if created:
-            errors_http.log.info("job submitted", extra={"event": "job.submitted", "job_id": job["id"],
-                                                         "request_id": request.state.request_id})
-        return Job(**job)
+        return await _submit(request, response, spec.model_dump(mode="json"), idempotency_key, "optimisations")
 
     @v1.get("/optimisations/{job_id}", response_model=Job, summary="Status, progress, partial and final results",
             responses={404: {"model": Problem}, **_JOBS})
@@ -654,13 +659,7 @@ def _router(settings: Settings) -> APIRouter:
         if where is not None:
             raise RequestValidationError([{"loc": ("body", *where), "type": "value_error",
                                            "msg": "must be a finite number (Infinity and NaN are not accepted)"}])
-        job, created = await asyncio.to_thread(_store(request).submit, {**body, "kind": _TOPO}, idempotency_key,
-                                               request.state.owner, _runtime(request).settings.max_active_jobs)
-        response.headers["Location"] = f"/v1/topology-searches/{job['id']}"
-        if created:
-            errors_http.log.info("job submitted", extra={"event": "job.submitted", "job_id": job["id"],
-                                                         "request_id": request.state.request_id})
-        return Job(**job)
+        return await _submit(request, response, {**body, "kind": _TOPO}, idempotency_key, "topology-searches")
 
     @v1.get("/topology-searches/{job_id}", response_model=Job, responses={404: {"model": Problem}, **_JOBS},
             summary="Status, progress {done, total} of the optimised cases, and the result once succeeded")
