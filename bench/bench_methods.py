@@ -136,12 +136,13 @@ def main(argv: list[str] | None = None) -> int:
         fig, axes = plt.subplots(1, len(TEMPLATES), figsize=(5 * len(TEMPLATES), 4))
         for ax, name in zip(axes, TEMPLATES):
             ex = all_curves[name]["exact"]
+            scale, unit = (1e3, "mm") if ex.stroke_unit == "m" else (1.0, ex.stroke_unit)  # readable ticks
             for m, c in all_curves[name].items():
-                ax.plot(c.stroke, c.parasitic_hz, label=m, lw=2 if m == "exact" else 1)
+                ax.plot(c.stroke * scale, c.parasitic_hz, label=m, lw=2 if m == "exact" else 1)
             lo, hi = np.nanmin(ex.parasitic_hz), np.nanmax(ex.parasitic_hz)
             ax.set_ylim(0.5 * lo, 1.3 * hi)
             ax.set_title(name)
-            ax.set_xlabel(f"stroke [{ex.stroke_unit}]")
+            ax.set_xlabel(f"stroke [{unit}]")
             ax.set_ylabel("first parasitic [Hz]")
             ax.legend(fontsize=7)
         fig.tight_layout()
