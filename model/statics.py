@@ -64,6 +64,11 @@ class Equilibrium:
         return float(self.ev.g[self.extra["drive_dof"]])
 
 
+#: Newton gives up (and the continuation halves its step) when an increment above ``1e3 tol`` is more than this
+#: fraction of the increment two iterations earlier.
+CONTRACTION = 0.5
+
+
 class StepFailure(Exception):
     """Newton did not converge from a predictor (internal; continuation halves the step)."""
 
@@ -155,6 +160,7 @@ def solve_point(
     """
     st = start
     inc = res = prev_inc = float("nan")
+    incs: list[float] = []
     for it in range(opts.max_iter + 1):
         ev = sys.evaluate(st)
         if not (np.isfinite(ev.g).all() and np.isfinite(ev.H).all()):
@@ -177,6 +183,12 @@ def solve_point(
             )
         if it > 2 and inc > 1e3 * opts.tol and inc > 0.5:
             raise StepFailure(f"diverging (increment {inc:.3g})")
+        if it >= 2 and inc > 1e3 * opts.tol and inc > CONTRACTION * incs[it - 2]:
+            # Newton with the exact Jacobian contracts inside its basin (quadratically near the solution):
+            # an increment not halved in two iterations means a predictor outside it, and iterating on
+            # to max_iter only delays the step halving that brings the predictor back in
+            raise StepFailure(f"not converging (increment {inc:.3g}, {incs[it - 2]:.3g} two iterations before)")
+        incs.append(inc)
         prev_inc = inc
         st = sys.update(st, dxi, dlam if sys.n_con else None)
     raise StepFailure(f"no convergence in {opts.max_iter} iterations (increment {inc:.3g}, residual {res:.3g})")
