@@ -11,6 +11,7 @@ from flexopt.model import Analysis, template
 from flexopt.model.errors import FlexoptError
 from flexopt.model.methods import frequency_curve
 from flexopt.model.methods.hermite import stroke_slopes
+from flexopt.model.methods.taylor import mass_derivatives, mass_slope
 
 SIX = ["leaf-spring", "parallel-leaf-spring", "cross-spring-pivot", "cartwheel-hinge", "three-fold-cross-hinge",
        "double-cross-hinge"]
@@ -41,6 +42,38 @@ def test_stroke_slopes_match_central_differences_of_exact_eigenvalues(name: str,
     eq, modes = seen[keys[1]]
     got = stroke_slopes(an, eq, modes)
     np.testing.assert_allclose(got[:6], fd[:6], rtol=1e-3, atol=1e-6 * np.abs(fd).max())
+
+
+@pytest.mark.parametrize("name", ["leaf-spring", "cross-spring-pivot", "cartwheel-hinge"])
+def test_mass_slope_matches_the_five_point_quartic_and_central_differences(name: str) -> None:
+    """dM/ds from two mass evaluations (mass_slope) against (a) mass_derivatives' M1 (the quartic through
+    five evaluations along the second-order rotation path: the same derivative by another route, agreement
+    to rounding, 1e-11 of |M|) and (b) a central difference of the mass along the exact rotation path
+    ``expm(eta [t]) R0`` (step 1e-4: truncation ~ 1e-8 relative, hence 1e-6 of |M1|)."""
+    from flexopt.model.assembly import State
+    from flexopt.model.rotations import skew
+    from scipy.linalg import expm
+
+    an = Analysis(template(name))
+    sys = an.system
+    seen: dict = {}
+    an.frequency_curve(np.array([30.0]), visit=lambda eq, m, lab: seen.setdefault("eq", eq))
+    eq = seen["eq"]
+    t = np.asarray(eq.tangent, dtype=float)
+    got = mass_slope(sys, eq.state, t)
+    quartic, _ = mass_derivatives(sys, eq.state, t, np.zeros(sys.n))
+    M = sys.mass(eq.state)
+    np.testing.assert_allclose(got, quartic, rtol=0, atol=1e-11 * np.abs(M).max())
+    rot = sys.to_global(t).reshape(-1, 6)[:, 3:]
+    h = 1e-4
+
+    def mass_at(eta: float) -> np.ndarray:
+        R = np.array([expm(eta * skew(w)) for w in rot]) @ eq.state.R
+        return sys.mass(State(eq.state.X, R, eq.state.lam))
+
+    fd = (mass_at(h) - mass_at(-h)) / (2 * h)
+    assert np.abs(got).max() > 1e-6 * np.abs(M).max(), "the mass does change along the stroke here"
+    np.testing.assert_allclose(got, fd, rtol=0, atol=1e-6 * np.abs(got).max())
 
 
 @pytest.mark.parametrize("name", SIX)
@@ -81,3 +114,44 @@ def test_drive_free_wire_guides_refuse_locked_methods_and_auto_and_hermite_work(
         c = frequency_curve(an, m)
         assert c.modes_hz.shape == ex.modes_hz.shape
         assert np.max(np.abs(c.parasitic_hz / ex.parasitic_hz - 1)) <= 0.01, m
+
+
+class _FakeSide:
+    """The data ``_error`` reads from a side: two samples, three tracked branches (mu = 1 / omega^2)."""
+
+    def __init__(self, hz0, hz1, slope_hz0, slope_hz1, mac):
+        w0, w1 = 2 * np.pi * np.asarray(hz0, float), 2 * np.pi * np.asarray(hz1, float)
+        # d mu / ds from d f / ds: mu = (2 pi f)^-2, so mu' = -2 mu f' / f
+        m0, m1 = w0**-2.0, w1**-2.0
+        self.lam = np.array([m0, m1])
+        self.slope = np.array([-2 * m0 * np.asarray(slope_hz0) / np.asarray(hz0),
+                               -2 * m1 * np.asarray(slope_hz1) / np.asarray(hz1)])
+        self.mac = [np.asarray(mac, float)]
+        self.labels = [["parasitic"] * 3, ["parasitic"] * 3]
+
+    def strokes(self):
+        return np.array([0.0, 0.1])
+
+
+def test_crossing_check_refines_only_where_an_uncertain_branch_can_reach_the_lowest() -> None:
+    """model.methods.hermite._error on hand-made data (frequencies linear in the stroke, so the estimator
+    itself reads almost zero and only the crossing check can return inf): (a) the lowest branch's own
+    match uncertain -> inf; (b) two uncertain branches far above the lowest (1.5x, the pivot at stroke 0)
+    -> finite; (c) the same two, one falling fast enough that a pairing passes within 10 % of the lowest
+    -> inf."""
+    from flexopt.model.methods.hermite import _error
+
+    flat = dict(slope_hz0=[0.0, 0.0, 0.0], slope_hz1=[0.0, 0.0, 0.0])
+    a = _FakeSide([100.0, 150.0, 151.0], [100.0, 150.0, 151.0], mac=[0.5, 1.0, 1.0], **flat)
+    assert _error(a, 0) == float("inf")
+    b = _FakeSide([100.0, 150.0, 151.0], [100.0, 150.0, 151.0], mac=[1.0, 0.3, 0.3], **flat)
+    assert _error(b, 0) < 1e-6
+    # branch 2 leaves 151 Hz falling at 3000 Hz per unit stroke and reaches 130 Hz rising at 1500: its cubic
+    # (in mu) dips to 105 Hz inside the interval, within 10 % of the lowest (100 Hz), while its end values
+    # stay 1.3 to 1.5 times above it; with slopes of 2500 and 1250 it dips to 109 Hz (also caught), with
+    # 2000 and 1000 to 113 Hz (not: clear of the 10 % margin)
+    c = _FakeSide([100.0, 150.0, 151.0], [100.0, 150.0, 130.0], slope_hz0=[0.0, 0.0, -3000.0],
+                  slope_hz1=[0.0, 0.0, 1500.0], mac=[1.0, 0.3, 0.3])
+    assert _error(c, 0) == float("inf")
+    c.mac = [np.ones(3)]  # the same branches with a certain match: no crossing check, a finite estimate
+    assert np.isfinite(_error(c, 0))

@@ -11,7 +11,7 @@ with ``dq/ds`` the equilibrium tangent (from the Newton system), ``dK/ds`` the e
 of the element Hessians along it (CasADi third derivative, :meth:`System.hessian_derivative`) carried
 into the chart the exact method uses at ``s`` (:func:`model.methods.taylor._to_reference_chart`, first
 order, plus the drive reaction times the first-order BCH term ``Gamma_e``, which vanishes at stroke 0 but
-not at a loaded sample) and ``dM/ds`` from :func:`model.methods.taylor.mass_derivatives`. Clusters of
+not at a loaded sample) and ``dM/ds`` from :func:`model.methods.taylor.mass_slope`. Clusters of
 (numerically) equal eigenvalues take the eigenvalues of the cluster
 matrix ``P^T (dK/ds - lambda_c dM/ds) P`` (degenerate perturbation) in ascending order; the gap is
 ``SLOPE_CLUSTER_GAP``.
@@ -44,7 +44,7 @@ from ..modal import Modes, modes_at, track
 from ..statics import Equilibrium, StepFailure, solve_point, walk
 from ..symmetry import image_indices, one_side
 from .common import CLUSTER_GAP, _curve_from
-from .taylor import _clusters, mass_derivatives
+from .taylor import _clusters, mass_slope
 
 __all__ = ["hermite_curve", "stroke_slopes", "HermiteResult"]
 
@@ -53,10 +53,12 @@ __all__ = ["hermite_curve", "stroke_slopes", "HermiteResult"]
 #: pairs, gap at rounding level -- need the cluster matrix. (The Taylor methods use the wider CLUSTER_GAP
 #: because their expansions divide by the gap; here nothing does.)
 SLOPE_CLUSTER_GAP = 1e-6
-#: An interval is refined while a branch within ``MAC_BAND`` times the lowest frequency at either end was
-#: matched across it with a MAC below ``MAC_MIN`` (its identity is uncertain: a crossing in between); for a
-#: branch in a cluster of nearly equal eigenvalues, the MAC with the cluster's subspace (``_Side.retrack``).
-MAC_MIN, MAC_BAND = 0.9, 1.5
+#: A branch matched across an interval with a MAC below ``MAC_MIN`` has an uncertain identity (a crossing in
+#: between); for a branch in a cluster of nearly equal eigenvalues, the MAC with the cluster's subspace
+#: (``_Side.retrack``). An interval is refined while the lowest parasitic branch at either end is uncertain,
+#: or while a cubic through an uncertain branch's exact value and slope at one end and any uncertain
+#: branch's at the other comes within ``CROSS_MARGIN`` of the lowest certain branch (see :func:`_error`).
+MAC_MIN, CROSS_MARGIN = 0.9, 0.1
 
 
 @dataclass
@@ -65,6 +67,7 @@ class _Sample:
     eq: Equilibrium
     modes: Modes  # k eigenpairs, ascending at this sample (not yet tracked)
     slope: np.ndarray  # (k,) d lambda / ds of those modes
+    labels: list[str] | None = None  # labels of ``modes`` in their order here (computed once, by retrack)
 
 
 @dataclass
@@ -90,11 +93,10 @@ def stroke_slopes(an: Analysis, eq: Equilibrium, modes: Modes) -> np.ndarray:
     """
     sys = an.system
     s = sys.s
-    n = sys.n
     t = np.asarray(eq.tangent, dtype=float)
     K = eq.ev.H
     K1 = sys.hessian_derivative(eq.state, t)
-    M1, _ = mass_derivatives(sys, eq.state, t, np.zeros(n))
+    M1 = mass_slope(sys, eq.state, t)
     order = np.argsort(modes.omega2)  # clusters are runs of the ascending eigenvalues
     lam, P = modes.omega2[order], modes.phi[:, order]
     nm = len(s.master_names)
@@ -153,6 +155,19 @@ class _Side:
         self.perm: list[np.ndarray] = []
         self.lam = self.slope = np.zeros((0, k))
         self.labels: list[list[str]] = []
+        self._estimates: dict = {}  # interval -> (its tracked data, _error's value)
+
+    def error(self, i: int) -> float:
+        """:func:`_error` of the interval [S_i, S_i+1], reused while its tracked data are unchanged (a new
+        sample elsewhere leaves most intervals as they were; retracking may change any of them)."""
+        S = self.strokes()
+        data = (self.lam[i].tobytes(), self.lam[i + 1].tobytes(), self.slope[i].tobytes(),
+                self.slope[i + 1].tobytes(), self.mac[i].tobytes(), tuple(self.labels[i]), tuple(self.labels[i + 1]))
+        key = (float(S[i]), float(S[i + 1]))
+        hit = self._estimates.get(key)
+        if hit is None or hit[0] != data:
+            hit = self._estimates[key] = (data, _error(self, i))
+        return hit[1]
 
     def sample(self, start: _Sample, s_new: float, end: _Sample | None = None) -> _Sample:
         """The exact equilibrium, eigenpairs and slopes at ``s_new``, reached from the sample ``start``.
@@ -243,8 +258,11 @@ class _Side:
             lam.append(1.0 / tm.omega2)  # interpolated variable: mu = 1 / lambda (see module docstring)
             slope.append(-smp.slope[perm] / tm.omega2**2)
             # labels as the exact method gives them: with the drive free, the drive mode is the one most
-            # like the equilibrium path's tangent
-            labels.append(self.an._labels(tm, smp.eq.tangent)[0])
+            # like the equilibrium path's tangent; a label belongs to a mode, so it is computed once per sample
+            # and follows the mode through the permutation
+            if smp.labels is None:
+                smp.labels = self.an._labels(m, smp.eq.tangent)[0]
+            labels.append([smp.labels[j] for j in perm])
             prev = tm
         self.lam, self.slope, self.labels, self.mac = np.array(lam), np.array(slope), labels, mac
 
@@ -277,25 +295,42 @@ def _error(side: _Side, i: int) -> float:
     in ``1 / sqrt(mu)`` (the frequency up to 2 pi) -- have different error terms (fourth derivatives of
     different functions); where both are accurate they agree, where the branch changes faster than a cubic can follow (pre-asymptotic
     sampling, a crossing with wrong tracking) they do not. The largest relative difference of the first
-    parasitic frequency on 16 interior points is the estimate: no extra exact solve. Infinite when a low
-    branch's match across the interval is uncertain (``MAC_MIN``).
+    parasitic frequency on 16 interior points is the estimate: no extra exact solve.
+
+    Infinite (refine) when a mode crossing inside the interval may change the first parasitic frequency:
+    the lowest parasitic branch at either end was matched with a MAC below ``MAC_MIN``, or a branch with an
+    uncertain match could reach it. Where the match of a branch is uncertain, its true continuation is one
+    of the uncertain modes at the other end; each such pairing is a cubic through exact values and exact
+    slopes (a slope belongs to a mode, not to its tracking), and the interval is refined when any of these
+    cubics comes within ``CROSS_MARGIN`` (10 %: well above the interpolation errors that are refined away
+    anyway) of the lowest parasitic frequency of the certain branches. Uncertain branches that stay clear
+    of it cannot change the first parasitic frequency (they can change the higher tracked modes between
+    the samples, which the tolerance is not about). A crossing and back between two samples (a dip of a
+    higher branch that no pairing of the end values shows) is not detected by this or any estimate from
+    the samples alone.
     """
     S = side.strokes()
     mu, d = side.lam, side.slope
-    # a branch near the first parasitic frequency whose mode shape changed much across the interval may
-    # have been matched to another mode (a crossing between the samples): refine until the match is clear
-    hz0, hz1 = _hz(mu[i]), _hz(mu[i + 1])
-    near = (hz0 <= MAC_BAND * np.nanmin(hz0)) | (hz1 <= MAC_BAND * np.nanmin(hz1))
-    if np.any(side.mac[i][near] < MAC_MIN):
-        return float("inf")
     x = np.linspace(S[i], S[i + 1], 18)[1:-1]
+    mac = side.mac[i]
+    par0, par1 = np.array(side.labels[i]) == "parasitic", np.array(side.labels[i + 1]) == "parasitic"
+    sure = mac >= MAC_MIN
+    for lab, y in ((par0, mu[i]), (par1, mu[i + 1])):
+        if lab.any() and not sure[np.flatnonzero(lab)[np.argmin(_hz(y[lab]))]]:
+            return float("inf")  # the lowest parasitic branch itself may have crossed another one
     a = _hermite(S[i], S[i + 1], mu[i], mu[i + 1], d[i], d[i + 1], x)
+    unc = np.flatnonzero(~sure & (par0 | par1))
+    if len(unc):
+        lowest = np.where(sure & (par0 | par1), _hz(a), np.inf).min(axis=1)
+        j, l = np.repeat(unc, len(unc)), np.tile(unc, len(unc))  # every pairing (j at S_i, l at S_i+1)
+        cand = _hz(_hermite(S[i], S[i + 1], mu[i][j], mu[i + 1][l], d[i][j], d[i + 1][l], x))
+        if np.any(cand.min(axis=1) < (1 + CROSS_MARGIN) * lowest):
+            return float("inf")
     # second interpolant in r = mu^(-1/2) (proportional to the frequency): dr/ds = -mu'/(2 mu^(3/2))
     r0, r1 = mu[i] ** -0.5, mu[i + 1] ** -0.5
     b = _hermite(S[i], S[i + 1], r0, r1, -0.5 * d[i] * r0**3, -0.5 * d[i + 1] * r1**3, x) ** -2.0
     left = np.abs(x - S[i]) <= np.abs(S[i + 1] - x)
-    par = np.where(left[:, None], np.array(side.labels[i]) == "parasitic",
-                   np.array(side.labels[i + 1]) == "parasitic")  # (16, k) labels of the nearer sample
+    par = np.where(left[:, None], par0, par1)  # (16, k) labels of the nearer sample
     fa = np.where(par, _hz(a), np.inf).min(axis=1)
     fb = np.where(par, _hz(b), np.inf).min(axis=1)
     ok = np.isfinite(fa) & np.isfinite(fb)
@@ -354,7 +389,7 @@ def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samp
             h_min = abs(smax) / 64.0
             while True:
                 S = side.strokes()
-                est = {(S[i], S[i + 1]): _error(side, i) for i in range(len(S) - 1)}
+                est = {(S[i], S[i + 1]): side.error(i) for i in range(len(S) - 1)}
                 todo = [iv for iv, e in est.items() if e > tolerance and abs(iv[1] - iv[0]) > h_min * 1.5]
                 if not todo or (max_samples is not None and len(side.samples) - 1 >= max_samples):
                     break

@@ -72,7 +72,7 @@ from ..modal import Modes
 from ..statics import Equilibrium, solve_point
 from .common import CLUSTER_GAP, _hz
 
-__all__ = ["ModalDerivatives", "modal_derivatives", "hessian_second_derivative", "mass_derivatives",
+__all__ = ["ModalDerivatives", "modal_derivatives", "hessian_second_derivative", "mass_derivatives", "mass_slope",
            "taylor_curve"]
 
 
@@ -129,6 +129,25 @@ def mass_derivatives(sys: System, st: State, a: np.ndarray, b: np.ndarray) -> tu
     coef = np.concatenate([np.zeros((1,) + vals.shape[1:]), coef])
     M1, M2 = coef[1], 2.0 * coef[2]
     return 0.5 * (M1 + M1.T), 0.5 * (M2 + M2.T)
+
+
+def mass_slope(sys: System, st: State, a: np.ndarray) -> np.ndarray:
+    """First derivative of the mass matrix along ``q(eta) = a eta`` at ``st``: ``M1`` of
+    :func:`mass_derivatives` with ``b = 0``, from two mass evaluations instead of five.
+
+    The mass is a polynomial of degree 2 in the masters' rotation matrices (see :func:`mass_derivatives`),
+    and its first derivative along ``R(eta) = expm(eta [a]) R0`` depends only on ``R'(0) = [a] R0``, so it
+    equals the derivative along the straight line ``R0 + eta [a] R0``, on which the mass is a quadratic
+    ``c0 + c1 eta + c2 eta^2``; ``(M(1) - M(-1)) / 2 = c1`` holds exactly (rounding only). Used for the
+    stroke slopes of the ``hermite`` method, which need no ``M2``.
+    """
+    from ..rotations import skew
+
+    R1 = skew(sys.to_global(a).reshape(-1, 6)[:, 3:]) @ st.R
+    Mp = sys.mass(State(st.X, st.R + R1, st.lam))
+    Mm = sys.mass(State(st.X, st.R - R1, st.lam))
+    M1 = 0.5 * (Mp - Mm)
+    return 0.5 * (M1 + M1.T)
 
 
 def _to_reference_chart(sys: System, K: np.ndarray, M: np.ndarray, K1: np.ndarray, K2: np.ndarray,
