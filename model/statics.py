@@ -225,10 +225,11 @@ class WalkFailure:
 
 
 def walk(sys: System, targets: np.ndarray, opts: NewtonOptions, accept,
-         start: Equilibrium | None = None) -> WalkFailure | None:
+         start: Equilibrium | None = None, on_step=None) -> WalkFailure | None:
     """Continue from the reference through ``targets`` (internal units, monotone away from 0).
 
-    ``start`` is the equilibrium at stroke 0 when the caller has it already.
+    ``start`` is the equilibrium at stroke 0 when the caller has it already; ``on_step(eq)``, when given,
+    sees every converged step, targets and intermediate strokes alike.
 
     ``accept(eq)`` is called at each target and returns ``None`` to go on, or a :class:`WalkFailure` to
     stop (e.g. the equilibrium became unstable). Returns the failure, or ``None`` when all converged.
@@ -258,6 +259,8 @@ def walk(sys: System, targets: np.ndarray, opts: NewtonOptions, accept,
                     )
                 continue
             prev, cur = cur, new
+            if on_step is not None:
+                on_step(new)
             if abs(h) < full:
                 h = np.sign(h) * min(2 * abs(h), full)
         failure = accept(cur)

@@ -156,6 +156,7 @@ class _Side:
         self.lam = self.slope = np.zeros((0, k))
         self.labels: list[list[str]] = []
         self._estimates: dict = {}  # interval -> (its tracked data, _error's value)
+        self.visited: dict[float, Equilibrium] = {}  # converged equilibria of the initial continuation
 
     def error(self, i: int) -> float:
         """:func:`_error` of the interval [S_i, S_i+1], reused while its tracked data are unchanged (a new
@@ -178,8 +179,10 @@ class _Side:
         """
         an = self.an
         sys = an.system
-        eq = None
-        if end is not None:
+        # a stroke the initial continuation passed through (bisection and the halved steps both land on
+        # binary fractions of the stroke, equal up to the rounding of their sums)
+        eq = next((e for v, e in self.visited.items() if abs(v - s_new) <= 1e-12 * abs(s_new)), None)
+        if eq is None and end is not None:
             h = end.s - start.s
             u = (s_new - start.s) / h
             delta = sys.difference(end.eq.state, start.eq.state)
@@ -219,7 +222,11 @@ class _Side:
                 self.add(_Sample(float(e.stroke), e, modes, stroke_slopes(an, e, modes)))
             return None
 
-        fail = walk(sys, np.linspace(0.0, smax, 5)[1:], an.options, accept, start=self.samples[0].eq)
+        def seen(e: Equilibrium) -> None:
+            self.visited[float(e.stroke)] = e
+
+        fail = walk(sys, np.linspace(0.0, smax, 5)[1:], an.options, accept, start=self.samples[0].eq,
+                    on_step=seen)
         if fail is not None:
             raise _Fallback(fail.message)
 
