@@ -107,10 +107,11 @@ def _auto(an: Analysis, values: np.ndarray, tolerance: float) -> FrequencyCurve:
     per_side = max(int(np.sum(internal > 0)), int(np.sum(internal < 0)))
     tried: dict = {}
     if per_side >= AUTO_MIN_POINTS:
-        curve, extra = hermite_frequency_curve(an, values, tolerance, max_samples=max(4, per_side // 3))
+        curve, extra = hermite_frequency_curve(an, values, tolerance, max_samples=max(4, per_side // 3), fill=True)
         if curve.method == "hermite" and extra["converged"] and extra["estimated_error"] <= tolerance:
+            how = "hermite" + ("+exact" if extra["exact_points"] else "")
             return replace(curve, solver={**curve.solver, "seconds": time.perf_counter() - t0,
-                                          "auto_method": "hermite", "auto_estimate": extra["estimated_error"],
+                                          "auto_method": how, "auto_estimate": extra["estimated_error"],
                                           "auto_tolerance": tolerance})
         tried = {"auto_rejected": f"hermite (estimated error {extra.get('estimated_error', float('nan')):.3g}, "
                                   f"{extra.get('samples', 0)} samples)"}

@@ -27,8 +27,10 @@ stiffness of a flexure is a support stiffness in series with a compliance that g
 Adaptive samples (per side of stroke 0): start with 0, s_max/4, s_max/2, 3 s_max/4 and s_max and bisect
 every interval whose error estimate exceeds the tolerance (relative, on the first parasitic frequency,
 the quantity the tolerance is about), down to intervals of s_max/64 or the sample budget. The estimate (:func:`_error`)
-compares the interpolant in ``1 / lambda`` with one in the frequency built from the same samples: no extra
-solve. The estimated error of the curve is the largest remaining interval estimate.
+compares the interpolant in ``1 / lambda`` with one in the frequency and with the quintic through a
+neighbouring sample, all built from the same samples: no extra solve. The estimated error of the curve is
+the largest remaining interval estimate. With ``fill`` (the ``auto`` method) the requested points inside
+intervals that still miss the tolerance when the samples stop are computed exactly instead.
 """
 
 from __future__ import annotations
@@ -68,6 +70,7 @@ class _Sample:
     modes: Modes  # k eigenpairs, ascending at this sample (not yet tracked)
     slope: np.ndarray  # (k,) d lambda / ds of those modes
     labels: list[str] | None = None  # labels of ``modes`` in their order here (computed once, by retrack)
+    filled: bool = False  # an exact point of the curve filled into an interval (no slope: never interpolated)
 
 
 @dataclass
@@ -81,6 +84,7 @@ class HermiteResult:
     samples: int  # exact samples used (stroke 0 included)
     converged: bool  # every interval's estimate met the tolerance
     mirrored: str | None = None  # the symmetry that gave the negative strokes (None: both sides sampled)
+    filled: int = 0  # requested points computed exactly in intervals that missed the tolerance (``fill``)
 
 
 def stroke_slopes(an: Analysis, eq: Equilibrium, modes: Modes) -> np.ndarray:
@@ -208,6 +212,30 @@ class _Side:
             raise _Fallback("equilibrium unstable at a sample")
         return _Sample(s_new, eq, modes, stroke_slopes(an, eq, modes))
 
+    def fill(self, a_s: float, b_s: float, s_req: np.ndarray) -> int:
+        """Exact points at the requested strokes strictly inside the interval (a_s, b_s): the continuation
+        walks from the sample at ``a_s`` through them (as the exact method does), each gets its eigenpairs and
+        joins the samples, so the curve there is exact and nothing is interpolated. Returns their number."""
+        an = self.an
+        sys = an.system
+        lo, hi = sorted((abs(a_s), abs(b_s)))
+        pts = np.array(sorted((x for x in s_req if lo < abs(x) < hi), key=abs))
+        if not len(pts):
+            return 0
+        left = next(x for x in self.samples if x.s == a_s)
+
+        def accept(e: Equilibrium) -> None:
+            modes = modes_at(sys, e, self.k, self.drive)
+            if len(modes.omega2) == 0 or modes.omega2[0] <= 0:
+                raise _Fallback("equilibrium unstable at a requested point")
+            self.add(_Sample(float(e.stroke), e, modes, np.zeros(len(modes.omega2)), filled=True))
+            return None
+
+        fail = walk(sys, pts, an.options, accept, start=left.eq)
+        if fail is not None:
+            raise _Fallback(fail.message)
+        return len(pts)
+
     def initial(self, smax: float) -> None:
         """Continuation from stroke 0 to ``smax`` with targets (and samples) at a quarter, half, three
         quarters and the end (the continuation halves a step that fails; from the second target on its
@@ -298,11 +326,21 @@ class _Fallback(Exception):
 def _error(side: _Side, i: int) -> float:
     """Estimated error of the interpolated first parasitic frequency over the interval [S_i, S_i+1].
 
-    Two cubic Hermite interpolants of the same exact data -- in ``mu = 1 / lambda`` (the one reported) and
-    in ``1 / sqrt(mu)`` (the frequency up to 2 pi) -- have different error terms (fourth derivatives of
-    different functions); where both are accurate they agree, where the branch changes faster than a cubic can follow (pre-asymptotic
-    sampling, a crossing with wrong tracking) they do not. The largest relative difference of the first
-    parasitic frequency on 16 interior points is the estimate: no extra exact solve.
+    The reported interpolant (cubic Hermite in ``mu = 1 / lambda``) is compared on 16 interior points with
+    two others built from the same exact data, and the largest relative difference of the first parasitic
+    frequency is the estimate (no extra exact solve):
+
+    - the cubic Hermite interpolant in ``1 / sqrt(mu)`` (the frequency up to 2 pi): a different fourth
+      derivative, so the two disagree where the branch changes faster than a cubic can follow
+      (pre-asymptotic sampling);
+    - the quintic through the values and slopes at this interval's samples and at a neighbouring sample's
+      (either side, where its match of the lowest branch is certain): the next order of the same data,
+      whose difference from the cubic is the cubic's leading error term. The first comparison alone reads
+      almost nothing on a nearly flat branch, where the two forms are nearly affine images of each other
+      (double cross hinge before its veering: estimate 7e-5, true error 4.4e-4); the second alone
+      understates the pre-asymptotic intervals (pivot at 1 %: 3e-3 against 1.5e-2). Their maximum,
+      measured on the six templates at tolerances 1e-2, 1e-3 and 1e-4 (tests/test_hermite.py), understated
+      the true error once, by 1.8x (double cross at 1e-4: 7.2e-5 against 1.3e-4).
 
     Infinite (refine) when a mode crossing inside the interval may change the first parasitic frequency:
     the lowest parasitic branch at either end was matched with a MAC below ``MAC_MIN``, or a branch with an
@@ -316,6 +354,8 @@ def _error(side: _Side, i: int) -> float:
     higher branch that no pairing of the end values shows) is not detected by this or any estimate from
     the samples alone.
     """
+    if side.samples[i].filled or side.samples[i + 1].filled:
+        return 0.0  # every requested point of the interval is an exact sample: nothing is interpolated
     S = side.strokes()
     mu, d = side.lam, side.slope
     x = np.linspace(S[i], S[i + 1], 18)[1:-1]
@@ -333,19 +373,44 @@ def _error(side: _Side, i: int) -> float:
         cand = _hz(_hermite(S[i], S[i + 1], mu[i][j], mu[i + 1][l], d[i][j], d[i + 1][l], x))
         if np.any(cand.min(axis=1) < (1 + CROSS_MARGIN) * lowest):
             return float("inf")
-    # second interpolant in r = mu^(-1/2) (proportional to the frequency): dr/ds = -mu'/(2 mu^(3/2))
-    r0, r1 = mu[i] ** -0.5, mu[i + 1] ** -0.5
-    b = _hermite(S[i], S[i + 1], r0, r1, -0.5 * d[i] * r0**3, -0.5 * d[i + 1] * r1**3, x) ** -2.0
     left = np.abs(x - S[i]) <= np.abs(S[i + 1] - x)
     par = np.where(left[:, None], par0, par1)  # (16, k) labels of the nearer sample
     fa = np.where(par, _hz(a), np.inf).min(axis=1)
-    fb = np.where(par, _hz(b), np.inf).min(axis=1)
-    ok = np.isfinite(fa) & np.isfinite(fb)
-    return float(np.max(np.abs(fa[ok] / fb[ok] - 1), initial=0.0))
+
+    def rel(other: np.ndarray) -> float:
+        fb = np.where(par, _hz(other), np.inf).min(axis=1)
+        ok = np.isfinite(fa) & np.isfinite(fb)
+        return float(np.max(np.abs(fa[ok] / fb[ok] - 1), initial=0.0))
+
+    # second interpolant in r = mu^(-1/2) (proportional to the frequency): dr/ds = -mu'/(2 mu^(3/2))
+    r0, r1 = mu[i] ** -0.5, mu[i + 1] ** -0.5
+    est = rel(_hermite(S[i], S[i + 1], r0, r1, -0.5 * d[i] * r0**3, -0.5 * d[i + 1] * r1**3, x) ** -2.0)
+    # third: the quintic through this interval's samples and a neighbour's (values and slopes at three
+    # strokes), the next order of the same data
+    for nb in (i - 1, i + 2):
+        if not 0 <= nb < len(S) or side.samples[nb].filled:
+            continue
+        lo, hi = min(nb, i), max(nb, i + 1)
+        low_branch = np.flatnonzero(par0)[np.argmin(_hz(mu[i][par0]))] if par0.any() else 0
+        if side.mac[lo if nb < i else i + 1][low_branch] < MAC_MIN:
+            continue  # the neighbour's match of the lowest branch is uncertain (that interval is refined)
+        idx = [lo, lo + 1, hi] if nb < i else [i, i + 1, hi]
+        est = max(est, rel(_quintic(S[idx], mu[idx], d[idx], x, S[i], S[i + 1] - S[i])))
+    return est
+
+
+def _quintic(t: np.ndarray, y: np.ndarray, dy: np.ndarray, x: np.ndarray, c: float, w: float) -> np.ndarray:
+    """The polynomial of degree 5 through values ``y`` (3, k) and slopes ``dy`` (3, k) at the strokes ``t``
+    (3,), at ``x`` (p,): (p, k). Solved in ``z = (s - c) / w`` for conditioning."""
+    z = (np.asarray(t, dtype=float) - c) / w
+    p = np.arange(6)
+    V = np.vstack([z[:, None] ** p, p * np.concatenate([np.zeros((3, 1)), z[:, None] ** p[:-1]], axis=1) / w])
+    coef = np.linalg.solve(V, np.vstack([y, dy]))
+    return (((np.asarray(x, dtype=float) - c) / w)[:, None] ** p) @ coef
 
 
 def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samples: int | None = None,
-                  mirror: bool = True) -> HermiteResult | None:
+                  mirror: bool = True, fill: bool = False) -> HermiteResult | None:
     """Frequencies at the internal strokes ``internal`` by adaptive exact samples and cubic Hermite branches.
 
     Returns ``None`` when a sample cannot be computed (the continuation fails or an equilibrium is
@@ -354,15 +419,18 @@ def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samp
     ``mirror``: on a design whose symmetry reverses the stroke (:mod:`model.symmetry`) only the side of
     positive strokes is sampled and each point at ``-s`` takes the interpolated branches at ``s`` (as the
     exact method does, :meth:`Analysis.frequency_curve`).
+    ``fill``: when the samples stop (budget or shortest interval) with intervals whose estimate misses the
+    tolerance, the requested points inside those intervals are computed exactly (:meth:`_Side.fill`), so the
+    curve meets the tolerance by construction at the cost of those exact points (``auto``).
     """
     if mirror and an.symmetry is not None and np.any(internal < 0):
         pos = one_side(internal)
-        res = hermite_curve(an, pos, tolerance, max_samples, mirror=False)
+        res = hermite_curve(an, pos, tolerance, max_samples, mirror=False, fill=fill)
         if res is None:
             return None
         idx = image_indices(pos, internal)  # every |s| is in pos by construction
         return HermiteResult(res.hz[idx], res.labels[idx], res.parasitic[idx], res.estimate, res.samples,
-                             res.converged, an.symmetry.describe())
+                             res.converged, an.symmetry.describe(), res.filled)
     sys = an.system
     spec = an.scene.stroke
     drive = spec.drive
@@ -376,7 +444,7 @@ def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samp
     hz = np.empty((len(internal), n_rep))
     labels = np.empty((len(internal), n_rep), dtype=object)
     par = np.empty(len(internal))
-    estimate, used, converged = 0.0, 1, True
+    estimate, used, converged, filled = 0.0, 1, True, 0
     try:
         for sel in (internal >= 0, internal < 0):
             s_req = internal[sel]
@@ -407,10 +475,17 @@ def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samp
                     right = next(x for x in side.samples if x.s == b_s)
                     side.add(side.sample(left, 0.5 * (a_s + b_s), right))
                 side.retrack()
+            missed = [iv for iv, e in est.items() if e > tolerance]
+            if fill and missed:
+                for a_s, b_s in missed:
+                    filled += side.fill(a_s, b_s, s_req)
+                side.retrack()
+                S = side.strokes()
+                est = {(S[i], S[i + 1]): side.error(i) for i in range(len(S) - 1)}
             side_est = max(est.values())
             estimate = max(estimate, side_est)
             converged = converged and side_est <= tolerance
-            used += len(side.samples) - 1
+            used += sum(1 for x in side.samples[1:] if not x.filled)
             lam, labs = side.interpolate(s_req)
             h = _hz(lam)
             hz[sel] = h[:, :n_rep]
@@ -419,20 +494,21 @@ def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samp
                         for row, lr in zip(h, labs)]
     except _Fallback:
         return None
-    return HermiteResult(hz, labels, par, estimate, used, converged)
+    return HermiteResult(hz, labels, par, estimate, used, converged, filled=filled)
 
 
 def hermite_frequency_curve(an: Analysis, values: np.ndarray, tolerance: float,
-                            max_samples: int | None = None):
+                            max_samples: int | None = None, fill: bool = False):
     """The ``hermite`` method as a :class:`~model.results.FrequencyCurve`; the exact curve when a sample fails.
 
-    ``solver`` reports the exact samples used, the estimated max relative error and whether the adaptive
-    refinement met ``tolerance``.
+    ``solver`` reports the exact samples used, the estimated max relative error (of the interpolated
+    intervals) and whether the adaptive refinement met ``tolerance``; with ``fill`` (see
+    :func:`hermite_curve`) also ``exact_points``, the requested points computed exactly.
     """
     t0 = time.perf_counter()
     spec = an.scene.stroke
     internal = np.asarray(spec.to_internal(values), dtype=float)
-    res = hermite_curve(an, internal, tolerance, max_samples)
+    res = hermite_curve(an, internal, tolerance, max_samples, fill=fill)
     if res is None:
         ex = an.frequency_curve(values)
         return ex, {"fallback": "exact (a sample's equilibrium could not be computed)"}
@@ -440,10 +516,14 @@ def hermite_frequency_curve(an: Analysis, values: np.ndarray, tolerance: float,
         raise FlexoptError("the hermite interpolation produced non-finite frequencies; use method 'exact'")
     extra = {"samples": res.samples, "estimated_error": res.estimate, "tolerance": tolerance,
              "converged": res.converged}
+    if fill:
+        extra["exact_points"] = res.filled
     if res.mirrored is not None:
         extra["mirrored"] = f"negative strokes from positive ones by the design's symmetry ({res.mirrored})"
     conv = {"method": "hermite: exact equilibria, eigenpairs and d(lambda)/ds at the samples, cubic Hermite "
-                      "interpolation of each tracked branch's omega^2 between them",
+                      "interpolation of each tracked branch's 1/omega^2 between them"
+                      + (f"; {res.filled} requested points in intervals that missed the tolerance computed "
+                         "exactly" if res.filled else ""),
             "drive_reaction": "not computed by this method (NaN)"}
     curve = _curve_from(an, "hermite", values, res.hz, res.labels, res.parasitic, time.perf_counter() - t0, extra,
                         conv)
