@@ -100,6 +100,9 @@ def test_auto_takes_hermite_on_long_curves_and_exact_on_short_ones(exact: dict) 
     assert np.max(np.abs(c.parasitic_hz / ex.parasitic_hz - 1)) <= 0.01
     short = frequency_curve(an, "auto", tolerance=0.01, stroke=np.linspace(-45, 45, 11))
     assert short.method == "exact" and short.solver["auto_method"] == "exact"
+    tight = frequency_curve(an, "auto", tolerance=1e-5)  # below AUTO_MIN_TOLERANCE: exact, and it says why
+    assert tight.method == "exact" and "below" in tight.solver["auto_rejected"]
+    np.testing.assert_array_equal(tight.parasitic_hz, ex.parasitic_hz)
 
 
 @pytest.mark.parametrize("name", ["wire-guide-5", "wire-guide-parallel"])
