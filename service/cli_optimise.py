@@ -127,7 +127,8 @@ def plot_result(result: dict, path: str) -> None:
         for key, label, style in (("initial", "start", "--"), ("verified", "optimum", "-")):
             c = b[key]
             if c.get("stroke"):
-                ax.plot(c["stroke"], c["parasitic_hz"], style, label=label)
+                how = c.get("method", "exact")  # the start's curve is method auto's (optim.search._preview)
+                ax.plot(c["stroke"], c["parasitic_hz"], style, label=label if how == "exact" else f"{label} ({how})")
         ax.set_title(fam["template"], fontsize=9)
         ax.set_xlabel("stroke")
         ax.set_ylabel("first parasitic frequency [Hz]")

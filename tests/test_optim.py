@@ -103,6 +103,13 @@ def test_two_parameter_pivot_optimum_beats_a_grid_search():
                 grid_best = max(grid_best, float(np.min(c.parasitic_hz)))
     assert grid_best > 0
     assert best["verified"]["worst_hz"] >= grid_best * (1 - 5e-3), (best["verified"]["worst_hz"], grid_best)
+    # the start design's curve (for the plot) comes from method auto at the search tolerance (1e-3) and says
+    # so; against its exact curve on the same 181 points
+    ini = best["initial"]
+    assert ini["method"] == "hermite" and ini["estimated_error"] <= prob.tolerance
+    ex = Analysis(template("cross-spring-pivot", **best["x0"])).frequency_curve(stroke=np.array(ini["stroke"]))
+    np.testing.assert_allclose(ini["parasitic_hz"], ex.parasitic_hz, rtol=prob.tolerance)
+    assert ini["worst_hz"] == pytest.approx(float(np.min(ex.parasitic_hz)), rel=prob.tolerance)
 
 
 def test_cli_optimise_prints_the_ranking_and_writes_scenes(tmp_path, capsys):
