@@ -26,7 +26,7 @@ import numpy as np
 from . import linalg
 from .assembly import Assembled, State, System
 
-__all__ = ["NewtonOptions", "Equilibrium", "solve_point", "StepFailure"]
+__all__ = ["NewtonOptions", "Equilibrium", "solve_point", "StepFailure", "path_curvature"]
 
 
 @dataclass(frozen=True)
@@ -194,14 +194,42 @@ def solve_point(
     raise StepFailure(f"no convergence in {opts.max_iter} iterations (increment {inc:.3g}, residual {res:.3g})")
 
 
-def predict(sys: System, eq: Equilibrium, ds: float, prev: Equilibrium | None) -> State:
+def path_curvature(sys: System, eq: Equilibrium) -> np.ndarray:
+    """``d^2 xi / ds^2`` of the equilibrium path at the stress-free reference ``eq`` (stroke 0).
+
+    Differentiating the free rows ``g_f(xi(s)) = 0`` twice: ``H_ff xi''_f = -(DH[xi'] xi')_f`` with the
+    drive coordinate's second derivative zero; ``DH[xi']`` is the exact third derivative of the Lagrangian
+    contracted with the tangent (CasADi, :meth:`System.hessian_derivative`). At the reference the chart
+    of the state is the reference's own and the gradient vanishes, so no chart terms enter (elsewhere they
+    would: model.methods.taylor). Used as the second-order predictor of a long first step from stroke 0,
+    where the tangent alone leaves Newton outside its basin on the hinges (cross-spring pivot, 11.25 deg:
+    no convergence from the tangent, 4 iterations from the parabola; tests/test_hermite.py).
+    """
+    if eq.stroke != 0.0 or sys.n_con:
+        raise ValueError("path_curvature is derived at the stress-free reference without rigid deformations")
+    t = np.asarray(eq.tangent, dtype=float)
+    f = sys.free
+    rhs = np.asfortranarray(-(sys.hessian_derivative(eq.state, t) @ t)[f][:, None])
+    sol, info = _solve(np.ascontiguousarray(eq.ev.H[sys.ix_free]), rhs)
+    if info > 0:
+        raise np.linalg.LinAlgError(f"singular tangent stiffness (LAPACK dgesv info {info})")
+    out = np.zeros(sys.n)
+    out[f] = sol[:, 0]
+    return out
+
+
+def predict(sys: System, eq: Equilibrium, ds: float, prev: Equilibrium | None,
+            curvature: np.ndarray | None = None) -> State:
     """Predictor from a converged point ``eq`` to the stroke ``eq.stroke + ds``.
 
     With a previous point, the cubic Hermite extrapolation through both points and both tangents
     (error O(h^4), so that after one Newton correction the increment is usually at the rounding level
-    and the ``polish`` criterion costs no extra iteration); otherwise the tangent step.
+    and the ``polish`` criterion costs no extra iteration); otherwise the tangent step, plus
+    ``curvature ds^2 / 2`` when the path's second derivative at ``eq`` is given (:func:`path_curvature`).
     """
     step = eq.tangent * ds
+    if curvature is not None and prev is None:
+        step = step + 0.5 * ds**2 * curvature
     dlam = eq.extra["dlam_ds"] * ds if sys.n_con else None
     if prev is not None and prev.stroke != eq.stroke:
         # p(s) = x1 + t1 s + a s^2 + b s^3 through (x0, t0) at s = -h and (x1, t1) at s = 0
@@ -225,11 +253,12 @@ class WalkFailure:
 
 
 def walk(sys: System, targets: np.ndarray, opts: NewtonOptions, accept,
-         start: Equilibrium | None = None, on_step=None) -> WalkFailure | None:
+         start: Equilibrium | None = None, on_step=None, curvature: np.ndarray | None = None) -> WalkFailure | None:
     """Continue from the reference through ``targets`` (internal units, monotone away from 0).
 
     ``start`` is the equilibrium at stroke 0 when the caller has it already; ``on_step(eq)``, when given,
-    sees every converged step, targets and intermediate strokes alike.
+    sees every converged step, targets and intermediate strokes alike; ``curvature``: the path's second
+    derivative at ``start`` (:func:`path_curvature`), for the predictor of the steps from it.
 
     ``accept(eq)`` is called at each target and returns ``None`` to go on, or a :class:`WalkFailure` to
     stop (e.g. the equilibrium became unstable). Returns the failure, or ``None`` when all converged.
@@ -247,7 +276,7 @@ def walk(sys: System, targets: np.ndarray, opts: NewtonOptions, accept,
             else:
                 s_new = cur.stroke + h
             try:
-                new = solve_point(sys, predict(sys, cur, h, prev), s_new, opts, cur.stroke)
+                new = solve_point(sys, predict(sys, cur, h, prev, curvature), s_new, opts, cur.stroke)
             except StepFailure as exc:
                 halvings += 1
                 h /= 2.0

@@ -188,3 +188,32 @@ def test_auto_fills_the_intervals_hermite_misses_with_exact_points(exact: dict) 
     rel = np.abs(c.parasitic_hz / ex.parasitic_hz - 1)
     assert rel.max() <= 1e-4
     assert np.sum(rel <= 1e-9) >= n_fill  # every filled point (each mirrored once more) is exact
+
+
+@pytest.mark.parametrize("name", ["cross-spring-pivot", "double-cross-hinge", "parallel-leaf-spring"])
+def test_path_curvature_matches_second_differences_and_brings_the_long_first_step_into_newtons_basin(name):
+    """model.statics.path_curvature (d2 xi/ds2 at stroke 0 from the exact third derivative) against the
+    central second difference of converged equilibria at +-h (1e-3 rad, 1e-5 m: measured differences
+    3e-7 and 1.5e-8 of the largest entry, shrinking as h^2 from 3x larger steps, so truncation dominates;
+    1e-4 leaves room for the rounding of the Newton tolerance, while a missing term is of order 1); and on
+    the pivot the step to a quarter of the stroke that the tangent
+    predictor cannot start converges from the parabola."""
+    from flexopt.model.statics import StepFailure, path_curvature, solve_point
+
+    an = Analysis(template(name))
+    sys = an.system
+    eq0 = solve_point(sys, sys.reference_state(), 0.0, an.options, 0.0)
+    curv = path_curvature(sys, eq0)
+    h = 1e-3 if an.scene.stroke.kind == "rotation" else 1e-5
+    xi = [sys.difference(solve_point(sys, sys.update(eq0.state, eq0.tangent * s), s, an.options, 0.0).state,
+                         eq0.state) for s in (h, -h)]
+    fd = (xi[0] + xi[1]) / h**2
+    scale = np.abs(fd).max()
+    assert scale > 0
+    np.testing.assert_allclose(curv, fd, rtol=0, atol=1e-4 * scale)
+    if name == "cross-spring-pivot":
+        s1 = np.radians(45.0) / 4
+        with pytest.raises(StepFailure):
+            solve_point(sys, sys.update(eq0.state, eq0.tangent * s1), s1, an.options, 0.0)
+        eq = solve_point(sys, sys.update(eq0.state, eq0.tangent * s1 + 0.5 * s1**2 * curv), s1, an.options, 0.0)
+        assert eq.iterations <= 5

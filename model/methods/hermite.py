@@ -43,7 +43,7 @@ import numpy as np
 from ..analysis import Analysis
 from ..errors import FlexoptError
 from ..modal import Modes, modes_at, track
-from ..statics import Equilibrium, StepFailure, solve_point, walk
+from ..statics import Equilibrium, StepFailure, path_curvature, solve_point, walk
 from ..symmetry import image_indices, one_side
 from .common import CLUSTER_GAP, _curve_from
 from .taylor import _clusters, mass_slope
@@ -161,6 +161,7 @@ class _Side:
         self.labels: list[list[str]] = []
         self._estimates: dict = {}  # interval -> (its tracked data, _error's value)
         self.visited: dict[float, Equilibrium] = {}  # converged equilibria of the initial continuation
+        self.curvature: np.ndarray | None = None  # d2 xi/ds2 at stroke 0: the first step's predictor
 
     def error(self, i: int) -> float:
         """:func:`_error` of the interval [S_i, S_i+1], reused while its tracked data are unchanged (a new
@@ -254,7 +255,7 @@ class _Side:
             self.visited[float(e.stroke)] = e
 
         fail = walk(sys, np.linspace(0.0, smax, 5)[1:], an.options, accept, start=self.samples[0].eq,
-                    on_step=seen)
+                    on_step=seen, curvature=self.curvature)
         if fail is not None:
             raise _Fallback(fail.message)
 
@@ -441,6 +442,7 @@ def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samp
     eq0 = solve_point(sys, sys.reference_state(), 0.0, an.options, 0.0)
     m0 = modes_at(sys, eq0, k, drive)
     first = _Sample(0.0, eq0, m0, stroke_slopes(an, eq0, m0))
+    curvature = path_curvature(sys, eq0)  # both sides' first step of 1/4 of the stroke is a parabola
     hz = np.empty((len(internal), n_rep))
     labels = np.empty((len(internal), n_rep), dtype=object)
     par = np.empty(len(internal))
@@ -457,6 +459,7 @@ def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samp
                 continue
             smax = s_req[np.argmax(np.abs(s_req))]
             side = _Side(an, first, k, drive)
+            side.curvature = curvature
             # initial samples at s/4, s/2, 3s/4 and s, then bisection of every interval whose estimate
             # exceeds the tolerance
             side.initial(smax)
