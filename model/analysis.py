@@ -25,7 +25,7 @@ from .modal import Modes, modes_at, participation, track
 from .results import Failure, FrequencyCurve
 from .scene import Scene
 from .errors import EquilibriumError
-from .statics import Equilibrium, NewtonOptions, StepFailure, WalkFailure, path_curvature, solve_point, walk
+from .statics import Equilibrium, NewtonOptions, StepFailure, WalkFailure, solve_point, walk
 from .structure import Structure, compile_scene
 from .symmetry import StrokeSymmetry, image_indices, one_side, stroke_symmetry
 
@@ -36,13 +36,6 @@ __all__ = ["frequency_curve", "Analysis", "von_mises"]
 LOSS_SUBSTEPS = 8
 #: ... until the bracket is at most this fraction of the stroke at the loss (or of the first interval).
 LOSS_RESOLUTION = 1e-3
-#: A first step from stroke 0 of at least this fraction of the largest requested stroke (a coarse grid: the
-#: optimiser's samples, up to 16 points a side) is predicted by the path's parabola (statics.path_curvature)
-#: instead of its tangent: measured on the hinge templates, the tangent fails at 8/45 of +-45 deg where the
-#: parabola converges in 4 iterations, and takes 4-5 iterations at 2/45-4/45 against 2-3. At the default
-#: grid's 1/45 it saves one iteration and costs about as much (a third-derivative evaluation and a solve),
-#: so 91-point curves keep the tangent.
-PARABOLA_STEP = 1.0 / 16.0
 
 DRIVE_CONVENTION = {
     "rotation": "stroke = twist angle about the fixed drive axis (swing-twist); the actuator exerts a moment "
@@ -313,7 +306,6 @@ class Analysis:
             total = len(sides[0])
         else:
             sides = (internal[internal >= 0], internal[internal < 0][::-1])
-        curvature = None  # the path's parabola at stroke 0, for a long first step (PARABOLA_STEP)
         for side in sides:
             if len(side) == 0:
                 continue
@@ -349,12 +341,8 @@ class Analysis:
                     failures.append(self._failure(WalkFailure("unstable", 0.0, 0.0, "")))
                     continue
                 targets = targets[1:]
-            if len(targets) and curvature is None and not self.system.n_con \
-                    and abs(targets[0]) >= PARABOLA_STEP * np.abs(internal).max():
-                curvature = path_curvature(self.system, eq0)
             while len(targets):
-                fail = walk(self.system, targets, self.options, accept, start=last_eq[0],
-                            curvature=curvature if last_eq[0] is eq0 else None)
+                fail = walk(self.system, targets, self.options, accept, start=last_eq[0])
                 if fail is None:
                     break
                 # the requested stroke the walk could not pass: where accept() found instability, else the
