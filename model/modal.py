@@ -154,14 +154,23 @@ def participation(sys: System, modes: Modes) -> np.ndarray | None:
     return np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
 
 
-def track(prev: Modes, cur: Modes) -> np.ndarray:
-    """Permutation ``p`` such that ``cur`` mode ``p[i]`` continues ``prev`` mode ``i`` (mass-weighted MAC)."""
+def mac_matrix(prev: Modes, cur: Modes) -> np.ndarray:
+    """Mass-weighted MAC of every ``prev`` mode (rows) with every ``cur`` mode (columns), with ``cur``'s mass."""
     A = prev.phi
     B = cur.phi
     MB = cur.M @ B
     num = (A.T @ MB) ** 2
     den = np.outer(np.einsum("ij,ij->j", A, cur.M @ A), np.einsum("ij,ij->j", B, MB))
-    mac = num / np.where(den > 0, den, 1.0)
+    return num / np.where(den > 0, den, 1.0)
+
+
+def track(prev: Modes, cur: Modes) -> np.ndarray:
+    """Permutation ``p`` such that ``cur`` mode ``p[i]`` continues ``prev`` mode ``i`` (mass-weighted MAC)."""
+    return assign(mac_matrix(prev, cur))
+
+
+def assign(mac: np.ndarray) -> np.ndarray:
+    """The permutation of largest total MAC: ``p[i]`` is the column matched to row ``i`` (see :func:`track`)."""
     if mac.size == 0:
         return np.arange(mac.shape[0])
     best = np.argmax(mac, axis=1)

@@ -42,7 +42,7 @@ import numpy as np
 
 from ..analysis import Analysis
 from ..errors import FlexoptError
-from ..modal import Modes, modes_at, track
+from ..modal import Modes, assign, mac_matrix, modes_at
 from ..statics import Equilibrium, StepFailure, path_curvature, solve_point, walk
 from ..symmetry import image_indices, one_side
 from .common import CLUSTER_GAP, _curve_from
@@ -162,6 +162,7 @@ class _Side:
         self._estimates: dict = {}  # interval -> (its tracked data, _error's value)
         self.visited: dict[float, Equilibrium] = {}  # converged equilibria of the initial continuation
         self.curvature: np.ndarray | None = None  # d2 xi/ds2 at stroke 0: the first step's predictor
+        self._pairs: dict = {}  # (id(sample), id(next sample)) -> (their raw MAC matrix, the two samples)
 
     def error(self, i: int) -> float:
         """:func:`_error` of the interval [S_i, S_i+1], reused while its tracked data are unchanged (a new
@@ -264,21 +265,27 @@ class _Side:
         self.samples.sort(key=lambda x: abs(x.s))
 
     def retrack(self) -> None:
-        """Branch identities from stroke 0 outwards through every sample (MAC, as the exact method)."""
-        prev = None
+        """Branch identities from stroke 0 outwards through every sample (MAC, as the exact method).
+
+        The MAC matrix of two neighbouring samples' modes is computed once per pair (``_pairs``) and read
+        through the previous sample's permutation: the tracking (:func:`model.modal.track`) permutes with
+        its input, so this equals tracking the permuted modes."""
+        prev = prev_perm = prev_smp = None
         lam, slope, labels, mac = [], [], [], []
         for smp in self.samples:
             m = smp.modes
             if prev is None:
                 perm = np.arange(len(m.omega2))
             else:
-                perm = track(prev, m)
+                key = (id(prev_smp), id(smp))
+                raw = self._pairs.get(key)
+                if raw is None:
+                    raw = self._pairs[key] = (mac_matrix(prev_smp.modes, m), prev_smp, smp)
+                rows = raw[0][prev_perm]  # (previous branch, current raw mode)
+                perm = assign(rows)
             tm = Modes(m.omega2[perm], m.phi[:, perm], m.M)
             if prev is not None:  # MAC of each branch's match across the interval (1: same shape)
-                MB = tm.M @ tm.phi
-                num = (prev.phi.T @ MB) ** 2  # (previous branch, current branch)
-                den = np.outer(np.einsum("ik,ik->k", prev.phi, tm.M @ prev.phi), np.einsum("ik,ik->k", tm.phi, MB))
-                full = num / np.where(den > 0, den, 1.0)
+                full = rows[:, perm]  # (previous branch, current branch)
                 # a branch in a cluster of nearly equal eigenvalues at the previous sample (relative gap
                 # CLUSTER_GAP, as the modal derivatives) is matched by its shape's share in the cluster's
                 # subspace: inside a cluster the individual shapes are arbitrary mixtures that rotate freely
@@ -299,7 +306,7 @@ class _Side:
             if smp.labels is None:
                 smp.labels = self.an._labels(m, smp.eq.tangent)[0]
             labels.append([smp.labels[j] for j in perm])
-            prev = tm
+            prev, prev_perm, prev_smp = tm, perm, smp
         self.lam, self.slope, self.labels, self.mac = np.array(lam), np.array(slope), labels, mac
 
     def strokes(self) -> np.ndarray:
@@ -388,26 +395,37 @@ def _error(side: _Side, i: int) -> float:
     est = rel(_hermite(S[i], S[i + 1], r0, r1, -0.5 * d[i] * r0**3, -0.5 * d[i + 1] * r1**3, x) ** -2.0)
     # third: the quintic through this interval's samples and a neighbour's (values and slopes at three
     # strokes), the next order of the same data
-    for nb in (i - 1, i + 2):
+    low = np.flatnonzero(par0)[np.argmin(_hz(mu[i][par0]))] if par0.any() else 0
+    for nb, between in ((i - 1, i - 1), (i + 2, i + 1)):  # the neighbour and the interval joining it
         if not 0 <= nb < len(S) or side.samples[nb].filled:
             continue
-        lo, hi = min(nb, i), max(nb, i + 1)
-        low_branch = np.flatnonzero(par0)[np.argmin(_hz(mu[i][par0]))] if par0.any() else 0
-        if side.mac[lo if nb < i else i + 1][low_branch] < MAC_MIN:
+        if side.mac[between][low] < MAC_MIN:
             continue  # the neighbour's match of the lowest branch is uncertain (that interval is refined)
-        idx = [lo, lo + 1, hi] if nb < i else [i, i + 1, hi]
-        est = max(est, rel(_quintic(S[idx], mu[idx], d[idx], x, S[i], S[i + 1] - S[i])))
+        est = max(est, rel(_quintic(S, mu, d, i, nb, x, a)))
     return est
 
 
-def _quintic(t: np.ndarray, y: np.ndarray, dy: np.ndarray, x: np.ndarray, c: float, w: float) -> np.ndarray:
-    """The polynomial of degree 5 through values ``y`` (3, k) and slopes ``dy`` (3, k) at the strokes ``t``
-    (3,), at ``x`` (p,): (p, k). Solved in ``z = (s - c) / w`` for conditioning."""
-    z = (np.asarray(t, dtype=float) - c) / w
-    p = np.arange(6)
-    V = np.vstack([z[:, None] ** p, p * np.concatenate([np.zeros((3, 1)), z[:, None] ** p[:-1]], axis=1) / w])
-    coef = np.linalg.solve(V, np.vstack([y, dy]))
-    return (((np.asarray(x, dtype=float) - c) / w)[:, None] ** p) @ coef
+def _quintic(S: np.ndarray, y: np.ndarray, dy: np.ndarray, i: int, nb: int, x: np.ndarray,
+             cubic: np.ndarray) -> np.ndarray:
+    """The polynomial of degree 5 through the values ``y`` and slopes ``dy`` (rows: samples, columns:
+    branches) at the samples ``i``, ``i + 1`` and ``nb``, at ``x`` (p,): (p, k). ``cubic``: the cubic
+    Hermite interpolant on [S_i, S_i+1] at ``x``. The two differ by ``w(s) (alpha + beta (s - a))`` with
+    ``w = (s - a)^2 (s - b)^2`` (zero with its slope at both ends of the interval), whose two coefficients
+    per branch match the value and slope at the neighbour ``t = S_nb``: no linear solve."""
+    a, b, t = S[i], S[i + 1], S[nb]
+    h = b - a
+    u = (t - a) / h
+    # the cubic and its slope at t (the Hermite basis evaluated outside [0, 1])
+    ct = ((1 + 2 * u) * (1 - u) ** 2 * y[i] + u * (1 - u) ** 2 * h * dy[i] + u * u * (3 - 2 * u) * y[i + 1]
+          + u * u * (u - 1) * h * dy[i + 1])
+    dct = ((6 * u * u - 6 * u) * (y[i] - y[i + 1]) / h + (3 * u * u - 4 * u + 1) * dy[i]
+           + (3 * u * u - 2 * u) * dy[i + 1])
+    wt, dwt = (t - a) ** 2 * (t - b) ** 2, 2 * (t - a) * (t - b) * (2 * t - a - b)
+    g = (y[nb] - ct) / wt
+    beta = (dy[nb] - dct - dwt * g) / wt
+    alpha = g - beta * (t - a)
+    xs = np.asarray(x, dtype=float)[:, None]
+    return cubic + ((xs - a) ** 2 * (xs - b) ** 2) * (alpha + beta * (xs - a))
 
 
 def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samples: int | None = None,
