@@ -107,7 +107,11 @@ def stroke_slopes(an: Analysis, eq: Equilibrium, modes: Modes) -> np.ndarray:
     tg = sys.to_global(t).reshape(nm, 6)[:, 3:]  # rotation part of the tangent per master (global)
     Pg = sys.to_global(P).reshape(nm, 6, -1)  # modes per master (global)
     JPg = np.zeros_like(Pg)
-    JPg[:, 3:, :] = 0.5 * np.cross(tg[:, :, None], Pg[:, 3:, :], axis=1)
+    w = Pg[:, 3:, :]  # the cross product tg x w per master and mode, written out (np.cross is slow here)
+    a0, a1, a2 = tg[:, 0, None], tg[:, 1, None], tg[:, 2, None]
+    JPg[:, 3, :] = 0.5 * (a1 * w[:, 2] - a2 * w[:, 1])
+    JPg[:, 4, :] = 0.5 * (a2 * w[:, 0] - a0 * w[:, 2])
+    JPg[:, 5, :] = 0.5 * (a0 * w[:, 1] - a1 * w[:, 0])
     JP = sys.from_global(JPg.reshape(6 * nm, -1))
     KP = K @ P
     Q = P.T @ (0.5 * (K1 + K1.T)) @ P - KP.T @ JP - JP.T @ KP
@@ -120,13 +124,10 @@ def stroke_slopes(an: Analysis, eq: Equilibrium, modes: Modes) -> np.ndarray:
         Pr = Pg[s.drive_master, 3:, :]
         Q -= float(eq.ev.g[sys.drive]) * (Pr.T @ G @ Pr)
     MP = P.T @ M1 @ P
-    out = np.empty(len(lam))
+    out = np.diagonal(Q) - lam * np.diagonal(MP)  # Nelson's formula for every simple eigenvalue
     for c in _clusters(lam, SLOPE_CLUSTER_GAP):
-        lc = float(np.mean(lam[c]))
-        A = Q[np.ix_(c, c)] - lc * MP[np.ix_(c, c)]
-        if len(c) == 1:
-            out[c] = A[0, 0]
-        else:
+        if len(c) > 1:
+            A = Q[np.ix_(c, c)] - float(np.mean(lam[c])) * MP[np.ix_(c, c)]
             out[c] = np.linalg.eigvalsh(0.5 * (A + A.T))  # ascending, to the ascending cluster members
     res = np.empty(len(lam))
     res[order] = out
