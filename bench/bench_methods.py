@@ -7,9 +7,11 @@ against the exact curve over a third, two thirds and all of the stroke (+-15, +-
 rotations), and the stroke range over which each method stays within 1 % and 5 %.
 
     python bench/bench_methods.py [--repeat 5] [--plot methods.png] [--only-interleaved]
+    python bench/bench_methods.py --auto-tolerances 1e-2,1e-3,1e-4,1e-5 [--repeat 3]
 
 The last table times exact, hermite and auto interleaved (E H A per round), the ratio that holds on a
-shared machine.
+shared machine. ``--auto-tolerances`` prints only auto against exact at those tolerances (what auto ran,
+its cost relative to exact, its estimate and its true error).
 """
 
 from __future__ import annotations
@@ -81,13 +83,43 @@ def bench_template(name: str, repeat: int) -> tuple[list[str], dict]:
     return rows, curves
 
 
+def auto_table(tolerances: list[float], repeat: int) -> None:
+    """auto against exact at several tolerances: what auto ran, its cost relative to the exact curve
+    (median of per-round ratios, the two interleaved on one ``Analysis``), its estimate and true error."""
+    print(f"load average {os.getloadavg()[0]:.2f} at start; {os.cpu_count()} CPUs; {repeat} rounds of exact, auto")
+    print("\n| template | tolerance | auto ran | samples | exact points | auto / exact time | estimate | true error |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name in TEMPLATES + FAMILIES:
+        an = Analysis(template(name))
+        ex = frequency_curve(an, "exact")
+        frequency_curve(an, "hermite")
+        for tol in tolerances:
+            ratios = []
+            for _ in range(repeat):
+                t0 = time.perf_counter()
+                frequency_curve(an, "exact")
+                t1 = time.perf_counter()
+                a = frequency_curve(an, "auto", tolerance=tol)
+                ratios.append((time.perf_counter() - t1) / (t1 - t0))
+            err = float(np.max(np.abs(a.parasitic_hz / ex.parasitic_hz - 1)))
+            print(f"| {name} | {tol:g} | {a.solver['auto_method']} | {a.solver.get('samples', '-')} | "
+                  f"{a.solver.get('exact_points', '-')} | {statistics.median(ratios):.2f} | "
+                  f"{a.solver['auto_estimate']:.1e} | {err:.1e} |")
+    print(f"\nload average {os.getloadavg()[0]:.2f} at the end")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Print one markdown table per template."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--repeat", type=int, default=5)
     p.add_argument("--plot", default=None, help="write a PNG of the first parasitic frequency per method")
     p.add_argument("--only-interleaved", action="store_true", help="print only the exact/hermite/auto table")
+    p.add_argument("--auto-tolerances", default=None, metavar="T1,T2,...",
+                   help="only the table of auto against exact at these tolerances (e.g. 1e-2,1e-3,1e-4,1e-5)")
     args = p.parse_args(argv)
+    if args.auto_tolerances:
+        auto_table([float(t) for t in args.auto_tolerances.split(",")], args.repeat)
+        return 0
 
     print(f"load average {os.getloadavg()[0]:.2f} at start; {os.cpu_count()} CPUs; medians of {args.repeat} warm runs")
     all_curves = {}
