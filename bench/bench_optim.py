@@ -3,7 +3,8 @@ dense search, and per hinge family the optimum, its status, KKT residual, active
 and scipy's trust-constr on the same problems, in the families' own boxes and in one common envelope.
 
 Run from the repository root: ``python bench/bench_optim.py [--grid 11] [--workers 2] [--starts 4]
-[--skip-grid] [--skip-speed] [--solvers slsqp,trust-constr]``. Prints markdown tables for the README.
+[--skip-grid] [--skip-speed] [--solvers slsqp,trust-constr]``. Prints markdown tables for the README, then the
+four families in one ``optimise`` call (SLSQP), as the topology search runs them.
 Wall-clock times of single runs (an optimisation is seconds long); the two solvers run interleaved, family by
 family, so that a change of the machine's load affects both alike.
 """
@@ -132,6 +133,17 @@ def families(workers: int, starts: int, solvers: list[str], fair: bool) -> None:
               f"{sum(s[3] for s in summary if s[0] == solver):.1f} s")
 
 
+def combined(workers: int, starts: int) -> None:
+    """The four hinge families in one ``optimise`` call (one process pool, the cases of all families queued
+    together), as a topology search runs them; the per-family tables above start a pool per family."""
+    fams = _families(wide=False)
+    res, t = _timed({"families": fams, "starts": starts}, workers)
+    print(f"\n### All {len(fams)} families in one optimise call ({starts} starts each, {workers} worker processes, "
+          f"each family in its own box)\n")
+    print(f"wall time {t:.1f} s; ranking " + " > ".join(f"{f['template']} ({f['worst_hz']:.2f} Hz)"
+                                                      for f in res["ranking"]))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--grid", type=int, default=11)
@@ -149,6 +161,7 @@ def main() -> None:
     solvers = args.solvers.split(",")
     families(args.workers, args.starts, solvers, fair=False)
     families(args.workers, args.starts, solvers, fair=True)
+    combined(args.workers, args.starts)
     print(f"\nload after: {os.getloadavg()}")
 
 
