@@ -95,8 +95,9 @@ AUTO_MIN_TOLERANCE = 1e-4
 
 def _auto(an: Analysis, values: np.ndarray, tolerance: float) -> FrequencyCurve:
     """``auto``: on curves with at least ``AUTO_MIN_POINTS`` points per side and a tolerance of at least
-    ``AUTO_MIN_TOLERANCE``, ``hermite`` within a sample budget; on shorter curves (an optimiser's screening grid) the cheapest Taylor or manifold method whose
-    :func:`estimate_error` meets ``tolerance``; otherwise (or when neither qualifies) the exact curve.
+    ``AUTO_MIN_TOLERANCE``, ``hermite`` within a sample budget; on shorter curves (an optimiser's screening
+    grid) the cheapest Taylor or manifold method whose :func:`estimate_error` meets ``tolerance``; otherwise
+    (or when neither qualifies) the exact curve.
 
     Budget: a third of the requested points per side as samples. When the samples stop with intervals whose
     estimate misses ``tolerance``, the requested points inside those intervals are computed exactly
@@ -104,9 +105,9 @@ def _auto(an: Analysis, values: np.ndarray, tolerance: float) -> FrequencyCurve:
     the curve meets the tolerance by construction (``solver.exact_points``; ``auto_method``
     ``hermite+exact``). Cost: the samples plus those exact points; a sample costs one to three exact points
     (its continuation step, one eigen solve and the slopes). Measured: a fifth to a third of the exact
-    curve at 1 % on the templates, 0.9 of it on the pivot at 1e-4 (ten points filled); below 1e-4, where
-    the hinges' samples stopped paying, the exact curve directly; the exact curve alone when a sample's equilibrium cannot be
-    computed (``hermite`` falls back and says so). Short curves: as below; nothing more for a drive-free
+    curve at 1 % on the templates, 0.8-0.9 of it on the pivot at 1e-4 (ten points filled); below 1e-4, where
+    the hinges' samples stopped paying, the exact curve directly; the exact curve alone when a sample's
+    equilibrium cannot be computed (``hermite`` falls back and says so). Short curves: as below; nothing more for a drive-free
     scene, where the locked-drive methods do not apply. The curve's ``solver`` says which method ran
     (``auto_method``), its estimated error (``auto_estimate``; 0 for exact) and the tolerance;
     ``solver.seconds`` covers everything auto did.
