@@ -107,9 +107,9 @@ def _auto(an: Analysis, values: np.ndarray, tolerance: float) -> FrequencyCurve:
     (its continuation step, one eigen solve and the slopes). Measured: a fifth to a third of the exact
     curve at 1 % on the templates, 0.8-0.9 of it on the pivot at 1e-4 (ten points filled); below 1e-4, where
     the hinges' samples stopped paying, the exact curve directly; the exact curve alone when a sample's
-    equilibrium cannot be computed (``hermite`` falls back and says so). Short curves: as below; nothing more for a drive-free
-    scene, where the locked-drive methods do not apply. The curve's ``solver`` says which method ran
-    (``auto_method``), its estimated error (``auto_estimate``; 0 for exact) and the tolerance;
+    equilibrium cannot be computed (``hermite`` falls back and says so). Short curves: as below; nothing
+    more for a drive-free scene, where the locked-drive methods do not apply. The curve's ``solver`` says
+    which method ran (``auto_method``), its estimated error (``auto_estimate``; 0 for exact) and the tolerance;
     ``solver.seconds`` covers everything auto did.
     """
     t0 = time.perf_counter()
