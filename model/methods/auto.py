@@ -102,8 +102,8 @@ def _auto(an: Analysis, values: np.ndarray, tolerance: float) -> FrequencyCurve:
     Budget: a third of the requested points per side as samples. When the samples stop with intervals whose
     estimate misses ``tolerance``, the requested points inside those intervals are computed exactly
     (walked from the interval's left sample, as the exact method walks) and the rest is interpolated, so
-    the curve meets the tolerance by construction (``solver.exact_points``; ``auto_method``
-    ``hermite+exact``). Cost: the samples plus those exact points; a sample costs one to three exact points
+    every interpolated interval's estimate meets the tolerance and the rest is exact
+    (``solver.exact_points``; ``auto_method`` ``hermite+exact``). Cost: the samples plus those exact points; a sample costs one to three exact points
     (its continuation step, one eigen solve and the slopes). Measured: a fifth to a third of the exact
     curve at 1 % on the templates, 0.8-0.9 of it on the pivot at 1e-4 (ten points filled); below 1e-4, where
     the hinges' samples stopped paying, the exact curve directly; the exact curve alone when a sample's

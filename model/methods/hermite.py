@@ -440,8 +440,8 @@ def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samp
     positive strokes is sampled and each point at ``-s`` takes the interpolated branches at ``s`` (as the
     exact method does, :meth:`Analysis.frequency_curve`).
     ``fill``: when the samples stop (budget or shortest interval) with intervals whose estimate misses the
-    tolerance, the requested points inside those intervals are computed exactly (:meth:`_Side.fill`), so the
-    curve meets the tolerance by construction at the cost of those exact points (``auto``).
+    tolerance, the requested points inside those intervals are computed exactly (:meth:`_Side.fill`): what
+    remains interpolated has an estimate within the tolerance, at the cost of those exact points (``auto``).
     """
     if mirror and an.symmetry is not None and np.any(internal < 0):
         pos = one_side(internal)
