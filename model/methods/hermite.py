@@ -22,7 +22,7 @@ is the cubic Hermite polynomial through both values and both slopes of ``mu = 1 
 derivative of ``mu`` (de Boor, A Practical Guide to Splines, ch. IV). Why ``1 / lambda``: a parasitic
 stiffness of a flexure is a support stiffness in series with a compliance that grows as ``s^2``
 (PHYSICS.md, the 1/700 term), so ``1 / lambda`` is close to a low-order polynomial in the stroke where
-``lambda`` itself falls by orders of magnitude (cross-spring pivot: 325 Hz to 39 Hz over 45 deg).
+``lambda`` itself falls by orders of magnitude (cross-spring pivot: 426 Hz to 39 Hz over 45 deg).
 
 Adaptive samples (per side of stroke 0): start with 0, s_max/4, s_max/2, 3 s_max/4 and s_max and bisect
 every interval whose error estimate exceeds the tolerance (relative, on the first parasitic frequency,
