@@ -159,8 +159,8 @@ def solve_point(
         If the iteration diverges, produces non-finite numbers or exceeds ``max_iter``.
     """
     st = start
-    inc = res = prev_inc = float("nan")
-    incs: list[float] = []
+    inc = res = float("nan")
+    incs: list[float] = []  # the increments of the iterations so far
     for it in range(opts.max_iter + 1):
         ev = sys.evaluate(st)
         if not (np.isfinite(ev.g).all() and np.isfinite(ev.H).all()):
@@ -175,7 +175,7 @@ def solve_point(
         res = _scaled_residual(sys, ev, dval, s_target)
         if not np.isfinite(inc):
             raise StepFailure("non-finite increment")
-        stalled = inc > 0.25 * prev_inc  # False while prev_inc is nan
+        stalled = bool(incs) and inc > 0.25 * incs[-1]
         if res <= opts.tol and (inc <= opts.polish or (inc <= opts.tol and stalled)):
             return Equilibrium(
                 stroke=s_target, state=st, ev=ev, free=sys.free, tangent=tan, iterations=it,
@@ -189,7 +189,6 @@ def solve_point(
             # to max_iter only delays the step halving that brings the predictor back in
             raise StepFailure(f"not converging (increment {inc:.3g}, {incs[it - 2]:.3g} two iterations before)")
         incs.append(inc)
-        prev_inc = inc
         st = sys.update(st, dxi, dlam if sys.n_con else None)
     raise StepFailure(f"no convergence in {opts.max_iter} iterations (increment {inc:.3g}, residual {res:.3g})")
 

@@ -429,6 +429,20 @@ def _optimality(fam: _Family, ev: _Eval, tol: float) -> dict:
             "active_kinds": sorted({str(ev.kinds[i]) for i, m in zip(act, mu) if m > 1e-9})}
 
 
+def _curve_summary(curve, points: int) -> dict:
+    """What a case records of a curve on ``points`` stroke points: status, failures, the curve, and (when
+    complete) the worst first parasitic frequency, where it is, the zero-stroke one and their ratio."""
+    out = {"points": points, "status": curve.status, "failures": [f.message for f in curve.failures],
+           "stroke": curve.stroke.tolist(), "parasitic_hz": curve.parasitic_hz.tolist()}
+    if curve.status == "complete" and len(curve.stroke):
+        ph = curve.parasitic_hz
+        i = int(np.argmin(ph))
+        zero = float(ph[int(np.argmin(np.abs(curve.stroke)))])
+        out.update(worst_hz=float(ph[i]), stroke_at_worst=float(curve.stroke[i]), zero_stroke_hz=zero,
+                   ratio=float(ph[i] / zero))
+    return out
+
+
 def _verify(fam: _Family, x: np.ndarray, points: int) -> dict:
     """The exact curve of design ``x`` on ``points`` stroke points: worst and zero-stroke frequency, stress."""
     from ..model.templates import template
@@ -440,21 +454,15 @@ def _verify(fam: _Family, x: np.ndarray, points: int) -> dict:
     curve = an.frequency_curve(stroke=grid)
     mats = {m.name: m for m in scene.materials}
     allow = min(mats[e.material].allowable_stress for e in scene.elements)
-    out = {"points": points, "status": curve.status,
-           "failures": [f.message for f in curve.failures],
-           "warnings": [w.to_dict() for w in curve.warnings],  # the model's checks of the verified curve
-           "stroke": curve.stroke.tolist(), "parasitic_hz": curve.parasitic_hz.tolist()}
-    if curve.status != "complete":
+    out = _curve_summary(curve, points)
+    out["warnings"] = [w.to_dict() for w in curve.warnings]  # the model's checks of the verified curve
+    if "worst_hz" not in out:
         return out
-    ph = curve.parasitic_hz
-    i = int(np.argmin(ph))
-    zero = float(ph[int(np.argmin(np.abs(curve.stroke)))])
     members = list(curve.max_von_mises)
     per_member = np.nan_to_num(np.array([curve.max_von_mises[m] for m in members]), nan=-np.inf)
     im, ip = np.unravel_index(int(np.argmax(per_member)), per_member.shape)
     stress = float(per_member[im, ip])
-    out.update(worst_hz=float(ph[i]), stroke_at_worst=float(curve.stroke[i]), zero_stroke_hz=zero,
-               ratio=float(ph[i] / zero), max_stress=stress, allowable_stress=allow,
+    out.update(max_stress=stress, allowable_stress=allow,
                stress_ratio=stress * fam.prob.safety_factor / allow,
                stroke_at_max_stress=float(curve.stroke[ip]), member_at_max_stress=members[im],
                max_drive=float(np.max(np.abs(curve.drive_reaction))), drive_unit=curve.drive_reaction_unit,
@@ -476,17 +484,8 @@ def _preview(fam: _Family, x: np.ndarray, points: int, tolerance: float) -> dict
         curve = fast_curve(Analysis(template(fam.fam.template, **fam.params(x))), "auto", tolerance, grid)
     except FlexoptError as exc:
         return {"points": points, "status": "failed", "failures": [str(exc)], "stroke": [], "parasitic_hz": []}
-    out = {"points": points, "status": curve.status, "method": curve.solver.get("auto_method", curve.method),
-           "estimated_error": curve.solver.get("auto_estimate", 0.0),
-           "failures": [f.message for f in curve.failures],
-           "stroke": curve.stroke.tolist(), "parasitic_hz": curve.parasitic_hz.tolist()}
-    if curve.status == "complete" and len(curve.stroke):
-        ph = curve.parasitic_hz
-        i = int(np.argmin(ph))
-        zero = float(ph[int(np.argmin(np.abs(curve.stroke)))])
-        out.update(worst_hz=float(ph[i]), stroke_at_worst=float(curve.stroke[i]), zero_stroke_hz=zero,
-                   ratio=float(ph[i] / zero))
-    return out
+    return {**_curve_summary(curve, points), "method": curve.solver.get("auto_method", curve.method),
+            "estimated_error": curve.solver.get("auto_estimate", 0.0)}
 
 
 def _screen(fam: _Family, prob: Problem, family_index: int, start: int, x0: np.ndarray) -> tuple[np.ndarray, dict]:

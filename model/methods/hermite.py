@@ -154,16 +154,20 @@ def _hz(mu: np.ndarray) -> np.ndarray:
 class _Side:
     """Samples on one side of stroke 0 and their tracked branches."""
 
-    def __init__(self, an: Analysis, first: _Sample, k: int, drive: str) -> None:
+    def __init__(self, an: Analysis, first: _Sample, k: int, drive: str, curvature: np.ndarray | None = None) -> None:
         self.an, self.k, self.drive = an, k, drive
         self.samples = [first]
-        self.perm: list[np.ndarray] = []
         self.lam = self.slope = np.zeros((0, k))
         self.labels: list[list[str]] = []
         self._estimates: dict = {}  # interval -> (its tracked data, _error's value)
         self.visited: dict[float, Equilibrium] = {}  # converged equilibria of the initial continuation
-        self.curvature: np.ndarray | None = None  # d2 xi/ds2 at stroke 0: the first step's predictor
+        self.curvature = curvature  # d2 xi/ds2 at stroke 0: the first step's predictor (statics.path_curvature)
         self._pairs: dict = {}  # (id(sample), id(next sample)) -> (their raw MAC matrix, the two samples)
+
+    def estimates(self) -> dict[tuple[float, float], float]:
+        """:meth:`error` of every interval, keyed by its end strokes."""
+        S = self.strokes()
+        return {(S[i], S[i + 1]): self.error(i) for i in range(len(S) - 1)}
 
     def error(self, i: int) -> float:
         """:func:`_error` of the interval [S_i, S_i+1], reused while its tracked data are unchanged (a new
@@ -477,16 +481,14 @@ def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samp
                     par[sel] = par0
                 continue
             smax = s_req[np.argmax(np.abs(s_req))]
-            side = _Side(an, first, k, drive)
-            side.curvature = curvature
+            side = _Side(an, first, k, drive, curvature)
             # initial samples at s/4, s/2, 3s/4 and s, then bisection of every interval whose estimate
             # exceeds the tolerance
             side.initial(smax)
             side.retrack()
             h_min = abs(smax) / 64.0
             while True:
-                S = side.strokes()
-                est = {(S[i], S[i + 1]): side.error(i) for i in range(len(S) - 1)}
+                est = side.estimates()
                 todo = [iv for iv, e in est.items() if e > tolerance and abs(iv[1] - iv[0]) > h_min * 1.5]
                 if not todo or (max_samples is not None and len(side.samples) - 1 >= max_samples):
                     break
@@ -502,8 +504,7 @@ def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samp
                 for a_s, b_s in missed:
                     filled += side.fill(a_s, b_s, s_req)
                 side.retrack()
-                S = side.strokes()
-                est = {(S[i], S[i + 1]): side.error(i) for i in range(len(S) - 1)}
+                est = side.estimates()
             side_est = max(est.values())
             estimate = max(estimate, side_est)
             converged = converged and side_est <= tolerance
