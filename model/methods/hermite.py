@@ -164,6 +164,10 @@ class _Side:
         self.curvature = curvature  # d2 xi/ds2 at stroke 0: the first step's predictor (statics.path_curvature)
         self._pairs: dict = {}  # (id(sample), id(next sample)) -> (their raw MAC matrix, the two samples)
 
+    def at(self, s: float) -> _Sample:
+        """The sample at stroke ``s`` (one of :meth:`strokes`)."""
+        return next(x for x in self.samples if x.s == s)
+
     def estimates(self) -> dict[tuple[float, float], float]:
         """:meth:`error` of every interval, keyed by its end strokes."""
         S = self.strokes()
@@ -229,7 +233,7 @@ class _Side:
         pts = np.array(sorted((x for x in s_req if lo < abs(x) < hi), key=abs))
         if not len(pts):
             return 0
-        left = next(x for x in self.samples if x.s == a_s)
+        left = self.at(a_s)
 
         def accept(e: Equilibrium) -> None:
             modes = modes_at(sys, e, self.k, self.drive)
@@ -495,9 +499,7 @@ def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samp
                 for a_s, b_s in sorted(todo, key=lambda iv: abs(iv[0])):
                     if max_samples is not None and len(side.samples) - 1 >= max_samples:
                         break
-                    left = next(x for x in side.samples if x.s == a_s)
-                    right = next(x for x in side.samples if x.s == b_s)
-                    side.add(side.sample(left, 0.5 * (a_s + b_s), right))
+                    side.add(side.sample(side.at(a_s), 0.5 * (a_s + b_s), side.at(b_s)))
                 side.retrack()
             missed = [iv for iv, e in est.items() if e > tolerance]
             if fill and missed:
