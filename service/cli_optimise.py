@@ -121,14 +121,21 @@ def plot_result(result: dict, path: str) -> None:
     import matplotlib.pyplot as plt
 
     fams = [f for f in result["families"] if f["best"] is not None]
+    tol = result["problem"].get("tolerance", 1e-3)
     fig, axes = plt.subplots(1, max(len(fams), 1), figsize=(4.2 * max(len(fams), 1), 3.4), squeeze=False)
     for ax, fam in zip(axes[0], fams):
         b = fam["best"]
         for key, label, style in (("initial", "start", "--"), ("verified", "optimum", "-")):
             c = b[key]
-            if c.get("stroke"):
-                how = c.get("method", "exact")  # the start's curve is method auto's (optim.search._preview)
-                ax.plot(c["stroke"], c["parasitic_hz"], style, label=label if how == "exact" else f"{label} ({how})")
+            if not c.get("stroke"):
+                continue
+            how = c.get("method", "exact")  # the start's curve is method auto's (optim.search._preview)
+            if how != "exact":  # a start above the optimum is usually one that breaks the stress limit
+                label += f" ({how}; stress not checked)"
+            elif c.get("stress_ratio", 0.0) >= 1 - tol:
+                label += " (at the stress limit)"
+            ax.plot(c["stroke"], c["parasitic_hz"], style, label=label)
+        ax.set_ylim(0, 1.4 * ax.get_ylim()[1])  # room above the curves for the legend's long labels
         ax.set_title(fam["template"], fontsize=9)
         ax.set_xlabel("stroke")
         ax.set_ylabel("first parasitic frequency [Hz]")
