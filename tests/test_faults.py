@@ -50,11 +50,16 @@ def _group(pgid: int) -> set[int]:
     return {pid for pid, (_, g, _) in _procs().items() if g == pgid}
 
 
-def _pool_worker(job_pid: int) -> int | None:
-    """A pool worker of a job process (forkserver child: the job's grandchild), or None yet."""
+def _pool_workers(job_pid: int) -> list[int]:
+    """The pool workers of a job process (forkserver children: the job's grandchildren)."""
     procs = _procs()
     servers = {pid for pid, (pp, _, _) in procs.items() if pp == job_pid}
-    workers = [pid for pid, (pp, _, cmd) in procs.items() if pp in servers and "resource_tracker" not in cmd]
+    return [pid for pid, (pp, _, cmd) in procs.items() if pp in servers and "resource_tracker" not in cmd]
+
+
+def _pool_worker(job_pid: int) -> int | None:
+    """A pool worker of a job process, or None yet."""
+    workers = _pool_workers(job_pid)
     return workers[0] if workers else None
 
 
@@ -90,9 +95,12 @@ def test_killed_job_process_and_pool_worker_are_retried_from_finished_cases(tmp_
         srv.__exit__()
 
 
+LEASE = 8  # seconds; the job process beats every 2 s, often enough under load
+
+
 def _serve(tmp_path: Path, port: int) -> subprocess.Popen:
     env = {**os.environ, "FLEXOPT_DATA_DIR": str(tmp_path), "FLEXOPT_EXECUTOR": "thread",
-           "FLEXOPT_JOB_WORKERS": "1", "FLEXOPT_LEASE_SECONDS": "8"}  # beats every 2 s under load
+           "FLEXOPT_JOB_WORKERS": "1", "FLEXOPT_LEASE_SECONDS": str(LEASE)}
     p = subprocess.Popen([sys.executable, "-m", "flexopt.service.cli", "serve", "--port", str(port),
                           "--log-level", "warning"], cwd=ROOT, env=env)
 
@@ -110,7 +118,11 @@ def _serve(tmp_path: Path, port: int) -> subprocess.Popen:
 @pytest.mark.slow
 def test_killed_server_leaves_its_job_to_the_live_lease(tmp_path: Path) -> None:
     """kill -9 of the server: its job process keeps running and holds the lease; the restarted server
-    does not start a second process for the job, and the job finishes once, from its own run."""
+    does not start a second process for the job, and the job finishes once, from its own run.
+
+    The orphan's pool workers are paused (SIGSTOP) across the restart, so the job cannot finish before the
+    new server is up (it did once the cases got fast: the test then checked nothing), and the pause outlasts
+    the lease: a second run is then held off by the orphan's heartbeats, not by a lease not yet expired."""
     port = _free_port()
     url = f"http://127.0.0.1:{port}"
     server = _serve(tmp_path, port)
@@ -119,27 +131,42 @@ def test_killed_server_leaves_its_job_to_the_live_lease(tmp_path: Path) -> None:
             h = c.submit_optimisation(LONG)
             _until(lambda: h.status().progress.get("done", 0) >= 1)
         [orphan] = _job_processes(h.id)
+        workers = _pool_workers(orphan)
+        assert workers, "the job computes its cases in pool workers"
+        for w in workers:
+            os.kill(w, signal.SIGSTOP)
         before = _cases(tmp_path)
     finally:
         server.send_signal(signal.SIGKILL)
         server.wait(10)
-    server = _serve(tmp_path, port)
+    killed = time.monotonic()
+    seen: set[int] = set()
     try:
-        most = 0
+        server = _serve(tmp_path, port)
         with Client(url, max_retries=3) as c:
+            while time.monotonic() - killed < LEASE + 4:  # past the lease and two of its heartbeats
+                seen.update(_job_processes(h.id))
+                j = c.optimisation(h.id)
+                assert j.status == "running" and j.attempts == 1, (j.status, j.attempts)
+                time.sleep(0.1)
+            for w in workers:
+                os.kill(w, signal.SIGCONT)
+            workers = []
+
             def done() -> object:
-                nonlocal most
-                most = max(most, len(_job_processes(h.id)))
+                seen.update(_job_processes(h.id))
                 j = c.optimisation(h.id)
                 return j.status in ("succeeded", "failed") and j
 
             job = _until(done, timeout=150, poll=0.1)
         assert job.status == "succeeded", job.error
-        assert most == 1 and job.attempts == 1, "one run only: the orphan with the live lease finished it"
+        assert seen == {orphan} and job.attempts == 1, "one run only: the orphan with the live lease finished it"
         after = _cases(tmp_path)
         assert len(after) == 4 and all(after[k] == v for k, v in before.items())
         _until(lambda: orphan not in _procs(), timeout=20)
     finally:
+        for w in workers:
+            os.kill(w, signal.SIGCONT)
         server.send_signal(signal.SIGTERM)
         server.wait(30)
 
