@@ -231,51 +231,76 @@ class PointSensitivity:
     dreaction: np.ndarray  # (np,) derivative of the actuator's force or moment along the drive
 
 
-def _beam_inputs_change(sys: System, st, u: np.ndarray, psi: np.ndarray, dr0: np.ndarray) -> np.ndarray:
+class _Frame:
+    """What every design direction at one equilibrium shares: the masters' rotations and offsets per node and
+    the beam kernels' inputs at the state, computed once per point instead of once per direction."""
+
+    def __init__(self, sys: System, st) -> None:
+        s = sys.s
+        self.sys, self.st = sys, st
+        self.m = s.node_master
+        _, self.Rm, self.r = sys.node_states(st)
+        self.p, self.q = s.beam_nodes[:, 0], s.beam_nodes[:, 1]
+        sys._fill_inputs(st)
+        self.beam_in = sys.beam_in.copy()
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise ``a x b`` of (n, 3) arrays, the same products and differences as ``np.cross`` (so the same
+    rounding) without its axis handling, which costs more than the arithmetic at these sizes."""
+    out = np.empty(a.shape)
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
+def _beam_inputs_change(fr: _Frame, u: np.ndarray, psi: np.ndarray, dr0: np.ndarray) -> np.ndarray:
     """Change of the beams' state inputs for master moves ``u``, rotations ``psi`` (nm, 3) and reference
     offset changes ``dr0`` (nn, 3); positions of prescribed masters are in ``u``."""
-    s = sys.s
-    m = s.node_master
-    Rm = st.R[m]
-    r = np.einsum("nij,nj->ni", Rm, s.node_offset)
-    dr = np.cross(psi[m], r) + np.einsum("nij,nj->ni", Rm, dr0)
+    m, Rm, p, q = fr.m, fr.Rm, fr.p, fr.q
+    pm = psi[m]
+    dr = _cross(pm, fr.r) + np.einsum("nij,nj->ni", Rm, dr0)
     dx = u[m] + dr
-    dR = skew(psi[m]) @ Rm
-    p, q = s.beam_nodes[:, 0], s.beam_nodes[:, 1]
-    out = np.zeros((s.n_beams, _el.BEAM_STATE))
+    dR = skew(pm) @ Rm
+    out = np.zeros((len(p), _el.BEAM_STATE))
     out[:, 0:3], out[:, 12:15], out[:, 15:18], out[:, 27:30] = dx[p], dr[p], dx[q], dr[q]
     out[:, 3:12] = dR[p].transpose(0, 2, 1).reshape(-1, 9)
     out[:, 18:27] = dR[q].transpose(0, 2, 1).reshape(-1, 9)
     return out
 
 
-def _jvp(sys: System, st, da_state: np.ndarray, dconst: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Assembled ``dg`` (n), ``dH`` (n, n) and per-beam ``de`` (nb, 6) along a change of the beam inputs."""
+def _jvp(fr: _Frame, da_state: np.ndarray, dconst: np.ndarray, hessian: bool = True
+         ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """Assembled ``dg`` (n), ``dH`` (n, n) and per-beam ``de`` (nb, 6) along a change of the beam inputs;
+    with ``hessian=False`` only ``dg`` (the cheaper kernel), ``None`` for the others."""
+    sys = fr.sys
     N = sys.N
-    sys._fill_inputs(st)
-    a = sys.beam_in
+    a = fr.beam_in
     da = np.zeros_like(a)
     da[:, : _el.BEAM_STATE] = da_state
     da[:, _el.BEAM_STATE : _el.BEAM_STATE + _el.BEAM_CONST] = dconst
-    out = compiled(_el.beam_jvp_spec())(np.hstack([a, da]))
-    g = np.bincount(sys.beam_dofs.ravel(), out[:, :12].ravel(), minlength=N)
+    spec = _el.beam_jvp_spec() if hessian else _el.beam_jvp_gradient_spec()
+    out = compiled(spec)(np.hstack([a, da]))
+    g = sys._reduce_vec(np.bincount(sys.beam_dofs.ravel(), out[:, :12].ravel(), minlength=N))
+    if not hessian:
+        return g, None, None
     H = np.bincount(sys.beam_flat, out[:, 12:156].ravel(), minlength=N * N).reshape(N, N)
-    return sys._reduce_vec(g), sys._reduce_mat(H), out[:, 156:162]
+    return g, sys._reduce_mat(H), out[:, 156:162]
 
 
-def _mass_derivative(sys: System, st, psi: np.ndarray, d: StructureDerivative) -> np.ndarray:
+def _mass_derivative(fr: _Frame, psi: np.ndarray, d: StructureDerivative) -> np.ndarray:
     """``dM`` for master rotations ``psi`` (nm, 3) and the design change ``d`` (terms of System.mass)."""
+    sys, st = fr.sys, fr.st
     s, N = sys.s, sys.N
-    m = s.node_master
-    Rm = st.R[m]
+    m, Rm = fr.m, fr.Rm
     out = np.zeros(N * N)
     if s.n_beams:  # the cubic consistent mass (model.elements.beam_mass_spec), differentiated by CasADi
         nm = len(s.master_names)
-        da = np.hstack([_beam_inputs_change(sys, st, np.zeros((nm, 3)), psi, d.node_offset), d.beam_const,
+        da = np.hstack([_beam_inputs_change(fr, np.zeros((nm, 3)), psi, d.node_offset), d.beam_const,
                         d.beam_mass[:, None]])
-        sys._fill_inputs(st)
         nc = _el.BEAM_STATE + _el.BEAM_CONST
-        a = np.hstack([sys.beam_in[:, :nc], s.beam_mass[:, None]])
+        a = np.hstack([fr.beam_in[:, :nc], s.beam_mass[:, None]])
         blocks = compiled(_el.beam_mass_jvp_spec())(np.hstack([a, da]))
         out += np.bincount(sys.beam_flat, blocks.ravel(), minlength=N * N)
     nm = len(s.master_names)
@@ -333,7 +358,7 @@ def point_sensitivity(sys: System, eq: Equilibrium, modes: Modes, which: Sequenc
                            "a limit point, where design derivatives do not exist; shorten the stroke") from exc
     which = np.asarray(which, dtype=int)
     locked = s.scene.stroke.drive == "locked"  # the eigenproblem of model.modal.modes_at
-    dofs, ix = (f, sys.ix_free) if locked else (np.arange(n), sys.ix_all)
+    dofs = f if locked else np.arange(n)
     lam = modes.omega2[which]
     phi = modes.phi[:, which]
     # clusters of (nearly) repeated eigenvalues among ``which``
@@ -347,6 +372,7 @@ def point_sensitivity(sys: System, eq: Equilibrium, modes: Modes, which: Sequenc
     act = np.zeros((nm, 6), dtype=bool)
     act.reshape(-1)[sys.act_full] = True
     sig = beam_sigma(s, sys, eq)
+    fr = _Frame(sys, st)
     z = np.hstack([sig, s.beam_stress])
     vm_out = _von_mises_jac(len(z))(z.T)
     vm2 = vm_out[0].full().T
@@ -359,18 +385,18 @@ def point_sensitivity(sys: System, eq: Equilibrium, modes: Modes, which: Sequenc
     for j, d in enumerate(dstructs):
         # prescribed master positions move with the reference (supports; a translation drive below)
         u_pres = np.where(act[:, :3], 0.0, d.master_pos)
-        da_design = _beam_inputs_change(sys, st, u_pres, np.zeros((nm, 3)), d.node_offset)
-        dg, _, _ = _jvp(sys, st, da_design, d.beam_const)
+        da_design = _beam_inputs_change(fr, u_pres, np.zeros((nm, 3)), d.node_offset)
+        dg, _, _ = _jvp(fr, da_design, d.beam_const, hessian=False)
         rhs = np.zeros(len(f) + 1)
         rhs[: len(f)] = -dg[f]
         if s.drive_kind == "translation":
             rhs[-1] = float(d.master_pos[s.drive_master] @ s.drive_axis)
         dxi = sla.lu_solve(lu, rhs, check_finite=False)
         v = sys.to_global(dxi).reshape(nm, 6)
-        da_total = da_design + _beam_inputs_change(sys, st, v[:, :3], v[:, 3:], np.zeros_like(d.node_offset))
-        _, dH, de = _jvp(sys, st, da_total, d.beam_const)
-        dM = _mass_derivative(sys, st, v[:, 3:], d)
-        dK, dMf = dH[ix], dM[ix]
+        da_total = da_design + _beam_inputs_change(fr, v[:, :3], v[:, 3:], np.zeros_like(d.node_offset))
+        _, dH, de = _jvp(fr, da_total, d.beam_const)
+        dM = _mass_derivative(fr, v[:, 3:], d)
+        dK, dMf = sys.free_block(dH, locked), sys.free_block(dM, locked)
         pf = phi[dofs]
         for g_ in groups:
             P = pf[:, g_]

@@ -255,6 +255,24 @@ def beam_input_jvp() -> ca.Function:
 
 
 @lru_cache(maxsize=None)
+def beam_input_jvp_gradient() -> ca.Function:
+    """The ``dg`` part (12) of :func:`beam_input_jvp` alone: the implicit-function step of the design
+    sensitivities needs only the gradient's change, and the Hessian's is most of that kernel's work. The
+    same forward derivative of the same expressions, so the same numbers (tests/test_design.py)."""
+    a, d, L, _ = _beam_expr()
+    da = ca.SX.sym("da", a.numel())
+    dout = ca.substitute(ca.jtimes(ca.gradient(L, d), a, da), d, ca.DM.zeros(12))
+    return ca.Function("flexopt_beam_jvp_g", [ca.vertcat(a, da)], [dout])
+
+
+@lru_cache(maxsize=None)
+def beam_jvp_gradient_spec() -> KernelSpec:
+    """:func:`beam_input_jvp_gradient` as a compiled kernel (input 114, output 12)."""
+    f = beam_input_jvp_gradient()
+    return KernelSpec("flexopt_beam_jvp_g", f, f.size1_in(0), f.size1_out(0), 6, BEAM_STATE, BEAM_CONST)
+
+
+@lru_cache(maxsize=None)
 def beam_jvp_spec() -> KernelSpec:
     """:func:`beam_input_jvp` as a compiled kernel (input 114, output 162)."""
     f = beam_input_jvp()

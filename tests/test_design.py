@@ -106,3 +106,20 @@ def test_scenes_outside_the_scope_get_a_clear_error():
 def test_unknown_design_parameter_is_named():
     with pytest.raises(FlexoptError, match="no parameter 'thicknes'"):
         trace_template("leaf-spring", {}, ["thicknes"])
+
+
+def test_gradient_only_jvp_kernel_equals_the_full_kernel() -> None:
+    """The implicit-function step uses a kernel for ``dg`` alone (model.elements.beam_input_jvp_gradient); it
+    must give the full kernel's first 12 outputs exactly (the same forward derivative of the same
+    expressions). Reference: the full JVP kernel on the same random inputs."""
+    from flexopt.model import elements as el
+    from flexopt.model.kernels import compiled
+    from flexopt.model.templates import template
+
+    rng = np.random.default_rng(3)
+    full, grad = compiled(el.beam_jvp_spec()), compiled(el.beam_jvp_gradient_spec())
+    sys_ = Analysis(template("cross-spring-pivot")).system
+    sys_._fill_inputs(sys_.reference_state())
+    a = np.hstack([sys_.beam_in, rng.standard_normal(sys_.beam_in.shape)])
+    assert np.array_equal(grad(a), full(a)[:, :12])
+    assert np.abs(grad(a)).max() > 0
