@@ -29,6 +29,8 @@ the cross products of the drive axis with the differences of node pairs (a pair 
 
 from __future__ import annotations
 
+import bisect
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -258,11 +260,14 @@ def image_indices(solved: np.ndarray, internal: np.ndarray) -> list[int | None]:
     """For each requested stroke, the index in ``solved`` (sorted non-negative strokes) of the point that
     gives it -- the one at ``|s|``, within :func:`mirror_tol` -- or None when it was not solved."""
     tol = mirror_tol(internal)
-    out: list[int | None] = []
-    for v in np.abs(np.asarray(internal, dtype=float)):
-        i = int(np.argmin(np.abs(solved - v))) if len(solved) else -1
-        out.append(i if i >= 0 and abs(solved[i] - v) <= tol else None)
-    return out
+    v = np.abs(np.asarray(internal, dtype=float))
+    solved = np.asarray(solved, dtype=float)
+    if not len(solved):
+        return [None] * len(v)
+    dist = np.abs(solved[None, :] - v[:, None])
+    i = np.argmin(dist, axis=1)  # the first nearest, as a per-point argmin
+    ok = dist[np.arange(len(v)), i] <= tol
+    return [int(j) if o else None for j, o in zip(i, ok)]
 
 
 def one_side(internal: np.ndarray) -> np.ndarray:
@@ -271,7 +276,8 @@ def one_side(internal: np.ndarray) -> np.ndarray:
     tol = mirror_tol(internal)
     pos = sorted(float(v) for v in internal if v >= 0)
     for v in sorted(float(-v) for v in internal if v < 0):
-        if not pos or np.min(np.abs(np.array(pos) - v)) > tol:
-            pos.append(v)
-            pos.sort()
+        j = bisect.bisect_left(pos, v)  # the nearest kept strokes are pos[j - 1] and pos[j]
+        near = min((abs(pos[k] - v) for k in (j - 1, j) if 0 <= k < len(pos)), default=np.inf)
+        if near > tol:
+            pos.insert(j, v)
     return np.array(pos)

@@ -116,3 +116,37 @@ def test_hermite_samples_one_side_of_a_symmetric_design(name: str) -> None:
     # interpolants up to the equilibria's Newton tolerance
     assert np.allclose(one.hz, both.hz, rtol=1e-7, atol=0)
     assert one.samples < both.samples and 2 * one.samples >= both.samples
+
+
+def test_one_side_and_image_indices_match_their_plain_definitions() -> None:
+    """The vectorised mirror bookkeeping (model.symmetry.one_side, image_indices) against the plain loops
+    that define it (nearest solved stroke by a scan of all of them), on grids symmetric to rounding,
+    one-sided, uneven, with repeated and near-repeated values."""
+    from flexopt.model.symmetry import image_indices, mirror_tol, one_side
+
+    def one_side_plain(internal):
+        tol = mirror_tol(internal)
+        pos = sorted(float(v) for v in internal if v >= 0)
+        for v in sorted(float(-v) for v in internal if v < 0):
+            if not pos or np.min(np.abs(np.array(pos) - v)) > tol:
+                pos.append(v)
+                pos.sort()
+        return np.array(pos)
+
+    def image_plain(solved, internal):
+        tol = mirror_tol(internal)
+        out = []
+        for v in np.abs(np.asarray(internal, dtype=float)):
+            i = int(np.argmin(np.abs(solved - v))) if len(solved) else -1
+            out.append(i if i >= 0 and abs(solved[i] - v) <= tol else None)
+        return out
+
+    rng = np.random.default_rng(7)
+    grids = [np.linspace(-0.785, 0.785, 91), np.linspace(-0.785, 0.785, 90), np.linspace(0, 0.5, 7),
+             np.linspace(-0.3, 0.0, 5), np.array([-0.2, -0.2 * (1 + 3e-16), 0.1, 0.2]), np.zeros(1)]
+    grids += [np.round(rng.uniform(-1, 1, rng.integers(1, 40)), rng.integers(1, 4)) for _ in range(50)]
+    for g in grids:
+        pos = one_side(g)
+        np.testing.assert_array_equal(pos, one_side_plain(g))
+        assert image_indices(pos, g) == image_plain(pos, g)
+        assert image_indices(pos[:-1], g) == image_plain(pos[:-1], g)  # some points not solved
