@@ -18,6 +18,103 @@ from .structure import Structure
 
 __all__ = ["State", "Assembled", "System"]
 
+#: Gather, element kernel and scatter of :meth:`System.evaluate` in one C call (beams only, no rigid
+#: deformations): the kernel inputs (from the masters' states and the nodes' rotated offsets, which numpy's
+#: einsum computes as before: its rounding is not a plain sum of products), the batched kernel through its
+#: function pointer, and the sums into ``g``, ``g_full`` and ``H`` in the order ``numpy.bincount`` adds them,
+#: so the numbers are the same to the last bit (tests/test_linalg.py compares both routes). The beams'
+#: consistent mass and the Hessian's directional derivative go the same way (no gradient, ``g_off < 0``;
+#: their 144 outputs from ``h_off = 0``); ``update_state`` is :meth:`System.update`.
+_ASSEMBLE_SOURCE = r"""
+#include <string.h>
+typedef int (*batch_t)(long long, const double*, double*);
+int assemble(void* kernel, long long ne, long long n_in, long long n_out, const double* X, const double* R,
+             const long long* end_master, const long long* end_node, const double* r, double* in,
+             double* out, const long long* dofs, const long long* dofs_full, const long long* flat,
+             long long N, long long n_full, double* g, double* g_full, double* H, long long g_off,
+             long long h_off) {
+  for (long long e = 0; e < ne; ++e)
+    for (int end = 0; end < 2; ++end) {
+      long long m = end_master[2 * e + end];
+      const double* rn = r + 3 * end_node[2 * e + end];
+      const double* Rm = R + 9 * m;
+      double* a = in + e * n_in + 15 * end;
+      for (int i = 0; i < 3; ++i) {
+        a[i] = X[3 * m + i] + rn[i];
+        a[12 + i] = rn[i];
+        for (int j = 0; j < 3; ++j) a[3 + i + 3 * j] = Rm[3 * i + j];
+      }
+    }
+  if (((batch_t) kernel)(ne, in, out)) return 1;
+  if (g_off >= 0) {
+    memset(g, 0, sizeof(double) * N);
+    memset(g_full, 0, sizeof(double) * n_full);
+    for (long long e = 0; e < ne; ++e)
+      for (int k = 0; k < 12; ++k) g[dofs[12 * e + k]] += out[e * n_out + g_off + k];
+    for (long long e = 0; e < ne; ++e)
+      for (int k = 0; k < 12; ++k) g_full[dofs_full[12 * e + k]] += out[e * n_out + g_off + k];
+  }
+  memset(H, 0, sizeof(double) * N * N);
+  for (long long e = 0; e < ne; ++e)
+    for (int k = 0; k < 144; ++k) H[flat[144 * e + k]] += out[e * n_out + h_off + k];
+  return 0;
+}
+
+/* System.update for a drive basis of global axes: x += u, R <- expm(psi) R through the compiled Rodrigues
+   kernel (its batch entry), the same arithmetic as the numpy route. act: the active index of each of the
+   6 nm global DOFs (-1: not active, increment 0). */
+int update_state(void* kernel, long long nm, const double* X, const double* R, const double* xi,
+                 const long long* act, const long long* moving, long long nmov, double* rin, double* rout,
+                 double* Xn, double* Rn) {
+  for (long long m = 0; m < nm; ++m)
+    for (int i = 0; i < 3; ++i) {
+      long long a = act[6 * m + i];
+      Xn[3 * m + i] = X[3 * m + i] + (a >= 0 ? xi[a] : 0.0);
+    }
+  memcpy(Rn, R, sizeof(double) * 9 * nm);
+  for (long long j = 0; j < nmov; ++j) {
+    long long m = moving[j];
+    for (int i = 0; i < 3; ++i) {
+      long long a = act[6 * m + 3 + i];
+      rin[12 * j + i] = a >= 0 ? xi[a] : 0.0;
+      for (int k = 0; k < 3; ++k) rin[12 * j + 3 + i + 3 * k] = R[9 * m + 3 * i + k];
+    }
+  }
+  if (nmov && ((batch_t) kernel)(nmov, rin, rout)) return 1;
+  for (long long j = 0; j < nmov; ++j) {
+    long long m = moving[j];
+    for (int i = 0; i < 3; ++i)
+      for (int k = 0; k < 3; ++k) Rn[9 * m + 3 * i + k] = rout[9 * j + i + 3 * k];
+  }
+  return 0;
+}
+"""
+_ASSEMBLER: list = []
+
+
+def _assembler():
+    """The compiled :data:`_ASSEMBLE_SOURCE` (cached like the kernels), or None without a C compiler."""
+    if not _ASSEMBLER:
+        import ctypes
+
+        from .errors import KernelBuildError
+        from .kernels import shared_library
+
+        try:
+            lib = shared_library("flexopt_assemble", (_ASSEMBLE_SOURCE,), lambda: _ASSEMBLE_SOURCE)
+            fn = lib.assemble
+            fn.restype = ctypes.c_int
+            fn.argtypes = [ctypes.c_void_p] + [ctypes.c_longlong] * 3 + [ctypes.c_void_p] * 10 \
+                + [ctypes.c_longlong] * 2 + [ctypes.c_void_p] * 3 + [ctypes.c_longlong] * 2
+            up = lib.update_state
+            up.restype = ctypes.c_int
+            up.argtypes = [ctypes.c_void_p, ctypes.c_longlong] + [ctypes.c_void_p] * 5 + [ctypes.c_longlong] \
+                + [ctypes.c_void_p] * 4
+            _ASSEMBLER.append((lib, fn, up))
+        except KernelBuildError:
+            _ASSEMBLER.append(None)
+    return _ASSEMBLER[0]
+
 
 @dataclass
 class State:
@@ -92,8 +189,7 @@ class System:
         self.drive = int(self.block_pos[0]) if len(self.block_pos) and self.block_active[0] == 0 else -1
         assert self.drive >= 0, "the drive coordinate must be active"
         self.free = np.setdiff1d(np.arange(n), [self.drive])
-        self.ix_free = np.ix_(self.free, self.free)  # precomputed: the hot path slices H with it
-        self.ix_all = np.ix_(np.arange(n), np.arange(n))
+        self.ix_free = np.ix_(self.free, self.free)
         plain = np.setdiff1d(act_full, blk_full)  # active DOFs outside the drive block (global = basis)
         self.plain_full, self.plain_pos = plain, pos[plain]
         self.blk_full = blk_full
@@ -165,6 +261,39 @@ class System:
         self._rot_log = compiled(rotation_log_spec())
         self._rot_in = np.zeros((len(rm), 12))
         self._log_in = np.zeros((len(rm), 18))
+        # the one-call evaluate, mass and Hessian derivative (see _ASSEMBLE_SOURCE): beams only, no rigid
+        # deformations; None: the numpy route. Fixed arrays' addresses are taken once (each ``.ctypes.data``
+        # costs about 1.5 us, which at 17 arguments was a third of a leaf's evaluate).
+        self._fast = None
+        self._d3 = None  # the Hessian derivative's input buffer and its address, made on first use
+        # the compiled Newton system (model.linalg.newton), built on first use by model.statics; False: not
+        # built yet, None: not applicable (the numpy route)
+        self._newton_system = False
+        asm = _assembler() if (s.n_beams and not len(s.truss_nodes) and not self.n_con
+                               and self.beam_kernel.address is not None) else None
+        if asm is not None:
+            ends = s.beam_nodes.ravel()
+            nc = 30 + s.beam_const.shape[1]
+            self._mass_in = np.zeros((s.n_beams, nc + 1))  # the mass kernel's input: state, constants, mass
+            self._mass_in[:, 30:nc] = s.beam_const
+            self._mass_in[:, nc] = s.beam_mass
+            self._fast_arrays = [np.ascontiguousarray(a, dtype=np.int64) for a in (
+                s.node_master[ends], ends, self.beam_dofs, self.beam_dofs_full, self.beam_flat)]
+            self._fast = (asm[1], *(a.ctypes.data for a in self._fast_arrays))
+            self._beam_in_at, self._mass_in_at = self.beam_in.ctypes.data, self._mass_in.ctypes.data
+        # the compiled update (drive basis of global axes): each global DOF's active index, or -1
+        self._fast_update = None
+        upd = _assembler() if (self.direct and self._rot_update.address is not None) else None
+        if upd is not None:
+            act = np.where(pos < n, pos, -1).astype(np.int64)
+            self._upd_arrays = [act, np.ascontiguousarray(rm, dtype=np.int64), np.zeros((len(rm), 12)),
+                                np.zeros((len(rm), 9))]
+            self._fast_update = (upd[2], self._rot_update.address, *(a.ctypes.data for a in self._upd_arrays))
+
+    def free_block(self, A: np.ndarray, locked: bool = True) -> np.ndarray:
+        """The free-DOF block ``A[free, free]`` (``locked``; else all of ``A``) as a new C-contiguous array: the
+        same numbers as indexing with :attr:`ix_free`, by two ``take`` calls at a third of its cost."""
+        return A.take(self.free, 0).take(self.free, 1) if locked else np.array(A, order="C")
 
     # ------------------------------------------------------------------ state
     def reference_state(self) -> State:
@@ -227,6 +356,21 @@ class System:
 
     def update(self, st: State, xi: np.ndarray, dlam: np.ndarray | None = None) -> State:
         """New state after the increment ``xi`` (active numbering): x += u, R <- expm(psi) R, exactly."""
+        if self._fast_update is not None and xi.ndim == 1:  # one C call, the same numbers
+            fn, kernel, act, moving, rin, rout = self._fast_update
+            X = np.ascontiguousarray(st.X, dtype=np.float64)
+            R = np.ascontiguousarray(st.R, dtype=np.float64)
+            x = np.ascontiguousarray(xi, dtype=np.float64)
+            Xn, Rn = np.empty(X.shape), np.empty(R.shape)
+            if fn(kernel, len(X), X.ctypes.data, R.ctypes.data, x.ctypes.data, act, moving,
+                  len(self._rot_masters), rin, rout, Xn.ctypes.data, Rn.ctypes.data):
+                from .errors import KernelBuildError
+
+                raise KernelBuildError("the rotation update kernel reported an evaluation error")
+            new = State(Xn, Rn, st.lam.copy())
+            if dlam is not None:
+                new.lam += dlam
+            return new
         d = self.to_global(xi).reshape(-1, 6)
         R = st.R.copy()
         moving = self._rot_masters
@@ -287,6 +431,8 @@ class System:
     def evaluate(self, st: State) -> Assembled:
         """Gradient, Hessian and constraint rows at ``st`` (one kernel call per element type)."""
         s, N = self.s, self.N
+        if self._fast is not None:
+            return self._evaluate_compiled(st)
         self._fill_inputs(st)
         g = np.zeros(N)
         g_full = np.zeros(self.n_full)
@@ -320,6 +466,36 @@ class System:
         return Assembled(self._reduce_vec(g), H, c, self._reduce_mat(G, rows=False), e_beam, e_truss,
                          self._chart_correction(g_full))
 
+    def _compiled_call(self, st: State, kernel, inputs_at: int, gradient: bool):
+        """Gather the beams' state inputs into the kernel's input buffer (address ``inputs_at``: its state
+        columns are written, the rest kept), run ``kernel`` and scatter its 144-entry block (after a 12-entry
+        gradient when ``gradient``); returns (out, g, g_full, H flat)."""
+        fn, end_master, end_node, dofs, dofs_full, flat = self._fast
+        N, n_full, nb = self.N, self.n_full, self.s.n_beams
+        X = np.ascontiguousarray(st.X, dtype=np.float64)
+        R = np.ascontiguousarray(st.R, dtype=np.float64)
+        r = np.ascontiguousarray(np.einsum("nij,nj->ni", R[self.s.node_master], self.s.node_offset))
+        # one new buffer for the outputs (the results keep views of it): one address to take, not four
+        no = nb * kernel.n_out
+        buf = np.empty(no + N + n_full + N * N)
+        b = buf.ctypes.data
+        if fn(kernel.address, nb, kernel.n_in, kernel.n_out, X.ctypes.data, R.ctypes.data, end_master, end_node,
+              r.ctypes.data, inputs_at, b, dofs, dofs_full, flat, N, n_full, b + 8 * no,
+              b + 8 * (no + N), b + 8 * (no + N + n_full), 0 if gradient else -1, 12 if gradient else 0):
+            from .errors import KernelBuildError
+
+            raise KernelBuildError(f"kernel '{kernel.spec.name}' reported an evaluation error")
+        return (buf[:no].reshape(nb, kernel.n_out), buf[no : no + N], buf[no + N : no + N + n_full],
+                buf[no + N + n_full :])
+
+    def _evaluate_compiled(self, st: State) -> Assembled:
+        """:meth:`evaluate` in one C call (beams only, no rigid deformations; same numbers)."""
+        N = self.N
+        out, g, g_full, Hflat = self._compiled_call(st, self.beam_kernel, self._beam_in_at, True)
+        H = self._reduce_mat(Hflat.reshape(N, N))
+        return Assembled(self._reduce_vec(g), H, np.zeros(0), self._reduce_mat(np.zeros((0, N)), rows=False),
+                         out[:, 156:162], np.zeros(0), self._chart_correction(g_full))
+
     def _chart_correction(self, g_full: np.ndarray) -> np.ndarray:
         """``-1/2 skew(g_m)`` on each master's rotation block, in active numbering.
 
@@ -339,8 +515,17 @@ class System:
         """Directional derivative of the Hessian along ``v`` (drive basis): the exact third derivative of
         the Lagrangian contracted once, ``dH_ij = sum_k d3L/(dxi_i dxi_j dxi_k) v_k``, from CasADi."""
         N = self.N
-        self._fill_inputs(st)
         vg = self.to_global(np.asarray(v, dtype=float))
+        kernel = compiled(beam_spec()[1])
+        if self._fast is not None and kernel.address is not None:  # one-call gather/kernel/scatter, same numbers
+            if self._d3 is None:  # input: the main kernel's (constants; state columns gathered), then v
+                buf = np.zeros((self.s.n_beams, kernel.n_in))
+                buf[:, : self.beam_in.shape[1]] = self.beam_in
+                self._d3 = (buf, buf.ctypes.data)
+            buf, at = self._d3
+            buf[:, self.beam_in.shape[1] :] = vg[self.beam_dofs_full]
+            return self._reduce_mat(self._compiled_call(st, kernel, at, False)[3].reshape(N, N))
+        self._fill_inputs(st)
         dH = np.zeros(N * N)
         for kernel_spec, inputs, dofs, flat in (
             (beam_spec()[1], self.beam_in, self.beam_dofs_full, self.beam_flat),
@@ -399,9 +584,12 @@ class System:
         rotated with the node; rigid bodies ``diag(m I, R J R^T)`` at their centre of mass.
         """
         s, N = self.s, self.N
-        Mflat = self._mass_const.copy()
-        if s.n_beams:
-            Mflat += np.bincount(self.beam_flat, self.beam_mass_blocks(st).ravel(), minlength=N * N)
+        if self._fast is not None and self.beam_mass_kernel.address is not None:
+            Mflat = self._mass_const + self._compiled_call(st, self.beam_mass_kernel, self._mass_in_at, False)[3]
+        else:
+            Mflat = self._mass_const.copy()
+            if s.n_beams:
+                Mflat += np.bincount(self.beam_flat, self.beam_mass_blocks(st).ravel(), minlength=N * N)
         if self._mvar:
             _, _, rn = self.node_states(st)
             for nodes, mass, flat in self._mvar:

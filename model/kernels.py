@@ -110,6 +110,7 @@ class CompiledKernel:
         self.n_out = spec.n_out
         self._lib = None
         self._fn = None
+        self._address: int | None = None
         cc = _compiler()
         if cc is None:
             warnings.warn(
@@ -143,6 +144,13 @@ class CompiledKernel:
         fn.restype = ctypes.c_int
         fn.argtypes = [ctypes.c_longlong, ctypes.c_void_p, ctypes.c_void_p]
         self._lib, self._fn = lib, fn
+        self._address = ctypes.cast(fn, ctypes.c_void_p).value
+
+    @property
+    def address(self) -> int | None:
+        """Address of the compiled batch entry ``int f(long long n, const double* in, double* out)`` (C code
+        calls it through a pointer, model/assembly.py), or None when the kernel runs in CasADi's VM."""
+        return self._address
 
     def __call__(self, inputs: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Evaluate on ``inputs`` of shape (n, n_in); returns (n, n_out)."""

@@ -1,4 +1,4 @@
-"""Compiled dense linear algebra of the hot path: the lowest eigenpairs and the Newton solve, one C call each.
+"""Compiled dense linear algebra of the hot path: the lowest eigenpairs, the Newton solve and system, one C call each.
 
 **Eigen solve** (:func:`lowest_pairs`). The algorithm is the one :func:`model.modal._lowest_pairs`
 documents (Jacobi scaling ``D = diag(K)^(-1/2)``, Cholesky ``K_s = L L^T``, the standard problem ``C y = mu y``
@@ -14,6 +14,13 @@ takes the relative error of thin, finely meshed leaves from a few 1e-8 (cancella
 
 **Newton solve** (:func:`solve`): LU with partial pivoting (dgetrf, dgetrs) of a row-major matrix, read as
 its transpose by LAPACK and solved with ``trans = 'T'``, so nothing is copied.
+
+**Newton system** (:func:`newton`): one iteration's whole linear-algebra step of model.statics -- the twist
+drive and its gradient, the reduced free block or the bordered system, its LU solve, the scaled increment
+and residual -- in one call, with the same floating-point operations in the same order as the numpy code
+(``_newton_step``, ``_scaled_residual``, model.rotations), so the same numbers to the bit
+(tests/test_linalg.py); the numpy code remains the route without a compiler and for drive bases that are
+not made of global axes or structures with rigid deformations.
 
 The routines come from :func:`model.lapack.routines` (numpy's OpenBLAS, else scipy's), so this path never
 imports ``scipy.linalg``. The C code is compiled once and cached like the element kernels
@@ -32,7 +39,7 @@ from .errors import KernelBuildError
 from .kernels import shared_library
 from .lapack import routines
 
-__all__ = ["lowest_pairs", "solve", "available", "build"]
+__all__ = ["lowest_pairs", "solve", "newton", "NewtonSystem", "available", "build"]
 
 #: Up to this order ``C = L^-1 M_s L^-T`` is formed by two triangular solves (BLAS dtrsm), above it by
 #: LAPACK dsygst (half the flops): whole eigen solve measured 324 vs 384 us at n = 59, even at n = 89-119
@@ -66,6 +73,142 @@ long long solve(long long n_, long long nrhs_, double* A, double* B, FINT* ipiv,
   if (info != 0) return (long long) info;
   getrs(&T, &n, &nrhs, A, &n, ipiv, B, &n, &info);
   return (long long) info;
+}
+
+/* One Newton system of model.statics (its _newton_step, _scaled_residual and the twist drive of
+   model.rotations), for a drive basis of global axes and no rigid deformations, in the same operations
+   and order as the numpy code, so the same numbers (tests/test_linalg.py compares both routes).
+   ip: n, N (row stride of H and C, set per call), drive index d, drive kind (0 rotation, 1 translation), number of
+   active drive-block coordinates nba, then free (n - 1), block_pos (nba), block component (nba: the
+   global axis of each basis column). dp: axis (3), near, s_target, dval (translation: given), then
+   scale (n), scale_free (n - 1). H, C: n x n views with row stride N (C may be NULL); g (n); Rd: the
+   driven master's rotation (row-major). Work: J (n x n), b (2 n). Out: dxi, tan (n), sc = [dval, inc, res,
+   finite (1/0), info, reduced (1/0)]. Returns 0. */
+static void quaternion(const double* R, double* q) {
+  double r00 = R[0], r01 = R[1], r02 = R[2], r10 = R[3], r11 = R[4], r12 = R[5], r20 = R[6], r21 = R[7],
+         r22 = R[8];
+  double t = r00 + r11 + r22, c[4] = {t, r00, r11, r22};
+  int k = 0;
+  for (int i = 1; i < 4; ++i)
+    if (c[i] > c[k]) k = i;
+  if (k == 0) {
+    double w = 0.5 * sqrt(1.0 + t), f = 0.25 / w;
+    q[0] = w; q[1] = (r21 - r12) * f; q[2] = (r02 - r20) * f; q[3] = (r10 - r01) * f;
+  } else if (k == 1) {
+    double x = 0.5 * sqrt(1.0 + 2 * r00 - t), f = 0.25 / x;
+    q[0] = (r21 - r12) * f; q[1] = x; q[2] = (r10 + r01) * f; q[3] = (r20 + r02) * f;
+  } else if (k == 2) {
+    double y = 0.5 * sqrt(1.0 + 2 * r11 - t), f = 0.25 / y;
+    q[0] = (r02 - r20) * f; q[1] = (r10 + r01) * f; q[2] = y; q[3] = (r21 + r12) * f;
+  } else {
+    double z = 0.5 * sqrt(1.0 + 2 * r22 - t), f = 0.25 / z;
+    q[0] = (r10 - r01) * f; q[1] = (r20 + r02) * f; q[2] = (r21 + r12) * f; q[3] = z;
+  }
+  if (!(q[0] >= 0)) for (int i = 0; i < 4; ++i) q[i] = -q[i];
+}
+
+long long newton(const long long* ip, const double* dp, const double* H, const double* C, const double* g,
+                 const double* Rd, double* J, double* b, FINT* ipiv, void** fp, double* dxi, double* tan,
+                 double* sc) {
+  long long n = ip[0], N = ip[1], d = ip[2], kind = ip[3], nba = ip[4];
+  const long long *f = ip + 5, *bpos = f + (n - 1), *bcomp = bpos + nba;
+  long long nf = n - 1;
+  const double *axis = dp, *scale = dp + 6, *scale_free = dp + 6 + n;
+  double near = dp[3], s_target = dp[4], dval = dp[5];
+  double* dd = b + 2 * n;  /* b has 3 n doubles: the drive gradient after the two right-hand sides */
+  long long i, j;
+  sc[3] = 1.0;
+  for (i = 0; i < n; ++i) {
+    if (!isfinite(g[i])) sc[3] = 0.0;
+    for (j = 0; j < n; ++j)
+      if (!isfinite(H[i * N + j])) sc[3] = 0.0;
+  }
+  for (i = 0; i < n; ++i) dd[i] = 0.0;
+  if (kind == 0) {
+    double q[4], a0 = axis[0], a1 = axis[1], a2 = axis[2];
+    quaternion(Rd, q);
+    double w = q[0], x = q[1], y = q[2], z = q[3];
+    double th = 2.0 * atan2(x * a0 + y * a1 + z * a2, w);
+    dval = th + 2 * M_PI * nearbyint((near - th) / (2 * M_PI));
+    double va = x * a0 + y * a1 + z * a2, den = w * w + va * va, tg[3];
+    tg[0] = (w * (w * a0 + y * a2 - z * a1) + va * x) / den;
+    tg[1] = (w * (w * a1 + z * a0 - x * a2) + va * y) / den;
+    tg[2] = (w * (w * a2 + x * a1 - y * a0) + va * z) / den;
+    for (i = 0; i < nba; ++i) dd[bpos[i]] = tg[bcomp[i]];
+  } else {
+    dd[d] = 1.0;
+  }
+  sc[0] = dval;
+  double rhs_drive = dval - s_target, dd_d = dd[d], other = 0.0;
+  for (i = 0; i < n; ++i) other += fabs(dd[i]);
+  other -= fabs(dd_d);
+  FINT info = 0;
+  if (other <= 1e-14 * fabs(dd_d)) {
+    /* reduced: the free block (row-major, read transposed by LAPACK), two right-hand sides */
+    double dxd = -rhs_drive / dd_d;
+    for (i = 0; i < nf; ++i) {
+      long long fi = f[i];
+      double Afd = H[fi * N + d] + (C ? C[fi * N + d] : 0.0);
+      b[i] = -g[fi] - Afd * dxd;
+      b[nf + i] = -Afd / dd_d;
+      for (j = 0; j < nf; ++j) J[i * nf + j] = H[fi * N + f[j]] + (C ? C[fi * N + f[j]] : 0.0);
+    }
+    if (nf > 0) {
+      FINT nn = (FINT) nf, two = 2;
+      char T = 'T';
+      ((getrf_t) fp[7])(&nn, &nn, J, &nn, ipiv, &info);
+      if (info == 0) ((getrs_t) fp[8])(&T, &nn, &two, J, &nn, ipiv, b, &nn, &info);
+    }
+    for (i = 0; i < nf; ++i) {
+      dxi[f[i]] = b[i];
+      tan[f[i]] = b[nf + i];
+    }
+    dxi[d] = dxd;
+    tan[d] = 1.0 / dd_d;
+  } else {
+    /* bordered: free rows of H + C, then the drive gradient row */
+    for (i = 0; i < nf; ++i)
+      for (j = 0; j < n; ++j) J[i * n + j] = H[f[i] * N + j] + (C ? C[f[i] * N + j] : 0.0);
+    for (j = 0; j < n; ++j) J[nf * n + j] = dd[j];
+    for (i = 0; i < nf; ++i) {
+      b[i] = -g[f[i]];
+      b[n + i] = 0.0;
+    }
+    b[nf] = -rhs_drive;
+    b[n + nf] = 1.0;
+    FINT nn = (FINT) n, two = 2;
+    char T = 'T';
+    ((getrf_t) fp[7])(&nn, &nn, J, &nn, ipiv, &info);
+    if (info == 0) ((getrs_t) fp[8])(&T, &nn, &two, J, &nn, ipiv, b, &nn, &info);
+    for (i = 0; i < n; ++i) {
+      dxi[i] = b[i];
+      tan[i] = b[n + i];
+    }
+  }
+  sc[4] = (double) info;
+  sc[5] = other <= 1e-14 * fabs(dd_d) ? 1.0 : 0.0;
+  /* scaled increment and residual (model.statics._scaled_residual) */
+  double inc = 0.0, dmax = 0.0, res = 0.0;
+  for (i = 0; i < n; ++i) {
+    double v = fabs(dxi[i] / scale[i]);
+    if (!(v <= inc)) inc = v;  /* a NaN stays */
+    if (isnan(inc)) break;
+  }
+  for (i = 0; i < nf; ++i) {
+    double v = fabs(H[f[i] * N + f[i]]);
+    if (v > dmax) dmax = v;
+  }
+  double floor_ = 1e-12 * (dmax > 1e-300 ? dmax : 1e-300);
+  for (i = 0; i < nf; ++i) {
+    double v = fabs(H[f[i] * N + f[i]]), ds = v > floor_ ? v : floor_;
+    double r = fabs(g[f[i]]) / (ds * scale_free[i]);
+    if (r > res) res = r;
+  }
+  double rd = fabs(dval - s_target) / scale[d];
+  if (rd > res) res = rd;
+  sc[1] = inc;
+  sc[2] = res;
+  return 0;
 }
 
 /* Rayleigh quotients lam_j = (x^T K x) / (x^T M x) of the computed vectors, accumulated in extended
@@ -187,6 +330,8 @@ def build(table) -> tuple | None:
     lib.lowest_pairs.argtypes = [L, L, L, P, P, P, P, P, P, P, L]
     lib.solve.restype = L
     lib.solve.argtypes = [L, L, P, P, P, P]
+    lib.newton.restype = L
+    lib.newton.argtypes = [P] * 13
     for name in ("work_doubles", "work_ints"):
         getattr(lib, name).restype = L
         getattr(lib, name).argtypes = [L]
@@ -213,8 +358,10 @@ def _workspace(n: int, drv: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     ws = cache.get(key)
     if ws is None:  # kept per order: no allocation (nor page faults) per call
         lib, _, int_dtype = drv
-        ws = cache[key] = (np.empty(lib.work_doubles(n)), np.empty(lib.work_ints(n), dtype=int_dtype),
-                         np.empty(max(n, 1), dtype=int_dtype))
+        arrays = (np.empty(lib.work_doubles(n)), np.empty(lib.work_ints(n), dtype=int_dtype),
+                  np.empty(max(n, 1), dtype=int_dtype))
+        # their addresses, taken once (``.ctypes.data`` costs about 1.5 us a call); the arrays stay referenced
+        ws = cache[key] = (*(a.ctypes.data for a in arrays), arrays)
     return ws
 
 
@@ -237,9 +384,9 @@ def lowest_pairs(K: np.ndarray, M: np.ndarray, k: int, refine: bool = True,
     M = np.ascontiguousarray(M, dtype=np.float64)
     lam = np.empty(k)
     X = np.empty((n, k))
-    work, iwork, _ = _workspace(n, drv)
+    work, iwork, _, _ = _workspace(n, drv)
     status = lib.lowest_pairs(n, k, TRSM_MAX, K.ctypes.data, M.ctypes.data, lam.ctypes.data, X.ctypes.data,
-                              table.table, work.ctypes.data, iwork.ctypes.data, int(refine))
+                              table.table, work, iwork, int(refine))
     if status == 0:
         return lam, X
     if status == 1:
@@ -261,6 +408,54 @@ def solve(A: np.ndarray, B: np.ndarray) -> int | None:
         raise ValueError("solve needs a C-contiguous float64 A and a Fortran-ordered float64 B of matching rows")
     if n == 0:
         return 0
-    _, _, ipiv = _workspace(n, drv)
+    _, _, ipiv, _ = _workspace(n, drv)
     nrhs = B.shape[1] if B.ndim == 2 else 1
-    return int(lib.solve(n, nrhs, A.ctypes.data, B.ctypes.data, ipiv.ctypes.data, table.table))
+    return int(lib.solve(n, nrhs, A.ctypes.data, B.ctypes.data, ipiv, table.table))
+
+
+class NewtonSystem:
+    """The fixed data of one structure's compiled Newton system (C ``newton`` above): index and scale arrays,
+    with their addresses taken once, and the work arrays. Made by :func:`newton_system`; the row stride of
+    H and C is set by each :func:`newton` call from the arrays it gets."""
+
+    def __init__(self, n: int, drive: int, kind: int, free: np.ndarray, block_pos: np.ndarray,
+                 block_comp: np.ndarray, axis: np.ndarray, scale: np.ndarray, scale_free: np.ndarray,
+                 drv: tuple) -> None:
+        self.n, self.drv = n, drv
+        int_dtype = drv[2]
+        self.ip = np.concatenate([[n, 0, drive, kind, len(block_pos)], free, block_pos, block_comp]).astype(np.int64)
+        self.dp = np.concatenate([axis, [0.0, 0.0, 0.0], scale, scale_free]).astype(np.float64)
+        self.J = np.empty(max(n * n, 1))
+        self.b = np.empty(3 * max(n, 1))
+        self.ipiv = np.empty(max(n, 1), dtype=int_dtype)
+        self.sc = np.empty(6)
+        self.eye = np.eye(3).ravel()  # the rotation argument of a translation drive (not read)
+        self.ptr = [a.ctypes.data for a in (self.ip, self.dp, self.J, self.b, self.ipiv, self.sc, self.eye)]
+
+
+def newton(ns: NewtonSystem, H: np.ndarray, C: np.ndarray | None, g: np.ndarray, Rd: np.ndarray | None,
+           near: float, s_target: float, dval: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One Newton system in C: ``(dxi, tan, [dval, inc, res, finite, info, reduced])``. ``H`` and ``C``: n x n
+    views with a common row stride (``C`` may be None), ``g`` contiguous, ``Rd`` the driven master's rotation
+    (None for a translation drive, whose ``dval`` is given)."""
+    lib, table, _ = ns.drv
+    n = ns.n
+    stride = H.strides[0] // 8
+    if H.strides[1] != 8 or (C is not None and C.strides != H.strides) or not g.flags.c_contiguous:
+        raise ValueError("newton needs H and C with unit column stride and one row stride, and a contiguous g")
+    ns.dp[3], ns.dp[4], ns.dp[5] = near, s_target, dval
+    ns.ip[1] = stride
+    dxi, tan = np.empty(n), np.empty(n)
+    ip, dp, J, b, ipiv, sc, eye = ns.ptr
+    R = eye if Rd is None else np.ascontiguousarray(Rd, dtype=np.float64).ctypes.data
+    lib.newton(ip, dp, H.ctypes.data, None if C is None else C.ctypes.data, g.ctypes.data, R, J, b, ipiv,
+               table.table, dxi.ctypes.data, tan.ctypes.data, sc)
+    return dxi, tan, ns.sc.copy()
+
+
+def newton_system(*args, **kwargs) -> NewtonSystem | None:
+    """A :class:`NewtonSystem` for the process's driver, or None without it."""
+    drv = _driver()
+    if drv is None:
+        return None
+    return NewtonSystem(*args, drv=drv, **kwargs)

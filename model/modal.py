@@ -112,9 +112,8 @@ def modes_at(sys: System, eq: Equilibrium, k: int, drive: str = "locked") -> Mod
     M = sys.mass(eq.state)
     locked = drive == "locked"
     dofs = sys.free if locked else np.arange(sys.n)
-    ix = sys.ix_free if locked else sys.ix_all
-    K = eq.ev.H[ix]
-    Mr = M[ix]
+    K = sys.free_block(eq.ev.H, locked)
+    Mr = Mf = sys.free_block(M, locked)
     Z = None
     if sys.n_con:
         from scipy.linalg import null_space
@@ -128,7 +127,7 @@ def modes_at(sys: System, eq: Equilibrium, k: int, drive: str = "locked") -> Mod
     if w is None:  # K not positive definite (unstable) or singular: the pencil route through M
         w, V, info = _lowest_pairs_through_m(K, Mr, k)
         if info > K.shape[0]:  # LAPACK: the leading minor of order info - n of M is not positive definite
-            bad = [s.dof_label(int(sys.act_full[d])) for d in dofs[np.diag(M[ix]) <= 0][:5]]
+            bad = [s.dof_label(int(sys.act_full[d])) for d in dofs[np.diag(Mf) <= 0][:5]]
             raise FlexoptError(
                 "the mass matrix is singular" + (f" (no mass on {', '.join(bad)})" if bad else "")
                 + "; give every moving body mass and inertia or attach it to beams"

@@ -17,11 +17,11 @@ __all__ = ["log_so3", "quaternion", "twist_angle", "twist_gradient", "skew"]
 def skew(v: np.ndarray) -> np.ndarray:
     """Skew-symmetric matrices of vectors ``v`` (..., 3) -> (..., 3, 3)."""
     v = np.asarray(v, dtype=float)
-    z = np.zeros(v.shape[:-1])
-    return np.stack(
-        [np.stack([z, -v[..., 2], v[..., 1]], -1),
-         np.stack([v[..., 2], z, -v[..., 0]], -1),
-         np.stack([-v[..., 1], v[..., 0], z], -1)], -2)
+    out = np.zeros(v.shape[:-1] + (3, 3))
+    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
+    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
+    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
+    return out
 
 
 def log_so3(R: np.ndarray) -> np.ndarray:

@@ -119,7 +119,7 @@ def _newton_step(sys: System, ev: Assembled, dd: np.ndarray, rhs_drive: float) -
         if len(f) == 0:
             sol = rhs
         else:  # LAPACK directly (model.linalg): scipy's wrappers cost more than a 60-DOF factorisation
-            sol, info = _solve(A[sys.ix_free], rhs)
+            sol, info = _solve(sys.free_block(A), rhs)
             if info > 0:
                 raise np.linalg.LinAlgError(f"singular tangent stiffness (LAPACK dgesv info {info})")
         dxi = np.empty(n)
@@ -144,6 +144,35 @@ def _newton_step(sys: System, ev: Assembled, dd: np.ndarray, rhs_drive: float) -
     return sol[:n, 0], sol[n:, 0], sol[:n, 1], sol[n:, 1]
 
 
+def _compiled_system(sys: System) -> "linalg.NewtonSystem | None":
+    """The compiled Newton system of ``sys`` (cached on it), or None where the numpy route applies: no C
+    driver, rigid deformations, a drive basis that is not made of global axes, or no one-call evaluate."""
+    ns = sys._newton_system
+    if ns is False:
+        ns = None
+        if sys._fast is not None and sys.direct and sys.n_con == 0 and sys.n > 0:
+            comp = np.argmax(sys.Qa, axis=0)  # the global axis of each active basis column
+            ns = linalg.newton_system(sys.n, sys.drive, 0 if sys.s.drive_kind == "rotation" else 1,
+                                      sys.free, sys.block_pos, comp, np.asarray(sys.s.drive_axis, dtype=float),
+                                      sys.scale, sys.scale_free)
+        sys._newton_system = ns
+    return ns
+
+
+def _compiled_step(sys: System, ns, ev: Assembled, st: State, s_target: float, near: float):
+    """:func:`_newton_step`, the drive and :func:`_scaled_residual` in one C call; raises like them."""
+    rotation = sys.s.drive_kind == "rotation"
+    dval = 0.0 if rotation else sys.drive_value(st, near=near)
+    dxi, tan, sc = linalg.newton(ns, ev.H, ev.chart, ev.g, st.R[sys.s.drive_master] if rotation else None, near,
+                                 s_target, dval)
+    if sc[3] != 1.0:
+        raise StepFailure("non-finite residual")
+    if sc[4] > 0:
+        what = "singular tangent stiffness" if sc[5] else "singular Newton matrix"
+        raise StepFailure(f"singular tangent ({what} (LAPACK dgesv info {int(sc[4])}))")
+    return dxi, tan, sc
+
+
 def solve_point(
     sys: System,
     start: State,
@@ -161,18 +190,24 @@ def solve_point(
     st = start
     inc = res = float("nan")
     incs: list[float] = []  # the increments of the iterations so far
+    ns = _compiled_system(sys)
     for it in range(opts.max_iter + 1):
         ev = sys.evaluate(st)
-        if not (np.isfinite(ev.g).all() and np.isfinite(ev.H).all()):
-            raise StepFailure("non-finite residual")
-        dval = sys.drive_value(st, near=theta_near)
-        dd = sys.drive_gradient(st)
-        try:
-            dxi, dlam, tan, dlam_ds = _newton_step(sys, ev, dd, dval - s_target)
-        except np.linalg.LinAlgError as exc:
-            raise StepFailure(f"singular tangent ({exc})") from exc
-        inc = float(np.max(np.abs(dxi / sys.scale))) if sys.n else 0.0
-        res = _scaled_residual(sys, ev, dval, s_target)
+        if ns is not None:  # the same system and numbers in one C call (model.linalg.newton)
+            dxi, tan, sc = _compiled_step(sys, ns, ev, st, s_target, theta_near)
+            dlam, dlam_ds = np.zeros(0), np.zeros(0)
+            dval, inc, res = float(sc[0]), float(sc[1]), float(sc[2])
+        else:
+            if not (np.isfinite(ev.g).all() and np.isfinite(ev.H).all()):
+                raise StepFailure("non-finite residual")
+            dval = sys.drive_value(st, near=theta_near)
+            dd = sys.drive_gradient(st)
+            try:
+                dxi, dlam, tan, dlam_ds = _newton_step(sys, ev, dd, dval - s_target)
+            except np.linalg.LinAlgError as exc:
+                raise StepFailure(f"singular tangent ({exc})") from exc
+            inc = float(np.max(np.abs(dxi / sys.scale))) if sys.n else 0.0
+            res = _scaled_residual(sys, ev, dval, s_target)
         if not np.isfinite(inc):
             raise StepFailure("non-finite increment")
         stalled = bool(incs) and inc > 0.25 * incs[-1]
@@ -209,7 +244,7 @@ def path_curvature(sys: System, eq: Equilibrium) -> np.ndarray:
     t = np.asarray(eq.tangent, dtype=float)
     f = sys.free
     rhs = np.asfortranarray(-(sys.hessian_derivative(eq.state, t) @ t)[f][:, None])
-    sol, info = _solve(np.ascontiguousarray(eq.ev.H[sys.ix_free]), rhs)
+    sol, info = _solve(sys.free_block(eq.ev.H), rhs)
     if info > 0:
         raise np.linalg.LinAlgError(f"singular tangent stiffness (LAPACK dgesv info {info})")
     out = np.zeros(sys.n)

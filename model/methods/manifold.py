@@ -31,7 +31,7 @@ def _reduced_basis(sys: System, md: ModalDerivatives, k: int) -> np.ndarray:
     cols.append(pj[:, None])
     Dv = sys.scale_free  # DOF scales: the basis is built in unit-free coordinates
     B = np.hstack(cols)[sys.free] / Dv[:, None]
-    Mf = Dv[:, None] * md.M[sys.ix_free] * Dv[None, :]
+    Mf = Dv[:, None] * sys.free_block(md.M) * Dv[None, :]
     Lc = np.linalg.cholesky(0.5 * (Mf + Mf.T))
     C = Lc.T @ B
     C = C / np.maximum(np.linalg.norm(C, axis=0), 1e-300)

@@ -340,7 +340,8 @@ def modal_derivatives(an: Analysis, eq0: Equilibrium | None = None, n_theta: int
     f, d = sys.free, sys.drive
     K = eq0.ev.H
     M = sys.mass(eq0.state)
-    Kff = 0.5 * (K[sys.ix_free] + K[sys.ix_free].T)
+    Kf = sys.free_block(K)
+    Kff = 0.5 * (Kf + Kf.T)
     try:
         cho = sla.cho_factor(Kff)
     except np.linalg.LinAlgError as exc:
@@ -367,7 +368,8 @@ def modal_derivatives(an: Analysis, eq0: Equilibrium | None = None, n_theta: int
     # eigen solve on the DOF-scaled matrices D K D, D M D (D = the DOFs' length scales): the same
     # numbers in any consistent units, so results are unit-invariant to rounding
     Dv = sys.scale_free
-    Ms = Dv[:, None] * (0.5 * (M[sys.ix_free] + M[sys.ix_free].T)) * Dv[None, :]
+    Mf = sys.free_block(M)
+    Ms = Dv[:, None] * (0.5 * (Mf + Mf.T)) * Dv[None, :]
     w, V = sla.eigh(Dv[:, None] * Kff * Dv[None, :], Ms)
     V = Dv[:, None] * V
     phi = np.zeros((sys.n, len(w)))
