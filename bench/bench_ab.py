@@ -12,6 +12,8 @@ commit with::
     for d in model optim service; do ln -s /tmp/base/src/$d /tmp/base/pkg/flexopt/$d; done
     python bench/bench_ab.py --base /tmp/base/pkg
 
+``--routes`` instead compares, in one process and curve by curve, this checkout's compiled per-point routes
+with the numpy routes they replace (same numbers to the bit, asserted).
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import os
 import statistics
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 ROOT = str(Path(__file__).resolve().parents[1])
@@ -53,13 +56,78 @@ def _run(pythonpath: str, inner: int) -> dict[str, float]:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+def _systems(an) -> list:
+    """The analysis's System and that of its mesh estimate's coarse model (both solve every curve)."""
+    subs = [an.system]
+    if getattr(an, "_mesh_sub", None) is not None:
+        subs.append(an._mesh_sub.system)
+    return subs
+
+
+def _set_routes(systems: list, saved: list | None) -> list:
+    """Switch the compiled per-point routes off (``saved`` None: returns what to restore) or back on."""
+    if saved is None:
+        saved = [(s._fast, s._fast_update, s._newton_system) for s in systems]
+        for s in systems:
+            s._fast = s._fast_update = s._newton_system = None
+        return saved
+    for s, (fast, upd, ns) in zip(systems, saved):
+        s._fast, s._fast_update, s._newton_system = fast, upd, ns
+    return saved
+
+
+def routes(pairs: int) -> int:
+    """In one process, on one Analysis per case: warm curves with the compiled per-point routes (model/assembly.py's
+    one-call evaluate, mass, Hessian derivative and update; model.linalg.newton) against the numpy routes they
+    replace, alternating curve by curve. Both give the same numbers to the bit (checked here too)."""
+    sys.path.insert(0, ROOT)
+    import numpy as np
+
+    from flexopt.model import Analysis, template
+
+    load0 = os.getloadavg()[0]
+    rows = []
+    for label, name, params in CASES:
+        an = Analysis(template(name, **params))
+        ref = an.frequency_curve()
+        systems = _systems(an)
+        on, off = [], []
+        for _ in range(pairs):
+            t = time.perf_counter()
+            a = an.frequency_curve()
+            on.append(time.perf_counter() - t)
+            saved = _set_routes(systems, None)
+            try:
+                t = time.perf_counter()
+                b = an.frequency_curve()
+                off.append(time.perf_counter() - t)
+            finally:
+                _set_routes(systems, saved)
+            assert np.array_equal(a.modes_hz, ref.modes_hz) and np.array_equal(b.modes_hz, ref.modes_hz)
+        ratio = statistics.median([y / x for x, y in zip(on, off)])
+        rows.append((label, statistics.median(on), statistics.median(off), ratio))
+    print(f"{pairs} alternating pairs of warm curves in one process; load average {load0:.2f} at start, "
+          f"{os.getloadavg()[0]:.2f} at end; {os.cpu_count()} CPUs; same numbers to the bit on both routes")
+    print("| case | compiled routes, median [ms] | numpy routes, median [ms] | speed-up (median of pairs) |")
+    print("|---|---|---|---|")
+    for label, a, b, r in rows:
+        print(f"| {label} | {a * 1e3:.1f} | {b * 1e3:.1f} | {r:.2f} |")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Alternate A (this checkout) and B (``--base``) and print one markdown table."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--base", required=True, help="directory holding the other version's flexopt package")
-    ap.add_argument("--pairs", type=int, default=5, help="A B pairs of child processes")
+    ap.add_argument("--base", help="directory holding the other version's flexopt package")
+    ap.add_argument("--routes", action="store_true",
+                    help="instead: this checkout's compiled per-point routes against its numpy routes, in process")
+    ap.add_argument("--pairs", type=int, default=5, help="A B pairs of child processes (or of curves, --routes)")
     ap.add_argument("--inner", type=int, default=5, help="warm curves per case and child (median taken)")
     args = ap.parse_args(argv)
+    if args.routes:
+        return routes(args.pairs)
+    if not args.base:
+        ap.error("--base DIR is required (or --routes)")
     load0 = os.getloadavg()[0]
     a_runs, b_runs = [], []
     for _ in range(args.pairs):

@@ -11,9 +11,12 @@ For each case it reports, side by side in one run:
 
 Times are wall clock on whatever else the machine is doing: quote medians, compare within one run.
 
+``--split`` prints instead where a warm curve's time goes (eigen solves, Newton systems, kernel calls, the
+rest), the per-point floor the README's speed section discusses.
+
 Usage::
 
-    python bench/bench_curve.py [--repeat 15] [--markdown]
+    python bench/bench_curve.py [--repeat 15] [--markdown] [--split]
 """
 
 from __future__ import annotations
@@ -56,12 +59,72 @@ def _child_seconds(name: str, params: dict, cache: str) -> float:
     return float(out.stdout.strip().splitlines()[-1])
 
 
+def split(repeat: int) -> None:
+    """Where a warm curve's time goes: the compiled eigen solves, Newton systems (with their LU) and element
+    kernel calls (gather, kernel, scatter), timed by wrapping those functions over ``repeat`` curves; the rest
+    is the continuation's Python (predictor, tracking, labels, stresses, mesh estimate bookkeeping)."""
+    import statistics as st
+
+    from flexopt.model import Analysis, assembly, linalg, template
+
+    acc: dict[str, list[float]] = {}
+
+    def timed(owner, name: str, key: str):
+        f = getattr(owner, name)
+
+        def g(*a, **k):
+            t = time.perf_counter()
+            try:
+                return f(*a, **k)
+            finally:
+                rec = acc.setdefault(key, [0.0, 0])
+                rec[0] += time.perf_counter() - t
+                rec[1] += 1
+
+        setattr(owner, name, g)
+        return f
+
+    print(f"where the warm exact 91-point curve's time goes ({repeat} curves per case, medians of the whole "
+          f"curve; parts summed over the curves); load average {os.getloadavg()[0]:.2f}; {os.cpu_count()} CPUs")
+    print("| case | curve [ms] | eigen solves / curve | eigen [ms] | per eigen solve [us] | Newton systems / curve "
+          "| Newton systems incl. LU [ms] | kernel calls incl. gather and scatter [ms] | rest [ms] |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for label, name, params in CASES:
+        an = Analysis(template(name, **params))
+        an.frequency_curve()
+        acc.clear()
+        originals = [(linalg, "lowest_pairs", timed(linalg, "lowest_pairs", "eigen")),
+                     (linalg, "newton", timed(linalg, "newton", "newton")),
+                     (assembly.System, "_compiled_call", timed(assembly.System, "_compiled_call", "kernels"))]
+        try:
+            ts = []
+            for _ in range(repeat):
+                t = time.perf_counter()
+                an.frequency_curve()
+                ts.append(time.perf_counter() - t)
+        finally:
+            for owner, attr, f in originals:
+                setattr(owner, attr, f)
+        per = {k: (v[0] / repeat, v[1] / repeat) for k, v in acc.items()}
+        total = sum(ts) / repeat
+        eig, newton, kern = per.get("eigen", (0, 0)), per.get("newton", (0, 0)), per.get("kernels", (0, 0))
+        rest = total - eig[0] - newton[0] - kern[0]
+        print(f"| {label} | {st.median(ts) * 1e3:.1f} | {eig[1]:.0f} | {eig[0] * 1e3:.1f} | "
+              f"{eig[0] / max(eig[1], 1) * 1e6:.0f} | {newton[1]:.0f} | {newton[0] * 1e3:.1f} | {kern[0] * 1e3:.1f} | "
+              f"{rest * 1e3:.1f} |")
+
+
 def main(argv: list[str] | None = None) -> None:
     """Run the benchmark and print one table."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=15, help="warm repetitions per case (median reported)")
     ap.add_argument("--markdown", action="store_true", help="print a markdown table")
+    ap.add_argument("--split", action="store_true",
+                    help="instead: where a warm curve's time goes (eigen, Newton systems, kernels, the rest)")
     args = ap.parse_args(argv)
+    if args.split:
+        split(args.repeat)
+        return
 
     from flexopt.model import Analysis, template
 
