@@ -290,6 +290,18 @@ class System:
                                 np.zeros((len(rm), 9))]
             self._fast_update = (upd[2], self._rot_update.address, *(a.ctypes.data for a in self._upd_arrays))
 
+    def hessian_pattern(self) -> np.ndarray:
+        """Every entry of ``H + chart`` (active numbering, n x n, bool) that can be nonzero: the elements'
+        12 x 12 DOF blocks and the chart correction's rotation blocks. All True where the drive basis is not
+        made of global axes (its rotation mixes the drive block; the banded Newton solve is not used there)."""
+        n, N = self.n, self.N
+        if not self.direct:
+            return np.ones((n, n), dtype=bool)
+        P = np.zeros(N * N, dtype=bool)
+        for flat in (self.beam_flat, self.truss_flat, self._chart_flat):
+            P[np.asarray(flat, dtype=np.int64).ravel()] = True
+        return P.reshape(N, N)[:n, :n].copy()
+
     def free_block(self, A: np.ndarray, locked: bool = True) -> np.ndarray:
         """The free-DOF block ``A[free, free]`` (``locked``; else all of ``A``) as a new C-contiguous array: the
         same numbers as indexing with :attr:`ix_free`, by two ``take`` calls at a third of its cost."""

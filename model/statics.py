@@ -154,7 +154,7 @@ def _compiled_system(sys: System) -> "linalg.NewtonSystem | None":
             comp = np.argmax(sys.Qa, axis=0)  # the global axis of each active basis column
             ns = linalg.newton_system(sys.n, sys.drive, 0 if sys.s.drive_kind == "rotation" else 1,
                                       sys.free, sys.block_pos, comp, np.asarray(sys.s.drive_axis, dtype=float),
-                                      sys.scale, sys.scale_free)
+                                      sys.scale, sys.scale_free, pattern=sys.hessian_pattern())
         sys._newton_system = ns
     return ns
 
@@ -169,7 +169,8 @@ def _compiled_step(sys: System, ns, ev: Assembled, st: State, s_target: float, n
         raise StepFailure("non-finite residual")
     if sc[4] > 0:
         what = "singular tangent stiffness" if sc[5] else "singular Newton matrix"
-        raise StepFailure(f"singular tangent ({what} (LAPACK dgesv info {int(sc[4])}))")
+        lu = "dgbtrf" if ns.bands["reduced" if sc[5] else "bordered"] else "dgetrf"
+        raise StepFailure(f"singular tangent ({what} (LAPACK {lu} info {int(sc[4])}))")
     return dxi, tan, sc
 
 

@@ -131,27 +131,43 @@ def test_compiled_assembly_equals_numpy_route_bit_for_bit(name: str) -> None:
     assert np.abs(fast[0].g).max() > 0 and np.abs(fast[1]).max() > 0  # a state that loads every term
 
 
-@pytest.mark.parametrize("name", ["leaf-spring", "cross-spring-pivot", "parallel-leaf-spring", "double-cross-hinge"])
-def test_compiled_newton_system_equals_numpy_route_bit_for_bit(name: str) -> None:
-    """model.linalg.newton (the drive, the Newton system, its LU solve, the scaled increment and residual in
-    C) against model.statics' numpy route on the same state: rotation drives with the reduced free block
-    (leaf) and the bordered system (pivot, double cross: the driven body swings), a translation drive
-    (guide). The state is off the path (a predictor), so the residual and the increment are not small.
-    Reference: the numpy route, which the C route replaces."""
+def _off_path(name: str):
+    """A leaf, pivot, guide or double cross with an off-path state: a tangent step of 0.2 rad (guide: a fiftieth
+    of its length) from the equilibrium at the same distance, so the residual and the increment are not small."""
     from flexopt.model import Analysis, template
-    from flexopt.model.statics import (NewtonOptions, _compiled_step, _compiled_system, _newton_step,
-                                       _scaled_residual, predict, walk)
+    from flexopt.model.statics import NewtonOptions, predict, walk
 
     sys_ = Analysis(template(name)).system
-    ns = _compiled_system(sys_)
-    assert ns is not None
     h = 0.2 if sys_.s.drive_kind == "rotation" else 0.2 * sys_.s.length_scale / 10
     seen: list = []
     assert walk(sys_, np.array([h]), NewtonOptions(), lambda e: seen.append(e)) is None
-    eq = seen[-1]
-    s_target = 2 * h
-    st = predict(sys_, eq, h, None)  # a tangent step from a deflected equilibrium
-    ev = sys_.evaluate(st)
+    st = predict(sys_, seen[-1], h, None)
+    return sys_, st, sys_.evaluate(st), 2 * h, h
+
+
+def _dense_system(sys_, banded: bool = False, pattern=None):
+    from flexopt.model import linalg
+
+    comp = np.argmax(sys_.Qa, axis=0)
+    return linalg.newton_system(sys_.n, sys_.drive, 0 if sys_.s.drive_kind == "rotation" else 1, sys_.free,
+                                sys_.block_pos, comp, np.asarray(sys_.s.drive_axis, dtype=float), sys_.scale,
+                                sys_.scale_free, pattern=pattern, banded=banded)
+
+
+NEWTON_CASES = ["leaf-spring", "cross-spring-pivot", "parallel-leaf-spring", "double-cross-hinge"]
+
+
+@pytest.mark.parametrize("name", NEWTON_CASES)
+def test_compiled_newton_system_equals_numpy_route_bit_for_bit(name: str) -> None:
+    """model.linalg.newton with the dense LU (the drive, the Newton system, its LU solve, the scaled increment
+    and residual in C) against model.statics' numpy route on the same state: rotation drives with the reduced
+    free block (leaf) and the bordered system (pivot, double cross: the driven body swings), a translation
+    drive (guide). Reference: the numpy route, which the C route replaces."""
+    from flexopt.model.statics import _compiled_step, _newton_step, _scaled_residual
+
+    sys_, st, ev, s_target, h = _off_path(name)
+    ns = _dense_system(sys_)
+    assert ns.bands == {"reduced": None, "bordered": None}
     dxi, tan, sc = _compiled_step(sys_, ns, ev, st, s_target, h)
     dval = sys_.drive_value(st, near=h)
     dxi0, _, tan0, _ = _newton_step(sys_, ev, sys_.drive_gradient(st), dval - s_target)
@@ -164,20 +180,116 @@ def test_compiled_newton_system_equals_numpy_route_bit_for_bit(name: str) -> Non
     assert sc[5] == (0.0 if name in ("cross-spring-pivot", "double-cross-hinge") else 1.0)
 
 
-def test_compiled_newton_system_reports_a_singular_tangent() -> None:
-    """A singular tangent (here: the stiffness of a leaf scaled to zero) raises StepFailure naming LAPACK's
-    info, as the numpy route's LinAlgError does."""
-    from flexopt.model import Analysis, template
-    from flexopt.model.statics import StepFailure, _compiled_step, _compiled_system
+def _newton_matrix(sys_, ev, st, reduced: bool) -> np.ndarray:
+    """The dense matrix the compiled system solves (model.statics._newton_step's): the free block of H + chart
+    (reduced), or its free rows over all DOFs with the drive gradient as the last row (bordered)."""
+    A = ev.H + ev.chart
+    f = sys_.free
+    if reduced:
+        return A[np.ix_(f, f)]
+    return np.vstack([A[f], sys_.drive_gradient(st)[None, :]])
 
-    sys_ = Analysis(template("leaf-spring")).system
-    ns = _compiled_system(sys_)
-    st = sys_.reference_state()
-    ev = sys_.evaluate(st)
-    ev.H[:] = 0.0
-    ev.chart[:] = 0.0
-    with pytest.raises(StepFailure, match="singular tangent .*LAPACK dgesv info"):
-        _compiled_step(sys_, ns, ev, st, 0.1, 0.0)
+
+@pytest.mark.parametrize("name", NEWTON_CASES)
+def test_banded_newton_solve_is_backward_stable(name: str) -> None:
+    """The banded LU (model.linalg.band_order, dgbtrf) solves the same system as the dense one: its solution's
+    normwise backward error against the dense matrix (Rigal and Gaches: |A x - b| / (|A| |x| + |b|)) is at the
+    rounding level. Bound 1e-13: LU with partial pivoting gives about m eps times a small growth factor
+    (Higham, Accuracy and Stability of Numerical Algorithms, 2002, thm. 9.5; m <= 180 here); the two routes'
+    increments agree to 1e-9 of their size (the tangent's condition times eps). A band that drops entries
+    fails the bound by orders of magnitude (checked below), so the bound can fail."""
+    from flexopt.model.statics import _compiled_step, _newton_step
+
+    sys_, st, ev, s_target, h = _off_path(name)
+    pattern = sys_.hessian_pattern()
+    ns = _dense_system(sys_, banded=True, pattern=pattern)
+    dval = sys_.drive_value(st, near=h)
+    dxi, tan, sc = _compiled_step(sys_, ns, ev, st, s_target, h)
+    reduced = bool(sc[5])
+    assert ns.bands["reduced" if reduced else "bordered"] is not None, "the templates' systems are banded"
+    dxi0, _, tan0, _ = _newton_step(sys_, ev, sys_.drive_gradient(st), dval - s_target)
+    A = _newton_matrix(sys_, ev, st, reduced)
+    f, d = sys_.free, sys_.drive
+    dd = sys_.drive_gradient(st)
+
+    def backward(x: np.ndarray, rhs: np.ndarray) -> float:
+        r = A @ x - rhs
+        return float(np.abs(r).max() / (np.abs(A).sum(axis=1).max() * np.abs(x).max() + np.abs(rhs).max()))
+
+    if reduced:  # dxi[d] is fixed by the drive row; the free part solves A x = -g_f - A_fd dxi_d
+        Afd = (ev.H + ev.chart)[f, d]
+        checks = [(dxi[f], -ev.g[f] - Afd * dxi[d]), (tan[f], -Afd / dd[d])]
+    else:
+        checks = [(dxi, np.concatenate([-ev.g[f], [s_target - dval]])),
+                  (tan, np.concatenate([np.zeros(len(f)), [1.0]]))]
+    for x, rhs in checks:
+        assert backward(x, rhs) < 1e-13
+    assert np.abs(dxi - dxi0).max() <= 1e-9 * np.abs(dxi0).max()
+    assert np.abs(tan - tan0).max() <= 1e-9 * np.abs(tan0).max()
+
+    # the check can fail: the same band without its subdiagonals (the leaf is planar, so the pattern's outer
+    # diagonals hold zeros here and narrowing by one would drop nothing)
+    from flexopt.model import linalg
+
+    form = "reduced" if reduced else "bordered"
+    kl, ku = ns.bands[form]
+    lo = 5 + (sys_.n - 1) + 2 * len(sys_.block_pos) + (0 if reduced else 2 + sys_.n - 1)
+    assert tuple(ns.ip[lo:lo + 2]) == (kl, ku)
+    ns.ip[lo] = 0
+    narrow, _, _ = linalg.newton(ns, ev.H, ev.chart, ev.g, st.R[sys_.s.drive_master]
+                                 if sys_.s.drive_kind == "rotation" else None, h, s_target, dval)
+    x = narrow[f] if reduced else narrow
+    assert backward(x, checks[0][1]) > 1e-8
+
+
+def test_band_order_recovers_a_known_band() -> None:
+    """band_order against closed forms and scipy: a chain of 6-DOF nodes (12 x 12 element blocks: half
+    bandwidth 11) shuffled at random is brought back to half bandwidth 11 (no ordering of a node's 12-DOF
+    cliques can do better: each element block is full); a path graph to 1; its result is a permutation whose
+    stated bandwidths are those of the reordered pattern; and on the templates' tangent patterns it is no
+    wider than scipy.sparse.csgraph.reverse_cuthill_mckee (the library it stands in for, see its docstring)."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+    from flexopt.model import Analysis, linalg, template
+
+    def width(P: np.ndarray, perm: np.ndarray) -> tuple[int, int]:
+        r, c = np.nonzero(P[np.ix_(perm, perm)])
+        return int((r - c).max()), int((c - r).max())
+
+    rng = np.random.default_rng(0)
+    nodes = 15
+    P = np.zeros((6 * nodes, 6 * nodes), dtype=bool)
+    for e in range(nodes - 1):
+        P[6 * e : 6 * e + 12, 6 * e : 6 * e + 12] = True
+    shuffle = rng.permutation(len(P))
+    Q = P[np.ix_(shuffle, shuffle)]
+    perm, kl, ku = linalg.band_order(Q)
+    assert sorted(perm) == list(range(len(P))) and (kl, ku) == width(Q, perm) == (11, 11)
+    path = np.eye(40, dtype=bool) | np.eye(40, k=1, dtype=bool) | np.eye(40, k=-1, dtype=bool)
+    s = rng.permutation(40)
+    assert linalg.band_order(path[np.ix_(s, s)])[1:] == (1, 1)
+    for name in ["leaf-spring", "cross-spring-pivot", "parallel-leaf-spring", "three-fold-cross-hinge",
+                 "double-cross-hinge", "cartwheel-hinge"]:
+        sys_ = Analysis(template(name)).system
+        P = sys_.hessian_pattern()[np.ix_(sys_.free, sys_.free)]
+        perm, kl, ku = linalg.band_order(P)
+        assert (kl, ku) == width(P, perm)
+        ref = reverse_cuthill_mckee(csr_matrix(P.astype(float)), symmetric_mode=True)
+        assert kl + ku <= sum(width(P, ref)), name
+
+
+def test_hessian_pattern_covers_every_nonzero() -> None:
+    """The band is cut from System.hessian_pattern: every nonzero of H + chart at deflected states of the
+    templates lies inside it (an entry outside would be dropped by the banded solve)."""
+    from flexopt.model import Analysis, template
+
+    for name in NEWTON_CASES + ["three-fold-cross-hinge"]:
+        sys_, st, ev, _, _ = _off_path(name)
+        P = sys_.hessian_pattern()
+        A = ev.H + ev.chart
+        assert not np.any(A[~P]), name
+        assert P.sum() < 0.5 * P.size  # sparse: the pattern is not everything
 
 
 def test_without_a_c_compiler_the_numpy_routes_give_the_same_curve() -> None:
