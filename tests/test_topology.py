@@ -84,7 +84,11 @@ def test_families_recognised_and_built_alike(name: str) -> None:
     fam = Analysis(template(name, segments=4)).frequency_curve(stroke=grid).modes_hz
     top_scene = template("topology-hinge", topology=d, **dict(shared, segments=4))
     top = Analysis(top_scene).frequency_curve(stroke=grid).modes_hz
-    np.testing.assert_allclose(top, fam, rtol=1e-6)
+    # the same frequencies at each stroke. Compared sorted: which tracked branch continues which member of a
+    # pair that is exactly degenerate at stroke 0 (the three-fold cross: 640.78 Hz twice) depends on the basis
+    # the eigen solver returns for the pair, i.e. on the DOF numbering and the solver's rounding, not on the
+    # structure (the two builders number the DOFs differently; the branches at 30 deg came out swapped)
+    np.testing.assert_allclose(np.sort(top, axis=1), np.sort(fam, axis=1), rtol=1e-6)
 
 
 def test_non_families() -> None:
