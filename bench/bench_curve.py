@@ -60,7 +60,8 @@ def _child_seconds(name: str, params: dict, cache: str) -> float:
 
 
 def split(repeat: int) -> None:
-    """Where a warm curve's time goes: the compiled eigen solves, Newton systems (with their LU) and element
+    """Where a warm curve's time goes: the compiled eigen solves (dense or Lanczos; a Lanczos solve that
+    declines and the dense one after it count as two), Newton systems (with their LU) and element
     kernel calls (gather, kernel, scatter), timed by wrapping those functions over ``repeat`` curves; the rest
     is the continuation's Python (predictor, tracking, labels, stresses, mesh estimate bookkeeping)."""
     import statistics as st
@@ -94,6 +95,7 @@ def split(repeat: int) -> None:
         an.frequency_curve()
         acc.clear()
         originals = [(linalg, "lowest_pairs", timed(linalg, "lowest_pairs", "eigen")),
+                     (linalg, "lowest_pairs_banded", timed(linalg, "lowest_pairs_banded", "eigen")),
                      (linalg, "newton", timed(linalg, "newton", "newton")),
                      (assembly.System, "_compiled_call", timed(assembly.System, "_compiled_call", "kernels"))]
         try:

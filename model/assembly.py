@@ -269,6 +269,7 @@ class System:
         # the compiled Newton system (model.linalg.newton), built on first use by model.statics; False: not
         # built yet, None: not applicable (the numpy route)
         self._newton_system = False
+        self._eigen_band: dict[bool, tuple[np.ndarray, int] | None] = {}  # eigen_band's, per drive (locked)
         asm = _assembler() if (s.n_beams and not len(s.truss_nodes) and not self.n_con
                                and self.beam_kernel.address is not None) else None
         if asm is not None:
@@ -290,17 +291,38 @@ class System:
                                 np.zeros((len(rm), 9))]
             self._fast_update = (upd[2], self._rot_update.address, *(a.ctypes.data for a in self._upd_arrays))
 
-    def hessian_pattern(self) -> np.ndarray:
-        """Every entry of ``H + chart`` (active numbering, n x n, bool) that can be nonzero: the elements'
-        12 x 12 DOF blocks and the chart correction's rotation blocks. All True where the drive basis is not
-        made of global axes (its rotation mixes the drive block; the banded Newton solve is not used there)."""
+    def pattern(self) -> np.ndarray:
+        """Every entry of ``H + chart`` and of the mass matrix (active numbering, n x n, bool) that can be
+        nonzero: the elements' 12 x 12 DOF blocks, the masters' rotation blocks (chart, body inertia) and the
+        diagonal. All True where the drive basis is not made of global axes (its rotation mixes the drive
+        block; the banded routes are not used there)."""
         n, N = self.n, self.N
         if not self.direct:
             return np.ones((n, n), dtype=bool)
         P = np.zeros(N * N, dtype=bool)
-        for flat in (self.beam_flat, self.truss_flat, self._chart_flat):
+        for flat in (self.beam_flat, self.truss_flat, self._chart_flat, self._rot_flat):
             P[np.asarray(flat, dtype=np.int64).ravel()] = True
-        return P.reshape(N, N)[:n, :n].copy()
+        P = P.reshape(N, N)[:n, :n].copy()
+        np.fill_diagonal(P, True)
+        return P
+
+    def eigen_band(self, locked: bool = True) -> tuple[np.ndarray, int] | None:
+        """The band order (:func:`model.linalg.band_order`) of the eigen problem's pencil, the free block
+        (``locked``) or all DOFs: ``(perm, kd)`` when the Lanczos route applies (no rigid deformations, order
+        at least :data:`model.linalg.LANCZOS_MIN`, band narrow enough), else None. Found once per System."""
+        cache = self._eigen_band
+        if locked not in cache:
+            from . import linalg
+
+            dofs = self.free if locked else np.arange(self.n)
+            out = None
+            if self.n_con == 0 and self.direct and len(dofs) >= linalg.LANCZOS_MIN:
+                perm, kl, ku = linalg.band_order(self.pattern()[np.ix_(dofs, dofs)])
+                kd = max(kl, ku)
+                if kd + 1 <= linalg.BAND_FRACTION * len(dofs):
+                    out = (perm, kd)
+            cache[locked] = out
+        return cache[locked]
 
     def free_block(self, A: np.ndarray, locked: bool = True) -> np.ndarray:
         """The free-DOF block ``A[free, free]`` (``locked``; else all of ``A``) as a new C-contiguous array: the

@@ -19,7 +19,8 @@ import os
 __all__ = ["Routines", "routines", "NAMES"]
 
 #: The routines the compiled drivers call, in the order of their pointer table.
-NAMES = ("dpotrf", "dtrsm", "dsygst", "dsytrd", "dstemr", "dormtr", "dtrtrs", "dgetrf", "dgetrs", "dgbtrf", "dgbtrs")
+NAMES = ("dpotrf", "dtrsm", "dsygst", "dsytrd", "dstemr", "dormtr", "dtrtrs", "dgetrf", "dgetrs", "dgbtrf", "dgbtrs",
+         "dpbtrf", "dstev")
 _BLAS = {"dtrsm"}
 
 

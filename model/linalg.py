@@ -1,4 +1,4 @@
-"""Compiled dense linear algebra of the hot path: the lowest eigenpairs, the Newton solve and system, one C call each.
+"""Compiled linear algebra of the hot path: the lowest eigenpairs, the Newton solve and system, one C call each.
 
 **Eigen solve** (:func:`lowest_pairs`). The algorithm is the one :func:`model.modal._lowest_pairs`
 documents (Jacobi scaling ``D = diag(K)^(-1/2)``, Cholesky ``K_s = L L^T``, the standard problem ``C y = mu y``
@@ -12,6 +12,19 @@ replaced by the Rayleigh quotient of its vector accumulated in extended precisio
 takes the relative error of thin, finely meshed leaves from a few 1e-8 (cancellation in ``K x``) to about
 1e-11 (issue 12 item 2; tests/test_eigen_accuracy.py).
 
+**Banded eigen solve** (:func:`lowest_pairs_banded`). A flexure's pencil is sparse: its nonzeros are the
+elements' 12 x 12 blocks, within half bandwidth 11-23 of the diagonal on the templates after a reverse
+Cuthill-McKee order (:func:`band_order`), so the dense reduction (O(n^3): 5-6 ms of a 6 ms solve at n = 239)
+does work on zeros. This route keeps the same scaled standard problem but factorises ``K_s`` in band form
+(dpbtrf) and runs Lanczos on ``U^-T M_s U^-1`` with full reorthogonalisation from a fixed pseudo-random start
+(each step two banded triangular solves and a banded product); the largest ``mu`` of a flexure converge in
+20-40 steps to residuals of 1e-14 ``mu_max``. A Lanczos vector can miss an eigenvalue (an exact multiple, or
+a start orthogonal to a mode), so each result is checked by a Sturm count, the inertia of
+``K_s - sigma M_s`` just above the k-th eigenvalue (banded LDL^T), which must be exactly k; otherwise, or
+without convergence, the dense route answers. The eigenvalues are the same extended-precision Rayleigh
+quotients; against an extended-precision reference both routes err by about 1e-10 at most
+(tests/test_eigen_accuracy.py, tests/test_linalg.py).
+
 **Newton solve** (:func:`solve`): LU with partial pivoting (dgetrf, dgetrs) of a row-major matrix, read as
 its transpose by LAPACK and solved with ``trans = 'T'``, so nothing is copied.
 
@@ -20,7 +33,9 @@ drive and its gradient, the reduced free block or the bordered system, its LU so
 and residual -- in one call, with the same floating-point operations in the same order as the numpy code
 (``_newton_step``, ``_scaled_residual``, model.rotations), so the same numbers to the bit
 (tests/test_linalg.py); the numpy code remains the route without a compiler and for drive bases that are
-not made of global axes or structures with rigid deformations.
+not made of global axes or structures with rigid deformations. Where the system's band after
+:func:`band_order` is narrow (:data:`BAND_FRACTION`), it is solved by a banded LU (dgbtrf/dgbtrs) instead:
+the same system, other rounding (backward error checked in the tests).
 
 The routines come from :func:`model.lapack.routines` (numpy's OpenBLAS, else scipy's), so this path never
 imports ``scipy.linalg``. The C code is compiled once and cached like the element kernels
@@ -39,7 +54,8 @@ from .errors import KernelBuildError
 from .kernels import shared_library
 from .lapack import routines
 
-__all__ = ["lowest_pairs", "solve", "newton", "NewtonSystem", "available", "build", "band_order"]
+__all__ = ["lowest_pairs", "lowest_pairs_banded", "solve", "newton", "NewtonSystem", "available", "build",
+           "band_order"]
 
 #: Up to this order ``C = L^-1 M_s L^-T`` is formed by two triangular solves (BLAS dtrsm), above it by
 #: LAPACK dsygst (half the flops): whole eigen solve measured 324 vs 384 us at n = 59, even at n = 89-119
@@ -385,6 +401,206 @@ long long lowest_pairs(long long n_, long long k_, long long trsm_max, const dou
   if (refine) rayleigh(n, k, K, M, lam, X, iw);
   return 0;
 }
+
+/* ---- the lowest eigenpairs of a banded pencil by Lanczos (lanczos_pairs) ---- */
+typedef void (*pbtrf_t)(char*, FINT*, FINT*, double*, FINT*, FINT*);
+typedef void (*stev_t)(char*, FINT*, double*, double*, double*, FINT*, double*, FINT*);
+
+/* Upper band storage (LAPACK 'U', ld = kd + 1): entry (i, j), i <= j <= i + kd, at B[kd + i - j + j * ld]. */
+#define BAND(B, i, j) (B)[kd + (i) - (j) + (j) * ld]
+
+/* w = U^-1 v (U upper band, from dpbtrf) */
+static void band_back(long long n, long long kd, const double* U, const double* v, double* w) {
+  long long ld = kd + 1;
+  for (long long i = n - 1; i >= 0; --i) {
+    double s = v[i];
+    long long hi = i + kd < n - 1 ? i + kd : n - 1;
+    for (long long j = i + 1; j <= hi; ++j) s -= BAND(U, i, j) * w[j];
+    w[i] = s / BAND(U, i, i);
+  }
+}
+
+/* z = U^-T v */
+static void band_fwd(long long n, long long kd, const double* U, const double* v, double* z) {
+  long long ld = kd + 1;
+  for (long long j = 0; j < n; ++j) {
+    double s = v[j];
+    long long lo = j - kd > 0 ? j - kd : 0;
+    for (long long i = lo; i < j; ++i) s -= BAND(U, i, j) * z[i];
+    z[j] = s / BAND(U, j, j);
+  }
+}
+
+/* y = A v, A symmetric in upper band storage */
+static void band_mv(long long n, long long kd, const double* A, const double* v, double* y) {
+  long long ld = kd + 1;
+  for (long long i = 0; i < n; ++i) y[i] = 0.0;
+  for (long long j = 0; j < n; ++j) {
+    long long lo = j - kd > 0 ? j - kd : 0;
+    for (long long i = lo; i < j; ++i) {
+      double a = BAND(A, i, j);
+      y[i] += a * v[j];
+      y[j] += a * v[i];
+    }
+    y[j] += BAND(A, j, j) * v[j];
+  }
+}
+
+/* The number of negative pivots of W = A - sigma B (upper band, overwritten) by a symmetric LDL^T without
+   pivoting: the number of eigenvalues of A x = lambda B x below sigma (Sylvester's law of inertia; the Sturm
+   sequence check of Bathe, Finite Element Procedures, 1996, sec. 11.4.3). -1 when a pivot is tiny against
+   its row (no pivoting: the count is then not trusted and the caller takes the dense route). */
+static long long band_inertia(long long n, long long kd, double* W) {
+  long long ld = kd + 1, neg = 0;
+  for (long long j = 0; j < n; ++j) {
+    double d = BAND(W, j, j), size = 0.0;
+    long long hi = j + kd < n - 1 ? j + kd : n - 1;
+    for (long long l = j; l <= hi; ++l) size += fabs(BAND(W, j, l));
+    if (!(fabs(d) > 1e-12 * size)) return -1;
+    if (d < 0.0) ++neg;
+    for (long long l = j + 1; l <= hi; ++l) {
+      double t = BAND(W, j, l) / d;
+      for (long long m = l; m <= hi; ++m) BAND(W, l, m) -= t * BAND(W, j, m);
+    }
+  }
+  return neg;
+}
+
+/* Doubles of workspace lanczos_pairs needs (order n, half bandwidth kd, at most mmax Lanczos vectors). */
+long long lanczos_doubles(long long n, long long kd, long long mmax) {
+  return 4 * (kd + 1) * n + n * (mmax + 1) + 5 * n + 4 * mmax + mmax * mmax + 2 * mmax;
+}
+
+/* The k lowest eigenpairs of K x = lambda M x for K, M (n x n, row-major, lower triangles read) whose nonzeros
+   lie within kd of the diagonal in the order perm (position p holds row perm[p]). Jacobi scaling and the
+   Cholesky factor of K as in lowest_pairs, then Lanczos with full reorthogonalisation (twice) on the
+   standard problem U^-T M_s U^-1 y = mu y (the largest mu are the lowest lambda; Parlett, The Symmetric
+   Eigenvalue Problem, ch. 13), from a fixed pseudo-random start, until each of the k largest Ritz values'
+   residual beta_m |s_mi| is at most tol mu_max; then the Sturm count at sigma = lambda_k (1 + gap) must be
+   k (no eigenvalue below was missed). Output as lowest_pairs. Returns 0, 1 (K not positive definite or a
+   diagonal of M not positive: the route through M), 2 (not converged in mmax steps, a tiny pivot in the
+   Sturm count, or a count other than k: the caller takes the dense route). */
+long long lanczos_pairs(long long n, long long k, long long kd, long long mmax, double tol, double gap,
+                        const long long* perm, const double* K, const double* M, double* lam, double* X,
+                        void** fp, double* buf, FINT* iw, long long refine) {
+  long long ld = kd + 1, i, j, p;
+  double *Kb = buf, *Mb = Kb + ld * n, *W = Mb + ld * n, *T = W + ld * n, *Q = T + ld * n, *D = Q + n * (mmax + 1),
+         *w = D + n, *u = w + n, *z = u + n, *x = z + n, *al = x + n, *be = al + mmax, *dd = be + mmax,
+         *ee = dd + mmax, *S = ee + mmax, *wk = S + mmax * mmax;
+  for (i = 0; i < n; ++i) {
+    if (!(K[i * n + i] > 0.0) || !(M[i * n + i] > 0.0)) return 1;
+    D[i] = 1.0 / sqrt(K[i * n + i]);
+  }
+  for (j = 0; j < n; ++j) {  /* scaled bands in the order perm */
+    long long lo = j - kd > 0 ? j - kd : 0, pj = perm[j];
+    for (p = lo; p <= j; ++p) {
+      long long pi = perm[p], r = pi > pj ? pi : pj, c = pi > pj ? pj : pi;  /* lower triangle */
+      BAND(Kb, p, j) = D[pi] * K[r * n + c] * D[pj];
+      BAND(Mb, p, j) = D[pi] * M[r * n + c] * D[pj];
+    }
+  }
+  FINT nn = (FINT) n, kk = (FINT) kd, ldd = (FINT) ld, info = 0;
+  char U = 'U', V = 'V';
+  for (i = 0; i < ld * n; ++i) W[i] = Kb[i];
+  ((pbtrf_t) fp[11])(&U, &nn, &kk, W, &ldd, &info);
+  if (info != 0) return 1;
+  /* start: a fixed pseudo-random vector (a 64-bit LCG), normalised */
+  unsigned long long seed = 0x9E3779B97F4A7C15ULL;
+  double nrm = 0.0;
+  for (i = 0; i < n; ++i) {
+    seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+    Q[i] = (double) (seed >> 11) / 9007199254740992.0 - 0.5;
+    nrm += Q[i] * Q[i];
+  }
+  nrm = sqrt(nrm);
+  for (i = 0; i < n; ++i) Q[i] /= nrm;
+  long long m = 0, done = 0, mlim = mmax < n ? mmax : n;
+  while (m < mlim) {
+    double* q = Q + m * n;
+    band_back(n, kd, W, q, u);  /* w = U^-T M U^-1 q */
+    band_mv(n, kd, Mb, u, z);
+    band_fwd(n, kd, W, z, w);
+    double a = 0.0, wn = 0.0;
+    for (i = 0; i < n; ++i) a += q[i] * w[i];
+    al[m] = a;
+    for (i = 0; i < n; ++i) wn += w[i] * w[i];
+    for (int pass = 0; pass < 2; ++pass)  /* full reorthogonalisation, twice (classical Gram-Schmidt) */
+      for (j = 0; j <= m; ++j) {
+        double h = 0.0, *qj = Q + j * n;
+        for (i = 0; i < n; ++i) h += qj[i] * w[i];
+        for (i = 0; i < n; ++i) w[i] -= h * qj[i];
+      }
+    double b = 0.0;
+    for (i = 0; i < n; ++i) b += w[i] * w[i];
+    b = sqrt(b);
+    ++m;
+    if (m >= k && (m - k) % 4 == 0) {  /* Ritz values and their residuals */
+      FINT mm = (FINT) m;
+      for (j = 0; j < m; ++j) dd[j] = al[j];
+      for (j = 0; j + 1 < m; ++j) ee[j] = be[j];
+      ((stev_t) fp[12])(&V, &mm, dd, ee, S, &mm, wk, &info);
+      if (info != 0) return 2;
+      int ok = 1;
+      for (j = 0; j < k; ++j) {
+        long long c = m - 1 - j;  /* ascending: the largest mu last */
+        if (!(fabs(b * S[(m - 1) + c * m]) <= tol * dd[m - 1])) ok = 0;
+      }
+      if (ok) {
+        done = 1;
+        break;
+      }
+    }
+    if (m == mlim) break;
+    if (!(b > 1e-10 * sqrt(wn))) {  /* an invariant subspace: go on from a new vector orthogonal to it */
+      b = 0.0;
+      for (i = 0; i < n; ++i) {
+        seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+        w[i] = (double) (seed >> 11) / 9007199254740992.0 - 0.5;
+      }
+      for (int pass = 0; pass < 2; ++pass)
+        for (j = 0; j < m; ++j) {
+          double h = 0.0, *qj = Q + j * n;
+          for (i = 0; i < n; ++i) h += qj[i] * w[i];
+          for (i = 0; i < n; ++i) w[i] -= h * qj[i];
+        }
+      double r = 0.0;
+      for (i = 0; i < n; ++i) r += w[i] * w[i];
+      r = sqrt(r);
+      if (!(r > 0.0)) return 2;
+      for (i = 0; i < n; ++i) Q[m * n + i] = w[i] / r;
+    } else {
+      for (i = 0; i < n; ++i) Q[m * n + i] = w[i] / b;
+    }
+    be[m - 1] = b;
+  }
+  if (!done) return 2;
+  /* Sturm count below sigma: exactly the k found */
+  double mu_k = dd[m - k];
+  if (!(mu_k > 0.0)) return 2;
+  double sigma = (1.0 / mu_k) * (1.0 + gap);
+  for (i = 0; i < ld * n; ++i) T[i] = Kb[i] - sigma * Mb[i];
+  if (band_inertia(n, kd, T) != k) return 2;
+  for (j = 0; j < k; ++j) {  /* Ritz vectors y = Q s, x = U^-1 y, phi = D x / sqrt(mu), lowest lambda first */
+    long long c = m - 1 - j;
+    double mu = dd[c], s = 1.0 / sqrt(mu);
+    for (i = 0; i < n; ++i) {
+      double y = 0.0;
+      for (p = 0; p < m; ++p) y += Q[p * n + i] * S[p + c * m];
+      z[i] = y;
+    }
+    band_back(n, kd, W, z, x);
+    lam[j] = 1.0 / mu;
+    for (p = 0; p < n; ++p) X[perm[p] * k + j] = D[perm[p]] * x[p] * s;
+  }
+  if (refine) rayleigh(n, k, K, M, lam, X, iw);
+  return 0;
+}
+
+/* band_inertia of A - sigma B (upper bands, ld = kd + 1; W: ld n of work), for the tests. */
+long long sturm_count(long long n, long long kd, const double* A, const double* B, double sigma, double* W) {
+  for (long long i = 0; i < (kd + 1) * n; ++i) W[i] = A[i] - sigma * B[i];
+  return band_inertia(n, kd, W);
+}
 """
 
 _LOCAL = threading.local()  # workspace per thread (ctypes releases the GIL during the call) and per order
@@ -406,6 +622,10 @@ def build(table) -> tuple | None:
     lib.solve.argtypes = [L, L, P, P, P, P]
     lib.newton.restype = L
     lib.newton.argtypes = [P] * 13
+    lib.lanczos_pairs.restype = L
+    lib.lanczos_pairs.argtypes = [L, L, L, L, ctypes.c_double, ctypes.c_double, P, P, P, P, P, P, P, P, L]
+    lib.lanczos_doubles.restype = L
+    lib.lanczos_doubles.argtypes = [L, L, L]
     for name in ("work_doubles", "work_ints"):
         getattr(lib, name).restype = L
         getattr(lib, name).argtypes = [L]
@@ -466,6 +686,48 @@ def lowest_pairs(K: np.ndarray, M: np.ndarray, k: int, refine: bool = True,
     if status == 1:
         return False
     return None  # a LAPACK failure: the scipy route decides (and reports) what is wrong
+
+
+#: Lanczos: at most this many vectors (the templates converge in 20-38), the residual bound of each wanted Ritz
+#: pair relative to the largest (1e-14: about the dense solver's own accuracy, see lanczos_pairs), and the
+#: relative distance above the k-th eigenvalue at which the Sturm count is taken.
+LANCZOS_STEPS, LANCZOS_TOL, STURM_GAP = 80, 1e-14, 1e-7
+#: Below this order the dense solve is as fast (measured, see README).
+LANCZOS_MIN = 0
+
+
+def lowest_pairs_banded(K: np.ndarray, M: np.ndarray, k: int, perm: np.ndarray, kd: int,
+                        refine: bool = True) -> tuple[np.ndarray, np.ndarray] | None | bool:
+    """:func:`lowest_pairs` for a pencil whose nonzeros lie within ``kd`` of the diagonal in the order
+    ``perm`` (:func:`band_order`), by Lanczos on the banded Cholesky factor (C ``lanczos_pairs``: its
+    docstring says how it is checked). The same returns, and ``None`` also when Lanczos did not converge or
+    its Sturm count disagrees: the caller then takes the dense route, which is always right."""
+    drv = _driver()
+    if drv is None:
+        return None
+    lib, table, _ = drv
+    n = K.shape[0]
+    K = np.ascontiguousarray(K, dtype=np.float64)
+    M = np.ascontiguousarray(M, dtype=np.float64)
+    lam = np.empty(k)
+    X = np.empty((n, k))
+    key = ("lanczos", n, kd)
+    cache = getattr(_LOCAL, "work", None)
+    if cache is None:
+        cache = _LOCAL.work = {}
+    buf = cache.get(key)
+    if buf is None:
+        arr = np.empty(lib.lanczos_doubles(n, kd, LANCZOS_STEPS))
+        buf = cache[key] = (arr.ctypes.data, arr)
+    _, iwork, _, _ = _workspace(n, drv)
+    status = lib.lanczos_pairs(n, k, kd, LANCZOS_STEPS, LANCZOS_TOL, STURM_GAP, perm.ctypes.data, K.ctypes.data,
+                               M.ctypes.data, lam.ctypes.data, X.ctypes.data, table.table, buf[0], iwork,
+                               int(refine))
+    if status == 0:
+        return lam, X
+    if status == 1:
+        return False
+    return None
 
 
 def solve(A: np.ndarray, B: np.ndarray) -> int | None:

@@ -43,13 +43,16 @@ class Modes:
         return np.sign(self.omega2) * np.sqrt(np.abs(self.omega2)) / (2 * np.pi)
 
 
-def _lowest_pairs(K: np.ndarray, M: np.ndarray, k: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+def _lowest_pairs(K: np.ndarray, M: np.ndarray, k: int,
+                  band: tuple[np.ndarray, int] | None = None) -> tuple[np.ndarray | None, np.ndarray | None]:
     """The ``k`` lowest eigenpairs of ``K phi = lambda M phi`` solved *through K*; ``(None, None)`` if ``K``
     is not positive definite.
 
-    The compiled driver (:func:`model.linalg.lowest_pairs`: the same algorithm in one C call, MRRR for the
-    wanted pairs and extended-precision Rayleigh quotients) when it is available; otherwise, or when its
-    LAPACK reports a failure, the scipy route below.
+    With ``band`` (the pencil's band order, :meth:`System.eigen_band`) the banded Lanczos route first
+    (:func:`model.linalg.lowest_pairs_banded`, checked by a Sturm count); then the compiled dense driver
+    (:func:`model.linalg.lowest_pairs`: the same algorithm in one C call, MRRR for the wanted pairs and
+    extended-precision Rayleigh quotients) when it is available; otherwise, or when its LAPACK reports a
+    failure, the scipy route below.
 
     Both matrices are first scaled symmetrically by ``D = diag(K)^(-1/2)`` (Jacobi equilibration: the
     eigenvalues are unchanged, the DOF units -- metres against radians -- drop out). With the Cholesky
@@ -61,6 +64,10 @@ def _lowest_pairs(K: np.ndarray, M: np.ndarray, k: int) -> tuple[np.ndarray | No
     instead, up to 4e-4 relative for the lowest modes of finely meshed thin leaves (issue 12). Vectors:
     ``phi = D L^-T y / sqrt(mu)`` (mass-normalised).
     """
+    if band is not None:  # a banded pencil: Lanczos, checked by a Sturm count (model.linalg.lanczos_pairs)
+        got = _linalg.lowest_pairs_banded(K, M, k, *band)
+        if got is not None:
+            return got if got is not False else (None, None)
     fast = _linalg.lowest_pairs(K, M, k)
     if fast is not None:
         return fast if fast is not False else (None, None)
@@ -123,7 +130,7 @@ def modes_at(sys: System, eq: Equilibrium, k: int, drive: str = "locked") -> Mod
     k = min(k, K.shape[0])
     if k == 0:
         return Modes(np.zeros(0), np.zeros((sys.n, 0)), M)
-    w, V = _lowest_pairs(K, Mr, k)
+    w, V = _lowest_pairs(K, Mr, k, sys.eigen_band(locked) if Z is None and 2 * k < K.shape[0] else None)
     if w is None:  # K not positive definite (unstable) or singular: the pencil route through M
         w, V, info = _lowest_pairs_through_m(K, Mr, k)
         if info > K.shape[0]:  # LAPACK: the leading minor of order info - n of M is not positive definite

@@ -154,7 +154,7 @@ def _compiled_system(sys: System) -> "linalg.NewtonSystem | None":
             comp = np.argmax(sys.Qa, axis=0)  # the global axis of each active basis column
             ns = linalg.newton_system(sys.n, sys.drive, 0 if sys.s.drive_kind == "rotation" else 1,
                                       sys.free, sys.block_pos, comp, np.asarray(sys.s.drive_axis, dtype=float),
-                                      sys.scale, sys.scale_free, pattern=sys.hessian_pattern())
+                                      sys.scale, sys.scale_free, pattern=sys.pattern())
         sys._newton_system = ns
     return ns
 

@@ -4,7 +4,8 @@ Reference: shifted inverse iteration on the *same* float64 matrices with every r
 quotient evaluated in extended precision (``numpy.longdouble``) and the shifted solves refined iteratively
 (Wilkinson's iterative refinement). It converges to the eigenvalue of the float64 matrices themselves, so
 it measures only the error the eigen solver adds. The solver under test factorises through ``K`` and
-takes each eigenvalue as the extended-precision Rayleigh quotient of its vector (model/linalg.py); the
+takes each eigenvalue as the extended-precision Rayleigh quotient of its vector (model/linalg.py: on these
+banded meshes the Lanczos route, checked against the dense one in tests/test_linalg.py); the
 former route through ``M`` (LAPACK dsygvx) erred by up to 3e-4, the float64 route through ``K`` without the
 Rayleigh quotient (the scipy route of model/modal.py ``_lowest_pairs``, taken without a C compiler) by up
 to 4.4e-8.
@@ -60,7 +61,9 @@ needs_driver = pytest.mark.skipif(not linalg.available(), reason="the compiled e
 @needs_driver
 def test_leaf_eigenvalues_match_extended_precision_reference() -> None:
     err, _ = _errors("leaf-spring", 40, n_modes=8)
-    # every tracked mode, 1e-9: measured 2.0e-11 (the largest, mode 2 at 45 deg); the float64 route through K
+    # every tracked mode, 1e-9: measured 1.1e-10 by the banded Lanczos route the curve takes (7.9e-11 by the
+    # dense route on this machine; both through _errors, stop 14; an earlier session's figure for the dense
+    # route was 2.0e-11, mode 2 at 45 deg); the float64 route through K
     # erred by 2.4e-8 on that mode and the dsygvx route by 2.7e-8 on mode 1. (On the 10-element leaf at
     # 45 deg an mpmath solve at 40 digits gave 8.6e-12 through K and 9.8e-10 through M for mode 1.)
     assert max(err.values()) < 1e-9, err
@@ -73,7 +76,7 @@ def test_fine_mesh_pivot_eigenvalues_accurate_and_mirror_symmetric() -> None:
     # issue 12 item 2: 1e-8 at every mesh. dsygvx (Cholesky of the badly scaled M) erred by 2.4e-4 and
     # 3.2e-4 here; the float64 route through K by 4.4e-8 (cancellation in K x: the float64 Rayleigh
     # quotient of the converged vector itself errs by 4e-8); with the extended-precision Rayleigh quotient
-    # measured 3.0e-10.
+    # measured 3.0e-10 (dense route); 1.6e-10 by the banded Lanczos route the curve now takes.
     assert max(err.values()) < 1e-8, err
     a = min(v for (s, _), v in lam.items() if s < 0)  # the lowest mode at -45 and at +45 deg
     b = min(v for (s, _), v in lam.items() if s > 0)

@@ -201,7 +201,7 @@ def test_banded_newton_solve_is_backward_stable(name: str) -> None:
     from flexopt.model.statics import _compiled_step, _newton_step
 
     sys_, st, ev, s_target, h = _off_path(name)
-    pattern = sys_.hessian_pattern()
+    pattern = sys_.pattern()
     ns = _dense_system(sys_, banded=True, pattern=pattern)
     dval = sys_.drive_value(st, near=h)
     dxi, tan, sc = _compiled_step(sys_, ns, ev, st, s_target, h)
@@ -272,24 +272,39 @@ def test_band_order_recovers_a_known_band() -> None:
     for name in ["leaf-spring", "cross-spring-pivot", "parallel-leaf-spring", "three-fold-cross-hinge",
                  "double-cross-hinge", "cartwheel-hinge"]:
         sys_ = Analysis(template(name)).system
-        P = sys_.hessian_pattern()[np.ix_(sys_.free, sys_.free)]
+        P = sys_.pattern()[np.ix_(sys_.free, sys_.free)]
         perm, kl, ku = linalg.band_order(P)
         assert (kl, ku) == width(P, perm)
         ref = reverse_cuthill_mckee(csr_matrix(P.astype(float)), symmetric_mode=True)
         assert kl + ku <= sum(width(P, ref)), name
 
 
-def test_hessian_pattern_covers_every_nonzero() -> None:
-    """The band is cut from System.hessian_pattern: every nonzero of H + chart at deflected states of the
-    templates lies inside it (an entry outside would be dropped by the banded solve)."""
-    from flexopt.model import Analysis, template
-
-    for name in NEWTON_CASES + ["three-fold-cross-hinge"]:
+def test_pattern_covers_every_nonzero() -> None:
+    """The bands are cut from System.pattern: every nonzero of H + chart and of the mass matrix at deflected
+    states of the templates lies inside it (an entry outside would be dropped by the banded routes)."""
+    for name in NEWTON_CASES + ["three-fold-cross-hinge", "cartwheel-hinge"]:
         sys_, st, ev, _, _ = _off_path(name)
-        P = sys_.hessian_pattern()
+        P = sys_.pattern()
         A = ev.H + ev.chart
         assert not np.any(A[~P]), name
+        assert not np.any(sys_.mass(st)[~P]), name
         assert P.sum() < 0.5 * P.size  # sparse: the pattern is not everything
+
+
+def test_compiled_newton_system_reports_a_singular_tangent() -> None:
+    """A singular tangent (here: the stiffness of a leaf scaled to zero) raises StepFailure naming LAPACK's
+    info, as the numpy route's LinAlgError does."""
+    from flexopt.model import Analysis, template
+    from flexopt.model.statics import StepFailure, _compiled_step, _compiled_system
+
+    sys_ = Analysis(template("leaf-spring")).system
+    ns = _compiled_system(sys_)
+    st = sys_.reference_state()
+    ev = sys_.evaluate(st)
+    ev.H[:] = 0.0
+    ev.chart[:] = 0.0
+    with pytest.raises(StepFailure, match="singular tangent .*LAPACK dgbtrf info"):
+        _compiled_step(sys_, ns, ev, st, 0.1, 0.0)
 
 
 def test_without_a_c_compiler_the_numpy_routes_give_the_same_curve() -> None:
@@ -320,3 +335,126 @@ print(json.dumps({"off": [s._fast is None, s._fast_update is None, s._newton_sys
     assert res["off"] == [True, True, True] and res["warned"]
     ref = Analysis(template("cross-spring-pivot")).frequency_curve(np.linspace(-45, 45, 7)).parasitic_hz
     np.testing.assert_allclose(res["hz"], ref, rtol=1e-8)
+
+
+LANCZOS_CASES = [("leaf-spring", {}), ("leaf-spring", {"segments": 40}), ("cross-spring-pivot", {}),
+                 ("parallel-leaf-spring", {}), ("three-fold-cross-hinge", {}), ("double-cross-hinge", {}),
+                 ("cartwheel-hinge", {})]
+
+
+@pytest.mark.parametrize("name,params", LANCZOS_CASES)
+def test_lanczos_pairs_equal_the_dense_solve(name: str, params: dict) -> None:
+    """The banded Lanczos route (model.linalg.lowest_pairs_banded) against the dense one (reduction to
+    tridiagonal form, MRRR: an independent algorithm on the same pencil) at stroke 0 and at the stroke's end,
+    where the three-fold cross has degenerate pairs and the leaves are stiffened most. Eigenvalues to 3e-10:
+    both are Rayleigh quotients in extended precision of their vectors, and against the extended-precision
+    inverse iteration of tests/test_eigen_accuracy.py each route errs by up to about 1e-10 on the 40-element
+    leaf at 45 deg (measured: Lanczos 1.1e-10, dense 7.9e-11; they differ by 5.7e-11 there) and by up to
+    3.9e-10 on the 64-segment pivot (Lanczos 1.6e-10, dense 3.9e-10). Vectors: each dense mode lies in the
+    span of the Lanczos modes of the same eigenvalue cluster (relative gap < 1e-6) to 1e-8, mass-normalised."""
+    from flexopt.model import Analysis, linalg, template
+
+    an = Analysis(template(name, **params))
+    sys_ = an.system
+    band = sys_.eigen_band(True)
+    assert band is not None, "the templates' pencils are banded"
+    k = an.structure.scene.modes + 2
+    pts: dict = {}
+    end = an.scene.stroke.values()[-1]
+    an.frequency_curve(np.array([0.0, end]), visit=lambda eq, m, lab: pts.setdefault(eq.stroke, eq),
+                       mesh_error=False)
+    assert len(pts) == 2
+    for eq in pts.values():
+        K = sys_.free_block(eq.ev.H)
+        M = sys_.free_block(sys_.mass(eq.state))
+        got = linalg.lowest_pairs_banded(K, M, k, *band)
+        assert got is not None and got is not False, "Lanczos converged and its Sturm count agreed"
+        lam, X = got
+        lam0, X0 = linalg.lowest_pairs(K, M, k)
+        np.testing.assert_allclose(lam, lam0, rtol=3e-10, atol=0)
+        np.testing.assert_allclose(np.einsum("ik,ij,jk->k", X, M, X), 1.0, rtol=1e-10)
+        for j in range(k):
+            cluster = np.flatnonzero(np.abs(lam0 / lam0[j] - 1) < 1e-6)
+            B = X[:, cluster]
+            coef = np.linalg.solve(B.T @ M @ B, B.T @ M @ X0[:, j])
+            r = X0[:, j] - B @ coef
+            assert np.sqrt(abs(r @ M @ r)) < 1e-8, (j, cluster)
+
+
+def test_lanczos_finds_an_exactly_double_eigenvalue() -> None:
+    """Two uncoupled copies of a leaf's pencil (block diagonal: every eigenvalue exactly double): a single-vector
+    Krylov space holds only one copy of each in exact arithmetic, so Lanczos either finds the second copies
+    from rounding or its Sturm count sends the solve to the dense route; either way the result is the dense
+    one (here the k lowest are 4 distinct double eigenvalues)."""
+    from flexopt.model import Analysis, linalg, template
+
+    an = Analysis(template("leaf-spring"))
+    sys_ = an.system
+    from flexopt.model.statics import solve_point
+
+    eq = solve_point(sys_, sys_.reference_state(), 0.0, an.options, 0.0)
+    K1 = sys_.free_block(eq.ev.H)
+    M1 = sys_.free_block(sys_.mass(eq.state))
+    n = len(K1)
+    Z = np.zeros((n, n))
+    K = np.block([[K1, Z], [Z, K1]])
+    M = np.block([[M1, Z], [Z, M1]])
+    perm1, kd = sys_.eigen_band(True)
+    perm = np.concatenate([perm1, perm1 + n]).astype(np.int64)
+    k = 8
+    lam0, _ = linalg.lowest_pairs(K, M, k)
+    assert np.allclose(lam0[0::2], lam0[1::2], rtol=1e-12)  # the pairs are double
+    got = linalg.lowest_pairs_banded(K, M, k, perm, kd)
+    if got is None:  # the Sturm count caught a missing copy: the dense route answers (modal._lowest_pairs)
+        from flexopt.model.modal import _lowest_pairs
+
+        got = _lowest_pairs(K, M, k, (perm, kd))
+    np.testing.assert_allclose(got[0], lam0, rtol=1e-11)
+
+
+def test_sturm_count_equals_the_number_of_eigenvalues_below_the_shift() -> None:
+    """The Sturm count of the Lanczos route (C band_inertia: LDL^T of A - sigma B without pivoting, Bathe 1996
+    sec. 11.4.3) against the eigenvalues of the pencil counted directly (numpy eigvalsh of the symmetrically
+    reduced problem), for shifts between and just above the lowest eigenvalues of a pivot's pencil."""
+    import ctypes
+
+    from flexopt.model import Analysis, linalg, template
+    from flexopt.model.statics import solve_point
+
+    an = Analysis(template("cross-spring-pivot"))
+    sys_ = an.system
+    eq = solve_point(sys_, sys_.reference_state(), 0.0, an.options, 0.0)
+    K = sys_.free_block(eq.ev.H)
+    M = sys_.free_block(sys_.mass(eq.state))
+    perm, kd = sys_.eigen_band(True)
+    n = len(K)
+    Kp, Mp = K[np.ix_(perm, perm)], M[np.ix_(perm, perm)]
+    ld = kd + 1
+
+    def band(A: np.ndarray) -> np.ndarray:
+        B = np.zeros((n, ld))  # column j's ld entries contiguous: B[j, kd + i - j] = A[i, j]
+        for j in range(n):
+            for i in range(max(0, j - kd), j + 1):
+                B[j, kd + i - j] = A[i, j]
+        return B
+
+    Kb, Mb, W = band(Kp), band(Mp), np.empty((n, ld))
+    L = np.linalg.cholesky(M)
+    lam = np.sort(np.linalg.eigvalsh(np.linalg.solve(L, np.linalg.solve(L, K).T)))
+    lib = linalg._driver()[0]
+    lib.sturm_count.restype = ctypes.c_longlong
+    lib.sturm_count.argtypes = [ctypes.c_longlong, ctypes.c_longlong, ctypes.c_void_p, ctypes.c_void_p,
+                                ctypes.c_double, ctypes.c_void_p]
+    for j in range(8):
+        for sigma in (lam[j] * (1 + 1e-7), 0.5 * (lam[j] + lam[j + 1])):
+            count = lib.sturm_count(n, kd, Kb.ctypes.data, Mb.ctypes.data, sigma, W.ctypes.data)
+            assert count == int(np.sum(lam < sigma)), (j, sigma)
+    # and the route obeys it: a shift below the k-th eigenvalue counts k - 1, so the solve is declined (None:
+    # the caller's dense route answers)
+    assert linalg.lowest_pairs_banded(K, M, 8, perm, kd) is not None
+    saved = linalg.STURM_GAP
+    try:
+        linalg.STURM_GAP = -1e-3
+        assert linalg.lowest_pairs_banded(K, M, 8, perm, kd) is None
+    finally:
+        linalg.STURM_GAP = saved
