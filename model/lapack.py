@@ -20,8 +20,8 @@ __all__ = ["Routines", "routines", "NAMES"]
 
 #: The routines the compiled drivers call, in the order of their pointer table.
 NAMES = ("dpotrf", "dtrsm", "dsygst", "dsytrd", "dstemr", "dormtr", "dtrtrs", "dgetrf", "dgetrs", "dgbtrf", "dgbtrs",
-         "dpbtrf", "dstev")
-_BLAS = {"dtrsm"}
+         "dpbtrf", "dstev", "dgemv")
+_BLAS = {"dtrsm", "dgemv"}
 
 
 class Routines:

@@ -405,6 +405,20 @@ long long lowest_pairs(long long n_, long long k_, long long trsm_max, const dou
 /* ---- the lowest eigenpairs of a banded pencil by Lanczos (lanczos_pairs) ---- */
 typedef void (*pbtrf_t)(char*, FINT*, FINT*, double*, FINT*, FINT*);
 typedef void (*stev_t)(char*, FINT*, double*, double*, double*, FINT*, double*, FINT*);
+typedef void (*gemv_t)(char*, FINT*, FINT*, double*, double*, FINT*, double*, FINT*, double*, double*, FINT*);
+
+/* w -= Q (Q^T w), twice (classical Gram-Schmidt against the m orthonormal columns of Q, n x m column-major;
+   BLAS dgemv: the plain loops' serial sums were most of a solve at n = 89); h: m doubles */
+static void reorth(long long n_, long long m_, const double* Q, double* w, double* h, void** fp) {
+  FINT n = (FINT) n_, m = (FINT) m_, one = 1;
+  double p1 = 1.0, m1 = -1.0, z = 0.0;
+  char T = 'T', N = 'N';
+  if (m == 0) return;
+  for (int pass = 0; pass < 2; ++pass) {
+    ((gemv_t) fp[13])(&T, &n, &m, &p1, (double*) Q, &n, w, &one, &z, h, &one);
+    ((gemv_t) fp[13])(&N, &n, &m, &m1, (double*) Q, &n, h, &one, &p1, w, &one);
+  }
+}
 
 /* Upper band storage (LAPACK 'U', ld = kd + 1): entry (i, j), i <= j <= i + kd, at B[kd + i - j + j * ld]. */
 #define BAND(B, i, j) (B)[kd + (i) - (j) + (j) * ld]
@@ -431,18 +445,20 @@ static void band_fwd(long long n, long long kd, const double* U, const double* v
   }
 }
 
-/* y = A v, A symmetric in upper band storage */
-static void band_mv(long long n, long long kd, const double* A, const double* v, double* y) {
+/* y = A v, A symmetric in upper band storage. Column j adds its upper part to y[lo..j-1] and its row part
+   (the same entries, by symmetry) to y[j], which no earlier column touched. */
+static void band_mv(long long n, long long kd, const double* restrict A, const double* restrict v,
+                    double* restrict y) {
   long long ld = kd + 1;
-  for (long long i = 0; i < n; ++i) y[i] = 0.0;
   for (long long j = 0; j < n; ++j) {
     long long lo = j - kd > 0 ? j - kd : 0;
+    double vj = v[j], s = BAND(A, j, j) * vj;
     for (long long i = lo; i < j; ++i) {
       double a = BAND(A, i, j);
-      y[i] += a * v[j];
-      y[j] += a * v[i];
+      y[i] += a * vj;
+      s += a * v[i];
     }
-    y[j] += BAND(A, j, j) * v[j];
+    y[j] = s;
   }
 }
 
@@ -468,7 +484,7 @@ static long long band_inertia(long long n, long long kd, double* W) {
 
 /* Doubles of workspace lanczos_pairs needs (order n, half bandwidth kd, at most mmax Lanczos vectors). */
 long long lanczos_doubles(long long n, long long kd, long long mmax) {
-  return 4 * (kd + 1) * n + n * (mmax + 1) + 5 * n + 4 * mmax + mmax * mmax + 2 * mmax;
+  return 4 * (kd + 1) * n + n * (mmax + 1) + 5 * n + 4 * mmax + mmax * mmax + 18 * mmax + (mmax + 1) + mmax;
 }
 
 /* The k lowest eigenpairs of K x = lambda M x for K, M (n x n, row-major, lower triangles read) whose nonzeros
@@ -486,7 +502,7 @@ long long lanczos_pairs(long long n, long long k, long long kd, long long mmax, 
   long long ld = kd + 1, i, j, p;
   double *Kb = buf, *Mb = Kb + ld * n, *W = Mb + ld * n, *T = W + ld * n, *Q = T + ld * n, *D = Q + n * (mmax + 1),
          *w = D + n, *u = w + n, *z = u + n, *x = z + n, *al = x + n, *be = al + mmax, *dd = be + mmax,
-         *ee = dd + mmax, *S = ee + mmax, *wk = S + mmax * mmax;
+         *ee = dd + mmax, *S = ee + mmax, *wk = S + mmax * mmax, *hw = wk + 18 * mmax, *tw = hw + mmax + 1;
   for (i = 0; i < n; ++i) {
     if (!(K[i * n + i] > 0.0) || !(M[i * n + i] > 0.0)) return 1;
     D[i] = 1.0 / sqrt(K[i * n + i]);
@@ -524,27 +540,27 @@ long long lanczos_pairs(long long n, long long k, long long kd, long long mmax, 
     for (i = 0; i < n; ++i) a += q[i] * w[i];
     al[m] = a;
     for (i = 0; i < n; ++i) wn += w[i] * w[i];
-    for (int pass = 0; pass < 2; ++pass)  /* full reorthogonalisation, twice (classical Gram-Schmidt) */
-      for (j = 0; j <= m; ++j) {
-        double h = 0.0, *qj = Q + j * n;
-        for (i = 0; i < n; ++i) h += qj[i] * w[i];
-        for (i = 0; i < n; ++i) w[i] -= h * qj[i];
-      }
+    reorth(n, m + 1, Q, w, hw, fp);  /* full reorthogonalisation */
     double b = 0.0;
     for (i = 0; i < n; ++i) b += w[i] * w[i];
     b = sqrt(b);
     ++m;
-    if (m >= k && (m - k) % 4 == 0) {  /* Ritz values and their residuals */
-      FINT mm = (FINT) m;
+    if ((m >= 3 * k && (m - 3 * k) % 4 == 0) || m == mlim) {  /* Ritz pairs: the templates need 20-38 steps */
+      /* the k largest Ritz values (tw, ascending) and their vectors of T (S, m x k) by MRRR, as in
+         lowest_pairs: a full dsteqr of T cost a sixth of a solve */
+      FINT mm = (FINT) m, il = (FINT) (m - k + 1), iu = (FINT) m, nf = 0, nzc = (FINT) k, tryrac = 1;
+      FINT lw = (FINT) (18 * mmax), liw = (FINT) (10 * mlim);
+      double vl = 0.0, vu = 0.0;
+      char I = 'I';
       for (j = 0; j < m; ++j) dd[j] = al[j];
       for (j = 0; j + 1 < m; ++j) ee[j] = be[j];
-      ((stev_t) fp[12])(&V, &mm, dd, ee, S, &mm, wk, &info);
-      if (info != 0) return 2;
+      ee[m - 1] = 0.0;
+      ((stemr_t) fp[4])(&V, &I, &mm, dd, ee, &vl, &vu, &il, &iu, &nf, tw, S, &mm, &nzc, iw, &tryrac, wk, &lw,
+                        iw + 2 * mlim, &liw, &info);
+      if (info != 0 || nf != k) return 2;
       int ok = 1;
-      for (j = 0; j < k; ++j) {
-        long long c = m - 1 - j;  /* ascending: the largest mu last */
-        if (!(fabs(b * S[(m - 1) + c * m]) <= tol * dd[m - 1])) ok = 0;
-      }
+      for (j = 0; j < k; ++j)
+        if (!(fabs(b * S[(m - 1) + j * m]) <= tol * tw[k - 1])) ok = 0;
       if (ok) {
         done = 1;
         break;
@@ -557,12 +573,7 @@ long long lanczos_pairs(long long n, long long k, long long kd, long long mmax, 
         seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
         w[i] = (double) (seed >> 11) / 9007199254740992.0 - 0.5;
       }
-      for (int pass = 0; pass < 2; ++pass)
-        for (j = 0; j < m; ++j) {
-          double h = 0.0, *qj = Q + j * n;
-          for (i = 0; i < n; ++i) h += qj[i] * w[i];
-          for (i = 0; i < n; ++i) w[i] -= h * qj[i];
-        }
+      reorth(n, m, Q, w, hw, fp);
       double r = 0.0;
       for (i = 0; i < n; ++i) r += w[i] * w[i];
       r = sqrt(r);
@@ -575,14 +586,14 @@ long long lanczos_pairs(long long n, long long k, long long kd, long long mmax, 
   }
   if (!done) return 2;
   /* Sturm count below sigma: exactly the k found */
-  double mu_k = dd[m - k];
+  double mu_k = tw[0];
   if (!(mu_k > 0.0)) return 2;
   double sigma = (1.0 / mu_k) * (1.0 + gap);
   for (i = 0; i < ld * n; ++i) T[i] = Kb[i] - sigma * Mb[i];
   if (band_inertia(n, kd, T) != k) return 2;
   for (j = 0; j < k; ++j) {  /* Ritz vectors y = Q s, x = U^-1 y, phi = D x / sqrt(mu), lowest lambda first */
-    long long c = m - 1 - j;
-    double mu = dd[c], s = 1.0 / sqrt(mu);
+    long long c = k - 1 - j;
+    double mu = tw[c], s = 1.0 / sqrt(mu);
     for (i = 0; i < n; ++i) {
       double y = 0.0;
       for (p = 0; p < m; ++p) y += Q[p * n + i] * S[p + c * m];
