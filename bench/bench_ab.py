@@ -13,7 +13,7 @@ commit with::
     python bench/bench_ab.py --base /tmp/base/pkg
 
 ``--routes`` instead compares, in one process and curve by curve, this checkout's compiled and banded per-point
-routes with the numpy routes and dense eigen solve they replace (frequencies within 1e-9, asserted).
+routes with the numpy routes and dense eigen solve they replace (frequencies within 3e-8, asserted).
 """
 
 from __future__ import annotations
@@ -85,8 +85,8 @@ def routes(pairs: int) -> int:
     """In one process, on one Analysis per case: warm curves with the compiled per-point routes (model/assembly.py's
     one-call evaluate, mass, Hessian derivative and update; model.linalg.newton with its banded LU; the banded
     Lanczos eigen solve) against the numpy routes and the dense compiled eigen solve, alternating curve by
-    curve. The frequencies agree to 1e-9 relative (checked here too; the dense-only routes were bit-identical
-    to the numpy ones, the banded ones round differently)."""
+    curve. The frequencies agree to 3e-8 relative (checked here; see the comment there; the dense-only
+    routes were bit-identical to the numpy ones, the banded ones round differently)."""
     sys.path.insert(0, ROOT)
     import numpy as np
 
@@ -111,11 +111,15 @@ def routes(pairs: int) -> int:
             finally:
                 _set_routes(systems, saved)
             assert np.array_equal(a.modes_hz, ref.modes_hz)  # deterministic
-            np.testing.assert_allclose(b.modes_hz, ref.modes_hz, rtol=1e-9, atol=0)
+            # 3e-8: the 40-element leaf's equilibria are fixed only to their rounding floor (Newton stalls
+            # there), which moves one of its frequencies by 1.1e-8 between the routes; the numpy route's
+            # own value moves by 2.6e-8 when its polish tolerance goes from 1e-12 to 1e-14. The default
+            # templates agree to 1e-10.
+            np.testing.assert_allclose(b.modes_hz, ref.modes_hz, rtol=3e-8, atol=0)
         ratio = statistics.median([y / x for x, y in zip(on, off)])
         rows.append((label, statistics.median(on), statistics.median(off), ratio))
     print(f"{pairs} alternating pairs of warm curves in one process; load average {load0:.2f} at start, "
-          f"{os.getloadavg()[0]:.2f} at end; {os.cpu_count()} CPUs; frequencies within 1e-9 on both routes")
+          f"{os.getloadavg()[0]:.2f} at end; {os.cpu_count()} CPUs; frequencies within 3e-8 on both routes")
     print("| case | compiled routes, median [ms] | numpy routes, median [ms] | speed-up (median of pairs) |")
     print("|---|---|---|---|")
     for label, a, b, r in rows:
