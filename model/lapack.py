@@ -20,7 +20,7 @@ __all__ = ["Routines", "routines", "NAMES"]
 
 #: The routines the compiled drivers call, in the order of their pointer table.
 NAMES = ("dpotrf", "dtrsm", "dsygst", "dsytrd", "dstemr", "dormtr", "dtrtrs", "dgetrf", "dgetrs", "dgbtrf", "dgbtrs",
-         "dpbtrf", "dstev", "dgemv")
+         "dpbtrf", "dgemv")
 _BLAS = {"dtrsm", "dgemv"}
 
 

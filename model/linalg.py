@@ -404,7 +404,6 @@ long long lowest_pairs(long long n_, long long k_, long long trsm_max, const dou
 
 /* ---- the lowest eigenpairs of a banded pencil by Lanczos (lanczos_pairs) ---- */
 typedef void (*pbtrf_t)(char*, FINT*, FINT*, double*, FINT*, FINT*);
-typedef void (*stev_t)(char*, FINT*, double*, double*, double*, FINT*, double*, FINT*);
 typedef void (*gemv_t)(char*, FINT*, FINT*, double*, double*, FINT*, double*, FINT*, double*, double*, FINT*);
 
 /* w -= Q (Q^T w), twice (classical Gram-Schmidt against the m orthonormal columns of Q, n x m column-major;
@@ -415,8 +414,8 @@ static void reorth(long long n_, long long m_, const double* Q, double* w, doubl
   char T = 'T', N = 'N';
   if (m == 0) return;
   for (int pass = 0; pass < 2; ++pass) {
-    ((gemv_t) fp[13])(&T, &n, &m, &p1, (double*) Q, &n, w, &one, &z, h, &one);
-    ((gemv_t) fp[13])(&N, &n, &m, &m1, (double*) Q, &n, h, &one, &p1, w, &one);
+    ((gemv_t) fp[12])(&T, &n, &m, &p1, (double*) Q, &n, w, &one, &z, h, &one);
+    ((gemv_t) fp[12])(&N, &n, &m, &m1, (double*) Q, &n, h, &one, &p1, w, &one);
   }
 }
 
@@ -703,8 +702,6 @@ def lowest_pairs(K: np.ndarray, M: np.ndarray, k: int, refine: bool = True,
 #: pair relative to the largest (1e-14: about the dense solver's own accuracy, see lanczos_pairs), and the
 #: relative distance above the k-th eigenvalue at which the Sturm count is taken.
 LANCZOS_STEPS, LANCZOS_TOL, STURM_GAP = 80, 1e-14, 1e-7
-#: Below this order the dense solve is as fast (measured, see README).
-LANCZOS_MIN = 0
 
 
 def lowest_pairs_banded(K: np.ndarray, M: np.ndarray, k: int, perm: np.ndarray, kd: int,
