@@ -301,6 +301,16 @@ long long newton(const long long* ip, const double* dp, const double* H, const d
   return 0;
 }
 
+/* Jacobi scaling D = diag(K)^-1/2 of both eigen drivers; 0 (the route through M) if a diagonal entry of K or
+   M is not positive. */
+static int jacobi(long long n, const double* K, const double* M, double* D) {
+  for (long long i = 0; i < n; ++i) {
+    if (!(K[i * n + i] > 0.0) || !(M[i * n + i] > 0.0)) return 0;
+    D[i] = 1.0 / sqrt(K[i * n + i]);
+  }
+  return 1;
+}
+
 /* Rayleigh quotients lam_j = (x^T K x) / (x^T M x) of the computed vectors, accumulated in extended
    precision (long double) over the nonzero entries of the lower triangles. A float64 eigen solver is
    backward stable in the scaled norm only: cancellation in K x leaves the eigenvalue of a thin, finely
@@ -358,10 +368,7 @@ long long lowest_pairs(long long n_, long long k_, long long trsm_max, const dou
   double *Ks = buf, *Ms = Ks + n * n, *Z = Ms + n * n, *D = Z + n * n, *d = D + n, *e = d + n,
          *tau = e + n, *w = tau + n, *work = w + n;  /* dstemr writes W(1:N) */
   FINT* isuppz = iw + liwork;
-  for (i = 0; i < n; ++i) {
-    if (!(K[i * n + i] > 0.0) || !(M[i * n + i] > 0.0)) return 1;
-    D[i] = 1.0 / sqrt(K[i * n + i]);
-  }
+  if (!jacobi(n, K, M, D)) return 1;
   /* Jacobi scaling of the row-major lower triangles (= column-major upper ones) */
   for (i = 0; i < n; ++i)
     for (j = 0; j <= i; ++j) {
@@ -481,6 +488,22 @@ static long long band_inertia(long long n, long long kd, double* W) {
   return neg;
 }
 
+/* Column m of Q (n x m+1, column-major): a fixed pseudo-random vector (a 64-bit LCG from *seed) orthogonalised
+   against the first m columns and normalised. Returns 0 if nothing is left of it. h: m doubles. */
+static int random_column(long long n, long long m, double* Q, double* h, unsigned long long* seed, void** fp) {
+  double *q = Q + m * n, r = 0.0;
+  for (long long i = 0; i < n; ++i) {
+    *seed = *seed * 6364136223846793005ULL + 1442695040888963407ULL;
+    q[i] = (double) (*seed >> 11) / 9007199254740992.0 - 0.5;
+  }
+  reorth(n, m, Q, q, h, fp);
+  for (long long i = 0; i < n; ++i) r += q[i] * q[i];
+  r = sqrt(r);
+  if (!(r > 0.0)) return 0;
+  for (long long i = 0; i < n; ++i) q[i] /= r;
+  return 1;
+}
+
 /* Doubles of workspace lanczos_pairs needs (order n, half bandwidth kd, at most mmax Lanczos vectors). */
 long long lanczos_doubles(long long n, long long kd, long long mmax) {
   return 4 * (kd + 1) * n + n * (mmax + 1) + 5 * n + 4 * mmax + mmax * mmax + 18 * mmax + (mmax + 1) + mmax;
@@ -502,10 +525,7 @@ long long lanczos_pairs(long long n, long long k, long long kd, long long mmax, 
   double *Kb = buf, *Mb = Kb + ld * n, *W = Mb + ld * n, *T = W + ld * n, *Q = T + ld * n, *D = Q + n * (mmax + 1),
          *w = D + n, *u = w + n, *z = u + n, *x = z + n, *al = x + n, *be = al + mmax, *dd = be + mmax,
          *ee = dd + mmax, *S = ee + mmax, *wk = S + mmax * mmax, *hw = wk + 18 * mmax, *tw = hw + mmax + 1;
-  for (i = 0; i < n; ++i) {
-    if (!(K[i * n + i] > 0.0) || !(M[i * n + i] > 0.0)) return 1;
-    D[i] = 1.0 / sqrt(K[i * n + i]);
-  }
+  if (!jacobi(n, K, M, D)) return 1;
   for (j = 0; j < n; ++j) {  /* scaled bands in the order perm */
     long long lo = j - kd > 0 ? j - kd : 0, pj = perm[j];
     for (p = lo; p <= j; ++p) {
@@ -519,16 +539,8 @@ long long lanczos_pairs(long long n, long long k, long long kd, long long mmax, 
   for (i = 0; i < ld * n; ++i) W[i] = Kb[i];
   ((pbtrf_t) fp[11])(&U, &nn, &kk, W, &ldd, &info);
   if (info != 0) return 1;
-  /* start: a fixed pseudo-random vector (a 64-bit LCG), normalised */
   unsigned long long seed = 0x9E3779B97F4A7C15ULL;
-  double nrm = 0.0;
-  for (i = 0; i < n; ++i) {
-    seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
-    Q[i] = (double) (seed >> 11) / 9007199254740992.0 - 0.5;
-    nrm += Q[i] * Q[i];
-  }
-  nrm = sqrt(nrm);
-  for (i = 0; i < n; ++i) Q[i] /= nrm;
+  random_column(n, 0, Q, hw, &seed, fp);  /* the start */
   long long m = 0, done = 0, mlim = mmax < n ? mmax : n;
   while (m < mlim) {
     double* q = Q + m * n;
@@ -568,16 +580,7 @@ long long lanczos_pairs(long long n, long long k, long long kd, long long mmax, 
     if (m == mlim) break;
     if (!(b > 1e-10 * sqrt(wn))) {  /* an invariant subspace: go on from a new vector orthogonal to it */
       b = 0.0;
-      for (i = 0; i < n; ++i) {
-        seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
-        w[i] = (double) (seed >> 11) / 9007199254740992.0 - 0.5;
-      }
-      reorth(n, m, Q, w, hw, fp);
-      double r = 0.0;
-      for (i = 0; i < n; ++i) r += w[i] * w[i];
-      r = sqrt(r);
-      if (!(r > 0.0)) return 2;
-      for (i = 0; i < n; ++i) Q[m * n + i] = w[i] / r;
+      if (!random_column(n, m, Q, hw, &seed, fp)) return 2;
     } else {
       for (i = 0; i < n; ++i) Q[m * n + i] = w[i] / b;
     }
@@ -654,10 +657,16 @@ def available() -> bool:
     return _driver() is not None
 
 
-def _workspace(n: int, drv: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _thread_cache() -> dict:
+    """This thread's workspaces (ctypes releases the GIL during a call), by key."""
     cache = getattr(_LOCAL, "work", None)
     if cache is None:
         cache = _LOCAL.work = {}
+    return cache
+
+
+def _workspace(n: int, drv: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    cache = _thread_cache()
     key = (n, drv[2])
     ws = cache.get(key)
     if ws is None:  # kept per order: no allocation (nor page faults) per call
@@ -683,19 +692,28 @@ def lowest_pairs(K: np.ndarray, M: np.ndarray, k: int, refine: bool = True,
     if drv is None:
         return None
     lib, table, _ = drv
+    K, M, lam, X = _pencil(K, M, k)
     n = K.shape[0]
-    K = np.ascontiguousarray(K, dtype=np.float64)
-    M = np.ascontiguousarray(M, dtype=np.float64)
-    lam = np.empty(k)
-    X = np.empty((n, k))
     work, iwork, _, _ = _workspace(n, drv)
     status = lib.lowest_pairs(n, k, TRSM_MAX, K.ctypes.data, M.ctypes.data, lam.ctypes.data, X.ctypes.data,
                               table.table, work, iwork, int(refine))
+    return _pairs(status, lam, X)  # None on a LAPACK failure: the scipy route decides what is wrong
+
+
+def _pencil(K: np.ndarray, M: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Both eigen drivers' inputs as contiguous float64 and their outputs ``lam`` (k) and ``X`` (n x k)."""
+    K = np.ascontiguousarray(K, dtype=np.float64)
+    M = np.ascontiguousarray(M, dtype=np.float64)
+    return K, M, np.empty(k), np.empty((K.shape[0], k))
+
+
+def _pairs(status: int, lam: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None | bool:
+    """An eigen driver's status read as ``(lam, X)`` (0), ``False`` (1: the route through M) or ``None``."""
     if status == 0:
         return lam, X
     if status == 1:
         return False
-    return None  # a LAPACK failure: the scipy route decides (and reports) what is wrong
+    return None
 
 
 #: Lanczos: at most this many vectors (the templates converge in 20-38), the residual bound of each wanted Ritz
@@ -714,28 +732,18 @@ def lowest_pairs_banded(K: np.ndarray, M: np.ndarray, k: int, perm: np.ndarray, 
     if drv is None:
         return None
     lib, table, _ = drv
+    K, M, lam, X = _pencil(K, M, k)
     n = K.shape[0]
-    K = np.ascontiguousarray(K, dtype=np.float64)
-    M = np.ascontiguousarray(M, dtype=np.float64)
-    lam = np.empty(k)
-    X = np.empty((n, k))
-    key = ("lanczos", n, kd)
-    cache = getattr(_LOCAL, "work", None)
-    if cache is None:
-        cache = _LOCAL.work = {}
-    buf = cache.get(key)
-    if buf is None:
+    cache = _thread_cache()
+    buf = cache.get(("lanczos", n, kd))
+    if buf is None:  # kept per order and band, like _workspace
         arr = np.empty(lib.lanczos_doubles(n, kd, LANCZOS_STEPS))
-        buf = cache[key] = (arr.ctypes.data, arr)
+        buf = cache[("lanczos", n, kd)] = (arr.ctypes.data, arr)
     _, iwork, _, _ = _workspace(n, drv)
     status = lib.lanczos_pairs(n, k, kd, LANCZOS_STEPS, LANCZOS_TOL, STURM_GAP, perm.ctypes.data, K.ctypes.data,
                                M.ctypes.data, lam.ctypes.data, X.ctypes.data, table.table, buf[0], iwork,
                                int(refine))
-    if status == 0:
-        return lam, X
-    if status == 1:
-        return False
-    return None
+    return _pairs(status, lam, X)
 
 
 def solve(A: np.ndarray, B: np.ndarray) -> int | None:

@@ -145,7 +145,9 @@ def _off_path(name: str):
     return sys_, st, sys_.evaluate(st), 2 * h, h
 
 
-def _dense_system(sys_, banded: bool = False, pattern=None):
+def _newton_system(sys_, banded: bool = False, pattern=None):
+    """The structure's compiled Newton system as model.statics builds it, dense unless ``banded`` with a
+    ``pattern``."""
     from flexopt.model import linalg
 
     comp = np.argmax(sys_.Qa, axis=0)
@@ -166,7 +168,7 @@ def test_compiled_newton_system_equals_numpy_route_bit_for_bit(name: str) -> Non
     from flexopt.model.statics import _compiled_step, _newton_step, _scaled_residual
 
     sys_, st, ev, s_target, h = _off_path(name)
-    ns = _dense_system(sys_)
+    ns = _newton_system(sys_)
     assert ns.bands == {"reduced": None, "bordered": None}
     dxi, tan, sc = _compiled_step(sys_, ns, ev, st, s_target, h)
     dval = sys_.drive_value(st, near=h)
@@ -202,7 +204,7 @@ def test_banded_newton_solve_is_backward_stable(name: str) -> None:
 
     sys_, st, ev, s_target, h = _off_path(name)
     pattern = sys_.pattern()
-    ns = _dense_system(sys_, banded=True, pattern=pattern)
+    ns = _newton_system(sys_, banded=True, pattern=pattern)
     dval = sys_.drive_value(st, near=h)
     dxi, tan, sc = _compiled_step(sys_, ns, ev, st, s_target, h)
     reduced = bool(sc[5])
