@@ -315,14 +315,14 @@ class Analysis:
             bad: list[float] = [float("nan")]  # the target at which accept() found an unstable equilibrium
 
             def accept(eq: Equilibrium) -> WalkFailure | None:
-                modes = modes_at(self.system, eq, k_track, s.scene.stroke.drive)
+                modes = modes_at(self.system, eq, k_track, s.scene.stroke.drive, prev[0])
                 lowest = float(modes.omega2[0]) if len(modes.omega2) else 1.0
                 if not lowest > 0:  # stop here; _locate_loss confirms and locates it
                     bad[0] = eq.stroke
                     return WalkFailure("unstable", eq.stroke, last_eq[0].stroke, "")
                 if prev[0] is not None:
                     perm = track(prev[0], modes)
-                    modes = Modes(modes.omega2[perm], modes.phi[:, perm], modes.M)
+                    modes = Modes(modes.omega2[perm], modes.phi[:, perm], modes.M, modes.lanczos)
                 labels, par = self._labels(modes, eq.tangent)
                 if visit is not None:
                     visit(eq, modes, labels)

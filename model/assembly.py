@@ -7,6 +7,7 @@ drive is the single DOF ``structure.drive_dof``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,11 +20,10 @@ from .structure import Structure
 __all__ = ["State", "Assembled", "System"]
 
 #: Gather, element kernel and scatter of :meth:`System.evaluate` in one C call (beams only, no rigid
-#: deformations): the kernel inputs (from the masters' states and the nodes' rotated offsets, which numpy's
-#: einsum computes as before: its rounding is not a plain sum of products), the batched kernel through its
-#: function pointer, and the sums into ``g``, ``g_full`` and ``H`` in the order ``numpy.bincount`` adds them,
-#: so the numbers are the same to the last bit (tests/test_linalg.py compares both routes). The beams'
-#: consistent mass and the Hessian's directional derivative go the same way (no gradient, ``g_off < 0``;
+#: deformations): the kernel inputs (from the masters' states and the nodes' rotated offsets, :func:`rotate`),
+#: the batched kernel through its function pointer, and the sums into ``g``, ``g_full`` and ``H`` in the order
+#: ``numpy.bincount`` adds them, so the numbers are the same to the last bit (tests/test_linalg.py compares both
+#: routes). The beams' consistent mass and the Hessian's directional derivative go the same way (no gradient, ``g_off < 0``;
 #: their 144 outputs from ``h_off = 0``); ``update_state`` is :meth:`System.update`.
 _ASSEMBLE_SOURCE = r"""
 #include <string.h>
@@ -116,6 +116,12 @@ def _assembler():
     return _ASSEMBLER[0]
 
 
+def rotate(R: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``R v`` row by row (``R`` (k, 3, 3), ``v`` (k, 3)) as plain sums of products taken left to right, the
+    way the C routes (the compiled Newton loop of model.statics) compute them: the same numbers to the bit."""
+    return R[:, :, 0] * v[:, None, 0] + R[:, :, 1] * v[:, None, 1] + R[:, :, 2] * v[:, None, 2]
+
+
 @dataclass
 class State:
     """Configuration of all masters and the multipliers of the rigid deformations."""
@@ -139,7 +145,16 @@ class Assembled:
     G: np.ndarray  # (nr, n) their Jacobian
     e_beam: np.ndarray  # (nb, 6) beam deformations
     e_truss: np.ndarray  # (nt,) truss elongations
-    chart: np.ndarray | None = None  # (n, n) -1/2 skew(g) per rotation block: J = H + chart (see evaluate)
+    _chart: np.ndarray | Callable[[], np.ndarray] | None = None  # the matrix, or what makes it on first use
+
+    @property
+    def chart(self) -> np.ndarray | None:
+        """(n, n) ``-1/2 skew(g)`` per rotation block: the Newton matrix is ``H + chart`` (see
+        :meth:`System.evaluate`). The compiled Newton loop (model.statics) keeps only what makes it and
+        forms the matrix here, on first use (design sensitivities, tests)."""
+        if callable(self._chart):
+            self._chart = self._chart()
+        return self._chart
 
 
 class System:
@@ -326,6 +341,22 @@ class System:
             cache[locked] = out
         return cache[locked]
 
+    def banded_pencil(self, locked: bool = True):  # -> linalg.BandedPencil | None
+        """The eigen problem's :class:`model.linalg.BandedPencil` (free block of the extended-numbering
+        matrices, read in place; :meth:`eigen_band`'s order), made once per drive, or None where
+        :meth:`eigen_band` is None."""
+        band = self.eigen_band(locked)
+        if band is None:
+            return None
+        pencils = self.__dict__.setdefault("_pencils", {})
+        got = pencils.get(locked)
+        if got is None or got[0] is not band:
+            from . import linalg
+
+            got = pencils[locked] = (band, linalg.BandedPencil(self.free if locked else np.arange(self.n), self.N,
+                                                                *band))
+        return got[1]
+
     def free_block(self, A: np.ndarray, locked: bool = True) -> np.ndarray:
         """The free-DOF block ``A[free, free]`` (``locked``; else all of ``A``) as a new C-contiguous array: the
         same numbers as indexing with :attr:`ix_free`, by two ``take`` calls at a third of its cost."""
@@ -340,8 +371,9 @@ class System:
     def node_states(self, st: State) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Node positions (nn, 3), rotations (nn, 3, 3) and current offsets from their masters (nn, 3)."""
         m = self.s.node_master
-        r = np.einsum("nij,nj->ni", st.R[m], self.s.node_offset)
-        return st.X[m] + r, st.R[m], r
+        Rn = st.R[m]
+        r = rotate(Rn, self.s.node_offset)
+        return st.X[m] + r, Rn, r
 
     def to_global(self, xi: np.ndarray) -> np.ndarray:
         """Increments in active numbering (vector or columns) -> all masters' DOFs in global axes."""
@@ -510,7 +542,7 @@ class System:
         N, n_full, nb = self.N, self.n_full, self.s.n_beams
         X = np.ascontiguousarray(st.X, dtype=np.float64)
         R = np.ascontiguousarray(st.R, dtype=np.float64)
-        r = np.ascontiguousarray(np.einsum("nij,nj->ni", R[self.s.node_master], self.s.node_offset))
+        r = rotate(R[self.s.node_master], self.s.node_offset)
         # one new buffer for the outputs (the results keep views of it): one address to take, not four
         no = nb * kernel.n_out
         buf = np.empty(no + N + n_full + N * N)
@@ -531,6 +563,59 @@ class System:
         H = self._reduce_mat(Hflat.reshape(N, N))
         return Assembled(self._reduce_vec(g), H, np.zeros(0), self._reduce_mat(np.zeros((0, N)), rows=False),
                          out[:, 156:162], np.zeros(0), self._chart_correction(g_full))
+
+    def point_parts(self) -> dict[str, int] | None:
+        """What the compiled Newton loop (model.statics) needs of this system, by name: the addresses of the
+        C ``assemble`` and ``update_state`` (:data:`_ASSEMBLE_SOURCE`), of the kernels' batch entries, of the
+        fixed index arrays and work buffers, and the sizes. None where :meth:`evaluate` and :meth:`update`
+        do not both run in C (the numpy route). Made once; the arrays stay referenced by the system."""
+        if self._fast is None or self._fast_update is None or self._rot_log.address is None:
+            return None
+        parts = getattr(self, "_point_parts", None)
+        if parts is None:
+            import ctypes
+
+            s, N = self.s, self.N
+            lib = _assembler()[0]
+            fn, end_master, end_node, dofs, dofs_full, flat = self._fast
+            upd, rot_update, act, moving, rin, rout = self._fast_update
+            nm, nmov = len(s.master_names), len(self._rot_masters)
+            keep = [np.ascontiguousarray(s.node_master, dtype=np.int64),
+                    np.ascontiguousarray(s.node_offset, dtype=np.float64),
+                    np.zeros((len(s.node_master), 3)),  # the rotated offsets
+                    np.ascontiguousarray(self._chart_flat, dtype=np.int64),
+                    np.ascontiguousarray(self._chart_src, dtype=np.int64),
+                    np.ascontiguousarray(self._chart_sign, dtype=np.float64),
+                    np.zeros(N * N),  # the chart matrix: its fixed entries rewritten per evaluation, the rest 0
+                    np.zeros((nmov, 18)), np.zeros((nmov, 4)),  # the logarithm kernel's input and output
+                    np.ascontiguousarray(s.master_pos, dtype=np.float64),
+                    np.ascontiguousarray(s.drive_axis, dtype=np.float64)]
+            at = [a.ctypes.data for a in keep]
+            parts = {
+                "assemble": ctypes.cast(lib.assemble, ctypes.c_void_p).value, "kernel": self.beam_kernel.address,
+                "ne": s.n_beams, "n_in": self.beam_kernel.n_in, "n_out": self.beam_kernel.n_out,
+                "end_master": end_master, "end_node": end_node, "kernel_in": self._beam_in_at, "dofs": dofs,
+                "dofs_full": dofs_full, "flat": flat, "N": N, "n_full": self.n_full,
+                "node_master": at[0], "node_offset": at[1], "nodes": len(s.node_master), "offsets": at[2],
+                "update": ctypes.cast(lib.update_state, ctypes.c_void_p).value, "rot_update": rot_update,
+                "masters": nm, "act": act, "moving": moving, "nmov": nmov, "rin": rin, "rout": rout,
+                "nchart": len(self._chart_src), "chart_flat": at[3], "chart_src": at[4], "chart_sign": at[5],
+                "chart": at[6], "rot_log": self._rot_log.address, "log_in": at[7], "log_out": at[8],
+                "drive_master": s.drive_master, "kind": 0 if s.drive_kind == "rotation" else 1,
+                "master_pos": at[9], "axis": at[10], "n": self.n,
+            }
+            self._point_keep, self._point_parts = keep, parts
+        return parts
+
+    def assembled_at(self, buf: np.ndarray) -> Assembled:
+        """The :class:`Assembled` whose numbers the compiled Newton loop left in ``buf`` (the layout of
+        :meth:`_compiled_call`: kernel outputs, ``g``, ``g_full``, ``H``); the chart matrix is made on first use."""
+        N, n, n_full, nb = self.N, self.n, self.n_full, self.s.n_beams
+        no = nb * self.beam_kernel.n_out
+        g_full = buf[no + N : no + N + n_full]
+        return Assembled(buf[no : no + n], buf[no + N + n_full :].reshape(N, N)[:n, :n], np.zeros(0),
+                         np.zeros((0, n)), buf[:no].reshape(nb, -1)[:, 156:162], np.zeros(0),
+                         lambda: self._chart_correction(g_full))
 
     def _chart_correction(self, g_full: np.ndarray) -> np.ndarray:
         """``-1/2 skew(g_m)`` on each master's rotation block, in active numbering.
@@ -597,7 +682,8 @@ class System:
         m = s.drive_master
         if s.drive_kind == "rotation":
             return twist_angle(st.R[m], s.drive_axis, near)
-        return float((st.X[m] - s.master_pos[m]) @ s.drive_axis)
+        d, a = st.X[m] - s.master_pos[m], s.drive_axis  # the sum as the compiled Newton loop takes it
+        return float(d[0] * a[0] + d[1] * a[1] + d[2] * a[2])
 
     def drive_gradient(self, st: State) -> np.ndarray:
         """Gradient of the drive coordinate with respect to the increments (drive basis), length n."""

@@ -54,7 +54,7 @@ from .errors import KernelBuildError
 from .kernels import shared_library
 from .lapack import routines
 
-__all__ = ["lowest_pairs", "lowest_pairs_banded", "solve", "newton", "NewtonSystem", "available", "build",
+__all__ = ["lowest_pairs", "lowest_pairs_banded", "BandedPencil", "solve", "newton", "NewtonSystem", "available", "build",
            "band_order"]
 
 #: Up to this order ``C = L^-1 M_s L^-T`` is formed by two triangular solves (BLAS dtrsm), above it by
@@ -429,14 +429,17 @@ static void reorth(long long n_, long long m_, const double* Q, double* w, doubl
 /* Upper band storage (LAPACK 'U', ld = kd + 1): entry (i, j), i <= j <= i + kd, at B[kd + i - j + j * ld]. */
 #define BAND(B, i, j) (B)[kd + (i) - (j) + (j) * ld]
 
-/* w = U^-1 v (U upper band, from dpbtrf) */
+/* w = U^-1 v (U upper band, from dpbtrf), by columns: each solved w[j] is subtracted from the rows above it
+   along column j of the band, which is contiguous in memory (the row-wise sums read the band with stride kd
+   and cost twice as much) */
 static void band_back(long long n, long long kd, const double* U, const double* v, double* w) {
   long long ld = kd + 1;
-  for (long long i = n - 1; i >= 0; --i) {
-    double s = v[i];
-    long long hi = i + kd < n - 1 ? i + kd : n - 1;
-    for (long long j = i + 1; j <= hi; ++j) s -= BAND(U, i, j) * w[j];
-    w[i] = s / BAND(U, i, i);
+  for (long long i = 0; i < n; ++i) w[i] = v[i];
+  for (long long j = n - 1; j >= 0; --j) {
+    double wj = w[j] / BAND(U, j, j);
+    long long lo = j - kd > 0 ? j - kd : 0;
+    w[j] = wj;
+    for (long long i = lo; i < j; ++i) w[i] -= BAND(U, i, j) * wj;
   }
 }
 
@@ -509,29 +512,63 @@ long long lanczos_doubles(long long n, long long kd, long long mmax) {
   return 4 * (kd + 1) * n + n * (mmax + 1) + 5 * n + 4 * mmax + mmax * mmax + 18 * mmax + (mmax + 1) + mmax;
 }
 
-/* The k lowest eigenpairs of K x = lambda M x for K, M (n x n, row-major, lower triangles read) whose nonzeros
-   lie within kd of the diagonal in the order perm (position p holds row perm[p]). Jacobi scaling and the
-   Cholesky factor of K as in lowest_pairs, then Lanczos with full reorthogonalisation (twice) on the
-   standard problem U^-T M_s U^-1 y = mu y (the largest mu are the lowest lambda; Parlett, The Symmetric
-   Eigenvalue Problem, ch. 13), from a fixed pseudo-random start, until each of the k largest Ritz values'
-   residual beta_m |s_mi| is at most tol mu_max; then the Sturm count at sigma = lambda_k (1 + gap) must be
-   k (no eigenvalue below was missed). Output as lowest_pairs. Returns 0, 1 (K not positive definite or a
-   diagonal of M not positive: the route through M), 2 (not converged in mmax steps, a tiny pivot in the
-   Sturm count, or a count other than k: the caller takes the dense route). */
-long long lanczos_pairs(long long n, long long k, long long kd, long long mmax, double tol, double gap,
-                        const long long* perm, const double* K, const double* M, double* lam, double* X,
-                        void** fp, double* buf, FINT* iw, long long refine) {
+/* The Rayleigh quotients of rayleigh() over the band: the entries (perm[p], perm[q]), |p - q| <= kd, which
+   hold every nonzero of the pencil, instead of a scan of the whole triangle. A(r, c) = A[ro[r] + co[c]]. */
+static void rayleigh_band(long long n, long long kd, long long k, const long long* perm, const long long* ro,
+                          const long long* co, const double* K, const double* M, double* lam, const double* X,
+                          long long xs, const long long* xo) {
+  for (long long c = 0; c < k; ++c) {
+    long double a = 0.0L, b = 0.0L;
+    for (long long p = 0; p < n; ++p) {
+      long long lo = p - kd > 0 ? p - kd : 0, pp = perm[p];
+      long double xp = (long double) X[xo[pp] * xs + c];
+      for (long long q = lo; q <= p; ++q) {
+        long long pq = perm[q], r = pp > pq ? pp : pq, cc = pp > pq ? pq : pp;  /* lower triangle */
+        long double xx = xp * (long double) X[xo[pq] * xs + c];
+        if (q != p) xx *= 2.0L;
+        a += (long double) K[ro[r] + co[cc]] * xx;
+        b += (long double) M[ro[r] + co[cc]] * xx;
+      }
+    }
+    if (b > 0.0L) lam[c] = (double) (a / b);
+  }
+}
+
+/* The k lowest eigenpairs of K x = lambda M x whose nonzeros lie within kd of the diagonal in the order perm
+   (position p holds row perm[p]). The pencil is read through index maps, entry (r, c) of K at
+   K[ro[r] + co[c]] (the free block of the whole matrices without a copy: ro[r] = f_r N, co[c] = f_c; r >= c,
+   the lower triangle, read), and each vector written to row xo[r] of X (k columns, rows not written stay as
+   they are). Jacobi scaling and the Cholesky factor of K as in lowest_pairs, then Lanczos with full
+   reorthogonalisation (twice) on the standard problem U^-T M_s U^-1 y = mu y (the largest mu are the lowest
+   lambda; Parlett, The Symmetric Eigenvalue Problem, ch. 13), from a fixed pseudo-random start, until each of
+   the k largest Ritz values' residual beta_m |s_mi| is at most tol mu_max; then the Sturm count at
+   sigma = lambda_k (1 + gap) must be k (no eigenvalue below was missed). The Ritz pairs (one MRRR solve of T,
+   the largest part of a small solve) are first computed at step ip[5] (the caller's memory of how many steps
+   the last solve of this size took), then every two steps.
+   ip: n, k, kd, mmax, refine, first check, (out) steps taken. dp: tol, gap. Output as lowest_pairs. Returns 0,
+   1 (K not positive definite or a diagonal of M not positive: the route through M), 2 (not converged in mmax
+   steps, a tiny pivot in the Sturm count, or a count other than k: the caller takes the dense route). */
+long long lanczos_pairs(long long* ip, const double* dp, const long long* perm, const long long* ro,
+                        const long long* co, const long long* xo, const double* K, const double* M, double* lam,
+                        double* X, void** fp, double* buf, FINT* iw) {
+  long long n = ip[0], k = ip[1], kd = ip[2], mmax = ip[3], refine = ip[4], first = ip[5];
+  double tol = dp[0], gap = dp[1];
   long long ld = kd + 1, i, j, p;
   double *Kb = buf, *Mb = Kb + ld * n, *W = Mb + ld * n, *T = W + ld * n, *Q = T + ld * n, *D = Q + n * (mmax + 1),
          *w = D + n, *u = w + n, *z = u + n, *x = z + n, *al = x + n, *be = al + mmax, *dd = be + mmax,
          *ee = dd + mmax, *S = ee + mmax, *wk = S + mmax * mmax, *hw = wk + 18 * mmax, *tw = hw + mmax + 1;
-  if (!jacobi(n, K, M, D)) return 1;
+  ip[6] = 0;
+  for (i = 0; i < n; ++i) {  /* Jacobi scaling (as jacobi() does on a plain matrix) */
+    double kii = K[ro[i] + co[i]];
+    if (!(kii > 0.0) || !(M[ro[i] + co[i]] > 0.0)) return 1;
+    D[i] = 1.0 / sqrt(kii);
+  }
   for (j = 0; j < n; ++j) {  /* scaled bands in the order perm */
     long long lo = j - kd > 0 ? j - kd : 0, pj = perm[j];
     for (p = lo; p <= j; ++p) {
       long long pi = perm[p], r = pi > pj ? pi : pj, c = pi > pj ? pj : pi;  /* lower triangle */
-      BAND(Kb, p, j) = D[pi] * K[r * n + c] * D[pj];
-      BAND(Mb, p, j) = D[pi] * M[r * n + c] * D[pj];
+      BAND(Kb, p, j) = D[pi] * K[ro[r] + co[c]] * D[pj];
+      BAND(Mb, p, j) = D[pi] * M[ro[r] + co[c]] * D[pj];
     }
   }
   FINT nn = (FINT) n, kk = (FINT) kd, ldd = (FINT) ld, info = 0;
@@ -542,6 +579,7 @@ long long lanczos_pairs(long long n, long long k, long long kd, long long mmax, 
   unsigned long long seed = 0x9E3779B97F4A7C15ULL;
   random_column(n, 0, Q, hw, &seed, fp);  /* the start */
   long long m = 0, done = 0, mlim = mmax < n ? mmax : n;
+  if (first < k) first = k;
   while (m < mlim) {
     double* q = Q + m * n;
     band_back(n, kd, W, q, u);  /* w = U^-T M U^-1 q */
@@ -556,7 +594,7 @@ long long lanczos_pairs(long long n, long long k, long long kd, long long mmax, 
     for (i = 0; i < n; ++i) b += w[i] * w[i];
     b = sqrt(b);
     ++m;
-    if ((m >= 3 * k && (m - 3 * k) % 4 == 0) || m == mlim) {  /* Ritz pairs: the templates need 20-38 steps */
+    if ((m >= first && (m - first) % 2 == 0) || m == mlim) {
       /* the k largest Ritz values (tw, ascending) and their vectors of T (S, m x k) by MRRR, as in
          lowest_pairs: a full dsteqr of T cost a sixth of a solve */
       FINT mm = (FINT) m, il = (FINT) (m - k + 1), iu = (FINT) m, nf = 0, nzc = (FINT) k, tryrac = 1;
@@ -586,6 +624,7 @@ long long lanczos_pairs(long long n, long long k, long long kd, long long mmax, 
     }
     be[m - 1] = b;
   }
+  ip[6] = m;
   if (!done) return 2;
   /* Sturm count below sigma: exactly the k found */
   double mu_k = tw[0];
@@ -603,9 +642,9 @@ long long lanczos_pairs(long long n, long long k, long long kd, long long mmax, 
     }
     band_back(n, kd, W, z, x);
     lam[j] = 1.0 / mu;
-    for (p = 0; p < n; ++p) X[perm[p] * k + j] = D[perm[p]] * x[p] * s;
+    for (p = 0; p < n; ++p) X[xo[perm[p]] * k + j] = D[perm[p]] * x[p] * s;
   }
-  if (refine) rayleigh(n, k, K, M, lam, X, iw);
+  if (refine) rayleigh_band(n, kd, k, perm, ro, co, K, M, lam, X, k, xo);
   return 0;
 }
 
@@ -636,7 +675,7 @@ def build(table) -> tuple | None:
     lib.newton.restype = L
     lib.newton.argtypes = [P] * 13
     lib.lanczos_pairs.restype = L
-    lib.lanczos_pairs.argtypes = [L, L, L, L, ctypes.c_double, ctypes.c_double, P, P, P, P, P, P, P, P, L]
+    lib.lanczos_pairs.argtypes = [P] * 13
     lib.lanczos_doubles.restype = L
     lib.lanczos_doubles.argtypes = [L, L, L]
     for name in ("work_doubles", "work_ints"):
@@ -722,28 +761,89 @@ def _pairs(status: int, lam: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.
 LANCZOS_STEPS, LANCZOS_TOL, STURM_GAP = 80, 1e-14, 1e-7
 
 
+#: A Lanczos solve given the step count of a solve of a neighbouring problem (the previous point of a curve)
+#: computes its first Ritz pairs there, and every :data:`PROBE_EVERY`-th solve in a row that converged at its
+#: first check tries two steps fewer (see :func:`lanczos_first_check`).
+PROBE_EVERY = 8
+
+
+def lanczos_first_check(k: int, hint: tuple[int, int] | None) -> int:
+    """The Lanczos step at which a solve with ``k`` pairs first computes its Ritz pairs, from ``hint`` = (steps,
+    run) of the solve of a neighbouring problem: its step count, and how many solves in a row converged at
+    their first check. One MRRR solve of the Lanczos matrix costs as much as four to six Lanczos steps at the
+    templates' sizes, and consecutive points of a curve need about the same number of steps, so checking first
+    where the last solve stopped saves the checks before it; a run of :data:`PROBE_EVERY` first-check
+    convergences tries two steps fewer, so the count follows a problem that gets easier. Without a hint,
+    ``3 k``. The result depends only on the arguments: a solve is reproducible from its inputs."""
+    if hint is None:
+        return 3 * k
+    steps, run = hint
+    return max(k, steps - 2 if run >= PROBE_EVERY else steps)
+
+
+class BandedPencil:
+    """A structure's banded eigen problem for :func:`lowest_pairs_banded`: the free block (indices ``idx``) of
+    the whole n x n stiffness and mass, read in place (row stride ``ld``), its band order ``perm`` with half
+    bandwidth ``kd`` (:func:`band_order`), and the index maps with their addresses taken once."""
+
+    def __init__(self, idx: np.ndarray, ld: int, perm: np.ndarray, kd: int) -> None:
+        idx = np.ascontiguousarray(idx, dtype=np.int64)
+        self.n, self.kd = len(idx), int(kd)
+        self.perm = np.ascontiguousarray(perm, dtype=np.int64)
+        self.ro, self.co = idx * int(ld), idx
+        self.ip = np.zeros(7, dtype=np.int64)
+        self.dp = np.array([LANCZOS_TOL, STURM_GAP])
+        self.at = [a.ctypes.data for a in (self.ip, self.dp, self.perm, self.ro, self.co)]
+
+    def solve(self, K: np.ndarray, M: np.ndarray, k: int, X: np.ndarray, xo_at: int, refine: bool = True,
+              hint: tuple[int, int] | None = None) -> tuple[np.ndarray | None | bool, tuple[int, int] | None]:
+        """The ``k`` lowest eigenvalues and vectors (written to the rows ``xo`` of ``X``, n_rows x k, C-contiguous)
+        of the free block of ``K``, ``M`` (C-contiguous float64, row stride ``ld``): ``(lam, (steps, run))``,
+        the second the ``hint`` for the next solve (:func:`lanczos_first_check`); ``lam`` None or False as
+        :func:`lowest_pairs_banded` returns them."""
+        drv = _driver()
+        if drv is None:
+            return None, None
+        lib, table, _ = drv
+        n, kd = self.n, self.kd
+        cache = _thread_cache()
+        buf = cache.get(("lanczos", n, kd))
+        if buf is None:  # kept per order and band, like _workspace
+            arr = np.empty(lib.lanczos_doubles(n, kd, LANCZOS_STEPS))
+            buf = cache[("lanczos", n, kd)] = (arr.ctypes.data, arr)
+        _, iwork, _, _ = _workspace(n, drv)
+        ip = self.ip
+        first = lanczos_first_check(k, hint)
+        ip[0], ip[1], ip[2], ip[3], ip[4], ip[5] = n, k, kd, LANCZOS_STEPS, int(refine), first
+        lam = np.empty(k)
+        a = self.at
+        status = lib.lanczos_pairs(a[0], a[1], a[2], a[3], a[4], xo_at, K.ctypes.data, M.ctypes.data,
+                                   lam.ctypes.data, X.ctypes.data, table.table, buf[0], iwork)
+        if status != 0:
+            return (False if status == 1 else None), None
+        steps = int(ip[6])
+        if steps != first:
+            run = 0
+        else:
+            run = 1 if hint is None or hint[1] >= PROBE_EVERY else hint[1] + 1
+        return lam, (steps, run)
+
+
 def lowest_pairs_banded(K: np.ndarray, M: np.ndarray, k: int, perm: np.ndarray, kd: int,
                         refine: bool = True) -> tuple[np.ndarray, np.ndarray] | None | bool:
     """:func:`lowest_pairs` for a pencil whose nonzeros lie within ``kd`` of the diagonal in the order
     ``perm`` (:func:`band_order`), by Lanczos on the banded Cholesky factor (C ``lanczos_pairs``: its
     docstring says how it is checked). The same returns, and ``None`` also when Lanczos did not converge or
-    its Sturm count disagrees: the caller then takes the dense route, which is always right."""
-    drv = _driver()
-    if drv is None:
-        return None
-    lib, table, _ = drv
-    K, M, lam, X = _pencil(K, M, k)
+    its Sturm count disagrees: the caller then takes the dense route, which is always right. (The eigen
+    solves of a curve go through a :class:`BandedPencil` of the structure, which reads the free block in
+    place and remembers the step count.)"""
+    K, M, _, X = _pencil(K, M, k)
     n = K.shape[0]
-    cache = _thread_cache()
-    buf = cache.get(("lanczos", n, kd))
-    if buf is None:  # kept per order and band, like _workspace
-        arr = np.empty(lib.lanczos_doubles(n, kd, LANCZOS_STEPS))
-        buf = cache[("lanczos", n, kd)] = (arr.ctypes.data, arr)
-    _, iwork, _, _ = _workspace(n, drv)
-    status = lib.lanczos_pairs(n, k, kd, LANCZOS_STEPS, LANCZOS_TOL, STURM_GAP, perm.ctypes.data, K.ctypes.data,
-                               M.ctypes.data, lam.ctypes.data, X.ctypes.data, table.table, buf[0], iwork,
-                               int(refine))
-    return _pairs(status, lam, X)
+    pencil = BandedPencil(np.arange(n), n, perm, kd)
+    lam, _ = pencil.solve(K, M, k, X, pencil.co.ctypes.data, refine)
+    if lam is None or lam is False:
+        return lam
+    return lam, X
 
 
 def solve(A: np.ndarray, B: np.ndarray) -> int | None:

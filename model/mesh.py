@@ -82,9 +82,10 @@ def _first_parasitic(an: "Analysis", targets: np.ndarray) -> dict[float, float]:
     k = an.structure.scene.modes + 2
     out: dict[float, float] = {}
     opts: NewtonOptions = an.options
+    last: list = [None]  # the previous point's modes: where its eigen solve starts (modal.modes_at's near)
 
     def accept(eq) -> WalkFailure | None:  # noqa: ANN001 - statics callback
-        modes = modes_at(sys, eq, k, drive)
+        modes = last[0] = modes_at(sys, eq, k, drive, last[0])
         if not len(modes.omega2) or not modes.omega2[0] > 0:
             return WalkFailure("unstable", eq.stroke, eq.stroke, "")
         labels, par = an._labels(modes, eq.tangent)

@@ -36,6 +36,9 @@ class Modes:
     omega2: np.ndarray  # (k,) eigenvalues [rad^2/s^2], ascending
     phi: np.ndarray  # (n, k) mass-normalised mode shapes over all DOFs (drive basis)
     M: np.ndarray  # (n, n) mass matrix used
+    #: the Lanczos solve's (steps, run), when it took that route: the hint for a neighbouring solve
+    #: (:func:`model.linalg.lanczos_first_check`)
+    lanczos: tuple[int, int] | None = None
 
     @property
     def hz(self) -> np.ndarray:
@@ -113,12 +116,36 @@ def _lowest_pairs_through_m(K: np.ndarray, M: np.ndarray, k: int) -> tuple[np.nd
     return w[:k], V[:, :k], info
 
 
-def modes_at(sys: System, eq: Equilibrium, k: int, drive: str = "locked") -> Modes:
-    """The ``k`` lowest eigenpairs at ``eq`` with the drive ``locked`` or ``free``."""
+def _in_place(H: np.ndarray, M: np.ndarray, N: int) -> bool:
+    """Whether ``H`` and ``M`` are C-ordered float64 views with row stride ``N`` (the extended numbering's
+    matrices, as :meth:`System.evaluate` and :meth:`System.mass` give them): a banded pencil reads them in place."""
+    return all(A.dtype == np.float64 and A.strides == (8 * N, 8) for A in (H, M))
+
+
+def modes_at(sys: System, eq: Equilibrium, k: int, drive: str = "locked", near: Modes | None = None) -> Modes:
+    """The ``k`` lowest eigenpairs at ``eq`` with the drive ``locked`` or ``free``. ``near``: the modes of a
+    neighbouring equilibrium (the previous point of a curve), whose Lanczos step count the banded solve starts
+    from (:func:`model.linalg.lanczos_first_check`; the same eigenpairs to rounding, reproducible from the
+    arguments)."""
     s = sys.s
     M = sys.mass(eq.state)
     locked = drive == "locked"
     dofs = sys.free if locked else np.arange(sys.n)
+    k = min(k, len(dofs))
+    if k == 0:
+        return Modes(np.zeros(0), np.zeros((sys.n, 0)), M)
+    pencil = sys.banded_pencil(locked) if not sys.n_con and 2 * k < len(dofs) else None
+    band = None
+    if pencil is not None:
+        if _in_place(eq.ev.H, M, sys.N):
+            # the free blocks of H and M read in place, the vectors written into phi's free rows: one C call
+            phi = np.zeros((sys.n, k))
+            w, hint = pencil.solve(eq.ev.H, M, k, phi, pencil.at[4], hint=None if near is None else near.lanczos)
+            if w is not None and w is not False:
+                return Modes(w, phi, M, hint)
+            band = False if w is False else None  # K not positive definite: the route through M; else dense
+        else:
+            band = (pencil.perm, pencil.kd)
     K = sys.free_block(eq.ev.H, locked)
     Mr = Mf = sys.free_block(M, locked)
     Z = None
@@ -127,10 +154,10 @@ def modes_at(sys: System, eq: Equilibrium, k: int, drive: str = "locked") -> Mod
 
         Z = null_space(eq.ev.G[:, dofs])
         K, Mr = Z.T @ K @ Z, Z.T @ Mr @ Z
-    k = min(k, K.shape[0])
-    if k == 0:
-        return Modes(np.zeros(0), np.zeros((sys.n, 0)), M)
-    w, V = _lowest_pairs(K, Mr, k, sys.eigen_band(locked) if Z is None and 2 * k < K.shape[0] else None)
+        k = min(k, K.shape[0])
+        if k == 0:
+            return Modes(np.zeros(0), np.zeros((sys.n, 0)), M)
+    w, V = (None, None) if band is False else _lowest_pairs(K, Mr, k, band)
     if w is None:  # K not positive definite (unstable) or singular: the pencil route through M
         w, V, info = _lowest_pairs_through_m(K, Mr, k)
         if info > K.shape[0]:  # LAPACK: the leading minor of order info - n of M is not positive definite

@@ -309,6 +309,114 @@ def test_compiled_newton_system_reports_a_singular_tangent() -> None:
         _compiled_step(sys_, ns, ev, st, 0.1, 0.0)
 
 
+@pytest.mark.parametrize("name", NEWTON_CASES)
+def test_compiled_newton_loop_equals_the_python_loop_bit_for_bit(name: str) -> None:
+    """model.statics' compiled Newton loop (_LOOP_SOURCE: the predictor, evaluations, Newton systems, convergence
+    tests and updates of a whole point in one C call) against the Python loop over the same compiled steps
+    (statics.predict, System.evaluate, model.linalg.newton, System.update) along a walk of three steps from the
+    reference (tangent predictor, then the cubic one): the same states, tangents, assembled numbers and iteration
+    counts, to the last bit. Reference: the Python loop, which the C loop replaces."""
+    from flexopt.model import Analysis, template
+    from flexopt.model.statics import _point_loop, walk
+
+    an = Analysis(template(name))
+    sys_ = an.system
+    assert _point_loop(sys_) is not None
+    h = 0.15 if sys_.s.drive_kind == "rotation" else 0.15 * sys_.s.length_scale / 10
+
+    def points() -> list:
+        got: list = []
+        assert walk(sys_, h * np.arange(1, 4), an.options, got.append) is None
+        return got
+
+    fast = points()
+    saved, sys_._point_loop = sys_._point_loop, None
+    try:
+        slow = points()
+    finally:
+        sys_._point_loop = saved
+    assert "at" in fast[-1].extra and "at" not in slow[-1].extra  # each route ran
+    for a, b in zip(fast, slow):
+        assert a.iterations == b.iterations and a.residual == b.residual and a.increment == b.increment
+        for x, y in ((a.state.X, b.state.X), (a.state.R, b.state.R), (a.tangent, b.tangent), (a.ev.g, b.ev.g),
+                     (a.ev.H, b.ev.H), (a.ev.e_beam, b.ev.e_beam), (a.ev.chart, b.ev.chart)):
+            assert np.array_equal(x, y)
+    assert np.abs(fast[-1].ev.chart).max() > 0  # a loaded state: the chart is not trivially zero
+
+
+@pytest.mark.parametrize("name", NEWTON_CASES)
+def test_compiled_newton_loop_fails_like_the_python_loop(name: str) -> None:
+    """Newton from the reference straight to strokes it cannot reach in one solve (and with 3 iterations at most):
+    the compiled loop stops with the same StepFailure message, numbers included, as the Python loop (no
+    convergence within max_iter, an increment not halved in two iterations, divergence), and a state with a
+    non-finite coordinate gives 'non-finite residual' in both."""
+    from flexopt.model import Analysis, template
+    from flexopt.model.statics import NewtonOptions, StepFailure, _point_loop, solve_point
+
+    an = Analysis(template(name))
+    sys_ = an.system
+    assert _point_loop(sys_) is not None
+    rot = sys_.s.drive_kind == "rotation"
+    bad = sys_.reference_state()
+    bad.X[0, 0] = np.nan
+    cases = [(sys_.reference_state(), t, NewtonOptions(max_iter=m)) for t in ((0.8, 1.5) if rot else (0.02, 0.2))
+             for m in (3, 12)] + [(bad, 0.1 if rot else 0.001, NewtonOptions())]
+    messages = set()
+    for start, target, opts in cases:
+        out = []
+        for loop in (True, False):
+            saved = sys_._point_loop
+            if not loop:
+                sys_._point_loop = None
+            try:
+                eq = solve_point(sys_, start, target, opts, 0.0)
+                out.append(("converged", eq.iterations, eq.state.X.tobytes()))
+            except StepFailure as exc:
+                out.append(("failed", str(exc)))
+            finally:
+                sys_._point_loop = saved
+        assert out[0] == out[1], (target, opts.max_iter)
+        messages.add(out[0][1].split(" (")[0] if out[0][0] == "failed" else "converged")
+    # a non-finite state and at least one of Newton's exits (over the four templates: no convergence, not
+    # converging, diverging, and convergence)
+    assert "non-finite residual" in messages and len(messages) >= 2
+
+
+def test_banded_pencil_in_place_equals_the_copied_free_blocks() -> None:
+    """The eigen solve of a curve (a BandedPencil reading the free block of the whole H and M in place and writing
+    phi's free rows) against model.linalg.lowest_pairs_banded on copies of the free blocks: the same arithmetic
+    through index maps, so the same eigenvalues and vectors to the bit; the drive's row of phi stays zero."""
+    from flexopt.model import Analysis, template
+    from flexopt.model.statics import walk
+
+    an = Analysis(template("cross-spring-pivot"))
+    sys_ = an.system
+    got: list = []
+    assert walk(sys_, np.array([0.5]), an.options, got.append) is None
+    eq = got[-1]
+    M = sys_.mass(eq.state)
+    perm, kd = sys_.eigen_band(True)
+    pencil = linalg.BandedPencil(sys_.free, sys_.N, perm, kd)
+    phi = np.zeros((sys_.n, 8))
+    lam, _ = pencil.solve(eq.ev.H, M, 8, phi, pencil.at[4])
+    lam0, X0 = linalg.lowest_pairs_banded(sys_.free_block(eq.ev.H), sys_.free_block(M), 8, perm, kd)
+    assert np.array_equal(lam, lam0) and np.array_equal(phi[sys_.free], X0) and not phi[sys_.drive].any()
+
+
+def test_a_curve_is_reproducible_to_the_bit() -> None:
+    """The eigen solves of a curve start from the previous point's Lanczos step count (model.linalg
+    lanczos_first_check), which moves where a solve stops and so its last bits: that count is carried by the
+    modes passed in, not kept by the structure, so the same curve computed again on the same Analysis, after
+    other solves, is the same to the bit."""
+    from flexopt.model import Analysis, template
+
+    an = Analysis(template("cross-spring-pivot"))
+    first = an.frequency_curve()
+    an.frequency_curve(np.linspace(0.0, 20.0, 5))  # other solves in between
+    again = an.frequency_curve()
+    assert np.array_equal(first.modes_hz, again.modes_hz) and np.array_equal(first.parasitic_hz, again.parasitic_hz)
+
+
 def test_without_a_c_compiler_the_numpy_routes_give_the_same_curve() -> None:
     """No C compiler (kernels._compiler returns None, in a fresh process): the kernels run in CasADi's virtual
     machine with a KernelPerformanceWarning, the compiled per-point routes are off, and the curve agrees with
