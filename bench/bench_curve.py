@@ -11,7 +11,7 @@ For each case it reports, side by side in one run:
 
 Times are wall clock on whatever else the machine is doing: quote medians, compare within one run.
 
-``--split`` prints instead where a warm curve's time goes (eigen solves, Newton systems, kernel calls, the
+``--split`` prints instead where a warm curve's time goes (eigen solves, Newton solves, mass matrices, the
 rest), the per-point floor the README's speed section discusses.
 
 Usage::
@@ -60,13 +60,14 @@ def _child_seconds(name: str, params: dict, cache: str) -> float:
 
 
 def split(repeat: int) -> None:
-    """Where a warm curve's time goes: the compiled eigen solves (dense or Lanczos; a Lanczos solve that
-    declines and the dense one after it count as two), Newton systems (with their LU) and element
-    kernel calls (gather, kernel, scatter), timed by wrapping those functions over ``repeat`` curves; the rest
-    is the continuation's Python (predictor, tracking, labels, stresses, mesh estimate bookkeeping)."""
+    """Where a warm curve's time goes: the eigen solves (the banded Lanczos pencil or the dense driver; a Lanczos
+    solve that declines and the dense one after it count as two), the Newton solves (model.statics' compiled
+    loop: predictor, kernel evaluations, Newton systems and updates of a point in one call), the mass matrices
+    and the rest, timed by wrapping those functions over ``repeat`` curves; the rest is the continuation's
+    Python (tracking, labels, stresses, mesh estimate bookkeeping)."""
     import statistics as st
 
-    from flexopt.model import Analysis, assembly, linalg, template
+    from flexopt.model import Analysis, assembly, linalg, statics, template
 
     acc: dict[str, list[float]] = {}
 
@@ -87,17 +88,17 @@ def split(repeat: int) -> None:
 
     print(f"where the warm exact 91-point curve's time goes ({repeat} curves per case, medians of the whole "
           f"curve; parts summed over the curves); load average {os.getloadavg()[0]:.2f}; {os.cpu_count()} CPUs")
-    print("| case | curve [ms] | eigen solves / curve | eigen [ms] | per eigen solve [us] | Newton systems / curve "
-          "| Newton systems incl. LU [ms] | kernel calls incl. gather and scatter [ms] | rest [ms] |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| case | curve [ms] | eigen solves / curve | eigen [ms] | per eigen solve [us] | Newton solves / curve "
+          "| Newton solves [ms] | per Newton solve [us] | mass matrices [ms] | rest [ms] |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for label, name, params in CASES:
         an = Analysis(template(name, **params))
         an.frequency_curve()
         acc.clear()
         originals = [(linalg, "lowest_pairs", timed(linalg, "lowest_pairs", "eigen")),
-                     (linalg, "lowest_pairs_banded", timed(linalg, "lowest_pairs_banded", "eigen")),
-                     (linalg, "newton", timed(linalg, "newton", "newton")),
-                     (assembly.System, "_compiled_call", timed(assembly.System, "_compiled_call", "kernels"))]
+                     (linalg.BandedPencil, "solve", timed(linalg.BandedPencil, "solve", "eigen")),
+                     (statics._PointLoop, "solve", timed(statics._PointLoop, "solve", "newton")),
+                     (assembly.System, "mass", timed(assembly.System, "mass", "mass"))]
         try:
             ts = []
             for _ in range(repeat):
@@ -109,11 +110,11 @@ def split(repeat: int) -> None:
                 setattr(owner, attr, f)
         per = {k: (v[0] / repeat, v[1] / repeat) for k, v in acc.items()}
         total = sum(ts) / repeat
-        eig, newton, kern = per.get("eigen", (0, 0)), per.get("newton", (0, 0)), per.get("kernels", (0, 0))
-        rest = total - eig[0] - newton[0] - kern[0]
+        eig, newton, mass = per.get("eigen", (0, 0)), per.get("newton", (0, 0)), per.get("mass", (0, 0))
+        rest = total - eig[0] - newton[0] - mass[0]
         print(f"| {label} | {st.median(ts) * 1e3:.1f} | {eig[1]:.0f} | {eig[0] * 1e3:.1f} | "
-              f"{eig[0] / max(eig[1], 1) * 1e6:.0f} | {newton[1]:.0f} | {newton[0] * 1e3:.1f} | {kern[0] * 1e3:.1f} | "
-              f"{rest * 1e3:.1f} |")
+              f"{eig[0] / max(eig[1], 1) * 1e6:.0f} | {newton[1]:.0f} | {newton[0] * 1e3:.1f} | "
+              f"{newton[0] / max(newton[1], 1) * 1e6:.0f} | {mass[0] * 1e3:.1f} | {rest * 1e3:.1f} |")
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -122,7 +123,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--repeat", type=int, default=15, help="warm repetitions per case (median reported)")
     ap.add_argument("--markdown", action="store_true", help="print a markdown table")
     ap.add_argument("--split", action="store_true",
-                    help="instead: where a warm curve's time goes (eigen, Newton systems, kernels, the rest)")
+                    help="instead: where a warm curve's time goes (eigen, Newton solves, mass, the rest)")
     args = ap.parse_args(argv)
     if args.split:
         split(args.repeat)

@@ -60,6 +60,53 @@ int assemble(void* kernel, long long ne, long long n_in, long long n_out, const 
   return 0;
 }
 
+/* R J R^T of a row-major rotation R and tensor J, as model.assembly.rjrt sums it: A = R J, then A R^T, each
+   entry a sum of products left to right */
+static void rjrt(const double* R, const double* J, double* B) {
+  double A[9];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) A[3 * i + j] = R[3 * i] * J[j] + R[3 * i + 1] * J[3 + j] + R[3 * i + 2] * J[6 + j];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) B[3 * i + j] = A[3 * i] * R[3 * j] + A[3 * i + 1] * R[3 * j + 1] + A[3 * i + 2] * R[3 * j + 2];
+}
+
+/* System.mass in one call (beams only, no rigid deformations; c: System._mass_context): the beams' consistent
+   mass scattered by assemble (no gradient), plus the constant part (const + scatter, as numpy adds them), then
+   each node's and body's rotary inertia R J R^T summed per master in node order (np.add.at's) and added to the
+   masters' rotation blocks at rot_flat in that order. out: the layout of System._compiled_call, the matrix
+   last. The same numbers as the numpy route. */
+int mass_matrix(const long long* c, const double* X, const double* R, double* out) {
+  long long ne = c[1], n_out = c[3], N = c[10], n_full = c[11], nn = c[14], nm = c[18], i, e;
+  const long long* node_master = (const long long*) c[12];
+  const double *off = (const double*) c[13], *Mc = (const double*) c[16], *Jn = (const double*) c[17],
+               *Jb = (const double*) c[19];
+  const long long* rot_flat = (const long long*) c[20];
+  double *r = (double*) c[15], *Jm = (double*) c[21], B[9];
+  for (i = 0; i < nn; ++i) {  /* model.assembly.rotate */
+    const double *Rm = R + 9 * node_master[i], *o = off + 3 * i;
+    for (int a = 0; a < 3; ++a) r[3 * i + a] = Rm[3 * a] * o[0] + Rm[3 * a + 1] * o[1] + Rm[3 * a + 2] * o[2];
+  }
+  double *g = out + ne * n_out, *M = g + N + n_full;
+  if (assemble((void*) c[0], ne, c[2], n_out, X, R, (const long long*) c[4], (const long long*) c[5], r,
+               (double*) c[6], out, (const long long*) c[7], (const long long*) c[8], (const long long*) c[9], N,
+               n_full, g, g + N, M, -1, 0))
+    return 1;
+  for (i = 0; i < N * N; ++i) M[i] = Mc[i] + M[i];
+  for (i = 0; i < 9 * nm; ++i) Jm[i] = 0.0;
+  for (i = 0; i < nn; ++i) {
+    long long m = node_master[i];
+    rjrt(R + 9 * m, Jn + 9 * i, B);
+    for (e = 0; e < 9; ++e) Jm[9 * m + e] = Jm[9 * m + e] + B[e];
+  }
+  if (Jb)
+    for (long long m = 0; m < nm; ++m) {
+      rjrt(R + 9 * m, Jb + 9 * m, B);
+      for (e = 0; e < 9; ++e) Jm[9 * m + e] = Jm[9 * m + e] + B[e];
+    }
+  for (i = 0; i < 9 * nm; ++i) M[rot_flat[i]] = M[rot_flat[i]] + Jm[i];
+  return 0;
+}
+
 /* System.update for a drive basis of global axes: x += u, R <- expm(psi) R through the compiled Rodrigues
    kernel (its batch entry), the same arithmetic as the numpy route. act: the active index of each of the
    6 nm global DOFs (-1: not active, increment 0). */
@@ -106,6 +153,8 @@ def _assembler():
             fn.restype = ctypes.c_int
             fn.argtypes = [ctypes.c_void_p] + [ctypes.c_longlong] * 3 + [ctypes.c_void_p] * 10 \
                 + [ctypes.c_longlong] * 2 + [ctypes.c_void_p] * 3 + [ctypes.c_longlong] * 2
+            lib.mass_matrix.restype = ctypes.c_int
+            lib.mass_matrix.argtypes = [ctypes.c_void_p] * 4
             up = lib.update_state
             up.restype = ctypes.c_int
             up.argtypes = [ctypes.c_void_p, ctypes.c_longlong] + [ctypes.c_void_p] * 5 + [ctypes.c_longlong] \
@@ -120,6 +169,15 @@ def rotate(R: np.ndarray, v: np.ndarray) -> np.ndarray:
     """``R v`` row by row (``R`` (k, 3, 3), ``v`` (k, 3)) as plain sums of products taken left to right, the
     way the C routes (the compiled Newton loop of model.statics) compute them: the same numbers to the bit."""
     return R[:, :, 0] * v[:, None, 0] + R[:, :, 1] * v[:, None, 1] + R[:, :, 2] * v[:, None, 2]
+
+
+def rjrt(R: np.ndarray, J: np.ndarray) -> np.ndarray:
+    """``R J R^T`` for stacks of 3 x 3 matrices (..., 3, 3): ``A = R J``, then ``A R^T``, each entry a sum of
+    products taken left to right, as the compiled mass (``mass_matrix``) sums it: the same numbers to the bit."""
+    A = R[..., :, 0, None] * J[..., None, 0, :] + R[..., :, 1, None] * J[..., None, 1, :] \
+        + R[..., :, 2, None] * J[..., None, 2, :]
+    return A[..., :, 0, None] * R[..., None, :, 0] + A[..., :, 1, None] * R[..., None, :, 1] \
+        + A[..., :, 2, None] * R[..., None, :, 2]
 
 
 @dataclass
@@ -706,6 +764,15 @@ class System:
         rotated with the node; rigid bodies ``diag(m I, R J R^T)`` at their centre of mass.
         """
         s, N = self.s, self.N
+        ctx = self._mass_context() if self._fast is not None else None
+        if ctx is not None:  # all of it in one C call (mass_matrix), the same numbers
+            out = np.empty(self._mass_size)
+            if _assembler()[0].mass_matrix(ctx, np.ascontiguousarray(st.X, dtype=np.float64).ctypes.data,
+                                           np.ascontiguousarray(st.R, dtype=np.float64).ctypes.data, out.ctypes.data):
+                from .errors import KernelBuildError
+
+                raise KernelBuildError(f"kernel '{self.beam_mass_kernel.spec.name}' reported an evaluation error")
+            return self._reduce_mat(out[self._mass_size - N * N :].reshape(N, N))
         if self._fast is not None and self.beam_mass_kernel.address is not None:
             Mflat = self._mass_const + self._compiled_call(st, self.beam_mass_kernel, self._mass_in_at, False)[3]
         else:
@@ -716,14 +783,40 @@ class System:
             _, _, rn = self.node_states(st)
             for nodes, mass, flat in self._mvar:
                 Mflat += np.bincount(flat, self._trans_mass(rn[nodes], mass), minlength=N * N)
-        Rn = st.R[s.node_master]
-        Jn = Rn @ s.node_rot_inertia @ Rn.transpose(0, 2, 1)
+        Jn = rjrt(st.R[s.node_master], s.node_rot_inertia)
         Jm = np.zeros((len(s.master_names), 3, 3))
         np.add.at(Jm, s.node_master, Jn)
         if self._has_body_inertia:
-            Jm += st.R @ s.master_inertia @ st.R.transpose(0, 2, 1)
+            Jm += rjrt(st.R, s.master_inertia)
         np.add.at(Mflat, self._rot_flat, Jm.ravel())
         return self._reduce_mat(Mflat.reshape(N, N))
+
+    def _mass_context(self) -> int | None:
+        """The address of :meth:`mass`'s C context (``mass_matrix``), made once; None where the compiled
+        evaluate does not apply (the numpy route) or the mass has a part it does not compute (trusses)."""
+        ctx = getattr(self, "_mass_ctx", False)
+        if ctx is False:
+            ctx = None
+            if self._fast is not None and self.beam_mass_kernel.address is not None and not self._mvar:
+                s, N = self.s, self.N
+                _, end_master, end_node, dofs, dofs_full, flat = self._fast
+                nm = len(s.master_names)
+                keep = [np.ascontiguousarray(s.node_master, dtype=np.int64),
+                        np.ascontiguousarray(s.node_offset, dtype=np.float64), np.zeros((len(s.node_master), 3)),
+                        np.ascontiguousarray(self._mass_const, dtype=np.float64),
+                        np.ascontiguousarray(s.node_rot_inertia, dtype=np.float64),
+                        np.ascontiguousarray(s.master_inertia, dtype=np.float64),
+                        np.ascontiguousarray(self._rot_flat, dtype=np.int64), np.zeros(9 * nm)]
+                at = [a.ctypes.data for a in keep]
+                k = self.beam_mass_kernel
+                c = np.array([k.address, s.n_beams, k.n_in, k.n_out, end_master, end_node, self._mass_in_at, dofs,
+                              dofs_full, flat, N, self.n_full, at[0], at[1], len(s.node_master), at[2], at[3], at[4],
+                              nm, at[5] if self._has_body_inertia else 0, at[6], at[7]], dtype=np.int64)
+                keep.append(c)
+                self._mass_keep, self._mass_size = keep, s.n_beams * k.n_out + N + self.n_full + N * N
+                ctx = c.ctypes.data
+            self._mass_ctx = ctx
+        return ctx
 
     def beam_mass_blocks(self, st: State) -> np.ndarray:
         """The beams' 12 x 12 translational mass blocks at ``st`` (nb, 144, column-major)."""

@@ -452,6 +452,8 @@ def _loop_failure(pl: _PointLoop, status: int, info: np.ndarray, opts: NewtonOpt
 def _point_loop(sys: System) -> _PointLoop | None:
     """The compiled Newton loop of ``sys`` (cached on it), or None where the Python loop applies (no compiled
     Newton system or evaluate/update, or no C compiler)."""
+    if sys._fast is None or sys._fast_update is None:  # the compiled routes switched off (tests, bench_ab.py)
+        return None
     pl = getattr(sys, "_point_loop", False)
     if pl is False:
         pl = None
