@@ -13,7 +13,7 @@ from flexopt.model import Analysis, template
 from flexopt.model.errors import FlexoptError
 from flexopt.model.methods import frequency_curve
 from flexopt.model.methods.hermite import stroke_slopes
-from flexopt.model.methods.taylor import mass_derivatives, mass_slope
+from flexopt.model.methods.taylor import mass_derivatives, mass_slope, projected_mass_slope
 
 SIX = ["leaf-spring", "parallel-leaf-spring", "cross-spring-pivot", "cartwheel-hinge", "three-fold-cross-hinge",
        "double-cross-hinge"]
@@ -76,6 +76,20 @@ def test_mass_slope_matches_the_five_point_quartic_and_central_differences(name:
     fd = (mass_at(h) - mass_at(-h)) / (2 * h)
     assert np.abs(got).max() > 1e-6 * np.abs(M).max(), "the mass does change along the stroke here"
     np.testing.assert_allclose(got, fd, rtol=0, atol=1e-6 * np.abs(got).max())
+    # the projection the stroke slopes use (projected_mass_slope: the two masses projected on the modes before
+    # their difference) against P^T M1 P of the matrix above: the same numbers up to the order of the sums
+    # (rounding of |P^T M P| ~ 1 for mass-normalised modes, hence 1e-12 of the largest entry of P^T |M| P)
+    P = seen_modes(an, eq)
+    proj = projected_mass_slope(sys, eq.state, t, P)
+    scale = np.abs(P).T @ np.abs(M) @ np.abs(P)
+    np.testing.assert_allclose(proj, P.T @ got @ P, rtol=0, atol=1e-12 * scale.max())
+
+
+def seen_modes(an: Analysis, eq) -> np.ndarray:  # noqa: ANN001 - an Equilibrium
+    """The tracked mode shapes at ``eq`` (the scene's modes + 2, drive locked)."""
+    from flexopt.model.modal import modes_at
+
+    return modes_at(an.system, eq, an.scene.modes + 2, an.scene.stroke.drive).phi
 
 
 @pytest.mark.parametrize("name", SIX)
@@ -220,21 +234,22 @@ def test_path_curvature_matches_second_differences_and_brings_the_long_first_ste
 
 
 def test_the_quintic_of_the_estimate_is_the_hermite_interpolant_through_three_samples() -> None:
-    """model.methods.hermite._quintic (cubic plus a correction, no solve) against scipy's Krogh interpolator
-    with doubled nodes (values and slopes at three strokes: the same polynomial of degree 5, built
-    independently), for a neighbour on either side and unequal intervals; agreement to 1e-10 of the values'
-    scale (rounding of the two constructions)."""
+    """model.methods.hermite._quintic_all (cubic plus a correction, no solve; all intervals at once) against
+    scipy's Krogh interpolator with doubled nodes (values and slopes at three strokes: the same polynomial of
+    degree 5, built independently), for a neighbour on either side and unequal intervals, one call for the
+    three; agreement to 1e-10 of the values' scale (rounding of the two constructions)."""
     from scipy.interpolate import KroghInterpolator
 
-    from flexopt.model.methods.hermite import _hermite, _quintic
+    from flexopt.model.methods.hermite import _hermite, _quintic_all
 
     rng = np.random.default_rng(7)
     S = np.array([0.0, 0.3, 0.5, 1.2])
     y, dy = rng.uniform(1, 2, (4, 3)), rng.uniform(-3, 3, (4, 3))
-    for i, nb in ((1, 0), (1, 3), (0, 2)):
-        x = np.linspace(S[i], S[i + 1], 18)[1:-1]
-        cubic = _hermite(S[i], S[i + 1], y[i], y[i + 1], dy[i], dy[i + 1], x)
-        got = _quintic(S, y, dy, i, nb, x, cubic)
+    cases = ((1, 0), (1, 3), (0, 2))
+    xs = np.array([np.linspace(S[i], S[i + 1], 18)[1:-1] for i, _ in cases])
+    cubics = np.array([_hermite(S[i], S[i + 1], y[i], y[i + 1], dy[i], dy[i + 1], x) for (i, _), x in zip(cases, xs)])
+    every = _quintic_all(S, y, dy, np.array([i for i, _ in cases]), np.array([nb for _, nb in cases]), xs, cubics)
+    for (i, nb), x, cubic, got in zip(cases, xs, cubics, every):
         for j in range(3):
             nodes = [S[i], S[i], S[i + 1], S[i + 1], S[nb], S[nb]]
             vals = [y[i, j], dy[i, j], y[i + 1, j], dy[i + 1, j], y[nb, j], dy[nb, j]]

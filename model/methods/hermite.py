@@ -46,7 +46,7 @@ from ..modal import Modes, assign, mac_matrix, modes_at
 from ..statics import Equilibrium, StepFailure, path_curvature, solve_point, walk
 from ..symmetry import image_indices, one_side
 from .common import CLUSTER_GAP, _curve_from
-from .taylor import _clusters, mass_slope
+from .taylor import _clusters, projected_mass_slope
 
 __all__ = ["hermite_curve", "stroke_slopes", "HermiteResult"]
 
@@ -100,7 +100,6 @@ def stroke_slopes(an: Analysis, eq: Equilibrium, modes: Modes) -> np.ndarray:
     t = np.asarray(eq.tangent, dtype=float)
     K = eq.ev.H
     K1 = sys.hessian_derivative(eq.state, t)
-    M1 = mass_slope(sys, eq.state, t)
     order = np.argsort(modes.omega2)  # clusters are runs of the ascending eigenvalues
     lam, P = modes.omega2[order], modes.phi[:, order]
     nm = len(s.master_names)
@@ -114,7 +113,8 @@ def stroke_slopes(an: Analysis, eq: Equilibrium, modes: Modes) -> np.ndarray:
     JPg[:, 5, :] = 0.5 * (a0 * w[:, 1] - a1 * w[:, 0])
     JP = sys.from_global(JPg.reshape(6 * nm, -1))
     KP = K @ P
-    Q = P.T @ (0.5 * (K1 + K1.T)) @ P - KP.T @ JP - JP.T @ KP
+    Q1 = P.T @ (K1 @ P)  # P^T sym(K1) P as sym(P^T K1 P): k x k work instead of n x n
+    Q = 0.5 * (Q1 + Q1.T) - KP.T @ JP - JP.T @ KP
     if s.drive_kind == "rotation":
         # first-order BCH term of the chart change times the drive moment g_e (zero at stroke 0 only)
         e = np.asarray(s.drive_axis, dtype=float)
@@ -123,7 +123,7 @@ def stroke_slopes(an: Analysis, eq: Equilibrium, modes: Modes) -> np.ndarray:
         G = float(tr @ e) / 6.0 * np.eye(3) - (np.outer(tr, e) + np.outer(e, tr)) / 12.0
         Pr = Pg[s.drive_master, 3:, :]
         Q -= float(eq.ev.g[sys.drive]) * (Pr.T @ G @ Pr)
-    MP = P.T @ M1 @ P
+    MP = projected_mass_slope(sys, eq.state, t, P)
     out = np.diagonal(Q) - lam * np.diagonal(MP)  # Nelson's formula for every simple eigenvalue
     for c in _clusters(lam, SLOPE_CLUSTER_GAP):
         if len(c) > 1:
@@ -159,31 +159,19 @@ class _Side:
         self.samples = [first]
         self.lam = self.slope = np.zeros((0, k))
         self.labels: list[list[str]] = []
-        self._estimates: dict = {}  # interval -> (its tracked data, _error's value)
         self.visited: dict[float, Equilibrium] = {}  # converged equilibria of the initial continuation
         self.curvature = curvature  # d2 xi/ds2 at stroke 0: the first step's predictor (statics.path_curvature)
         self._pairs: dict = {}  # (id(sample), id(next sample)) -> (their raw MAC matrix, the two samples)
+        self._tracked: dict = {}  # (id(sample), id(previous), its permutation) -> what retrack derives
 
     def at(self, s: float) -> _Sample:
         """The sample at stroke ``s`` (one of :meth:`strokes`)."""
         return next(x for x in self.samples if x.s == s)
 
     def estimates(self) -> dict[tuple[float, float], float]:
-        """:meth:`error` of every interval, keyed by its end strokes."""
+        """:func:`_errors` of every interval, keyed by its end strokes."""
         S = self.strokes()
-        return {(S[i], S[i + 1]): self.error(i) for i in range(len(S) - 1)}
-
-    def error(self, i: int) -> float:
-        """:func:`_error` of the interval [S_i, S_i+1], reused while its tracked data are unchanged (a new
-        sample elsewhere leaves most intervals as they were; retracking may change any of them)."""
-        S = self.strokes()
-        data = (self.lam[i].tobytes(), self.lam[i + 1].tobytes(), self.slope[i].tobytes(),
-                self.slope[i + 1].tobytes(), self.mac[i].tobytes(), tuple(self.labels[i]), tuple(self.labels[i + 1]))
-        key = (float(S[i]), float(S[i + 1]))
-        hit = self._estimates.get(key)
-        if hit is None or hit[0] != data:
-            hit = self._estimates[key] = (data, _error(self, i))
-        return hit[1]
+        return dict(zip(zip(S[:-1].tolist(), S[1:].tolist()), _errors(self).tolist()))
 
     def sample(self, start: _Sample, s_new: float, end: _Sample | None = None) -> _Sample:
         """The exact equilibrium, eigenpairs and slopes at ``s_new``, reached from the sample ``start``.
@@ -218,7 +206,7 @@ class _Side:
             if fail is not None or not got:
                 raise _Fallback(fail.message if fail is not None else "no equilibrium")
             eq = got[-1]
-        modes = modes_at(sys, eq, self.k, self.drive)
+        modes = modes_at(sys, eq, self.k, self.drive, start.modes)
         if len(modes.omega2) == 0 or modes.omega2[0] <= 0:
             raise _Fallback("equilibrium unstable at a sample")
         return _Sample(s_new, eq, modes, stroke_slopes(an, eq, modes))
@@ -234,9 +222,10 @@ class _Side:
         if not len(pts):
             return 0
         left = self.at(a_s)
+        last = [left.modes]  # the previous point's modes: where its eigen solve starts (modal.modes_at's near)
 
         def accept(e: Equilibrium) -> None:
-            modes = modes_at(sys, e, self.k, self.drive)
+            modes = last[0] = modes_at(sys, e, self.k, self.drive, last[0])
             if len(modes.omega2) == 0 or modes.omega2[0] <= 0:
                 raise _Fallback("equilibrium unstable at a requested point")
             self.add(_Sample(float(e.stroke), e, modes, np.zeros(len(modes.omega2)), filled=True))
@@ -253,12 +242,13 @@ class _Side:
         predictor is the cubic through two converged points)."""
         an = self.an
         sys = an.system
+        last = [self.samples[0].modes]
+
         def accept(e: Equilibrium) -> None:
-            if True:
-                modes = modes_at(sys, e, self.k, self.drive)
-                if len(modes.omega2) == 0 or modes.omega2[0] <= 0:
-                    raise _Fallback("equilibrium unstable at a sample")
-                self.add(_Sample(float(e.stroke), e, modes, stroke_slopes(an, e, modes)))
+            modes = last[0] = modes_at(sys, e, self.k, self.drive, last[0])
+            if len(modes.omega2) == 0 or modes.omega2[0] <= 0:
+                raise _Fallback("equilibrium unstable at a sample")
+            self.add(_Sample(float(e.stroke), e, modes, stroke_slopes(an, e, modes)))
             return None
 
         def seen(e: Equilibrium) -> None:
@@ -278,44 +268,55 @@ class _Side:
 
         The MAC matrix of two neighbouring samples' modes is computed once per pair (``_pairs``) and read
         through the previous sample's permutation: the tracking (:func:`model.modal.track`) permutes with
-        its input, so this equals tracking the permuted modes."""
-        prev = prev_perm = prev_smp = None
+        its input, so this equals tracking the permuted modes. Each sample's tracked data depend only on the
+        pair and the previous sample's permutation, so they are kept under that key (``_tracked``): a new
+        sample recomputes only the samples whose predecessor or its permutation changed."""
+        prev_w2 = prev_perm = prev_smp = None
         lam, slope, labels, mac = [], [], [], []
         for smp in self.samples:
             m = smp.modes
-            if prev is None:
-                perm = np.arange(len(m.omega2))
-            else:
-                key = (id(prev_smp), id(smp))
-                raw = self._pairs.get(key)
-                if raw is None:
-                    raw = self._pairs[key] = (mac_matrix(prev_smp.modes, m), prev_smp, smp)
-                rows = raw[0][prev_perm]  # (previous branch, current raw mode)
-                perm = assign(rows)
-            tm = Modes(m.omega2[perm], m.phi[:, perm], m.M)
-            if prev is not None:  # MAC of each branch's match across the interval (1: same shape)
-                full = rows[:, perm]  # (previous branch, current branch)
-                # a branch in a cluster of nearly equal eigenvalues at the previous sample (relative gap
-                # CLUSTER_GAP, as the modal derivatives) is matched by its shape's share in the cluster's
-                # subspace: inside a cluster the individual shapes are arbitrary mixtures that rotate freely
-                # as the eigenvalues split (the pivot's mirror-leaf pairs at stroke 0: single-mode MAC 0.46
-                # however short the interval), so only the subspace tells a crossing from a rotation
-                match = np.diag(full).copy()
-                order = np.argsort(prev.omega2)
-                for c in _clusters(prev.omega2[order], CLUSTER_GAP):
-                    if len(c) > 1:
-                        idx = order[c]
-                        match[idx] = full[np.ix_(idx, idx)].sum(axis=0)
+            key = (id(smp), id(prev_smp), None if prev_perm is None else prev_perm.tobytes())
+            hit = self._tracked.get(key)
+            if hit is None:
+                match = None
+                if prev_smp is None:
+                    perm = np.arange(len(m.omega2))
+                else:
+                    pair = (id(prev_smp), id(smp))
+                    raw = self._pairs.get(pair)
+                    if raw is None:
+                        raw = self._pairs[pair] = (mac_matrix(prev_smp.modes, m), prev_smp, smp)
+                    rows = raw[0][prev_perm]  # (previous branch, current raw mode)
+                    perm = assign(rows)
+                    # MAC of each branch's match across the interval (1: same shape): a branch in a cluster of
+                    # nearly equal eigenvalues at the previous sample (relative gap CLUSTER_GAP, as the modal
+                    # derivatives) is matched by its shape's share in the cluster's subspace: inside a cluster
+                    # the individual shapes are arbitrary mixtures that rotate freely as the eigenvalues split
+                    # (the pivot's mirror-leaf pairs at stroke 0: single-mode MAC 0.46 however short the
+                    # interval), so only the subspace tells a crossing from a rotation
+                    full = rows[:, perm]  # (previous branch, current branch)
+                    match = np.diag(full).copy()
+                    order = np.argsort(prev_w2)
+                    for c in _clusters(prev_w2[order], CLUSTER_GAP):
+                        if len(c) > 1:
+                            idx = order[c]
+                            match[idx] = full[np.ix_(idx, idx)].sum(axis=0)
+                w2 = m.omega2[perm]
+                # labels as the exact method gives them: with the drive free, the drive mode is the one most
+                # like the equilibrium path's tangent; a label belongs to a mode, so it is computed once per
+                # sample and follows the mode through the permutation
+                if smp.labels is None:
+                    smp.labels = self.an._labels(m, smp.eq.tangent)[0]
+                # interpolated variable: mu = 1 / lambda (see module docstring), and its slope
+                hit = self._tracked[key] = (perm, w2, 1.0 / w2, -smp.slope[perm] / w2**2,
+                                            [smp.labels[j] for j in perm], match)
+            perm, w2, mu, dmu, lab, match = hit
+            if match is not None:
                 mac.append(match)
-            lam.append(1.0 / tm.omega2)  # interpolated variable: mu = 1 / lambda (see module docstring)
-            slope.append(-smp.slope[perm] / tm.omega2**2)
-            # labels as the exact method gives them: with the drive free, the drive mode is the one most
-            # like the equilibrium path's tangent; a label belongs to a mode, so it is computed once per sample
-            # and follows the mode through the permutation
-            if smp.labels is None:
-                smp.labels = self.an._labels(m, smp.eq.tangent)[0]
-            labels.append([smp.labels[j] for j in perm])
-            prev, prev_perm, prev_smp = tm, perm, smp
+            lam.append(mu)
+            slope.append(dmu)
+            labels.append(lab)
+            prev_w2, prev_perm, prev_smp = w2, perm, smp
         self.lam, self.slope, self.labels, self.mac = np.array(lam), np.array(slope), labels, mac
 
     def strokes(self) -> np.ndarray:
@@ -340,8 +341,11 @@ class _Fallback(Exception):
     """The samples cannot be computed (loss of equilibrium, instability): the caller uses the exact method."""
 
 
-def _error(side: _Side, i: int) -> float:
-    """Estimated error of the interpolated first parasitic frequency over the interval [S_i, S_i+1].
+_INTERIOR = np.arange(1, 17, dtype=float)  # the 16 interior points of an interval in units of its 17th
+
+
+def _errors(side: _Side) -> np.ndarray:
+    """Estimated error of the interpolated first parasitic frequency over each interval [S_i, S_i+1] (I,).
 
     The reported interpolant (cubic Hermite in ``mu = 1 / lambda``) is compared on 16 interior points with
     two others built from the same exact data, and the largest relative difference of the first parasitic
@@ -370,58 +374,107 @@ def _error(side: _Side, i: int) -> float:
     the samples, which the tolerance is not about). A crossing and back between two samples (a dip of a
     higher branch that no pairing of the end values shows) is not detected by this or any estimate from
     the samples alone.
+
+    All intervals are evaluated at once (arrays over intervals, points and branches: the same elementwise
+    arithmetic as one interval at a time, at the cost of about one).
     """
-    if side.samples[i].filled or side.samples[i + 1].filled:
-        return 0.0  # every requested point of the interval is an exact sample: nothing is interpolated
     S = side.strokes()
-    mu, d = side.lam, side.slope
-    x = np.linspace(S[i], S[i + 1], 18)[1:-1]
-    mac = side.mac[i]
-    par0, par1 = np.array(side.labels[i]) == "parasitic", np.array(side.labels[i + 1]) == "parasitic"
-    sure = mac >= MAC_MIN
-    for lab, y in ((par0, mu[i]), (par1, mu[i + 1])):
-        if lab.any() and not sure[np.flatnonzero(lab)[np.argmin(_hz(y[lab]))]]:
-            return float("inf")  # the lowest parasitic branch itself may have crossed another one
-    a = _hermite(S[i], S[i + 1], mu[i], mu[i + 1], d[i], d[i + 1], x)
-    unc = np.flatnonzero(~sure & (par0 | par1))
-    if len(unc):
-        lowest = np.where(sure & (par0 | par1), _hz(a), np.inf).min(axis=1)
-        j, l = np.repeat(unc, len(unc)), np.tile(unc, len(unc))  # every pairing (j at S_i, l at S_i+1)
-        cand = _hz(_hermite(S[i], S[i + 1], mu[i][j], mu[i + 1][l], d[i][j], d[i + 1][l], x))
-        if np.any(cand.min(axis=1) < (1 + CROSS_MARGIN) * lowest):
-            return float("inf")
-    left = np.abs(x - S[i]) <= np.abs(S[i + 1] - x)
-    par = np.where(left[:, None], par0, par1)  # (16, k) labels of the nearer sample
-    fa = np.where(par, _hz(a), np.inf).min(axis=1)
-
-    def rel(other: np.ndarray) -> float:
-        fb = np.where(par, _hz(other), np.inf).min(axis=1)
-        ok = np.isfinite(fa) & np.isfinite(fb)
-        return float(np.max(np.abs(fa[ok] / fb[ok] - 1), initial=0.0))
-
+    n_iv = len(S) - 1
+    out = np.zeros(max(n_iv, 0))
+    if n_iv <= 0:
+        return out
+    mu, d = np.asarray(side.lam, dtype=float), np.asarray(side.slope, dtype=float)  # (samples, k)
+    P = np.array(side.labels) == "parasitic"  # (samples, k)
+    sure = np.asarray(side.mac, dtype=float) >= MAC_MIN  # (I, k): branch matched with certainty across interval i
+    filled = np.array([x.filled for x in side.samples])
+    a_, b_ = S[:-1], S[1:]
+    # (I, 16) interior points: numpy.linspace(a, b, 18)[1:-1] of each interval, written out (its checks cost
+    # more than the rest of this estimate)
+    x = _INTERIOR[None, :] * ((b_ - a_) / 17)[:, None] + a_[:, None]
+    basis = _basis(a_, b_, x)
+    low = np.where(P, _hz(mu), np.inf).argmin(axis=1)  # each sample's lowest parasitic branch (0 if none)
+    has = P.any(axis=1)
+    idx = np.arange(n_iv)
+    inf = (has[:-1] & ~sure[idx, low[:-1]]) | (has[1:] & ~sure[idx, low[1:]])
+    A = _interpolate(basis, mu[:-1], mu[1:], d[:-1], d[1:])  # (I, 16, k)
+    hz_a = _hz(A)
+    left = np.abs(x - a_[:, None]) <= np.abs(b_[:, None] - x)
+    par = np.where(left[:, :, None], P[:-1, None, :], P[1:, None, :])  # (I, 16, k) labels of the nearer sample
+    fa = np.where(par, hz_a, np.inf).min(axis=2)
+    # a crossing of uncertain branches that may reach the lowest certain one: every pairing (j at S_i, l at
+    # S_i+1) of the branches uncertain across the interval, all intervals and pairings at once
+    either = P[:-1] | P[1:]
+    unc = ~sure & either
+    if unc.any():
+        some = np.flatnonzero(unc.any(axis=0))  # the branches uncertain somewhere
+        j, l = np.repeat(some, len(some)), np.tile(some, len(some))
+        pair = unc[:, j] & unc[:, l]  # (I, k^2)
+        cand = _hz(_interpolate(basis, mu[:-1][:, j], mu[1:][:, l], d[:-1][:, j], d[1:][:, l]))
+        cand = np.where(pair[:, None, :], cand, np.inf).min(axis=2)
+        lowest = np.where((sure & either)[:, None, :], hz_a, np.inf).min(axis=2)
+        inf |= np.any(cand < (1 + CROSS_MARGIN) * lowest, axis=1)
     # second interpolant in r = mu^(-1/2) (proportional to the frequency): dr/ds = -mu'/(2 mu^(3/2))
-    r0, r1 = mu[i] ** -0.5, mu[i + 1] ** -0.5
-    est = rel(_hermite(S[i], S[i + 1], r0, r1, -0.5 * d[i] * r0**3, -0.5 * d[i + 1] * r1**3, x) ** -2.0)
+    r = mu**-0.5
+    dr = -0.5 * d * r**3
+    others = [_interpolate(basis, r[:-1], r[1:], dr[:-1], dr[1:]) ** -2.0]
+    rows = [idx]
     # third: the quintic through this interval's samples and a neighbour's (values and slopes at three
-    # strokes), the next order of the same data
-    low = np.flatnonzero(par0)[np.argmin(_hz(mu[i][par0]))] if par0.any() else 0
-    for nb, between in ((i - 1, i - 1), (i + 2, i + 1)):  # the neighbour and the interval joining it
-        if not 0 <= nb < len(S) or side.samples[nb].filled:
-            continue
-        if side.mac[between][low] < MAC_MIN:
-            continue  # the neighbour's match of the lowest branch is uncertain (that interval is refined)
-        est = max(est, rel(_quintic(S, mu, d, i, nb, x, a)))
-    return est
+    # strokes), the next order of the same data: the left neighbour (through interval i - 1) and the right
+    # one (through interval i + 1), where it is a sample and its match of the lowest branch is certain
+    ivs, nbs = [], []
+    for shift in (-1, 2):
+        nb = idx + shift
+        between = idx - 1 if shift < 0 else idx + 1
+        ok = (nb >= 0) & (nb <= n_iv)
+        ok[ok] &= ~filled[nb[ok]] & sure[between[ok], low[:-1][ok]]
+        ivs.append(idx[ok])
+        nbs.append(nb[ok])
+    iv = np.concatenate(ivs)
+    if len(iv):
+        others.append(_quintic_all(S, mu, d, iv, np.concatenate(nbs), x[iv], A[iv]))
+        rows.append(iv)
+    rows = np.concatenate(rows)
+    fb = np.where(par[rows], _hz(np.concatenate(others)), np.inf).min(axis=2)
+    f = fa[rows]
+    ok = np.isfinite(f) & np.isfinite(fb)
+    rel = np.abs(np.divide(f, fb, out=np.ones_like(f), where=ok) - 1).max(axis=1)
+    est = np.zeros(n_iv)
+    np.maximum.at(est, rows, rel)
+    out[:] = np.where(inf, np.inf, est)
+    out[filled[:-1] | filled[1:]] = 0.0  # every requested point of the interval is an exact sample
+    return out
 
 
-def _quintic(S: np.ndarray, y: np.ndarray, dy: np.ndarray, i: int, nb: int, x: np.ndarray,
-             cubic: np.ndarray) -> np.ndarray:
+def _error(side: _Side, i: int) -> float:
+    """:func:`_errors` of the interval [S_i, S_i+1]."""
+    return float(_errors(side)[i])
+
+
+def _basis(s0: np.ndarray, s1: np.ndarray, s: np.ndarray) -> tuple:
+    """The cubic Hermite basis of :func:`_hermite` on every interval at once: ends ``s0``, ``s1`` (I,), points
+    ``s`` (I, p); the four basis functions (I, p, 1) and the lengths (I, 1, 1)."""
+    h = (s1 - s0)[:, None, None]
+    u = ((s - s0[:, None]) / (s1 - s0)[:, None])[:, :, None]
+    w2 = (1 - u) ** 2
+    uu = u * u
+    return (1 + 2 * u) * w2, u * w2, uu * (3 - 2 * u), uu * (u - 1), h
+
+
+def _interpolate(basis: tuple, y0: np.ndarray, y1: np.ndarray, d0: np.ndarray, d1: np.ndarray) -> np.ndarray:
+    """:func:`_hermite` on every interval at once, from its :func:`_basis`: values and slopes (I, k) at the
+    ends; (I, p, k)."""
+    h00, h10, h01, h11, h = basis
+    return h00 * y0[:, None, :] + h10 * h * d0[:, None, :] + h01 * y1[:, None, :] + h11 * h * d1[:, None, :]
+
+
+def _quintic_all(S: np.ndarray, y: np.ndarray, dy: np.ndarray, i: np.ndarray, nb: np.ndarray, x: np.ndarray,
+                 cubic: np.ndarray) -> np.ndarray:
     """The polynomial of degree 5 through the values ``y`` and slopes ``dy`` (rows: samples, columns:
-    branches) at the samples ``i``, ``i + 1`` and ``nb``, at ``x`` (p,): (p, k). ``cubic``: the cubic
-    Hermite interpolant on [S_i, S_i+1] at ``x``. The two differ by ``w(s) (alpha + beta (s - a))`` with
-    ``w = (s - a)^2 (s - b)^2`` (zero with its slope at both ends of the interval), whose two coefficients
-    per branch match the value and slope at the neighbour ``t = S_nb``: no linear solve."""
-    a, b, t = S[i], S[i + 1], S[nb]
+    branches) at the samples ``i``, ``i + 1`` and ``nb`` (arrays over intervals), at ``x`` (I, p): (I, p, k).
+    ``cubic``: the cubic Hermite interpolant on [S_i, S_i+1] at ``x``. The two differ by ``w(s) (alpha + beta
+    (s - a))`` with ``w = (s - a)^2 (s - b)^2`` (zero with its slope at both ends of the interval), whose two
+    coefficients per branch match the value and slope at the neighbour ``t = S_nb``: no linear solve."""
+    a, b, t = S[i][:, None], S[i + 1][:, None], S[nb][:, None]
     h = b - a
     u = (t - a) / h
     # the cubic and its slope at t (the Hermite basis evaluated outside [0, 1])
@@ -433,8 +486,9 @@ def _quintic(S: np.ndarray, y: np.ndarray, dy: np.ndarray, i: int, nb: int, x: n
     g = (y[nb] - ct) / wt
     beta = (dy[nb] - dct - dwt * g) / wt
     alpha = g - beta * (t - a)
-    xs = np.asarray(x, dtype=float)[:, None]
-    return cubic + ((xs - a) ** 2 * (xs - b) ** 2) * (alpha + beta * (xs - a))
+    xs = np.asarray(x, dtype=float)[:, :, None]
+    a3 = a[:, :, None]
+    return cubic + ((xs - a3) ** 2 * (xs - b[:, :, None]) ** 2) * (alpha[:, None, :] + beta[:, None, :] * (xs - a3))
 
 
 def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samples: int | None = None,

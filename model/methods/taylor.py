@@ -150,6 +150,19 @@ def mass_slope(sys: System, st: State, a: np.ndarray) -> np.ndarray:
     return 0.5 * (M1 + M1.T)
 
 
+def projected_mass_slope(sys: System, st: State, a: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """``P^T M1 P`` with ``M1`` of :func:`mass_slope` (k x k, symmetric), from the same two mass evaluations
+    projected on the columns of ``P`` (n x k) first: ``(P^T M(R + R1) P - P^T M(R - R1) P) / 2``, so no n x n
+    difference or symmetrisation is formed (the stroke slopes of ``hermite`` need only this projection)."""
+    from ..rotations import skew
+
+    R1 = skew(sys.to_global(a).reshape(-1, 6)[:, 3:]) @ st.R
+    Pp = P.T @ (sys.mass(State(st.X, st.R + R1, st.lam)) @ P)
+    Pm = P.T @ (sys.mass(State(st.X, st.R - R1, st.lam)) @ P)
+    M1 = 0.5 * (Pp - Pm)
+    return 0.5 * (M1 + M1.T)
+
+
 def _to_reference_chart(sys: System, K: np.ndarray, M: np.ndarray, K1: np.ndarray, K2: np.ndarray,
                         M1: np.ndarray, M2: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple:
     """Put stiffness and mass derivatives along ``xi(eta) = a eta + 1/2 b eta^2`` in one chart.
