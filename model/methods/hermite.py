@@ -46,7 +46,7 @@ from ..modal import Modes, assign, mac_matrix, modes_at
 from ..statics import Equilibrium, StepFailure, path_curvature, solve_point, walk
 from ..symmetry import image_indices, one_side
 from .common import CLUSTER_GAP, _curve_from
-from .taylor import _clusters, projected_mass_slope
+from .taylor import _multiple, projected_mass_slope
 
 __all__ = ["hermite_curve", "stroke_slopes", "HermiteResult"]
 
@@ -125,10 +125,9 @@ def stroke_slopes(an: Analysis, eq: Equilibrium, modes: Modes) -> np.ndarray:
         Q -= float(eq.ev.g[sys.drive]) * (Pr.T @ G @ Pr)
     MP = projected_mass_slope(sys, eq.state, t, P)
     out = np.diagonal(Q) - lam * np.diagonal(MP)  # Nelson's formula for every simple eigenvalue
-    for c in _clusters(lam, SLOPE_CLUSTER_GAP):
-        if len(c) > 1:
-            A = Q[np.ix_(c, c)] - float(np.mean(lam[c])) * MP[np.ix_(c, c)]
-            out[c] = np.linalg.eigvalsh(0.5 * (A + A.T))  # ascending, to the ascending cluster members
+    for c in _multiple(lam, SLOPE_CLUSTER_GAP):
+        A = Q[np.ix_(c, c)] - float(np.mean(lam[c])) * MP[np.ix_(c, c)]
+        out[c] = np.linalg.eigvalsh(0.5 * (A + A.T))  # ascending, to the ascending cluster members
     res = np.empty(len(lam))
     res[order] = out
     return res
@@ -297,10 +296,9 @@ class _Side:
                     full = rows[:, perm]  # (previous branch, current branch)
                     match = np.diag(full).copy()
                     order = np.argsort(prev_w2)
-                    for c in _clusters(prev_w2[order], CLUSTER_GAP):
-                        if len(c) > 1:
-                            idx = order[c]
-                            match[idx] = full[np.ix_(idx, idx)].sum(axis=0)
+                    for c in _multiple(prev_w2[order], CLUSTER_GAP):
+                        idx = order[c]
+                        match[idx] = full[np.ix_(idx, idx)].sum(axis=0)
                 w2 = m.omega2[perm]
                 # labels as the exact method gives them: with the drive free, the drive mode is the one most
                 # like the equilibrium path's tangent; a label belongs to a mode, so it is computed once per
@@ -568,9 +566,10 @@ def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samp
             lam, labs = side.interpolate(s_req)
             h = _hz(lam)
             hz[sel] = h[:, :n_rep]
-            labels[sel] = np.array([lab[:n_rep] for lab in labs], dtype=object)
-            par[sel] = [min((x for x, lab in zip(row, lr) if lab == "parasitic"), default=np.nan)
-                        for row, lr in zip(h, labs)]
+            lab_arr = np.array(labs, dtype=object)
+            labels[sel] = lab_arr[:, :n_rep]
+            is_par = lab_arr == "parasitic"
+            par[sel] = np.where(is_par.any(axis=1), np.where(is_par, h, np.inf).min(axis=1), np.nan)
     except _Fallback:
         return None
     return HermiteResult(hz, labels, par, estimate, used, converged, filled=filled)

@@ -309,17 +309,29 @@ def _eq_at(sys: System, st: State) -> SimpleNamespace:
 
 
 def _clusters(lam: np.ndarray, gap: float) -> list[np.ndarray]:
-    scale = max(np.abs(lam).max(initial=0.0), 1e-300)
-    groups, cur = [], [0]
-    for i in range(1, len(lam)):
-        if abs(lam[i] - lam[cur[-1]]) <= gap * max(abs(lam[i]), 1e-12 * scale):
-            cur.append(i)
-        else:
-            groups.append(np.array(cur))
-            cur = [i]
-    if len(lam):
-        groups.append(np.array(cur))
-    return groups
+    """Runs of the ascending ``lam`` whose neighbours differ by at most ``gap`` relative (of the larger one,
+    floored at 1e-12 of the largest magnitude): index arrays covering every position, in order."""
+    lam = np.asarray(lam, dtype=float)
+    n = len(lam)
+    if n == 0:
+        return []
+    scale = max(float(np.abs(lam).max()), 1e-300)
+    cut = np.abs(np.diff(lam)) > gap * np.maximum(np.abs(lam[1:]), 1e-12 * scale)
+    if not cut.any():
+        return [np.arange(n)]
+    return np.split(np.arange(n), np.flatnonzero(cut) + 1)
+
+
+def _multiple(lam: np.ndarray, gap: float) -> list[np.ndarray]:
+    """The runs of :func:`_clusters` with more than one member (usually none: no split is made then)."""
+    lam = np.asarray(lam, dtype=float)
+    if len(lam) < 2:
+        return []
+    scale = max(float(np.abs(lam).max()), 1e-300)
+    close = np.abs(np.diff(lam)) <= gap * np.maximum(np.abs(lam[1:]), 1e-12 * scale)
+    if not close.any():
+        return []
+    return [c for c in _clusters(lam, gap) if len(c) > 1]
 
 
 def modal_derivatives(an: Analysis, eq0: Equilibrium | None = None, n_theta: int | None = None,
