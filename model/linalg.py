@@ -876,6 +876,23 @@ def band_order(pattern: np.ndarray) -> tuple[np.ndarray, int, int]:
     is kept when it is already narrower. Written here because ``scipy.sparse.csgraph`` costs 0.4 s to import
     and a structure's ordering is found once (tests/test_linalg.py compares it with scipy's)."""
     P = np.asarray(pattern, dtype=bool)
+    key = (P.shape, np.packbits(P).tobytes())
+    hit = _BAND_ORDERS.get(key)
+    if hit is None:
+        hit = _band_order(P)
+        if len(_BAND_ORDERS) >= 64:  # bounded (the optimiser builds a system per design, a family's alike)
+            _BAND_ORDERS.clear()
+        _BAND_ORDERS[key] = hit
+    return hit[0].copy(), hit[1], hit[2]
+
+
+#: band_order's results by pattern: a family's designs differ in dimensions, not in their pattern, and the
+#: Python RCM cost 3-4 ms a system (an eighth of a topology search before this memo)
+_BAND_ORDERS: dict = {}
+
+
+def _band_order(P: np.ndarray) -> tuple[np.ndarray, int, int]:
+    """:func:`band_order` of the boolean ``P``, computed."""
     m = P.shape[0]
     S = P | P.T
     np.fill_diagonal(S, False)
