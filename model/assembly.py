@@ -23,8 +23,8 @@ __all__ = ["State", "Assembled", "System"]
 #: deformations): the kernel inputs (from the masters' states and the nodes' rotated offsets, :func:`rotate`),
 #: the batched kernel through its function pointer, and the sums into ``g``, ``g_full`` and ``H`` in the order
 #: ``numpy.bincount`` adds them, so the numbers are the same to the last bit (tests/test_linalg.py compares both
-#: routes). The beams' consistent mass and the Hessian's directional derivative go the same way (no gradient, ``g_off < 0``;
-#: their 144 outputs from ``h_off = 0``); ``update_state`` is :meth:`System.update`.
+#: routes). The beams' consistent mass and the Hessian's directional derivative go the same way (no gradient,
+#: ``g_off < 0``; their 144 outputs from ``h_off = 0``); ``update_state`` is :meth:`System.update`.
 _ASSEMBLE_SOURCE = r"""
 #include <string.h>
 typedef int (*batch_t)(long long, const double*, double*);
@@ -67,7 +67,8 @@ static void rjrt(const double* R, const double* J, double* B) {
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) A[3 * i + j] = R[3 * i] * J[j] + R[3 * i + 1] * J[3 + j] + R[3 * i + 2] * J[6 + j];
   for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) B[3 * i + j] = A[3 * i] * R[3 * j] + A[3 * i + 1] * R[3 * j + 1] + A[3 * i + 2] * R[3 * j + 2];
+    for (int j = 0; j < 3; ++j)
+      B[3 * i + j] = A[3 * i] * R[3 * j] + A[3 * i + 1] * R[3 * j + 1] + A[3 * i + 2] * R[3 * j + 2];
 }
 
 /* System.mass in one call (beams only, no rigid deformations; c: System._mass_context): the beams' consistent

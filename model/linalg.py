@@ -54,8 +54,8 @@ from .errors import KernelBuildError
 from .kernels import shared_library
 from .lapack import routines
 
-__all__ = ["lowest_pairs", "lowest_pairs_banded", "BandedPencil", "solve", "newton", "NewtonSystem", "available", "build",
-           "band_order"]
+__all__ = ["lowest_pairs", "lowest_pairs_banded", "BandedPencil", "solve", "newton", "NewtonSystem", "available",
+           "build", "band_order"]
 
 #: Up to this order ``C = L^-1 M_s L^-T`` is formed by two triangular solves (BLAS dtrsm), above it by
 #: LAPACK dsygst (half the flops): whole eigen solve measured 324 vs 384 us at n = 59, even at n = 89-119

@@ -11,7 +11,7 @@ with ``dq/ds`` the equilibrium tangent (from the Newton system), ``dK/ds`` the e
 of the element Hessians along it (CasADi third derivative, :meth:`System.hessian_derivative`) carried
 into the chart the exact method uses at ``s`` (:func:`model.methods.taylor._to_reference_chart`, first
 order, plus the drive reaction times the first-order BCH term ``Gamma_e``, which vanishes at stroke 0 but
-not at a loaded sample) and ``dM/ds`` from :func:`model.methods.taylor.mass_slope`. Clusters of
+not at a loaded sample) and ``dM/ds`` from :func:`model.methods.taylor.projected_mass_slope`. Clusters of
 (numerically) equal eigenvalues take the eigenvalues of the cluster
 matrix ``P^T (dK/ds - lambda_c dM/ds) P`` (degenerate perturbation) in ascending order; the gap is
 ``SLOPE_CLUSTER_GAP``.

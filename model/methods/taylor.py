@@ -73,7 +73,7 @@ from ..statics import Equilibrium, solve_point
 from .common import CLUSTER_GAP, _hz
 
 __all__ = ["ModalDerivatives", "modal_derivatives", "hessian_second_derivative", "mass_derivatives", "mass_slope",
-           "taylor_curve"]
+           "projected_mass_slope", "taylor_curve"]
 
 
 def hessian_second_derivative(sys: System, st: State, v: np.ndarray) -> np.ndarray:
@@ -131,6 +131,14 @@ def mass_derivatives(sys: System, st: State, a: np.ndarray, b: np.ndarray) -> tu
     return 0.5 * (M1 + M1.T), 0.5 * (M2 + M2.T)
 
 
+def _masses_off_path(sys: System, st: State, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The masses at ``R0 + [a] R0`` and ``R0 - [a] R0`` (see :func:`mass_slope`)."""
+    from ..rotations import skew
+
+    R1 = skew(sys.to_global(a).reshape(-1, 6)[:, 3:]) @ st.R
+    return sys.mass(State(st.X, st.R + R1, st.lam)), sys.mass(State(st.X, st.R - R1, st.lam))
+
+
 def mass_slope(sys: System, st: State, a: np.ndarray) -> np.ndarray:
     """First derivative of the mass matrix along ``q(eta) = a eta`` at ``st``: ``M1`` of
     :func:`mass_derivatives` with ``b = 0``, from two mass evaluations instead of five.
@@ -138,14 +146,9 @@ def mass_slope(sys: System, st: State, a: np.ndarray) -> np.ndarray:
     The mass is a polynomial of degree 2 in the masters' rotation matrices (see :func:`mass_derivatives`),
     and its first derivative along ``R(eta) = expm(eta [a]) R0`` depends only on ``R'(0) = [a] R0``, so it
     equals the derivative along the straight line ``R0 + eta [a] R0``, on which the mass is a quadratic
-    ``c0 + c1 eta + c2 eta^2``; ``(M(1) - M(-1)) / 2 = c1`` holds exactly (rounding only). Used for the
-    stroke slopes of the ``hermite`` method, which need no ``M2``.
+    ``c0 + c1 eta + c2 eta^2``; ``(M(1) - M(-1)) / 2 = c1`` holds exactly (rounding only).
     """
-    from ..rotations import skew
-
-    R1 = skew(sys.to_global(a).reshape(-1, 6)[:, 3:]) @ st.R
-    Mp = sys.mass(State(st.X, st.R + R1, st.lam))
-    Mm = sys.mass(State(st.X, st.R - R1, st.lam))
+    Mp, Mm = _masses_off_path(sys, st, a)
     M1 = 0.5 * (Mp - Mm)
     return 0.5 * (M1 + M1.T)
 
@@ -154,12 +157,8 @@ def projected_mass_slope(sys: System, st: State, a: np.ndarray, P: np.ndarray) -
     """``P^T M1 P`` with ``M1`` of :func:`mass_slope` (k x k, symmetric), from the same two mass evaluations
     projected on the columns of ``P`` (n x k) first: ``(P^T M(R + R1) P - P^T M(R - R1) P) / 2``, so no n x n
     difference or symmetrisation is formed (the stroke slopes of ``hermite`` need only this projection)."""
-    from ..rotations import skew
-
-    R1 = skew(sys.to_global(a).reshape(-1, 6)[:, 3:]) @ st.R
-    Pp = P.T @ (sys.mass(State(st.X, st.R + R1, st.lam)) @ P)
-    Pm = P.T @ (sys.mass(State(st.X, st.R - R1, st.lam)) @ P)
-    M1 = 0.5 * (Pp - Pm)
+    Mp, Mm = _masses_off_path(sys, st, a)
+    M1 = 0.5 * (P.T @ (Mp @ P) - P.T @ (Mm @ P))
     return 0.5 * (M1 + M1.T)
 
 
