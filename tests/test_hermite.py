@@ -255,3 +255,16 @@ def test_the_quintic_of_the_estimate_is_the_hermite_interpolant_through_three_sa
             vals = [y[i, j], dy[i, j], y[i + 1, j], dy[i + 1, j], y[nb, j], dy[nb, j]]
             np.testing.assert_allclose(got[:, j], KroghInterpolator(nodes, vals)(x), rtol=0, atol=1e-10)
         assert np.abs(got - cubic).max() > 1e-3  # the next order does differ from the cubic here
+
+
+def test_multiple_equals_the_multi_member_runs_of_clusters() -> None:
+    """taylor._multiple (the clusters with more than one member, found without numpy.split) against the runs of
+    taylor._clusters longer than one, on random ascending spectra built from exactly and nearly repeated values
+    (relative gaps 1e-9 to 2e-7 around a cluster gap of 1e-6, and far apart ones)."""
+    from flexopt.model.methods.taylor import _clusters, _multiple
+
+    rng = np.random.default_rng(0)
+    values = [1.0, 1.0 + 1e-9, 2.0, 2.0 + 1e-8, 3.0, 5.0, 5.0 + 1e-7, 5.0 + 2e-7]
+    for _ in range(2000):
+        lam = np.sort(rng.choice(values, rng.integers(0, 9)))
+        assert [c.tolist() for c in _multiple(lam, 1e-6)] == [c.tolist() for c in _clusters(lam, 1e-6) if len(c) > 1]

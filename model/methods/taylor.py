@@ -330,7 +330,16 @@ def _multiple(lam: np.ndarray, gap: float) -> list[np.ndarray]:
     close = np.abs(np.diff(lam)) <= gap * np.maximum(np.abs(lam[1:]), 1e-12 * scale)
     if not close.any():
         return []
-    return [c for c in _clusters(lam, gap) if len(c) > 1]
+    out, start = [], None  # runs of neighbours that are close: [start, i] (numpy.split costs more than this)
+    for i, c in enumerate(close.tolist()):
+        if c and start is None:
+            start = i
+        elif not c and start is not None:
+            out.append(np.arange(start, i + 1))
+            start = None
+    if start is not None:
+        out.append(np.arange(start, len(lam)))
+    return out
 
 
 def modal_derivatives(an: Analysis, eq0: Equilibrium | None = None, n_theta: int | None = None,
