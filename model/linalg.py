@@ -543,8 +543,8 @@ static void rayleigh_band(long long n, long long kd, long long k, const long lon
    lambda; Parlett, The Symmetric Eigenvalue Problem, ch. 13), from a fixed pseudo-random start, until each of
    the k largest Ritz values' residual beta_m |s_mi| is at most tol mu_max; then the Sturm count at
    sigma = lambda_k (1 + gap) must be k (no eigenvalue below was missed). The Ritz pairs (one MRRR solve of T,
-   the largest part of a small solve) are first computed at step ip[5] (the caller's memory of how many steps
-   the last solve of this size took), then every two steps.
+   the largest part of a small solve) are first computed at step ip[5] (lanczos_first_check: where the solve of
+   a neighbouring problem stopped), then every two steps.
    ip: n, k, kd, mmax, refine, first check, (out) steps taken. dp: tol, gap. Output as lowest_pairs. Returns 0,
    1 (K not positive definite or a diagonal of M not positive: the route through M), 2 (not converged in mmax
    steps, a tiny pivot in the Sturm count, or a count other than k: the caller takes the dense route). */

@@ -204,6 +204,7 @@ enum { ASSEMBLE, KERNEL, NE, N_IN, N_OUT, END_MASTER, END_NODE, KERNEL_IN, DOFS,
        NCHART, CHART_FLAT, CHART_SRC, CHART_SIGN, CHART, ROT_LOG, LOG_IN, LOG_OUT, DRIVE_MASTER, KIND, MASTER_POS,
        AXIS, NACT, NEWTON, IP, DP, JW, BW, IPIV, FP, SC, EYE, XW, RW, DXI, STEP };
 #define PTR(T, slot) ((T*) (intptr_t) ctx[slot])
+#define LOOP_MAX_ITER 62
 
 static int evaluate(const long long* ctx, const double* X, const double* R, double* buf) {
   long long nn = ctx[NODES], ne = ctx[NE], n_out = ctx[N_OUT], N = ctx[NEXT], n_full = ctx[N_FULL];
@@ -288,12 +289,12 @@ long long newton_point(const long long* ctx, const double* opt, const double* X0
   double *Xo = out, *Ro = Xo + 3 * nm, *tan = Ro + 9 * nm, *info = tan + n, *buf = info + 8;
   double *g = buf + ctx[NE] * ctx[N_OUT], *H = g + N + ctx[N_FULL];
   double *Xc = PTR(double, XW), *Rc = PTR(double, RW), *Xn = Xc + 3 * nm, *Rn = Rc + 9 * nm, *t;
-  double *dxi = PTR(double, DXI), *sc = PTR(double, SC), *dp = PTR(double, DP), incs[64];
+  double *dxi = PTR(double, DXI), *sc = PTR(double, SC), *dp = PTR(double, DP), incs[LOOP_MAX_ITER + 1];
   long long* ip = PTR(long long, IP);
   const double *axis = PTR(const double, AXIS), *mpos = PTR(const double, MASTER_POS);
   newton_t newton = (newton_t) (intptr_t) ctx[NEWTON];
   for (int q = 0; q < 8; ++q) info[q] = 0.0;
-  if (max_iter > 62) max_iter = 62;
+  if (max_iter > LOOP_MAX_ITER) { info[0] = 10; return 10; }  /* the caller checks first (_point_loop) */
   if (pred) {
     double* step = PTR(double, STEP);
     if (predictor(ctx, opt, pred, X0, R0, step)) { info[0] = 9; return 9; }
@@ -449,10 +450,17 @@ def _loop_failure(pl: _PointLoop, status: int, info: np.ndarray, opts: NewtonOpt
     return StepFailure(f"no convergence in {opts.max_iter} iterations (increment {inc:.3g}, residual {res:.3g})")
 
 
-def _point_loop(sys: System) -> _PointLoop | None:
+#: The most Newton iterations the compiled loop keeps increments for (``LOOP_MAX_ITER`` of its source): options
+#: asking for more take the Python loop.
+_LOOP_MAX_ITER = 62
+
+
+def _point_loop(sys: System, opts: NewtonOptions) -> _PointLoop | None:
     """The compiled Newton loop of ``sys`` (cached on it), or None where the Python loop applies (no compiled
-    Newton system or evaluate/update, or no C compiler)."""
+    Newton system or evaluate/update, no C compiler, or more than :data:`_LOOP_MAX_ITER` iterations asked)."""
     if sys._fast is None or sys._fast_update is None:  # the compiled routes switched off (tests, bench_ab.py)
+        return None
+    if opts.max_iter > _LOOP_MAX_ITER:
         return None
     pl = getattr(sys, "_point_loop", False)
     if pl is False:
@@ -471,7 +479,7 @@ def _advance(sys: System, cur: Equilibrium, ds: float, prev: Equilibrium | None,
     """``solve_point(sys, predict(sys, cur, ds, prev, curvature), s_new, opts, cur.stroke)``, predictor and
     Newton in one C call where the compiled loop applies and both points came from it (their arrays' addresses
     are known); the same numbers either way."""
-    pl = _point_loop(sys)
+    pl = _point_loop(sys, opts)
     at = cur.extra.get("at") if pl is not None else None
     cubic = prev is not None and prev.stroke != cur.stroke
     if at is not None and (not cubic or prev.extra.get("at") is not None):
@@ -480,7 +488,9 @@ def _advance(sys: System, cur: Equilibrium, ds: float, prev: Equilibrium | None,
             p = prev.extra["at"]
             pred = (at + 12 * nm8, 0, p, p + 3 * nm8, p + 12 * nm8)
         else:
-            pred = (at + 12 * nm8, 0 if curvature is None else np.ascontiguousarray(curvature).ctypes.data, 0, 0, 0)
+            if curvature is not None:  # referenced here until the call returns
+                curvature = np.ascontiguousarray(curvature, dtype=np.float64)
+            pred = (at + 12 * nm8, 0 if curvature is None else curvature.ctypes.data, 0, 0, 0)
         try:
             return pl.solve(at, at + 3 * nm8, s_new, opts, cur.stroke, pred, ds, cur.stroke - prev.stroke if cubic
                             else 0.0)
@@ -507,7 +517,7 @@ def solve_point(
     StepFailure
         If the iteration diverges, produces non-finite numbers or exceeds ``max_iter``.
     """
-    pl = _point_loop(sys)
+    pl = _point_loop(sys, opts)
     if pl is not None:  # the whole loop below in one C call (_LOOP_SOURCE), the same numbers
         X = np.ascontiguousarray(start.X, dtype=np.float64)
         R = np.ascontiguousarray(start.R, dtype=np.float64)

@@ -321,7 +321,7 @@ def test_compiled_newton_loop_equals_the_python_loop_bit_for_bit(name: str) -> N
 
     an = Analysis(template(name))
     sys_ = an.system
-    assert _point_loop(sys_) is not None
+    assert _point_loop(sys_, an.options) is not None
     h = 0.15 if sys_.s.drive_kind == "rotation" else 0.15 * sys_.s.length_scale / 10
 
     def points() -> list:
@@ -355,7 +355,8 @@ def test_compiled_newton_loop_fails_like_the_python_loop(name: str) -> None:
 
     an = Analysis(template(name))
     sys_ = an.system
-    assert _point_loop(sys_) is not None
+    assert _point_loop(sys_, an.options) is not None
+    assert _point_loop(sys_, NewtonOptions(max_iter=100)) is None  # more iterations than the C loop keeps
     rot = sys_.s.drive_kind == "rotation"
     bad = sys_.reference_state()
     bad.X[0, 0] = np.nan
