@@ -154,11 +154,18 @@ def mass_slope(sys: System, st: State, a: np.ndarray) -> np.ndarray:
 
 
 def projected_mass_slope(sys: System, st: State, a: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """``P^T M1 P`` with ``M1`` of :func:`mass_slope` (k x k, symmetric), from the same two mass evaluations
-    projected on the columns of ``P`` (n x k) first: ``(P^T M(R + R1) P - P^T M(R - R1) P) / 2``, so no n x n
-    difference or symmetrisation is formed (the stroke slopes of ``hermite`` need only this projection)."""
-    Mp, Mm = _masses_off_path(sys, st, a)
-    M1 = 0.5 * (P.T @ (Mp @ P) - P.T @ (Mm @ P))
+    """``P^T M1 P`` with ``M1`` of :func:`mass_slope` (k x k, symmetric), from the same two mass evaluations:
+    ``P^T (M(R + R1) - M(R - R1)) P / 2`` symmetrised as a k x k matrix (the stroke slopes of ``hermite``
+    need only this projection)."""
+    from ..rotations import skew
+
+    return _projected_mass_slope(sys, st, skew(sys.to_global(a).reshape(-1, 6)[:, 3:]) @ st.R, P)
+
+
+def _projected_mass_slope(sys: System, st: State, R1: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """:func:`projected_mass_slope` from the masters' rotation increments ``R1 = [a] R0`` (nm, 3, 3)."""
+    D = sys.mass(State(st.X, st.R + R1, st.lam)) - sys.mass(State(st.X, st.R - R1, st.lam))
+    M1 = 0.5 * (P.T @ (D @ P))
     return 0.5 * (M1 + M1.T)
 
 
