@@ -235,17 +235,18 @@ class _Side:
         interpolated first parasitic frequency from the exact one there (infinite where either has none).
         The midpoint is the sample a refinement would add, so a probe whose estimate misses the tolerance
         becomes that sample once its slopes are added (:meth:`promote`); nothing is computed twice."""
-        a, b = self.at(a_s), self.at(b_s)
-        mid = 0.5 * (a_s + b_s)
-        smp = self.sample(a, mid, b, slopes=False)
+        i = next(j for j, x in enumerate(self.samples) if x.s == a_s)  # the interval [S_i, S_i+1]
+        a, b = self.samples[i], self.samples[i + 1]
+        smp = self.sample(a, 0.5 * (a_s + b_s), b, slopes=False)
         smp.labels = self.an._labels(smp.modes, smp.eq.tangent)[0]
         is_par = np.array(smp.labels) == "parasitic"
-        lam, labs = self.interpolate(np.array([mid]))
-        at = np.array(labs[0]) == "parasitic"
+        at = np.array(self.labels[i]) == "parasitic"  # the labels of the nearer sample, as interpolate gives
         if not (is_par.any() and at.any()):
             return np.inf, smp
+        # the cubic Hermite interpolant at the midpoint: (y0 + y1) / 2 + h (d0 - d1) / 8
+        mu = 0.5 * (self.lam[i] + self.lam[i + 1]) + 0.125 * (b_s - a_s) * (self.slope[i] - self.slope[i + 1])
         exact = float(_hz(1.0 / smp.modes.omega2)[is_par].min())
-        interp = float(_hz(lam[0])[at].min())
+        interp = float(_hz(mu)[at].min())
         return PROBE_FACTOR * abs(interp / exact - 1.0), smp
 
     def promote(self, smp: _Sample) -> None:
@@ -313,7 +314,7 @@ class _Side:
         its input, so this equals tracking the permuted modes. Each sample's tracked data depend only on the
         pair and the previous sample's permutation, so they are kept under that key (``_tracked``): a new
         sample recomputes only the samples whose predecessor or its permutation changed."""
-        prev_w2 = prev_perm = prev_smp = None
+        prev_groups = prev_perm = prev_smp = None
         lam, slope, labels, mac = [], [], [], []
         for smp in self.samples:
             m = smp.modes
@@ -338,26 +339,26 @@ class _Side:
                     # interval), so only the subspace tells a crossing from a rotation
                     full = rows[:, perm]  # (previous branch, current branch)
                     match = np.diag(full).copy()
-                    order = np.argsort(prev_w2)
-                    for c in _multiple(prev_w2[order], CLUSTER_GAP):
-                        idx = order[c]
+                    for idx in prev_groups:
                         match[idx] = full[np.ix_(idx, idx)].sum(axis=0)
                 w2 = m.omega2[perm]
+                order = np.argsort(w2)
+                groups = [order[c] for c in _multiple(w2[order], CLUSTER_GAP)]  # this sample's clusters (branches)
                 # labels as the exact method gives them: with the drive free, the drive mode is the one most
                 # like the equilibrium path's tangent; a label belongs to a mode, so it is computed once per
                 # sample and follows the mode through the permutation
                 if smp.labels is None:
                     smp.labels = self.an._labels(m, smp.eq.tangent)[0]
                 # interpolated variable: mu = 1 / lambda (see module docstring), and its slope
-                hit = self._tracked[key] = (perm, w2, 1.0 / w2, -smp.slope[perm] / w2**2,
+                hit = self._tracked[key] = (perm, groups, 1.0 / w2, -smp.slope[perm] / w2**2,
                                             [smp.labels[j] for j in perm], match)
-            perm, w2, mu, dmu, lab, match = hit
+            perm, groups, mu, dmu, lab, match = hit
             if match is not None:
                 mac.append(match)
             lam.append(mu)
             slope.append(dmu)
             labels.append(lab)
-            prev_w2, prev_perm, prev_smp = w2, perm, smp
+            prev_groups, prev_perm, prev_smp = groups, perm, smp
         self.lam, self.slope, self.labels, self.mac = np.array(lam), np.array(slope), labels, mac
 
     def strokes(self) -> np.ndarray:
