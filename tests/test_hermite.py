@@ -302,6 +302,32 @@ def test_the_quintic_of_the_estimate_is_the_hermite_interpolant_through_three_sa
         assert np.abs(got - cubic).max() > 1e-3  # the next order does differ from the cubic here
 
 
+@pytest.mark.parametrize("name", ["leaf-spring", "parallel-leaf-spring", "cross-spring-pivot", "cartwheel-hinge",
+                                  "double-cross-hinge"])
+def test_slopes_at_stroke_zero_of_a_stroke_symmetric_design_vanish(exact: dict, name: str) -> None:
+    """hermite takes every slope at stroke 0 as zero on a design whose symmetry reverses the stroke and whose
+    eigenvalues there are simple (model.symmetry: the spectrum at -s is the one at s, so each simple branch is
+    even). The computed slopes (model.methods.hermite.stroke_slopes) are zero to rounding there: measured
+    1.3e-12 (leaf) to 1.9e-9 (cartwheel, whose 1898.5/1898.7/1898.8 Hz triple is 1.3e-4 apart: close
+    eigenvalues amplify rounding) of the eigenvalue per radian (or metre); bounded at 1e-7, far below the
+    slopes the hinges reach within the stroke, 1e-1 to 1e1 of it (the three-fold cross hinge, which has no
+    such symmetry, has 1.3 at stroke 0)."""
+    from flexopt.model.methods.hermite import SLOPE_CLUSTER_GAP
+    from flexopt.model.methods.taylor import _multiple
+    from flexopt.model.modal import modes_at
+    from flexopt.model.statics import solve_point
+
+    an, _ = exact[name]
+    assert an.symmetry is not None
+    eq0 = solve_point(an.system, an.system.reference_state(), 0.0, an.options, 0.0)
+    m0 = modes_at(an.system, eq0, an.scene.modes + 2, an.scene.stroke.drive)
+    assert not _multiple(np.sort(m0.omega2), SLOPE_CLUSTER_GAP)
+    rel = np.abs(stroke_slopes(an, eq0, m0)) / m0.omega2
+    assert rel.max() < 1e-7, rel
+    three = Analysis(template("three-fold-cross-hinge"))
+    assert three.symmetry is None
+
+
 def test_multiple_equals_the_multi_member_runs_of_clusters() -> None:
     """taylor._multiple (the clusters with more than one member, found without numpy.split) against the runs of
     taylor._clusters longer than one, on random ascending spectra built from exactly and nearly repeated values

@@ -330,22 +330,21 @@ def _clusters(lam: np.ndarray, gap: float) -> list[np.ndarray]:
 
 def _multiple(lam: np.ndarray, gap: float) -> list[np.ndarray]:
     """The runs of :func:`_clusters` with more than one member (usually none: no split is made then)."""
-    lam = np.asarray(lam, dtype=float)
-    if len(lam) < 2:
+    v = np.asarray(lam, dtype=float).tolist()  # a few eigenvalues: Python floats cost less than numpy calls here
+    n = len(v)
+    if n < 2:
         return []
-    scale = max(float(np.abs(lam).max()), 1e-300)
-    close = np.abs(np.diff(lam)) <= gap * np.maximum(np.abs(lam[1:]), 1e-12 * scale)
-    if not close.any():
-        return []
+    floor = 1e-12 * max(max(abs(x) for x in v), 1e-300)
     out, start = [], None  # runs of neighbours that are close: [start, i] (numpy.split costs more than this)
-    for i, c in enumerate(close.tolist()):
-        if c and start is None:
-            start = i
-        elif not c and start is not None:
+    for i in range(n - 1):  # the comparison of _clusters, neighbour by neighbour, in the same arithmetic
+        if abs(v[i + 1] - v[i]) <= gap * max(abs(v[i + 1]), floor):
+            if start is None:
+                start = i
+        elif start is not None:
             out.append(np.arange(start, i + 1))
             start = None
     if start is not None:
-        out.append(np.arange(start, len(lam)))
+        out.append(np.arange(start, n))
     return out
 
 
