@@ -136,7 +136,7 @@ def _finish(name: str, a: ca.SX, d: ca.SX, v: ca.SX, L: ca.SX, e: ca.SX, n_def: 
     De = ca.jacobian(e, d)
     zero = ca.DM.zeros(12)
     out = ca.substitute(ca.vertcat(g, ca.vec(H), e, ca.vec(De)), d, zero)  # needed at d = 0 only
-    dH = ca.substitute(ca.vec(ca.jtimes(H, d, v)), d, zero)
+    dH = ca.substitute(ca.vec(ca.hessian(ca.jtimes(L, d, v), d)[0]), d, zero)
     f = ca.Function(name, [a], [out], ["a"], ["out"])
     av = ca.vertcat(a, v)
     f3 = ca.Function(name + "_d3", [av], [dH], ["a"], ["out"])
