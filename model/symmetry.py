@@ -29,8 +29,6 @@ the cross products of the drive axis with the differences of node pairs (a pair 
 
 from __future__ import annotations
 
-import bisect
-
 from dataclasses import dataclass
 
 import numpy as np
@@ -264,20 +262,33 @@ def image_indices(solved: np.ndarray, internal: np.ndarray) -> list[int | None]:
     solved = np.asarray(solved, dtype=float)
     if not len(solved):
         return [None] * len(v)
-    dist = np.abs(solved[None, :] - v[:, None])
-    i = np.argmin(dist, axis=1)  # the first nearest, as a per-point argmin
-    ok = dist[np.arange(len(v)), i] <= tol
-    return [int(j) if o else None for j, o in zip(i, ok)]
+    # the nearest of the two solved strokes around |s| (sorted), the lower one on a tie: the first nearest
+    hi = np.clip(np.searchsorted(solved, v), 1, len(solved) - 1) if len(solved) > 1 else np.zeros(len(v), int)
+    lo = np.maximum(hi - 1, 0)
+    i = np.where(np.abs(solved[hi] - v) < np.abs(solved[lo] - v), hi, lo)
+    ok = np.abs(solved[i] - v) <= tol
+    out = i.tolist()
+    if not ok.all():
+        out = [j if o else None for j, o in zip(out, ok.tolist())]
+    return out
 
 
 def one_side(internal: np.ndarray) -> np.ndarray:
     """The non-negative strokes that give every requested point of a stroke-symmetric design: the requested
     non-negative ones and the image of each negative one not already among them (within rounding)."""
+    internal = np.asarray(internal, dtype=float)
     tol = mirror_tol(internal)
-    pos = sorted(float(v) for v in internal if v >= 0)
-    for v in sorted(float(-v) for v in internal if v < 0):
-        j = bisect.bisect_left(pos, v)  # the nearest kept strokes are pos[j - 1] and pos[j]
-        near = min((abs(pos[k] - v) for k in (j - 1, j) if 0 <= k < len(pos)), default=np.inf)
-        if near > tol:
-            pos.insert(j, v)
-    return np.array(pos)
+    pos = np.sort(internal[internal >= 0])
+    neg = np.sort(-internal[internal < 0])
+    if len(pos) and len(neg):  # images within tol of a requested non-negative stroke are that stroke
+        j = np.searchsorted(pos, neg)
+        near = np.minimum(np.abs(pos[np.clip(j - 1, 0, len(pos) - 1)] - neg),
+                          np.abs(pos[np.clip(j, 0, len(pos) - 1)] - neg))
+        neg = neg[near > tol]
+    if not len(neg):
+        return pos
+    keep = [neg[0]]  # the rest, ascending: one per group within tol of the last one kept
+    for v in neg[1:].tolist():
+        if v - keep[-1] > tol:
+            keep.append(v)
+    return np.sort(np.concatenate([pos, keep]))
