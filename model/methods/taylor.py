@@ -131,11 +131,15 @@ def mass_derivatives(sys: System, st: State, a: np.ndarray, b: np.ndarray) -> tu
     return 0.5 * (M1 + M1.T), 0.5 * (M2 + M2.T)
 
 
-def _masses_off_path(sys: System, st: State, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The masses at ``R0 + [a] R0`` and ``R0 - [a] R0`` (see :func:`mass_slope`)."""
+def _rotation_increment(sys: System, st: State, a: np.ndarray) -> np.ndarray:
+    """``R1 = [a] R0`` per master (nm, 3, 3): the first derivative of the masters' rotations along ``a``."""
     from ..rotations import skew
 
-    R1 = skew(sys.to_global(a).reshape(-1, 6)[:, 3:]) @ st.R
+    return skew(sys.to_global(a).reshape(-1, 6)[:, 3:]) @ st.R
+
+
+def _masses_off_path(sys: System, st: State, R1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The masses at ``R0 + R1`` and ``R0 - R1`` (see :func:`mass_slope`)."""
     return sys.mass(State(st.X, st.R + R1, st.lam)), sys.mass(State(st.X, st.R - R1, st.lam))
 
 
@@ -148,7 +152,7 @@ def mass_slope(sys: System, st: State, a: np.ndarray) -> np.ndarray:
     equals the derivative along the straight line ``R0 + eta [a] R0``, on which the mass is a quadratic
     ``c0 + c1 eta + c2 eta^2``; ``(M(1) - M(-1)) / 2 = c1`` holds exactly (rounding only).
     """
-    Mp, Mm = _masses_off_path(sys, st, a)
+    Mp, Mm = _masses_off_path(sys, st, _rotation_increment(sys, st, a))
     M1 = 0.5 * (Mp - Mm)
     return 0.5 * (M1 + M1.T)
 
@@ -157,15 +161,13 @@ def projected_mass_slope(sys: System, st: State, a: np.ndarray, P: np.ndarray) -
     """``P^T M1 P`` with ``M1`` of :func:`mass_slope` (k x k, symmetric), from the same two mass evaluations:
     ``P^T (M(R + R1) - M(R - R1)) P / 2`` symmetrised as a k x k matrix (the stroke slopes of ``hermite``
     need only this projection)."""
-    from ..rotations import skew
-
-    return _projected_mass_slope(sys, st, skew(sys.to_global(a).reshape(-1, 6)[:, 3:]) @ st.R, P)
+    return _projected_mass_slope(sys, st, _rotation_increment(sys, st, a), P)
 
 
 def _projected_mass_slope(sys: System, st: State, R1: np.ndarray, P: np.ndarray) -> np.ndarray:
     """:func:`projected_mass_slope` from the masters' rotation increments ``R1 = [a] R0`` (nm, 3, 3)."""
-    D = sys.mass(State(st.X, st.R + R1, st.lam)) - sys.mass(State(st.X, st.R - R1, st.lam))
-    M1 = 0.5 * (P.T @ (D @ P))
+    Mp, Mm = _masses_off_path(sys, st, R1)
+    M1 = 0.5 * (P.T @ ((Mp - Mm) @ P))
     return 0.5 * (M1 + M1.T)
 
 
