@@ -105,7 +105,7 @@ def _auto(an: Analysis, values: np.ndarray, tolerance: float) -> FrequencyCurve:
     every interpolated interval's estimate meets the tolerance and the rest is exact
     (``solver.exact_points``; ``auto_method`` ``hermite+exact``). Cost: the samples plus those exact points; a sample costs one to three exact points
     (its continuation step, one eigen solve and the slopes). Measured: a fifth to a third of the exact
-    curve at 1 % on the templates, 0.2-0.8 of it at 1e-4 (no points filled since the midpoint probes of
+    curve at 1 % on the templates, 0.2-0.7 of it at 1e-4 (no points filled since the midpoint probes of
     :mod:`.hermite`; before them the pivot needed ten and cost 0.96-1.05 of exact); below 1e-4, where
     the hinges' samples stopped paying, the exact curve directly; the exact curve alone when a sample's
     equilibrium cannot be computed (``hermite`` falls back and says so). Short curves: as below; nothing

@@ -403,7 +403,9 @@ def _errors(side: _Side) -> np.ndarray:
       (double cross hinge before its veering: estimate 7e-5, true error 4.4e-4); the second alone
       understates the pre-asymptotic intervals (pivot at 1 %: 3e-3 against 1.5e-2). Their maximum,
       measured on the six templates at tolerances 1e-2, 1e-3 and 1e-4 (tests/test_hermite.py), understated
-      the true error once, by 1.8x (double cross at 1e-4: 7.2e-5 against 1.3e-4).
+      the curve's true error twice, on the double cross at 1e-3 and 1e-4 (3.7e-4 against 4.4e-4, 9.0e-5
+      against 1.3e-4: an interval next to its veering); an interval this estimate rejects is probed
+      (:meth:`_Side.probe`) before it is halved.
 
     Infinite (refine) when a mode crossing inside the interval may change the first parasitic frequency:
     the lowest parasitic branch at either end was matched with a MAC below ``MAC_MIN``, or a branch with an
