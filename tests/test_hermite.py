@@ -207,7 +207,7 @@ def test_fill_computes_the_points_of_intervals_the_samples_miss_exactly(exact: d
 
 
 @pytest.mark.parametrize("name", SIX)
-def test_a_probed_interval_estimate_is_not_below_its_error(exact: dict, name: str) -> None:
+def test_a_probed_interval_estimate_is_not_below_its_error(exact: dict, name: str, monkeypatch) -> None:  # noqa: ANN001
     """Every interval kept on a midpoint probe (model.methods.hermite._Side.probe) at tolerances 1e-2, 1e-3
     and 1e-4: the true error of the interpolated first parasitic frequency at the requested points inside it
     (against the exact curve) is at most its estimate, PROBE_FACTOR (2.5) times the error at the midpoint.
@@ -229,24 +229,21 @@ def test_a_probed_interval_estimate_is_not_below_its_error(exact: dict, name: st
         kept.append((side, a_s, b_s, e))
         return e, smp
 
-    H._Side.probe = spy
-    try:
-        for tol in (1e-2, 1e-3, 1e-4):
-            kept.clear()
-            H.hermite_curve(an, internal, tol)
-            for side, a_s, b_s, e in kept:
-                if side.checked.get((a_s, b_s)) != e:
-                    continue  # the probe became a sample
-                lo, hi = sorted((a_s, b_s))
-                inside = (internal > lo) & (internal < hi)
-                if not inside.any():
-                    continue
-                lam, labs = side.interpolate(internal[inside])
-                hz = np.where(np.array(labs) == "parasitic", H._hz(lam), np.inf).min(axis=1)
-                err = np.max(np.abs(hz / ex.parasitic_hz[inside] - 1))
-                assert err <= e, f"{name} at {tol:g}: [{a_s:.4g}, {b_s:.4g}] error {err:.3g}, estimate {e:.3g}"
-    finally:
-        H._Side.probe = probe
+    monkeypatch.setattr(H._Side, "probe", spy)
+    for tol in (1e-2, 1e-3, 1e-4):
+        kept.clear()
+        H.hermite_curve(an, internal, tol)
+        for side, a_s, b_s, e in kept:
+            if side.checked.get((a_s, b_s)) != e:
+                continue  # the probe became a sample
+            lo, hi = sorted((a_s, b_s))
+            inside = (internal > lo) & (internal < hi)
+            if not inside.any():
+                continue
+            lam, labs = side.interpolate(internal[inside])
+            hz = np.where(np.array(labs) == "parasitic", H._hz(lam), np.inf).min(axis=1)
+            err = np.max(np.abs(hz / ex.parasitic_hz[inside] - 1))
+            assert err <= e, f"{name} at {tol:g}: [{a_s:.4g}, {b_s:.4g}] error {err:.3g}, estimate {e:.3g}"
 
 
 @pytest.mark.parametrize("name", ["cross-spring-pivot", "double-cross-hinge", "parallel-leaf-spring"])
