@@ -211,12 +211,12 @@ def test_a_probed_interval_estimate_is_not_below_its_error(exact: dict, name: st
     """Every interval kept on a midpoint probe (model.methods.hermite._Side.probe) at tolerances 1e-2, 1e-3
     and 1e-4: the true error of the interpolated first parasitic frequency at the requested points inside it
     (against the exact curve) is at most its estimate, PROBE_FACTOR (2.5) times the error at the midpoint.
-    The factor rests on a measurement: over the 86 intervals the refinement visited on the six templates, the
+    The factor rests on a measurement: over the 90 intervals the refinement visited on the six templates, the
     largest ratio of an interval's error (exact on a 0.03 deg grid) to its midpoint error was 2.2 (three-fold
     cross hinge, first interval of the negative side), 3.8 on one interval whose error changes sign near the
     midpoint (double cross, at 5e-7); a cubic Hermite error with a constant fourth derivative peaks at the
-    midpoint (ratio 1). Intervals kept here: 0 to 11 per template and tolerance (none on the leaf and the
-    guide, whose samples meet the tolerance without probes)."""
+    midpoint (ratio 1). Intervals kept here: 0 to 11 per template and tolerance (the leaf's and the guide's
+    halves of the stroke at 1e-2 and 1e-3, probed at the quarter points)."""
     from flexopt.model.methods import hermite as H
 
     an, ex = exact[name]
@@ -244,6 +244,39 @@ def test_a_probed_interval_estimate_is_not_below_its_error(exact: dict, name: st
             hz = np.where(np.array(labs) == "parasitic", H._hz(lam), np.inf).min(axis=1)
             err = np.max(np.abs(hz / ex.parasitic_hz[inside] - 1))
             assert err <= e, f"{name} at {tol:g}: [{a_s:.4g}, {b_s:.4g}] error {err:.3g}, estimate {e:.3g}"
+
+
+@pytest.mark.parametrize("name", SIX)
+def test_quarter_points_are_samples_only_where_the_branch_falls_over_the_first_half(exact: dict, name: str,
+                                                                                   monkeypatch) -> None:  # noqa: ANN001
+    """model.methods.hermite._Side.initial: the quarter points of the stroke become samples where the first
+    parasitic frequency at half the stroke differs from its value at 0 by more than SMOOTH (20 %), read from
+    the exact curve here (pivot, cartwheel, three-fold: 71 to 83 %); elsewhere (leaf 7 %, guide 0.03 %, double
+    cross 0.4 %) both halves of the stroke are probed there instead, and their estimate is the probe's."""
+    from flexopt.model.methods import hermite as H
+
+    an, ex = exact[name]
+    sides = []
+    initial = H._Side.initial
+
+    def spy(side, smax):  # noqa: ANN001, ANN202 - records each side after its initial samples
+        initial(side, smax)
+        sides.append((side, smax, [x.s for x in side.samples]))
+
+    monkeypatch.setattr(H._Side, "initial", spy)
+    H.hermite_curve(an, np.asarray(an.scene.stroke.to_internal(ex.stroke), dtype=float), 0.01)
+    s = np.asarray(an.scene.stroke.to_internal(ex.stroke), dtype=float)
+    for side, smax, first in sides:
+        f0 = ex.parasitic_hz[np.argmin(np.abs(s))]
+        fh = ex.parasitic_hz[np.argmin(np.abs(s - smax / 2))]
+        flat = abs(fh / f0 - 1) <= H.SMOOTH
+        quarters = sum(1 for v in first if abs(abs(v) - abs(smax) / 4) < 1e-12 or abs(abs(v) - 3 * abs(smax) / 4) < 1e-12)
+        assert quarters == (0 if flat else 2), (name, smax, first)
+        assert bool(side.coarse) == flat
+        if flat:  # both halves were probed: their estimates are the probes' (or they were halved)
+            assert all(iv in side.checked or iv not in side.estimates() for iv in side.coarse)
+    # the classification the docstring quotes (from the exact curves above)
+    assert bool(sides[0][0].coarse) == (name in ("leaf-spring", "parallel-leaf-spring", "double-cross-hinge"))
 
 
 @pytest.mark.parametrize("name", ["cross-spring-pivot", "double-cross-hinge", "parallel-leaf-spring"])

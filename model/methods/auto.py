@@ -83,8 +83,8 @@ def _frequency_curve(an: Analysis, method: str, tolerance: float, stroke: np.nda
     return _curve_from(an, method, values, hz, labels, par, time.perf_counter() - t0, extra)
 
 
-#: Fewest requested stroke points on one side of 0 for which ``auto`` tries ``hermite`` (it needs four exact
-#: samples per side before it can estimate anything; below this the exact curve is as cheap).
+#: Fewest requested stroke points on one side of 0 for which ``auto`` tries ``hermite`` (it solves four exact
+#: points per side, samples or probes, before it can estimate anything; below this the exact curve is as cheap).
 AUTO_MIN_POINTS = 12
 #: Below this relative tolerance ``auto`` computes the exact curve directly: hermite's samples no longer pay
 #: (measured on the hinge templates at 1e-5: most requested points end up filled exactly and the samples

@@ -24,7 +24,9 @@ stiffness of a flexure is a support stiffness in series with a compliance that g
 (PHYSICS.md, the 1/700 term), so ``1 / lambda`` is close to a low-order polynomial in the stroke where
 ``lambda`` itself falls by orders of magnitude (cross-spring pivot: 426 Hz to 39 Hz over 45 deg).
 
-Adaptive samples (per side of stroke 0): start with 0, s_max/4, s_max/2, 3 s_max/4 and s_max and bisect
+Adaptive samples (per side of stroke 0): the continuation passes 0, s_max/4, s_max/2, 3 s_max/4 and s_max, with
+samples at 0, s_max/2 and s_max and, unless the first parasitic frequency at s_max/2 is within ``SMOOTH`` of
+its value at 0, at the quarter points too (:meth:`_Side.initial`); then bisect
 every interval whose error estimate exceeds the tolerance (relative, on the first parasitic frequency,
 the quantity the tolerance is about), down to intervals of s_max/64 or the sample budget. The estimate (:func:`_error`)
 compares the interpolant in ``1 / lambda`` with one in the frequency and with the quintic through a
@@ -33,7 +35,9 @@ far from its asymptotic form (14 to 140 times the true error near stroke 0 of th
 crossing may hide between the samples, so an interval it rejects is first *probed*: the exact equilibrium
 and eigenpairs at its midpoint, the sample a bisection would add, without the slopes (:meth:`_Side.probe`).
 The interval is kept with ``PROBE_FACTOR`` times the interpolant's error there as its estimate when that
-meets the tolerance; otherwise the probe gets its slopes and becomes the sample. The estimated error of the
+meets the tolerance (and the estimate from the samples is below ``PROBE_GATE``); otherwise the probe gets its
+slopes and becomes the sample. The two halves of the stroke, when the quarter points are not samples, are
+probed there whatever their estimate (the samples alone are too far apart to judge them). The estimated error of the
 curve is the largest remaining interval estimate. With ``fill`` (the ``auto`` method) the requested points
 inside intervals that still miss the tolerance when the samples stop are computed exactly instead.
 """
@@ -70,12 +74,22 @@ MAC_MIN, CROSS_MARGIN = 0.9, 0.1
 #: An interval whose estimate from the samples misses the tolerance is first probed at its midpoint (exact
 #: equilibrium and eigenpairs, no slopes: :meth:`_Side.probe`); its estimate is then ``PROBE_FACTOR`` times
 #: the relative error of the interpolant there. The midpoint is where the cubic Hermite error kernel
-#: ``(s - a)^2 (s - b)^2`` peaks; over the 86 intervals the refinement visited on the six templates at
+#: ``(s - a)^2 (s - b)^2`` peaks; over the 90 intervals the refinement visited on the six templates at
 #: tolerances 1e-2, 1e-3 and 1e-4 the largest error over an interval (exact on a 0.03 deg grid) was at most 2.2
 #: times the midpoint's, but for one interval where the error changes sign near the midpoint (double cross
 #: hinge, 3.8 times, at 5e-7). Such an error is what a probe does not see; every kept interval is checked
 #: against exact in tests/test_hermite.py.
 PROBE_FACTOR = 2.5
+#: A probe is trusted only where the samples' own comparison interpolants agree within this (finite estimate):
+#: beyond it the branch is far from a cubic over the interval and the error can change sign at the midpoint.
+#: Measured: the three intervals where the error over the interval was 6 to 104 times the midpoint's (the
+#: pivot's and the three-fold's [0, s/2], sampled at 0, s/2 and s) had estimates of 0.45 to 0.48; the
+#: intervals kept on a probe on the six templates at 1e-2/1e-3/1e-4 read 0.06 or less at the end.
+PROBE_GATE = 0.1
+#: The initial samples (:meth:`_Side.initial`) skip the quarter points where the first parasitic frequency at
+#: half the stroke differs from its value at 0 by at most this (leaf 7 %, guide 0.03 %, double cross 0.4 %;
+#: pivot, cartwheel and three-fold 71 to 83 %).
+SMOOTH = 0.2
 
 
 @dataclass
@@ -177,6 +191,7 @@ class _Side:
         self._pairs: dict = {}  # (id(sample), id(next sample)) -> (their raw MAC matrix, the two samples)
         self._tracked: dict = {}  # (id(sample), id(previous), its permutation) -> what retrack derives
         self.checked: dict[tuple[float, float], float] = {}  # interval -> its estimate from a probe (:meth:`probe`)
+        self.coarse: set[tuple[float, float]] = set()  # intervals probed whatever their estimate (:meth:`initial`)
 
     def at(self, s: float) -> _Sample:
         """The sample at stroke ``s`` (one of :meth:`strokes`)."""
@@ -280,24 +295,53 @@ class _Side:
         return len(pts)
 
     def initial(self, smax: float) -> None:
-        """Continuation from stroke 0 to ``smax`` with targets (and samples) at a quarter, half, three
-        quarters and the end (the continuation halves a step that fails; from the second target on its
-        predictor is the cubic through two converged points)."""
+        """Continuation from stroke 0 to ``smax`` through a quarter, half, three quarters and the end (the
+        continuation halves a step that fails; from the second target on its predictor is the cubic through
+        two converged points), with samples at the half and the end. Where the first parasitic frequency at
+        the half is within ``SMOOTH`` of its value at 0 (a branch close to flat over the first half: the leaf,
+        the guide, the double cross hinge), the quarter and three-quarter points stay equilibria only: the
+        intervals [0, s/2] and [s/2, s] are then probed there (:meth:`probe`, no Newton solve: the
+        continuation's) whatever their estimate. Otherwise (the pivot, the cartwheel and the three-fold cross
+        hinge, whose frequency falls 3 to 6 times over the first half) they become samples too."""
         an = self.an
         sys = an.system
-        last = [self.samples[0].modes]
+        first = self.samples[0]
+        last = [first.modes]
+        quarter: list[Equilibrium] = []  # the equilibrium at s/4, until the sample at s/2 decides
+        flat = [False]
 
-        def accept(e: Equilibrium) -> None:
+        def full(e: Equilibrium) -> _Sample:
             modes = last[0] = modes_at(sys, e, self.k, self.drive, last[0])
             if len(modes.omega2) == 0 or modes.omega2[0] <= 0:
                 raise _Fallback("equilibrium unstable at a sample")
-            self.add(_Sample(float(e.stroke), e, modes, stroke_slopes(an, e, modes)))
+            smp = _Sample(float(e.stroke), e, modes, stroke_slopes(an, e, modes))
+            self.add(smp)
+            return smp
+
+        def accept(e: Equilibrium) -> None:
+            k = int(round(4 * float(e.stroke) / smax))  # 1..4: which quarter of the stroke
+            if k == 1:
+                quarter.append(e)
+            elif k == 2:
+                smp = full(e)
+                smp.labels, f_half = an._labels(smp.modes, e.tangent)
+                f_zero = an._labels(first.modes, first.eq.tangent)[1]
+                flat[0] = bool(abs(f_half / f_zero - 1) <= SMOOTH)  # False when either is NaN (no parasitic)
+                if flat[0]:
+                    self.coarse = {(0.0, float(e.stroke)), (float(e.stroke), float(smax))}
+                else:
+                    full(quarter[0])
+            elif k == 3:
+                if not flat[0]:
+                    full(e)
+            else:
+                full(e)
             return None
 
         def seen(e: Equilibrium) -> None:
             self.visited[float(e.stroke)] = e
 
-        fail = walk(sys, np.linspace(0.0, smax, 5)[1:], an.options, accept, start=self.samples[0].eq,
+        fail = walk(sys, np.linspace(0.0, smax, 5)[1:], an.options, accept, start=first.eq,
                     on_step=seen, curvature=self.curvature)
         if fail is not None:
             raise _Fallback(fail.message)
@@ -598,7 +642,8 @@ def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samp
             h_min = abs(smax) / 64.0
             while True:
                 est = side.estimates()
-                todo = [iv for iv, e in est.items() if e > tolerance and abs(iv[1] - iv[0]) > h_min * 1.5]
+                todo = [iv for iv, e in est.items() if (e > tolerance or (iv in side.coarse and iv not in side.checked))
+                        and abs(iv[1] - iv[0]) > h_min * 1.5]
                 if not todo or (max_samples is not None and len(side.samples) - 1 >= max_samples):
                     break
                 # every interval of the round probed against the tracked branches of its start, then the
@@ -609,7 +654,7 @@ def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samp
                     if len(grow) >= room:
                         break
                     e, smp = side.probe(a_s, b_s)
-                    if e <= tolerance:
+                    if e <= tolerance and not (PROBE_GATE < est[(a_s, b_s)] < np.inf):
                         side.checked[(a_s, b_s)] = est[(a_s, b_s)] = e
                     else:
                         grow.append(smp)
