@@ -315,15 +315,16 @@ def test_the_quintic_of_the_estimate_is_the_hermite_interpolant_through_three_sa
     three; agreement to 1e-10 of the values' scale (rounding of the two constructions)."""
     from scipy.interpolate import KroghInterpolator
 
-    from flexopt.model.methods.hermite import _hermite, _quintic_all
+    from flexopt.model.methods.hermite import _basis, _interpolate, _quintic_all
 
     rng = np.random.default_rng(7)
     S = np.array([0.0, 0.3, 0.5, 1.2])
     y, dy = rng.uniform(1, 2, (4, 3)), rng.uniform(-3, 3, (4, 3))
     cases = ((1, 0), (1, 3), (0, 2))
     xs = np.array([np.linspace(S[i], S[i + 1], 18)[1:-1] for i, _ in cases])
-    cubics = np.array([_hermite(S[i], S[i + 1], y[i], y[i + 1], dy[i], dy[i + 1], x) for (i, _), x in zip(cases, xs)])
-    every = _quintic_all(S, y, dy, np.array([i for i, _ in cases]), np.array([nb for _, nb in cases]), xs, cubics)
+    i_, nb_ = np.array([i for i, _ in cases]), np.array([nb for _, nb in cases])
+    cubics = _interpolate(_basis(S[i_], S[i_ + 1], xs), y[i_], y[i_ + 1], dy[i_], dy[i_ + 1])
+    every = _quintic_all(S, y, dy, i_, nb_, xs, cubics)
     for (i, nb), x, cubic, got in zip(cases, xs, cubics, every):
         for j in range(3):
             nodes = [S[i], S[i], S[i + 1], S[i + 1], S[nb], S[nb]]

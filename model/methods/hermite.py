@@ -161,18 +161,6 @@ def stroke_slopes(an: Analysis, eq: Equilibrium, modes: Modes) -> np.ndarray:
     return res
 
 
-def _hermite(s0: float, s1: float, y0: np.ndarray, y1: np.ndarray, d0: np.ndarray, d1: np.ndarray,
-             s: np.ndarray) -> np.ndarray:
-    """Cubic Hermite interpolant on [s0, s1] at ``s`` (p,) for each branch: (p, k)."""
-    h = s1 - s0
-    u = ((np.asarray(s) - s0) / h)[:, None]
-    h00 = (1 + 2 * u) * (1 - u) ** 2
-    h10 = u * (1 - u) ** 2
-    h01 = u * u * (3 - 2 * u)
-    h11 = u * u * (u - 1)
-    return h00 * y0 + h10 * h * d0 + h01 * y1 + h11 * h * d1
-
-
 def _hz(mu: np.ndarray) -> np.ndarray:
     """Frequencies [Hz] from the interpolated compliances ``mu = 1 / omega^2``."""
     return np.sign(mu) / np.sqrt(np.abs(mu)) / (2 * np.pi)
@@ -260,7 +248,7 @@ class _Side:
             return np.inf, smp
         # the cubic Hermite interpolant at the midpoint: (y0 + y1) / 2 + h (d0 - d1) / 8
         mu = 0.5 * (self.lam[i] + self.lam[i + 1]) + 0.125 * (b_s - a_s) * (self.slope[i] - self.slope[i + 1])
-        exact = float(_hz(1.0 / smp.modes.omega2)[is_par].min())
+        exact = float(smp.modes.hz[is_par].min())
         interp = float(_hz(mu)[at].min())
         return PROBE_FACTOR * abs(interp / exact - 1.0), smp
 
@@ -325,7 +313,7 @@ class _Side:
             elif k == 2:
                 smp = full(e)
                 smp.labels, f_half = an._labels(smp.modes, e.tangent)
-                f_zero = an._labels(first.modes, first.eq.tangent)[1]
+                first.labels, f_zero = an._labels(first.modes, first.eq.tangent)  # retrack reuses the labels
                 flat[0] = bool(abs(f_half / f_zero - 1) <= SMOOTH)  # False when either is NaN (no parasitic)
                 if flat[0]:
                     self.coarse = {(0.0, float(e.stroke)), (float(e.stroke), float(smax))}
@@ -415,10 +403,9 @@ class _Side:
         idx = np.clip(np.searchsorted(a, np.abs(s), side="right") - 1, 0, len(S) - 2)
         s = np.asarray(s, dtype=float)
         a, b = S[idx], S[idx + 1]
-        h = (b - a)[:, None]
-        u = ((s - a)[:, None]) / h  # each point in its own interval: the basis of _hermite, row by row
-        out = ((1 + 2 * u) * (1 - u) ** 2 * self.lam[idx] + u * (1 - u) ** 2 * h * self.slope[idx]
-               + u * u * (3 - 2 * u) * self.lam[idx + 1] + u * u * (u - 1) * h * self.slope[idx + 1])
+        # each point as the one interior point of its own interval
+        out = _interpolate(_basis(a, b, s[:, None]), self.lam[idx], self.lam[idx + 1], self.slope[idx],
+                           self.slope[idx + 1])[:, 0, :]
         near = np.where(np.abs(s - a) <= np.abs(b - s), idx, idx + 1)
         return out, [self.labels[j] for j in near]
 
@@ -539,8 +526,9 @@ def _error(side: _Side, i: int) -> float:
 
 
 def _basis(s0: np.ndarray, s1: np.ndarray, s: np.ndarray) -> tuple:
-    """The cubic Hermite basis of :func:`_hermite` on every interval at once: ends ``s0``, ``s1`` (I,), points
-    ``s`` (I, p); the four basis functions (I, p, 1) and the lengths (I, 1, 1)."""
+    """The cubic Hermite basis on every interval at once: ends ``s0``, ``s1`` (I,), points ``s`` (I, p); the
+    four basis functions (I, p, 1) of ``u = (s - s0) / (s1 - s0)`` -- ``(1 + 2u)(1 - u)^2``, ``u (1 - u)^2``,
+    ``u^2 (3 - 2u)``, ``u^2 (u - 1)`` -- and the lengths (I, 1, 1)."""
     h = (s1 - s0)[:, None, None]
     u = ((s - s0[:, None]) / (s1 - s0)[:, None])[:, :, None]
     w2 = (1 - u) ** 2
@@ -549,8 +537,8 @@ def _basis(s0: np.ndarray, s1: np.ndarray, s: np.ndarray) -> tuple:
 
 
 def _interpolate(basis: tuple, y0: np.ndarray, y1: np.ndarray, d0: np.ndarray, d1: np.ndarray) -> np.ndarray:
-    """:func:`_hermite` on every interval at once, from its :func:`_basis`: values and slopes (I, k) at the
-    ends; (I, p, k)."""
+    """The cubic Hermite interpolant on every interval at once, from its :func:`_basis`: values and slopes (I, k)
+    at the ends; (I, p, k)."""
     h00, h10, h01, h11, h = basis
     return h00 * y0[:, None, :] + h10 * h * d0[:, None, :] + h01 * y1[:, None, :] + h11 * h * d1[:, None, :]
 
