@@ -23,6 +23,10 @@ derivative of ``mu`` (de Boor, A Practical Guide to Splines, ch. IV). Why ``1 / 
 stiffness of a flexure is a support stiffness in series with a compliance that grows as ``s^2``
 (PHYSICS.md, the 1/700 term), so ``1 / lambda`` is close to a low-order polynomial in the stroke where
 ``lambda`` itself falls by orders of magnitude (cross-spring pivot: 426 Hz to 39 Hz over 45 deg).
+Where the lowest two parasitic modes exchange their shapes between two samples (a veering, as on the double
+cross hinge near 37 deg, where the MAC cannot tell which branch continues which), the two are interpolated
+together through ``mu_1 + mu_2`` and ``(mu_1 - mu_2)^2`` (the pair form, :func:`_pair_forms`), smooth
+through the veering where each branch alone turns sharply.
 
 Adaptive samples (per side of stroke 0): the continuation passes 0, s_max/4, s_max/2, 3 s_max/4 and s_max, with
 samples at 0, s_max/2 and s_max and, unless the first parasitic frequency at s_max/2 is within ``SMOOTH`` of
@@ -174,6 +178,9 @@ class _Side:
         self.samples = [first]
         self.lam = self.slope = np.zeros((0, k))
         self.labels: list[list[str]] = []
+        self.mac: list[np.ndarray] = []  # per interval: each branch's MAC match across it (:meth:`retrack`)
+        self.macs: list[np.ndarray] = []  # per interval: the MAC matrix of the branches at its two ends
+        self.pairs: tuple | None = None  # the intervals in the pair form, decided by :func:`_errors`
         self.visited: dict[float, Equilibrium] = {}  # converged equilibria of the initial continuation
         self.curvature = curvature  # d2 xi/ds2 at stroke 0: the first step's predictor (statics.path_curvature)
         self._pairs: dict = {}  # (id(sample), id(next sample)) -> (their raw MAC matrix, the two samples)
@@ -246,8 +253,10 @@ class _Side:
         at = np.array(self.labels[i]) == "parasitic"  # the labels of the nearer sample, as interpolate gives
         if not (is_par.any() and at.any()):
             return np.inf, smp
-        # the cubic Hermite interpolant at the midpoint: (y0 + y1) / 2 + h (d0 - d1) / 8
-        mu = 0.5 * (self.lam[i] + self.lam[i + 1]) + 0.125 * (b_s - a_s) * (self.slope[i] - self.slope[i + 1])
+        if self.pairs is not None and self.pairs[1][i]:  # the pair form (decided by the estimate just made)
+            mu = self.evaluate(np.array([i]), np.array([[0.5 * (a_s + b_s)]]))[0, 0]
+        else:  # the cubic Hermite interpolant at the midpoint: (y0 + y1) / 2 + h (d0 - d1) / 8
+            mu = 0.5 * (self.lam[i] + self.lam[i + 1]) + 0.125 * (b_s - a_s) * (self.slope[i] - self.slope[i + 1])
         exact = float(smp.modes.hz[is_par].min())
         interp = float(_hz(mu)[at].min())
         return PROBE_FACTOR * abs(interp / exact - 1.0), smp
@@ -347,13 +356,13 @@ class _Side:
         pair and the previous sample's permutation, so they are kept under that key (``_tracked``): a new
         sample recomputes only the samples whose predecessor or its permutation changed."""
         prev_groups = prev_perm = prev_smp = None
-        lam, slope, labels, mac = [], [], [], []
+        lam, slope, labels, mac, macs = [], [], [], [], []
         for smp in self.samples:
             m = smp.modes
             key = (id(smp), id(prev_smp), None if prev_perm is None else prev_perm.tobytes())
             hit = self._tracked.get(key)
             if hit is None:
-                match = None
+                match = full = None
                 if prev_smp is None:
                     perm = np.arange(len(m.omega2))
                 else:
@@ -383,15 +392,16 @@ class _Side:
                     smp.labels = self.an._labels(m, smp.eq.tangent)[0]
                 # interpolated variable: mu = 1 / lambda (see module docstring), and its slope
                 hit = self._tracked[key] = (perm, groups, 1.0 / w2, -smp.slope[perm] / w2**2,
-                                            [smp.labels[j] for j in perm], match)
-            perm, groups, mu, dmu, lab, match = hit
+                                            [smp.labels[j] for j in perm], match, full)
+            perm, groups, mu, dmu, lab, match, full = hit
             if match is not None:
                 mac.append(match)
+                macs.append(full)
             lam.append(mu)
             slope.append(dmu)
             labels.append(lab)
             prev_groups, prev_perm, prev_smp = groups, perm, smp
-        self.lam, self.slope, self.labels, self.mac = np.array(lam), np.array(slope), labels, mac
+        self.lam, self.slope, self.labels, self.mac, self.macs = np.array(lam), np.array(slope), labels, mac, macs
 
     def strokes(self) -> np.ndarray:
         return np.array([x.s for x in self.samples])
@@ -402,12 +412,30 @@ class _Side:
         a = np.abs(S)
         idx = np.clip(np.searchsorted(a, np.abs(s), side="right") - 1, 0, len(S) - 2)
         s = np.asarray(s, dtype=float)
-        a, b = S[idx], S[idx + 1]
-        # each point as the one interior point of its own interval
-        out = _interpolate(_basis(a, b, s[:, None]), self.lam[idx], self.lam[idx + 1], self.slope[idx],
-                           self.slope[idx + 1])[:, 0, :]
-        near = np.where(np.abs(s - a) <= np.abs(b - s), idx, idx + 1)
+        out = self.evaluate(idx, s[:, None])[:, 0, :]  # each point as the one interior point of its own interval
+        near = np.where(np.abs(s - S[idx]) <= np.abs(S[idx + 1] - s), idx, idx + 1)
         return out, [self.labels[j] for j in near]
+
+    def evaluate(self, idx: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """The interpolated ``mu`` (n, p, k) of the branches at the points ``x`` (n, p) of the intervals ``idx``
+        (n,): cubic Hermite per branch, and the pair form where :func:`_errors` chose it (:func:`_pair_forms`)."""
+        S = self.strokes()
+        if getattr(self, "pairs", (None,))[0] != S.tobytes():
+            _errors(self)  # decides the forms for these samples
+        a, b = S[idx], S[idx + 1]
+        basis = _basis(a, b, x)
+        mu, d = self.lam, self.slope
+        A = _interpolate(basis, mu[idx], mu[idx + 1], d[idx], d[idx + 1])
+        use, ia, ib, V, W = self.pairs[1:]
+        if use[idx].any():
+            R = np.flatnonzero(use[idx])
+            j = idx[R]
+            ja, jb = ia[j], ib[j]
+            m1, m2 = _pair_roots(_interpolate(tuple(c[R] for c in basis), V[j, :2], V[j + 1, :2], W[j, :2],
+                                              W[j + 1, :2]))
+            left = np.abs(x[R] - a[R][:, None]) <= np.abs(b[R][:, None] - x[R])
+            _put_pair(A, R, left, ja, jb, m1, m2)
+        return A
 
 
 class _Fallback(Exception):
@@ -420,8 +448,8 @@ _INTERIOR = np.arange(1, 17, dtype=float)  # the 16 interior points of an interv
 def _errors(side: _Side) -> np.ndarray:
     """Estimated error of the interpolated first parasitic frequency over each interval [S_i, S_i+1] (I,).
 
-    The reported interpolant (cubic Hermite in ``mu = 1 / lambda``) is compared on 16 interior points with
-    two others built from the same exact data, and the largest relative difference of the first parasitic
+    The reported interpolant (cubic Hermite in ``mu = 1 / lambda``, or the pair form) is compared on 16
+    interior points with others built from the same exact data, and the largest relative difference of the first parasitic
     frequency is the estimate (no extra exact solve):
 
     - the cubic Hermite interpolant in ``1 / sqrt(mu)`` (the frequency up to 2 pi): a different fourth
@@ -432,16 +460,22 @@ def _errors(side: _Side) -> np.ndarray:
       whose difference from the cubic is the cubic's leading error term. The first comparison alone reads
       almost nothing on a nearly flat branch, where the two forms are nearly affine images of each other
       (double cross hinge before its veering: estimate 7e-5, true error 4.4e-4); the second alone
-      understates the pre-asymptotic intervals (pivot at 1 %: 3e-3 against 1.5e-2). Their maximum,
-      measured on the six templates at tolerances 1e-2, 1e-3 and 1e-4 (tests/test_hermite.py), understated
-      the curve's true error twice, on the double cross at 1e-3 and 1e-4 (3.7e-4 against 4.4e-4, 9.0e-5
-      against 1.3e-4: an interval next to its veering); an interval this estimate rejects is probed
-      (:meth:`_Side.probe`) before it is halved.
+      understates the pre-asymptotic intervals (pivot at 1 %: 3e-3 against 1.5e-2). Where no neighbour
+      supports a quintic and the lowest two parasitic modes form a closed pair (:func:`_pair_forms`), the
+      pair form is compared instead (the double cross's last interval, after its veering: 7.2e-5 from the
+      first comparison, true error 1.3e-4, pair form 1.7e-4).
+    - on an interval in the pair form (single branches uncertain, the pair closed), the pair form in ``mu``
+      against the same in ``r``.
 
-    Infinite (refine) when a mode crossing inside the interval may change the first parasitic frequency:
-    the lowest parasitic branch at either end was matched with a MAC below ``MAC_MIN``, or a branch with an
-    uncertain match could reach it. Where the match of a branch is uncertain, its true continuation is one
-    of the uncertain modes at the other end; each such pairing is a cubic through exact values and exact
+    Their maximum, measured on the six templates at tolerances 1e-2, 1e-3 and 1e-4, is at least the curve's
+    true error in all 18 cases (1.8 to 25 times; tests/test_hermite.py checks half of it at 1e-3). An
+    interval this estimate rejects is probed (:meth:`_Side.probe`) before it is halved.
+
+    Infinite (refine) when a mode crossing inside the interval may change the first parasitic frequency
+    and the pair form does not apply: the lowest parasitic branch at either end was matched with a MAC below
+    ``MAC_MIN``, or a branch with an uncertain match could reach it (in the pair form: a branch outside the
+    pair). Where the match of a branch is uncertain, its true continuation is one of the uncertain modes at
+    the other end; each such pairing is a cubic through exact values and exact
     slopes (a slope belongs to a mode, not to its tracking), and the interval is refined when any of these
     cubics comes within ``CROSS_MARGIN`` (10 %: well above the interpolation errors that are refined away
     anyway) of the lowest parasitic frequency of the certain branches. Uncertain branches that stay clear
@@ -457,6 +491,7 @@ def _errors(side: _Side) -> np.ndarray:
     n_iv = len(S) - 1
     out = np.zeros(max(n_iv, 0))
     if n_iv <= 0:
+        side.pairs = _no_pairs(S)
         return out
     mu, d = np.asarray(side.lam, dtype=float), np.asarray(side.slope, dtype=float)  # (samples, k)
     P = np.array(side.labels) == "parasitic"  # (samples, k)
@@ -475,39 +510,74 @@ def _errors(side: _Side) -> np.ndarray:
     hz_a = _hz(A)
     left = np.abs(x - a_[:, None]) <= np.abs(b_[:, None] - x)
     par = np.where(left[:, :, None], P[:-1, None, :], P[1:, None, :])  # (I, 16, k) labels of the nearer sample
-    fa = np.where(par, hz_a, np.inf).min(axis=2)
     # a crossing of uncertain branches that may reach the lowest certain one: every pairing (j at S_i, l at
     # S_i+1) of the branches uncertain across the interval, all intervals and pairings at once
     either = P[:-1] | P[1:]
     unc = ~sure & either
     if unc.any():
-        some = np.flatnonzero(unc.any(axis=0))  # the branches uncertain somewhere
-        j, l = np.repeat(some, len(some)), np.tile(some, len(some))
-        pair = unc[:, j] & unc[:, l]  # (I, k^2)
-        cand = _hz(_interpolate(basis, mu[:-1][:, j], mu[1:][:, l], d[:-1][:, j], d[1:][:, l]))
-        cand = np.where(pair[:, None, :], cand, np.inf).min(axis=2)
         lowest = np.where((sure & either)[:, None, :], hz_a, np.inf).min(axis=2)
-        inf |= np.any(cand < (1 + CROSS_MARGIN) * lowest, axis=1)
-    # second interpolant in r = mu^(-1/2) (proportional to the frequency): dr/ds = -mu'/(2 mu^(3/2))
-    r = mu**-0.5
-    dr = -0.5 * d * r**3
-    others = [_interpolate(basis, r[:-1], r[1:], dr[:-1], dr[1:]) ** -2.0]
-    rows = [idx]
-    # third: the quintic through this interval's samples and a neighbour's (values and slopes at three
-    # strokes), the next order of the same data: the left neighbour (through interval i - 1) and the right
-    # one (through interval i + 1), where it is a sample and its match of the lowest branch is certain
-    ivs, nbs = [], []
+        inf |= np.any(_crossings(basis, mu, d, unc) < (1 + CROSS_MARGIN) * lowest, axis=1)
+    # the intervals with a certain neighbour sample, through which the quintic comparison below is built
+    quintic = []
     for shift in (-1, 2):
         nb = idx + shift
         between = idx - 1 if shift < 0 else idx + 1
         ok = (nb >= 0) & (nb <= n_iv)
         ok[ok] &= ~filled[nb[ok]] & sure[between[ok], low[:-1][ok]]
+        quintic.append(ok)
+    exact_iv = filled[:-1] | filled[1:]
+    lone = ~inf & ~exact_iv & ~(quintic[0] | quintic[1])  # single branches with no quintic comparison
+    # the pair form (:func:`_pair_forms`) where the single branches are uncertain but the two lowest parasitic
+    # modes span the same subspace at both ends (a veering or a crossing between them); on the lone intervals
+    # where the pair is closed, the pair form is the second comparison instead of the quintic
+    key, closed, ia, ib, V, W = _pair_forms(S, mu, d, P, side.macs, (inf | lone) & ~exact_iv)
+    use, cmp = closed & inf, closed & lone
+    side.pairs = (key, use, ia, ib, V, W)
+    R = np.flatnonzero(use)
+    if len(R):
+        bR = tuple(c[R] for c in basis)
+        aR, bRr = ia[R], ib[R]
+        m1, m2, r1, r2 = _pair_roots(_interpolate(bR, V[R], V[R + 1], W[R], W[R + 1]))
+        _put_pair(A, R, left[R], aR, bRr, m1, m2)
+        hz_a[R] = _hz(A[R])
+        # branches outside the pair whose match is uncertain must stay clear of the pair's lowest frequency
+        out_unc = unc[R]
+        rr = np.arange(len(R))[:, None]
+        out_unc[rr, aR] = False
+        out_unc[rr, bRr] = False
+        near = np.zeros(len(R), dtype=bool)
+        if out_unc.any():
+            near = np.any(_crossings(bR, mu, d, out_unc, R) < (1 + CROSS_MARGIN) * _hz(m1), axis=1)
+        inf[R] = near
+    fa = np.where(par, hz_a, np.inf).min(axis=2)
+    # second interpolant in r = mu^(-1/2) (proportional to the frequency): dr/ds = -mu'/(2 mu^(3/2))
+    r = mu**-0.5
+    dr = -0.5 * d * r**3
+    Br = _interpolate(basis, r[:-1], r[1:], dr[:-1], dr[1:]) ** -2.0
+    if len(R):  # the pair form in r as well
+        _put_pair(Br, R, left[R], aR, bRr, r1, r2)
+    others = [Br]
+    rows = [idx]
+    # third: the quintic through this interval's samples and a neighbour's (values and slopes at three
+    # strokes), the next order of the same data: the left neighbour (through interval i - 1) and the right
+    # one (through interval i + 1), where it is a sample and its match of the lowest branch is certain (not
+    # for the pair form, whose branches are not matched one by one)
+    ivs, nbs = [], []
+    for shift, ok in zip((-1, 2), quintic):
+        ok &= ~use
         ivs.append(idx[ok])
-        nbs.append(nb[ok])
+        nbs.append(idx[ok] + shift)
     iv = np.concatenate(ivs)
     if len(iv):
         others.append(_quintic_all(S, mu, d, iv, np.concatenate(nbs), x[iv], A[iv]))
         rows.append(iv)
+    C = np.flatnonzero(cmp)
+    if len(C):  # the pair form against the single branches where no quintic is built
+        m1, m2 = _pair_roots(_interpolate(tuple(c[C] for c in basis), V[C, :2], V[C + 1, :2], W[C, :2], W[C + 1, :2]))
+        Ac = A[C]
+        _put_pair(Ac, np.arange(len(C)), left[C], ia[C], ib[C], m1, m2)
+        others.append(Ac)
+        rows.append(C)
     rows = np.concatenate(rows)
     fb = np.where(par[rows], _hz(np.concatenate(others)), np.inf).min(axis=2)
     f = fa[rows]
@@ -518,6 +588,88 @@ def _errors(side: _Side) -> np.ndarray:
     out[:] = np.where(inf, np.inf, est)
     out[filled[:-1] | filled[1:]] = 0.0  # every requested point of the interval is an exact sample
     return out
+
+
+def _crossings(basis: tuple, mu: np.ndarray, d: np.ndarray, unc: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+    """The lowest frequency (I, p) of the cubics through every pairing (j at S_i, l at S_i+1) of the branches
+    ``unc`` (I, k) marks uncertain across each interval (``rows``: the intervals, all by default); inf where
+    an interval has no such pairing."""
+    some = np.flatnonzero(unc.any(axis=0))  # the branches uncertain somewhere
+    j, l = np.repeat(some, len(some)), np.tile(some, len(some))
+    pair = unc[:, j] & unc[:, l]  # (I, k^2)
+    m0, m1 = (mu[:-1], mu[1:]) if rows is None else (mu[:-1][rows], mu[1:][rows])
+    d0, d1 = (d[:-1], d[1:]) if rows is None else (d[:-1][rows], d[1:][rows])
+    cand = _hz(_interpolate(basis, m0[:, j], m1[:, l], d0[:, j], d1[:, l]))
+    return np.where(pair[:, None, :], cand, np.inf).min(axis=2)
+
+
+def _no_pairs(S: np.ndarray) -> tuple:
+    n = max(len(S) - 1, 0)
+    return S.tobytes(), np.zeros(n, dtype=bool), np.zeros((n, 2), dtype=int), np.zeros((n, 2), dtype=int), None, None
+
+
+def _pair_forms(S: np.ndarray, mu: np.ndarray, d: np.ndarray, P: np.ndarray, macs: list, want: np.ndarray) -> tuple:
+    """Which intervals take the pair form: among ``want`` (I,), those where both ends have two parasitic
+    branches and the two lowest at S_i (``ia``, branches, lowest first) and at S_i+1 (``ib``) span the same
+    subspace: every mode of either pair has a MAC share of at least ``MAC_MIN`` in the other pair (the sum of
+    its MACs with the other pair's modes; 1 for a mode inside the other pair's span, mass-normalised modes).
+
+    The pair form: two branches whose shapes mix between the samples (a veering, or a crossing the MAC cannot
+    follow) are interpolated through their symmetric functions ``T = mu_1 + mu_2`` and ``D = (mu_1 -
+    mu_2)^2``, each a cubic Hermite interpolant (:func:`_pair_roots`: ``mu_1,2 = (T +- sqrt(D)) / 2``). ``T``
+    and ``D`` are smooth however the two exchange their shapes: for a 2 x 2 compliance ``C(s)`` linear in
+    the stroke, ``T`` is linear and ``D`` quadratic, so the form is exact, where either branch alone turns
+    sharply at the veering. The pair at each sample is its two lowest parasitic modes, so ``T`` and ``D`` are
+    data of the sample: ``V`` (samples, 4) holds ``T``, ``D`` and the same in ``r = mu^(-1/2)`` (the second
+    interpolant of the estimate), ``W`` their stroke slopes.
+
+    Returns (the strokes it was decided for, use (I,), ia (I, 2), ib (I, 2), V, W)."""
+    m = np.where(P, mu, -np.inf)
+    two = np.argsort(-m, axis=1, kind="stable")[:, :2]  # largest mu first: the lowest frequency
+    ia, ib = two[:-1], two[1:]
+    use = np.zeros(len(want), dtype=bool)
+    if m.shape[1] < 2 or not want.any():
+        return S.tobytes(), use, ia, ib, None, None
+    both = P.sum(axis=1) >= 2  # two parasitic branches at the sample
+    for i in np.flatnonzero(want & both[:-1] & both[1:]).tolist():
+        F = macs[i]  # (branch at S_i, branch at S_i+1)
+        (a0, a1), (b0, b1) = ia[i].tolist(), ib[i].tolist()
+        s00, s01, s10, s11 = float(F[a0, b0]), float(F[a0, b1]), float(F[a1, b0]), float(F[a1, b1])
+        use[i] = min(s00 + s10, s01 + s11, s00 + s01, s10 + s11) >= MAC_MIN
+    if not use.any():
+        return S.tobytes(), use, ia, ib, None, None
+    rows = np.arange(len(m))[:, None]
+    y, dy = mu[rows, two], d[rows, two]
+    r = y**-0.5
+    dr = -0.5 * dy * r**3
+    g, gr = y[:, 0] - y[:, 1], r[:, 0] - r[:, 1]
+    V, W = np.empty((len(m), 4)), np.empty((len(m), 4))
+    V[:, 0], V[:, 1], V[:, 2], V[:, 3] = y[:, 0] + y[:, 1], g * g, r[:, 0] + r[:, 1], gr * gr
+    W[:, 0], W[:, 1] = dy[:, 0] + dy[:, 1], 2 * g * (dy[:, 0] - dy[:, 1])
+    W[:, 2], W[:, 3] = dr[:, 0] + dr[:, 1], 2 * gr * (dr[:, 0] - dr[:, 1])
+    return S.tobytes(), use, ia, ib, V, W
+
+
+def _pair_roots(V: np.ndarray) -> tuple[np.ndarray, ...]:
+    """mu_1 >= mu_2 (the lower frequency first) of the pair form from the interpolated ``T``, ``D`` (V[..., 0:2])
+    and, where V has them, the same from the form in r (V[..., 2:4])."""
+    root = np.sqrt(np.maximum(V[..., 1::2], 0.0))
+    hi, lo = 0.5 * (V[..., 0::2] + root), 0.5 * (V[..., 0::2] - root)
+    if V.shape[-1] == 2:
+        return hi[..., 0], lo[..., 0]
+    # in r the smaller root is the lower frequency
+    return hi[..., 0], lo[..., 0], np.maximum(lo[..., 1], 1e-300) ** -2.0, np.maximum(hi[..., 1], 1e-300) ** -2.0
+
+
+def _put_pair(A: np.ndarray, R: np.ndarray, left: np.ndarray, ia: np.ndarray, ib: np.ndarray, m1: np.ndarray,
+              m2: np.ndarray) -> None:
+    """Writes the pair form into the pair's branches of the intervals ``R`` of ``A`` (I, p, k): at each point
+    the lowest branch of the nearer sample takes ``m1`` (the lower frequency) and its second ``m2``
+    (``left`` (R, p): the point is nearer S_i)."""
+    r = R[:, None]
+    p = np.arange(A.shape[1])[None, :]
+    A[r, p, np.where(left, ia[:, 0:1], ib[:, 0:1])] = m1
+    A[r, p, np.where(left, ia[:, 1:2], ib[:, 1:2])] = m2
 
 
 def _error(side: _Side, i: int) -> float:
