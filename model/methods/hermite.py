@@ -253,10 +253,13 @@ class _Side:
         at = np.array(self.labels[i]) == "parasitic"  # the labels of the nearer sample, as interpolate gives
         if not (is_par.any() and at.any()):
             return np.inf, smp
+        # the cubic Hermite interpolant at the midpoint: (y0 + y1) / 2 + h (d0 - d1) / 8
+        mu = 0.5 * (self.lam[i] + self.lam[i + 1]) + 0.125 * (b_s - a_s) * (self.slope[i] - self.slope[i + 1])
         if self.pairs is not None and self.pairs[1][i]:  # the pair form (decided by the estimate just made)
-            mu = self.evaluate(np.array([i]), np.array([[0.5 * (a_s + b_s)]]))[0, 0]
-        else:  # the cubic Hermite interpolant at the midpoint: (y0 + y1) / 2 + h (d0 - d1) / 8
-            mu = 0.5 * (self.lam[i] + self.lam[i + 1]) + 0.125 * (b_s - a_s) * (self.slope[i] - self.slope[i + 1])
+            _, _, ia, _, V, W = self.pairs
+            T, D = 0.5 * (V[i, :2] + V[i + 1, :2]) + 0.125 * (b_s - a_s) * (W[i, :2] - W[i + 1, :2])
+            root = np.sqrt(max(float(D), 0.0))
+            mu[ia[i]] = 0.5 * (T + root), 0.5 * (T - root)  # the midpoint takes the labels of S_i (as evaluate)
         exact = float(smp.modes.hz[is_par].min())
         interp = float(_hz(mu)[at].min())
         return PROBE_FACTOR * abs(interp / exact - 1.0), smp
@@ -593,14 +596,20 @@ def _errors(side: _Side) -> np.ndarray:
 def _crossings(basis: tuple, mu: np.ndarray, d: np.ndarray, unc: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
     """The lowest frequency (I, p) of the cubics through every pairing (j at S_i, l at S_i+1) of the branches
     ``unc`` (I, k) marks uncertain across each interval (``rows``: the intervals, all by default); inf where
-    an interval has no such pairing."""
+    an interval has no such pairing. Only the pairings that exist are evaluated (a few per interval)."""
+    n_iv, p = basis[0].shape[:2]
+    out = np.full((n_iv, p), np.inf)
     some = np.flatnonzero(unc.any(axis=0))  # the branches uncertain somewhere
     j, l = np.repeat(some, len(some)), np.tile(some, len(some))
-    pair = unc[:, j] & unc[:, l]  # (I, k^2)
-    m0, m1 = (mu[:-1], mu[1:]) if rows is None else (mu[:-1][rows], mu[1:][rows])
-    d0, d1 = (d[:-1], d[1:]) if rows is None else (d[:-1][rows], d[1:][rows])
-    cand = _hz(_interpolate(basis, m0[:, j], m1[:, l], d0[:, j], d1[:, l]))
-    return np.where(pair[:, None, :], cand, np.inf).min(axis=2)
+    ri, ci = np.nonzero(unc[:, j] & unc[:, l])  # (interval, pairing) of every pairing of uncertain branches
+    if not len(ri):
+        return out
+    jj, ll = j[ci], l[ci]
+    g = ri if rows is None else rows[ri]  # the intervals' indices into the samples
+    b = tuple(c[ri] for c in basis)
+    cand = _hz(_interpolate(b, mu[g, jj][:, None], mu[g + 1, ll][:, None], d[g, jj][:, None], d[g + 1, ll][:, None]))
+    np.minimum.at(out, ri, cand[..., 0])
+    return out
 
 
 def _no_pairs(S: np.ndarray) -> tuple:
