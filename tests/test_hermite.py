@@ -291,7 +291,10 @@ def test_quarter_points_are_samples_only_where_the_branch_falls_over_the_first_h
     """model.methods.hermite._Side.initial: the quarter points of the stroke become samples where the first
     parasitic frequency at half the stroke differs from its value at 0 by more than SMOOTH (20 %), read from
     the exact curve here (pivot, cartwheel, three-fold: 71 to 83 %); elsewhere (leaf 7 %, guide 0.03 %, double
-    cross 0.4 %) both halves of the stroke are probed there instead, and their estimate is the probe's."""
+    cross 0.4 %) both halves of the stroke are probed there instead, and their estimate is the probe's. Where
+    the quarter points are samples, the eighth point is one too where the frequency at a quarter of the stroke
+    differs from its value at 0 by more than STEEP (60 %; pivot and three-fold 68 and 66 to 69 % on the exact
+    curve's nearest point, cartwheel 50 %)."""
     from flexopt.model.methods import hermite as H
 
     an, ex = exact[name]
@@ -311,11 +314,15 @@ def test_quarter_points_are_samples_only_where_the_branch_falls_over_the_first_h
         flat = abs(fh / f0 - 1) <= H.SMOOTH
         quarters = sum(1 for v in first if abs(abs(v) - abs(smax) / 4) < 1e-12 or abs(abs(v) - 3 * abs(smax) / 4) < 1e-12)
         assert quarters == (0 if flat else 2), (name, smax, first)
+        fq = ex.parasitic_hz[np.argmin(np.abs(s - smax / 4))]
+        eighth = any(abs(abs(v) - abs(smax) / 8) < 1e-12 for v in first)
+        assert eighth == (not flat and abs(fq / f0 - 1) > H.STEEP), (name, smax, first)
         assert bool(side.coarse) == flat
         if flat:  # both halves were probed: their estimates are the probes' (or they were halved)
             assert all(iv in side.checked or iv not in side.estimates() for iv in side.coarse)
     # the classification the docstring quotes (from the exact curves above)
     assert bool(sides[0][0].coarse) == (name in ("leaf-spring", "parallel-leaf-spring", "double-cross-hinge"))
+    assert (len(sides[0][2]) == 6) == (name in ("cross-spring-pivot", "three-fold-cross-hinge"))  # 0, s/8 ... s
 
 
 @pytest.mark.parametrize("name", ["cross-spring-pivot", "double-cross-hinge", "parallel-leaf-spring"])

@@ -30,7 +30,8 @@ through the veering where each branch alone turns sharply.
 
 Adaptive samples (per side of stroke 0): the continuation passes 0, s_max/4, s_max/2, 3 s_max/4 and s_max, with
 samples at 0, s_max/2 and s_max and, unless the first parasitic frequency at s_max/2 is within ``SMOOTH`` of
-its value at 0, at the quarter points too (:meth:`_Side.initial`); then bisect
+its value at 0, at the quarter points too, and at s_max/8 where the frequency at s_max/4 is not within ``STEEP``
+of its value at 0 (:meth:`_Side.initial`); then bisect
 every interval whose error estimate exceeds the tolerance (relative, on the first parasitic frequency,
 the quantity the tolerance is about), down to intervals of s_max/64 or the sample budget. The estimate (:func:`_error`)
 compares the interpolant in ``1 / lambda`` with one in the frequency and with the quintic through a
@@ -94,6 +95,11 @@ PROBE_GATE = 0.1
 #: half the stroke differs from its value at 0 by at most this (leaf 7 %, guide 0.03 %, double cross 0.4 %;
 #: pivot, cartwheel and three-fold 71 to 83 %).
 SMOOTH = 0.2
+#: Where the quarter points are samples, the eighth point s_max/8 is one too when the first parasitic frequency
+#: at s_max/4 differs from its value at 0 by more than this (pivot 68 %, three-fold cross hinge 66 to 69 %: their
+#: first interval needs it at 1 %, and a sample placed now saves a round of refinement; cartwheel 50 %: its
+#: first quarter meets 1 % as it is).
+STEEP = 0.6
 
 
 @dataclass
@@ -302,13 +308,17 @@ class _Side:
         the guide, the double cross hinge), the quarter and three-quarter points stay equilibria only: the
         intervals [0, s/2] and [s/2, s] are then probed there (:meth:`probe`, no Newton solve: the
         continuation's) whatever their estimate. Otherwise (the pivot, the cartwheel and the three-fold cross
-        hinge, whose frequency falls 3 to 6 times over the first half) they become samples too."""
+        hinge, whose frequency falls 3 to 6 times over the first half) they become samples too, and so does
+        s/8 where the frequency at s/4 is not within ``STEEP`` of its value at 0 (pivot, three-fold), reached
+        by Newton from the cubic through the samples at 0 and s/4 (:meth:`sample`): the sample a refinement of
+        [0, s/4] would add, one round earlier."""
         an = self.an
         sys = an.system
         first = self.samples[0]
         last = [first.modes]
         quarter: list[Equilibrium] = []  # the equilibrium at s/4, until the sample at s/2 decides
         flat = [False]
+        f_zero = [float("nan")]  # the first parasitic frequency at stroke 0
 
         def full(e: Equilibrium) -> _Sample:
             modes = last[0] = modes_at(sys, e, self.k, self.drive, last[0])
@@ -325,8 +335,8 @@ class _Side:
             elif k == 2:
                 smp = full(e)
                 smp.labels, f_half = an._labels(smp.modes, e.tangent)
-                first.labels, f_zero = an._labels(first.modes, first.eq.tangent)  # retrack reuses the labels
-                flat[0] = bool(abs(f_half / f_zero - 1) <= SMOOTH)  # False when either is NaN (no parasitic)
+                first.labels, f_zero[0] = an._labels(first.modes, first.eq.tangent)  # retrack reuses the labels
+                flat[0] = bool(abs(f_half / f_zero[0] - 1) <= SMOOTH)  # False when either is NaN (no parasitic)
                 if flat[0]:
                     self.coarse = {(0.0, float(e.stroke)), (float(e.stroke), float(smax))}
                 else:
@@ -345,6 +355,11 @@ class _Side:
                     on_step=seen, curvature=self.curvature)
         if fail is not None:
             raise _Fallback(fail.message)
+        if not flat[0]:
+            q = self.at(float(quarter[0].stroke))
+            q.labels, f_quarter = an._labels(q.modes, q.eq.tangent)  # retrack reuses the labels
+            if not abs(f_quarter / f_zero[0] - 1) <= STEEP:  # also where either is NaN (no parasitic mode)
+                self.add(self.sample(first, 0.5 * q.s, q))  # Newton from the cubic through 0 and s/4
 
     def add(self, smp: _Sample) -> None:
         self.samples.append(smp)
