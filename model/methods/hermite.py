@@ -30,7 +30,7 @@ through the veering where each branch alone turns sharply.
 
 Adaptive samples (per side of stroke 0): the continuation passes 0, s_max/4, s_max/2, 3 s_max/4 and s_max, with
 samples at 0, s_max/2 and s_max and, unless the first parasitic frequency at s_max/2 is within ``SMOOTH`` of
-its value at 0, at the quarter points too, and at s_max/8 where the frequency at s_max/4 is not within ``STEEP``
+its value at 0, at s_max/4 too, and at s_max/8 where the frequency at s_max/4 is not within ``STEEP``
 of its value at 0 (:meth:`_Side.initial`); then bisect
 every interval whose error estimate exceeds the tolerance (relative, on the first parasitic frequency,
 the quantity the tolerance is about), down to intervals of s_max/64 or the sample budget. The estimate (:func:`_error`)
@@ -42,7 +42,8 @@ and eigenpairs at its midpoint, the sample a bisection would add, without the sl
 The interval is kept with ``PROBE_FACTOR`` times the interpolant's error there as its estimate when that
 meets the tolerance (and the estimate from the samples is below ``PROBE_GATE``); otherwise the probe gets its
 slopes and becomes the sample. The two halves of the stroke, when the quarter points are not samples, are
-probed there whatever their estimate (the samples alone are too far apart to judge them). The estimated error of the
+probed there whatever their estimate (the samples alone are too far apart to judge them), and so is the
+second half when only the first half has its quarter point as a sample. The estimated error of the
 curve is the largest remaining interval estimate. With ``fill`` (the ``auto`` method) the requested points
 inside intervals that still miss the tolerance when the samples stop are computed exactly instead.
 """
@@ -308,7 +309,8 @@ class _Side:
         the guide, the double cross hinge), the quarter and three-quarter points stay equilibria only: the
         intervals [0, s/2] and [s/2, s] are then probed there (:meth:`probe`, no Newton solve: the
         continuation's) whatever their estimate. Otherwise (the pivot, the cartwheel and the three-fold cross
-        hinge, whose frequency falls 3 to 6 times over the first half) they become samples too, and so does
+        hinge, whose frequency falls 3 to 6 times over the first half) s/4 becomes a sample too (the steep
+        first half needs it) while [s/2, s] is probed at 3s/4 (kept on the three templates at 1 %), and so does
         s/8 where the frequency at s/4 is not within ``STEEP`` of its value at 0 (pivot, three-fold), reached
         by Newton from the cubic through the samples at 0 and s/4 (:meth:`sample`): the sample a refinement of
         [0, s/4] would add, one round earlier."""
@@ -319,6 +321,7 @@ class _Side:
         quarter: list[Equilibrium] = []  # the equilibrium at s/4, until the sample at s/2 decides
         flat = [False]
         f_zero = [float("nan")]  # the first parasitic frequency at stroke 0
+        half = [0.0]  # the stroke of the sample at s/2
 
         def full(e: Equilibrium) -> _Sample:
             modes = last[0] = modes_at(sys, e, self.k, self.drive, last[0])
@@ -334,6 +337,7 @@ class _Side:
                 quarter.append(e)
             elif k == 2:
                 smp = full(e)
+                half[0] = smp.s
                 smp.labels, f_half = an._labels(smp.modes, e.tangent)
                 first.labels, f_zero[0] = an._labels(first.modes, first.eq.tangent)  # retrack reuses the labels
                 flat[0] = bool(abs(f_half / f_zero[0] - 1) <= SMOOTH)  # False when either is NaN (no parasitic)
@@ -342,8 +346,8 @@ class _Side:
                 else:
                     full(quarter[0])
             elif k == 3:
-                if not flat[0]:
-                    full(e)
+                if not flat[0]:  # the second half probed at 3s/4 (its first half has s/4 as a sample)
+                    self.coarse.add((half[0], float(smax)))
             else:
                 full(e)
             return None
