@@ -92,6 +92,11 @@ PROBE_FACTOR = 2.5
 #: pivot's and the three-fold's [0, s/2], sampled at 0, s/2 and s) had estimates of 0.45 to 0.48; the
 #: intervals kept on a probe on the six templates at 1e-2/1e-3/1e-4 read 0.06 or less at the end.
 PROBE_GATE = 0.1
+#: The pair form (:func:`_pair_forms`) applies where the lowest two parasitic frequencies are within this factor
+#: of each other at one end of the interval at least: a veering needs the two close (the double cross hinge's
+#: lowest two: 1.09 to 1.51 across its veering). Farther apart (the leaf's: 2.8 to 2.9) a MAC below ``MAC_MIN``
+#: is the lowest mode's own change of shape, which its single branch follows, checked by a probe as before.
+PAIR_RATIO = 1.6
 #: The initial samples (:meth:`_Side.initial`) skip the quarter points where the first parasitic frequency at
 #: half the stroke differs from its value at 0 by at most this (leaf 7 %, guide 0.03 %, double cross 0.4 %;
 #: pivot, cartwheel and three-fold 71 to 83 %).
@@ -640,7 +645,8 @@ def _pair_forms(S: np.ndarray, mu: np.ndarray, d: np.ndarray, P: np.ndarray, mac
     """Which intervals take the pair form: among ``want`` (I,), those where both ends have two parasitic
     branches and the two lowest at S_i (``ia``, branches, lowest first) and at S_i+1 (``ib``) span the same
     subspace: every mode of either pair has a MAC share of at least ``MAC_MIN`` in the other pair (the sum of
-    its MACs with the other pair's modes; 1 for a mode inside the other pair's span, mass-normalised modes).
+    its MACs with the other pair's modes; 1 for a mode inside the other pair's span, mass-normalised modes),
+    and their frequencies are within ``PAIR_RATIO`` of each other at one end at least.
 
     The pair form: two branches whose shapes mix between the samples (a veering, or a crossing the MAC cannot
     follow) are interpolated through their symmetric functions ``T = mu_1 + mu_2`` and ``D = (mu_1 -
@@ -659,15 +665,17 @@ def _pair_forms(S: np.ndarray, mu: np.ndarray, d: np.ndarray, P: np.ndarray, mac
     if m.shape[1] < 2 or not want.any():
         return S.tobytes(), use, ia, ib, None, None
     both = P.sum(axis=1) >= 2  # two parasitic branches at the sample
-    for i in np.flatnonzero(want & both[:-1] & both[1:]).tolist():
+    rows = np.arange(len(m))[:, None]
+    y = mu[rows, two]  # (samples, 2): mu of the lowest two parasitic modes, the larger first
+    near = y[:, 0] <= PAIR_RATIO**2 * y[:, 1]  # their frequencies within PAIR_RATIO of each other
+    for i in np.flatnonzero(want & both[:-1] & both[1:] & (near[:-1] | near[1:])).tolist():
         F = macs[i]  # (branch at S_i, branch at S_i+1)
         (a0, a1), (b0, b1) = ia[i].tolist(), ib[i].tolist()
         s00, s01, s10, s11 = float(F[a0, b0]), float(F[a0, b1]), float(F[a1, b0]), float(F[a1, b1])
         use[i] = min(s00 + s10, s01 + s11, s00 + s01, s10 + s11) >= MAC_MIN
     if not use.any():
         return S.tobytes(), use, ia, ib, None, None
-    rows = np.arange(len(m))[:, None]
-    y, dy = mu[rows, two], d[rows, two]
+    dy = d[rows, two]
     r = y**-0.5
     dr = -0.5 * dy * r**3
     g, gr = y[:, 0] - y[:, 1], r[:, 0] - r[:, 1]
