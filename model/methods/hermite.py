@@ -632,7 +632,8 @@ def _crossings(basis: tuple, mu: np.ndarray, d: np.ndarray, unc: np.ndarray, row
     g = ri if rows is None else rows[ri]  # the intervals' indices into the samples
     b = tuple(c[ri] for c in basis)
     cand = _hz(_interpolate(b, mu[g, jj][:, None], mu[g + 1, ll][:, None], d[g, jj][:, None], d[g + 1, ll][:, None]))
-    np.minimum.at(out, ri, cand[..., 0])
+    first = np.flatnonzero(np.r_[True, ri[1:] != ri[:-1]])  # ri is sorted: each interval's run of pairings
+    out[ri[first]] = np.minimum.reduceat(cand[..., 0], first, axis=0)
     return out
 
 
