@@ -541,9 +541,10 @@ def _errors(side: _Side) -> np.ndarray:
     # S_i+1) of the branches uncertain across the interval, all intervals and pairings at once
     either = P[:-1] | P[1:]
     unc = ~sure & either
-    if unc.any():
+    check = unc & ~inf[:, None]  # an interval already uncertain in its lowest branch needs no crossing check
+    if check.any():
         lowest = np.where((sure & either)[:, None, :], hz_a, np.inf).min(axis=2)
-        inf |= np.any(_crossings(basis, mu, d, unc) < (1 + CROSS_MARGIN) * lowest, axis=1)
+        inf |= np.any(_crossings(basis, mu, d, check) < (1 + CROSS_MARGIN) * lowest, axis=1)
     # the intervals with a certain neighbour sample, through which the quintic comparison below is built
     quintic = []
     for shift in (-1, 2):
