@@ -589,10 +589,15 @@ def path_curvature(sys: System, eq: Equilibrium) -> np.ndarray:
         from scipy.linalg import solveh_banded
 
         perm, kd = band
-        Kp = K.take(perm, 0).take(perm, 1)
-        ab = np.zeros((kd + 1, len(perm)))
-        for u in range(kd + 1):  # upper band storage: ab[kd - u, j] = Kp[j - u, j]
-            ab[kd - u, u:] = np.diagonal(Kp, u)
+        m = len(perm)
+        got = sys.__dict__.get("_curvature_band")
+        if got is None or got[0] is not band:  # upper band storage ab[kd - u, j] = K[perm[j - u], perm[j]]
+            j, u = np.meshgrid(np.arange(m), np.arange(kd + 1))
+            ok = j - u >= 0
+            src = perm[(j - u)[ok]] * m + perm[j[ok]]  # flat index into K (free order)
+            got = sys.__dict__["_curvature_band"] = (band, src, ((kd - u) * m + j)[ok])
+        ab = np.zeros((kd + 1, m))
+        ab.flat[got[2]] = K.flat[got[1]]
         try:
             out[f[perm]] = solveh_banded(ab, rhs[perm], check_finite=False)
             return out
