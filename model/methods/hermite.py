@@ -447,7 +447,8 @@ class _Side:
         """The interpolated ``mu`` (n, p, k) of the branches at the points ``x`` (n, p) of the intervals ``idx``
         (n,): cubic Hermite per branch, and the pair form where :func:`_errors` chose it (:func:`_pair_forms`)."""
         S = self.strokes()
-        if getattr(self, "pairs", (None,))[0] != S.tobytes():
+        pairs = getattr(self, "pairs", None)
+        if pairs is None or pairs[0] != S.tobytes():
             _errors(self)  # decides the forms for these samples
         a, b = S[idx], S[idx + 1]
         basis = _basis(a, b, x)
@@ -476,8 +477,8 @@ def _errors(side: _Side) -> np.ndarray:
     """Estimated error of the interpolated first parasitic frequency over each interval [S_i, S_i+1] (I,).
 
     The reported interpolant (cubic Hermite in ``mu = 1 / lambda``, or the pair form) is compared on 16
-    interior points with others built from the same exact data, and the largest relative difference of the first parasitic
-    frequency is the estimate (no extra exact solve):
+    interior points with others built from the same exact data, and the largest relative difference of the
+    first parasitic frequency is the estimate (no extra exact solve):
 
     - the cubic Hermite interpolant in ``1 / sqrt(mu)`` (the frequency up to 2 pi): a different fourth
       derivative, so the two disagree where the branch changes faster than a cubic can follow
@@ -601,7 +602,8 @@ def _errors(side: _Side) -> np.ndarray:
         rows.append(iv)
     C = np.flatnonzero(cmp)
     if len(C):  # the pair form against the single branches where no quintic is built
-        m1, m2 = _pair_roots(_interpolate(tuple(c[C] for c in basis), V[C, :2], V[C + 1, :2], W[C, :2], W[C + 1, :2]))
+        m1, m2 = _pair_roots(_interpolate(tuple(c[C] for c in basis), V[C, :2], V[C + 1, :2], W[C, :2],
+                                          W[C + 1, :2]))
         Ac = A[C]
         _put_pair(Ac, np.arange(len(C)), left[C], ia[C], ib[C], m1, m2)
         others.append(Ac)
@@ -618,7 +620,8 @@ def _errors(side: _Side) -> np.ndarray:
     return out
 
 
-def _crossings(basis: tuple, mu: np.ndarray, d: np.ndarray, unc: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+def _crossings(basis: tuple, mu: np.ndarray, d: np.ndarray, unc: np.ndarray,
+               rows: np.ndarray | None = None) -> np.ndarray:
     """The lowest frequency (I, p) of the cubics through every pairing (j at S_i, l at S_i+1) of the branches
     ``unc`` (I, k) marks uncertain across each interval (``rows``: the intervals, all by default); inf where
     an interval has no such pairing. Only the pairings that exist are evaluated (a few per interval)."""
@@ -632,7 +635,8 @@ def _crossings(basis: tuple, mu: np.ndarray, d: np.ndarray, unc: np.ndarray, row
     jj, ll = j[ci], l[ci]
     g = ri if rows is None else rows[ri]  # the intervals' indices into the samples
     b = tuple(c[ri] for c in basis)
-    cand = _hz(_interpolate(b, mu[g, jj][:, None], mu[g + 1, ll][:, None], d[g, jj][:, None], d[g + 1, ll][:, None]))
+    cand = _hz(_interpolate(b, mu[g, jj][:, None], mu[g + 1, ll][:, None], d[g, jj][:, None],
+                            d[g + 1, ll][:, None]))
     first = np.flatnonzero(np.r_[True, ri[1:] != ri[:-1]])  # ri is sorted: each interval's run of pairings
     out[ri[first]] = np.minimum.reduceat(cand[..., 0], first, axis=0)
     return out
@@ -640,10 +644,12 @@ def _crossings(basis: tuple, mu: np.ndarray, d: np.ndarray, unc: np.ndarray, row
 
 def _no_pairs(S: np.ndarray) -> tuple:
     n = max(len(S) - 1, 0)
-    return S.tobytes(), np.zeros(n, dtype=bool), np.zeros((n, 2), dtype=int), np.zeros((n, 2), dtype=int), None, None
+    none = np.zeros((n, 2), dtype=int)
+    return S.tobytes(), np.zeros(n, dtype=bool), none, none, None, None
 
 
-def _pair_forms(S: np.ndarray, mu: np.ndarray, d: np.ndarray, P: np.ndarray, macs: list, want: np.ndarray) -> tuple:
+def _pair_forms(S: np.ndarray, mu: np.ndarray, d: np.ndarray, P: np.ndarray, macs: list,
+                want: np.ndarray) -> tuple:
     """Which intervals take the pair form: among ``want`` (I,), those where both ends have two parasitic
     branches and the two lowest at S_i (``ia``, branches, lowest first) and at S_i+1 (``ib``) span the same
     subspace: every mode of either pair has a MAC share of at least ``MAC_MIN`` in the other pair (the sum of
