@@ -459,8 +459,7 @@ class _Side:
             R = np.flatnonzero(use[idx])
             j = idx[R]
             ja, jb = ia[j], ib[j]
-            m1, m2 = _pair_roots(_interpolate(tuple(c[R] for c in basis), V[j, :2], V[j + 1, :2], W[j, :2],
-                                              W[j + 1, :2]))
+            m1, m2 = _pair_at(tuple(c[R] for c in basis), V, W, j)
             left = np.abs(x[R] - a[R][:, None]) <= np.abs(b[R][:, None] - x[R])
             _put_pair(A, R, left, ja, jb, m1, m2)
         return A
@@ -566,7 +565,7 @@ def _errors(side: _Side) -> np.ndarray:
     if len(R):
         bR = tuple(c[R] for c in basis)
         aR, bRr = ia[R], ib[R]
-        m1, m2, r1, r2 = _pair_roots(_interpolate(bR, V[R], V[R + 1], W[R], W[R + 1]))
+        m1, m2, r1, r2 = _pair_at(bR, V, W, R, in_r=True)
         _put_pair(A, R, left[R], aR, bRr, m1, m2)
         hz_a[R] = _hz(A[R])
         # branches outside the pair whose match is uncertain must stay clear of the pair's lowest frequency
@@ -602,8 +601,7 @@ def _errors(side: _Side) -> np.ndarray:
         rows.append(iv)
     C = np.flatnonzero(cmp)
     if len(C):  # the pair form against the single branches where no quintic is built
-        m1, m2 = _pair_roots(_interpolate(tuple(c[C] for c in basis), V[C, :2], V[C + 1, :2], W[C, :2],
-                                          W[C + 1, :2]))
+        m1, m2 = _pair_at(tuple(c[C] for c in basis), V, W, C)
         Ac = A[C]
         _put_pair(Ac, np.arange(len(C)), left[C], ia[C], ib[C], m1, m2)
         others.append(Ac)
@@ -692,6 +690,13 @@ def _pair_forms(S: np.ndarray, mu: np.ndarray, d: np.ndarray, P: np.ndarray, mac
     W[:, 0], W[:, 1] = dy[:, 0] + dy[:, 1], 2 * g * (dy[:, 0] - dy[:, 1])
     W[:, 2], W[:, 3] = dr[:, 0] + dr[:, 1], 2 * gr * (dr[:, 0] - dr[:, 1])
     return S.tobytes(), use, ia, ib, V, W
+
+
+def _pair_at(basis: tuple, V: np.ndarray, W: np.ndarray, j: np.ndarray, in_r: bool = False) -> tuple:
+    """The pair form on the intervals ``j`` (their :func:`_basis` rows ``basis``) from the samples' ``V``, ``W``
+    of :func:`_pair_forms`: mu_1, mu_2 (R, p), and with ``in_r`` the same from the form in r after them."""
+    c = 4 if in_r else 2
+    return _pair_roots(_interpolate(basis, V[j, :c], V[j + 1, :c], W[j, :c], W[j + 1, :c]))
 
 
 def _pair_roots(V: np.ndarray) -> tuple[np.ndarray, ...]:
