@@ -417,3 +417,28 @@ def test_multiple_equals_the_multi_member_runs_of_clusters() -> None:
     for _ in range(2000):
         lam = np.sort(rng.choice(values, rng.integers(0, 9)))
         assert [c.tolist() for c in _multiple(lam, 1e-6)] == [c.tolist() for c in _clusters(lam, 1e-6) if len(c) > 1]
+
+
+def test_the_floor_benchmarks_oracle_meets_its_tolerance_and_hermite_needs_at_least_its_samples(exact: dict) -> None:
+    """bench/bench_hermite_floor.py (the README's floor table): its oracle (bisection by the true error) must
+    stop with a curve within the tolerance against the exact curve at the 91 requested points (the
+    independent reference; the oracle bisects against 721 points, so this can fail only if its bookkeeping
+    is wrong), and hermite, which must meet the same tolerance without knowing the error, never gets by with
+    fewer samples than the bisection that knows it (on the pivot, where the table says 4 against 5)."""
+    import importlib.util
+    from pathlib import Path
+
+    from flexopt.model.symmetry import image_indices, one_side
+
+    path = Path(__file__).resolve().parents[1] / "bench" / "bench_hermite_floor.py"
+    spec = importlib.util.spec_from_file_location("bench_hermite_floor", path)
+    floor = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(floor)
+    an, ex = exact["cross-spring-pivot"]
+    internal = an.scene.stroke.to_internal(ex.stroke)
+    sides = floor.oracle_samples(an, 1e-2)
+    pos = one_side(internal)
+    par = floor.oracle_curve(an, pos, sides)[image_indices(pos, internal)]
+    assert np.max(np.abs(par / ex.parasitic_hz - 1)) <= 1e-2
+    h = frequency_curve(an, "hermite", tolerance=1e-2)
+    assert h.solver["samples"] - 1 >= sum(len(s) - 1 for s in sides.values())
