@@ -265,15 +265,16 @@ class _Side:
         at = np.array(self.labels[i]) == "parasitic"  # the labels of the nearer sample, as interpolate gives
         if not (is_par.any() and at.any()):
             return np.inf, smp
-        # the cubic Hermite interpolant at the midpoint: (y0 + y1) / 2 + h (d0 - d1) / 8
-        mu = 0.5 * (self.lam[i] + self.lam[i + 1]) + 0.125 * (b_s - a_s) * (self.slope[i] - self.slope[i + 1])
-        if self.pairs is not None and self.pairs[1][i]:  # the pair form (decided by the estimate just made)
-            _, _, ia, _, V, W = self.pairs
-            T, D = 0.5 * (V[i, :2] + V[i + 1, :2]) + 0.125 * (b_s - a_s) * (W[i, :2] - W[i + 1, :2])
-            root = np.sqrt(max(float(D), 0.0))
-            mu[ia[i]] = 0.5 * (T + root), 0.5 * (T - root)  # the midpoint takes the labels of S_i (as evaluate)
+        # the interpolant at the midpoint: cubic Hermite per branch, and the pair form where the estimate just
+        # made chose it, the midpoint taking the branches of S_i (as its labels)
+        j = np.array([i])
+        basis = _basis(np.array([a_s]), np.array([b_s]), np.array([[smp.s]]))
+        mu = _interpolate(basis, self.lam[j], self.lam[j + 1], self.slope[j], self.slope[j + 1])
+        if self.pairs is not None and self.pairs[1][i]:
+            _, _, ia, ib, V, W = self.pairs
+            _put_pair(mu, np.array([0]), np.ones((1, 1), dtype=bool), ia[j], ib[j], *_pair_at(basis, V, W, j))
         exact = float(smp.modes.hz[is_par].min())
-        interp = float(_hz(mu)[at].min())
+        interp = float(_hz(mu[0, 0])[at].min())
         return PROBE_FACTOR * abs(interp / exact - 1.0), smp
 
     def promote(self, smp: _Sample) -> None:
