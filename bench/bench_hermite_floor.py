@@ -31,9 +31,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from flexopt.model import Analysis, template  # noqa: E402
 from flexopt.model.methods import frequency_curve, hermite  # noqa: E402
 from flexopt.model.modal import modes_at  # noqa: E402
-from flexopt.model.statics import path_curvature, solve_point, walk  # noqa: E402
+from flexopt.model.statics import path_curvature, walk  # noqa: E402
 from flexopt.model.symmetry import image_indices, one_side  # noqa: E402
-from flexopt.model.methods.taylor import _multiple  # noqa: E402
 
 TEMPLATES = ("leaf-spring", "parallel-leaf-spring", "cross-spring-pivot", "cartwheel-hinge",
              "three-fold-cross-hinge", "double-cross-hinge")
@@ -46,10 +45,8 @@ def oracle_curve(an: Analysis, internal: np.ndarray, sides: dict[int, list[float
     drive = an.scene.stroke.drive
     n_rep = min(an.scene.modes, (len(sys_.free) if drive == "locked" else sys_.n) - sys_.n_con)
     k = n_rep + 2  # as hermite_curve
-    eq0 = solve_point(sys_, sys_.reference_state(), 0.0, an.options, 0.0)
-    m0 = modes_at(sys_, eq0, k, drive)
-    even = an.symmetry is not None and not _multiple(np.sort(m0.omega2), hermite.SLOPE_CLUSTER_GAP)
-    first = hermite._Sample(0.0, eq0, m0, np.zeros(len(m0.omega2)) if even else hermite.stroke_slopes(an, eq0, m0))
+    first = hermite._stroke_zero(an, k, drive)
+    eq0, m0 = first.eq, first.modes
     curvature = path_curvature(sys_, eq0)
     par = np.full(len(internal), np.nan)
     for sign, strokes in sides.items():

@@ -769,6 +769,19 @@ def _quintic_all(S: np.ndarray, y: np.ndarray, dy: np.ndarray, i: np.ndarray, nb
     return cubic + ((xs - a3) ** 2 * (xs - b[:, :, None]) ** 2) * (alpha[:, None, :] + beta[:, None, :] * (xs - a3))
 
 
+def _stroke_zero(an: Analysis, k: int, drive: str) -> _Sample:
+    """The sample at stroke 0: the reference equilibrium, its ``k`` lowest eigenpairs and their slopes."""
+    sys = an.system
+    eq0 = solve_point(sys, sys.reference_state(), 0.0, an.options, 0.0)
+    m0 = modes_at(sys, eq0, k, drive)
+    if an.symmetry is not None and not _multiple(np.sort(m0.omega2), SLOPE_CLUSTER_GAP):
+        # a symmetry that reverses the stroke maps the spectrum at s onto the one at -s, so each simple
+        # eigenvalue is even in the stroke: every slope at stroke 0 is zero (computed, they are at rounding
+        # level: tests/test_hermite.py); a repeated one (mirror pair) splits with slopes +-c and is computed
+        return _Sample(0.0, eq0, m0, np.zeros(len(m0.omega2)))
+    return _Sample(0.0, eq0, m0, stroke_slopes(an, eq0, m0))
+
+
 def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samples: int | None = None,
                   mirror: bool = True, fill: bool = False) -> HermiteResult | None:
     """Frequencies at the internal strokes ``internal`` by adaptive exact samples and cubic Hermite branches.
@@ -798,16 +811,8 @@ def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samp
     k = n_rep + 2
     if sys.n_con:
         return None  # the slopes need d(lambda)/ds of rigid-deformation multipliers: not implemented
-    eq0 = solve_point(sys, sys.reference_state(), 0.0, an.options, 0.0)
-    m0 = modes_at(sys, eq0, k, drive)
-    if an.symmetry is not None and not _multiple(np.sort(m0.omega2), SLOPE_CLUSTER_GAP):
-        # a symmetry that reverses the stroke maps the spectrum at s onto the one at -s, so each simple
-        # eigenvalue is even in the stroke: every slope at stroke 0 is zero (computed, they are at rounding
-        # level: tests/test_hermite.py); a repeated one (mirror pair) splits with slopes +-c and is computed
-        slope0 = np.zeros(len(m0.omega2))
-    else:
-        slope0 = stroke_slopes(an, eq0, m0)
-    first = _Sample(0.0, eq0, m0, slope0)
+    first = _stroke_zero(an, k, drive)
+    eq0, m0 = first.eq, first.modes
     curvature = path_curvature(sys, eq0)  # both sides' first step of 1/4 of the stroke is a parabola
     hz = np.empty((len(internal), n_rep))
     labels = np.empty((len(internal), n_rep), dtype=object)
