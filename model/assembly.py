@@ -19,137 +19,20 @@ from .structure import Structure
 
 __all__ = ["State", "Assembled", "System"]
 
-#: Gather, element kernel and scatter of :meth:`System.evaluate` in one C call (beams only, no rigid
-#: deformations): the kernel inputs (from the masters' states and the nodes' rotated offsets, :func:`rotate`),
-#: the batched kernel through its function pointer, and the sums into ``g``, ``g_full`` and ``H`` in the order
-#: ``numpy.bincount`` adds them, so the numbers are the same to the last bit (tests/test_linalg.py compares both
-#: routes). The beams' consistent mass and the Hessian's directional derivative go the same way (no gradient,
-#: ``g_off < 0``; their 144 outputs from ``h_off = 0``); ``update_state`` is :meth:`System.update`.
-_ASSEMBLE_SOURCE = r"""
-#include <string.h>
-typedef int (*batch_t)(long long, const double*, double*);
-int assemble(void* kernel, long long ne, long long n_in, long long n_out, const double* X, const double* R,
-             const long long* end_master, const long long* end_node, const double* r, double* in,
-             double* out, const long long* dofs, const long long* dofs_full, const long long* flat,
-             long long N, long long n_full, double* g, double* g_full, double* H, long long g_off,
-             long long h_off) {
-  for (long long e = 0; e < ne; ++e)
-    for (int end = 0; end < 2; ++end) {
-      long long m = end_master[2 * e + end];
-      const double* rn = r + 3 * end_node[2 * e + end];
-      const double* Rm = R + 9 * m;
-      double* a = in + e * n_in + 15 * end;
-      for (int i = 0; i < 3; ++i) {
-        a[i] = X[3 * m + i] + rn[i];
-        a[12 + i] = rn[i];
-        for (int j = 0; j < 3; ++j) a[3 + i + 3 * j] = Rm[3 * i + j];
-      }
-    }
-  if (((batch_t) kernel)(ne, in, out)) return 1;
-  if (g_off >= 0) {
-    memset(g, 0, sizeof(double) * N);
-    memset(g_full, 0, sizeof(double) * n_full);
-    for (long long e = 0; e < ne; ++e)
-      for (int k = 0; k < 12; ++k) g[dofs[12 * e + k]] += out[e * n_out + g_off + k];
-    for (long long e = 0; e < ne; ++e)
-      for (int k = 0; k < 12; ++k) g_full[dofs_full[12 * e + k]] += out[e * n_out + g_off + k];
-  }
-  memset(H, 0, sizeof(double) * N * N);
-  for (long long e = 0; e < ne; ++e)
-    for (int k = 0; k < 144; ++k) H[flat[144 * e + k]] += out[e * n_out + h_off + k];
-  return 0;
-}
-
-/* R J R^T of a row-major rotation R and tensor J, as model.assembly.rjrt sums it: A = R J, then A R^T, each
-   entry a sum of products left to right */
-static void rjrt(const double* R, const double* J, double* B) {
-  double A[9];
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) A[3 * i + j] = R[3 * i] * J[j] + R[3 * i + 1] * J[3 + j] + R[3 * i + 2] * J[6 + j];
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j)
-      B[3 * i + j] = A[3 * i] * R[3 * j] + A[3 * i + 1] * R[3 * j + 1] + A[3 * i + 2] * R[3 * j + 2];
-}
-
-/* System.mass in one call (beams only, no rigid deformations; c: System._mass_context): the beams' consistent
-   mass scattered by assemble (no gradient), plus the constant part (const + scatter, as numpy adds them), then
-   each node's and body's rotary inertia R J R^T summed per master in node order (np.add.at's) and added to the
-   masters' rotation blocks at rot_flat in that order. out: the layout of System._compiled_call, the matrix
-   last. The same numbers as the numpy route. */
-int mass_matrix(const long long* c, const double* X, const double* R, double* out) {
-  long long ne = c[1], n_out = c[3], N = c[10], n_full = c[11], nn = c[14], nm = c[18], i, e;
-  const long long* node_master = (const long long*) c[12];
-  const double *off = (const double*) c[13], *Mc = (const double*) c[16], *Jn = (const double*) c[17],
-               *Jb = (const double*) c[19];
-  const long long* rot_flat = (const long long*) c[20];
-  double *r = (double*) c[15], *Jm = (double*) c[21], B[9];
-  for (i = 0; i < nn; ++i) {  /* model.assembly.rotate */
-    const double *Rm = R + 9 * node_master[i], *o = off + 3 * i;
-    for (int a = 0; a < 3; ++a) r[3 * i + a] = Rm[3 * a] * o[0] + Rm[3 * a + 1] * o[1] + Rm[3 * a + 2] * o[2];
-  }
-  double *g = out + ne * n_out, *M = g + N + n_full;
-  if (assemble((void*) c[0], ne, c[2], n_out, X, R, (const long long*) c[4], (const long long*) c[5], r,
-               (double*) c[6], out, (const long long*) c[7], (const long long*) c[8], (const long long*) c[9], N,
-               n_full, g, g + N, M, -1, 0))
-    return 1;
-  for (i = 0; i < N * N; ++i) M[i] = Mc[i] + M[i];
-  for (i = 0; i < 9 * nm; ++i) Jm[i] = 0.0;
-  for (i = 0; i < nn; ++i) {
-    long long m = node_master[i];
-    rjrt(R + 9 * m, Jn + 9 * i, B);
-    for (e = 0; e < 9; ++e) Jm[9 * m + e] = Jm[9 * m + e] + B[e];
-  }
-  if (Jb)
-    for (long long m = 0; m < nm; ++m) {
-      rjrt(R + 9 * m, Jb + 9 * m, B);
-      for (e = 0; e < 9; ++e) Jm[9 * m + e] = Jm[9 * m + e] + B[e];
-    }
-  for (i = 0; i < 9 * nm; ++i) M[rot_flat[i]] = M[rot_flat[i]] + Jm[i];
-  return 0;
-}
-
-/* System.update for a drive basis of global axes: x += u, R <- expm(psi) R through the compiled Rodrigues
-   kernel (its batch entry), the same arithmetic as the numpy route. act: the active index of each of the
-   6 nm global DOFs (-1: not active, increment 0). */
-int update_state(void* kernel, long long nm, const double* X, const double* R, const double* xi,
-                 const long long* act, const long long* moving, long long nmov, double* rin, double* rout,
-                 double* Xn, double* Rn) {
-  for (long long m = 0; m < nm; ++m)
-    for (int i = 0; i < 3; ++i) {
-      long long a = act[6 * m + i];
-      Xn[3 * m + i] = X[3 * m + i] + (a >= 0 ? xi[a] : 0.0);
-    }
-  memcpy(Rn, R, sizeof(double) * 9 * nm);
-  for (long long j = 0; j < nmov; ++j) {
-    long long m = moving[j];
-    for (int i = 0; i < 3; ++i) {
-      long long a = act[6 * m + 3 + i];
-      rin[12 * j + i] = a >= 0 ? xi[a] : 0.0;
-      for (int k = 0; k < 3; ++k) rin[12 * j + 3 + i + 3 * k] = R[9 * m + 3 * i + k];
-    }
-  }
-  if (nmov && ((batch_t) kernel)(nmov, rin, rout)) return 1;
-  for (long long j = 0; j < nmov; ++j) {
-    long long m = moving[j];
-    for (int i = 0; i < 3; ++i)
-      for (int k = 0; k < 3; ++k) Rn[9 * m + 3 * i + k] = rout[9 * j + i + 3 * k];
-  }
-  return 0;
-}
-"""
 _ASSEMBLER: list = []
 
 
 def _assembler():
-    """The compiled :data:`_ASSEMBLE_SOURCE` (cached like the kernels), or None without a C compiler."""
+    """The compiled model/native/assemble.c (gather, element kernel and scatter of :meth:`System.evaluate`, the
+    mass and the update in one C call each; cached like the kernels), or None without a C compiler."""
     if not _ASSEMBLER:
         import ctypes
 
         from .errors import KernelBuildError
-        from .kernels import shared_library
+        from .kernels import native_library
 
         try:
-            lib = shared_library("flexopt_assemble", (_ASSEMBLE_SOURCE,), lambda: _ASSEMBLE_SOURCE)
+            lib = native_library("flexopt_assemble", "assemble.c")
             fn = lib.assemble
             fn.restype = ctypes.c_int
             fn.argtypes = [ctypes.c_void_p] + [ctypes.c_longlong] * 3 + [ctypes.c_void_p] * 10 \
@@ -335,7 +218,7 @@ class System:
         self._rot_log = compiled(rotation_log_spec())
         self._rot_in = np.zeros((len(rm), 12))
         self._log_in = np.zeros((len(rm), 18))
-        # the one-call evaluate, mass and Hessian derivative (see _ASSEMBLE_SOURCE): beams only, no rigid
+        # the one-call evaluate, mass and Hessian derivative (model/native/assemble.c): beams only, no rigid
         # deformations; None: the numpy route. Fixed arrays' addresses are taken once (each ``.ctypes.data``
         # costs about 1.5 us, which at 17 arguments was a third of a leaf's evaluate).
         self._fast = None
@@ -625,7 +508,7 @@ class System:
 
     def point_parts(self) -> dict[str, int] | None:
         """What the compiled Newton loop (model.statics) needs of this system, by name: the addresses of the
-        C ``assemble`` and ``update_state`` (:data:`_ASSEMBLE_SOURCE`), of the kernels' batch entries, of the
+        C ``assemble`` and ``update_state`` (model/native/assemble.c), of the kernels' batch entries, of the
         fixed index arrays and work buffers, and the sizes. None where :meth:`evaluate` and :meth:`update`
         do not both run in C (the numpy route). Made once; the arrays stay referenced by the system."""
         if self._fast is None or self._fast_update is None or self._rot_log.address is None:
@@ -654,14 +537,14 @@ class System:
                 "assemble": ctypes.cast(lib.assemble, ctypes.c_void_p).value, "kernel": self.beam_kernel.address,
                 "ne": s.n_beams, "n_in": self.beam_kernel.n_in, "n_out": self.beam_kernel.n_out,
                 "end_master": end_master, "end_node": end_node, "kernel_in": self._beam_in_at, "dofs": dofs,
-                "dofs_full": dofs_full, "flat": flat, "N": N, "n_full": self.n_full,
+                "dofs_full": dofs_full, "flat": flat, "n_ext": N, "n_full": self.n_full,
                 "node_master": at[0], "node_offset": at[1], "nodes": len(s.node_master), "offsets": at[2],
                 "update": ctypes.cast(lib.update_state, ctypes.c_void_p).value, "rot_update": rot_update,
                 "masters": nm, "act": act, "moving": moving, "nmov": nmov, "rin": rin, "rout": rout,
                 "nchart": len(self._chart_src), "chart_flat": at[3], "chart_src": at[4], "chart_sign": at[5],
                 "chart": at[6], "rot_log": self._rot_log.address, "log_in": at[7], "log_out": at[8],
                 "drive_master": s.drive_master, "kind": 0 if s.drive_kind == "rotation" else 1,
-                "master_pos": at[9], "axis": at[10], "n": self.n,
+                "master_pos": at[9], "axis": at[10], "n_act": self.n,
             }
             self._point_keep, self._point_parts = keep, parts
         return parts

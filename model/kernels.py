@@ -9,6 +9,12 @@ function, the wrapper source, the compiler command and the CasADi version; the l
 temporary file and renamed atomically, so concurrent processes never see half a file. The directory is
 ``$FLEXOPT_CACHE_DIR`` or ``~/.cache/flexopt/kernels``. Without a C compiler the kernel falls back to
 CasADi's own virtual machine (``Function.map``) with a ``KernelPerformanceWarning``: same numbers, slower.
+
+The hand-written C of the compiled routes lives in ``model/native/*.c`` (package data): the kernels' batch
+entry (kernel_batch.c), the one-call assembly (assemble.c), the linear algebra (linalg.c) and the Newton loop
+(newton_point.c). :func:`native_source` reads one and puts the definitions its opening comment asks for in
+front (sizes, the LAPACK integer, the slot tables generated from their one Python list by :func:`c_enum`);
+:func:`native_library` compiles that text with :func:`shared_library`, keyed by its hash.
 """
 
 from __future__ import annotations
@@ -16,10 +22,13 @@ from __future__ import annotations
 import ctypes
 import hashlib
 import os
+import re
 import shutil
 import subprocess
 import tempfile
 import warnings
+from collections.abc import Iterable, Sequence
+from importlib import resources
 from pathlib import Path
 
 import casadi as ca
@@ -28,24 +37,8 @@ import numpy as np
 from .elements import KernelSpec
 from .errors import KernelBuildError
 
-__all__ = ["CompiledKernel", "compiled", "cache_dir", "shared_library", "KernelPerformanceWarning"]
-
-_WRAPPER = r"""
-#include <stdlib.h>
-int {batch}(long long n, const double* in, double* out) {{
-  const double* arg[{sz_arg}]; double* res[{sz_res}];
-  long long* iw = (long long*) malloc(sizeof(long long) * ({sz_iw} + 1));
-  double* w = (double*) malloc(sizeof(double) * ({sz_w} + 1));
-  int flag = 0;
-  for (long long k = 0; k < n; ++k) {{
-    arg[0] = in + k * {n_in};
-    res[0] = out + k * {n_out};
-    if ({name}(arg, res, iw, w, 0)) {{ flag = 1; break; }}
-  }}
-  free(iw); free(w);
-  return flag;
-}}
-"""
+__all__ = ["CompiledKernel", "compiled", "cache_dir", "shared_library", "native_source", "native_library",
+           "native_files", "c_enum", "batch_definitions", "KernelPerformanceWarning", "FLAGS"]
 
 
 class KernelPerformanceWarning(UserWarning):
@@ -62,7 +55,41 @@ def _compiler() -> str | None:
     return os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
 
 
-_FLAGS = ("-O2", "-shared", "-fPIC", "-fno-math-errno")
+#: The compiler flags of every build (part of the cache key). ``-Wall -Wextra``: the sources in model/native compile
+#: without a warning (tests/test_native.py builds each with ``-Werror``); CasADi's generated code may warn, which
+#: is not shown (only a failed build's messages are).
+FLAGS = ("-O2", "-shared", "-fPIC", "-fno-math-errno", "-Wall", "-Wextra")
+
+
+def native_files() -> list[str]:
+    """The file names of the C sources in model/native (package data)."""
+    folder = resources.files(__package__).joinpath("native")
+    return sorted(f.name for f in folder.iterdir() if f.name.endswith((".c", ".h")))
+
+
+def native_source(file: str, defines: Sequence[tuple[str, object]] = (), prelude: str = "") -> str:
+    """The C source ``model/native/<file>`` preceded by ``prelude`` and one ``#define NAME value`` line per entry of
+    ``defines``: the text that is compiled, and hashed for the cache key."""
+    text = resources.files(__package__).joinpath("native", file).read_text()
+    return prelude + "".join(f"#define {k} {v}\n" for k, v in defines) + text
+
+
+def native_library(name: str, file: str, defines: Sequence[tuple[str, object]] = (), prelude: str = "") -> ctypes.CDLL:
+    """:func:`native_source` compiled to a shared library (:func:`shared_library`, the key the hash of that text)."""
+    source = native_source(file, defines, prelude)
+    return shared_library(name, (source,), lambda: source)
+
+
+def c_enum(names: Iterable[str], tag: str) -> str:
+    """A C ``enum tag { NAME0, NAME1, ... };`` of ``names`` upper-cased in their order, so C indexes a table by the
+    names of the Python list that lays it out. Raises ValueError for a name that is no C identifier or two names
+    equal up to case (they would be one enumerator)."""
+    names = list(names)
+    upper = [n.upper() for n in names]
+    bad = [n for n in names if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", n)]
+    if bad or len(set(upper)) != len(upper):
+        raise ValueError(f"slot names {bad or names} are not distinct C identifiers up to case")
+    return f"enum {tag} {{ " + ", ".join(upper) + " };\n"
 
 
 def shared_library(name: str, key_parts: tuple[str, ...], source, cc: str | None = None) -> ctypes.CDLL:
@@ -78,7 +105,7 @@ def shared_library(name: str, key_parts: tuple[str, ...], source, cc: str | None
     if cc is None:
         raise KernelBuildError(f"no C compiler found to build '{name}'; install gcc or set CC")
     key = hashlib.sha256()
-    for part in (*key_parts, cc, " ".join(_FLAGS)):
+    for part in (*key_parts, cc, " ".join(FLAGS)):
         key.update(part.encode())
     directory = cache_dir()
     lib_path = directory / f"{name}-{key.hexdigest()[:24]}.so"
@@ -88,7 +115,7 @@ def shared_library(name: str, key_parts: tuple[str, ...], source, cc: str | None
             src = Path(tmp) / (name + ".c")
             src.write_text(source())
             tmp_lib = Path(tmp) / "lib.so"
-            proc = subprocess.run([cc, *_FLAGS, str(src), "-o", str(tmp_lib), "-lm"], capture_output=True, text=True)
+            proc = subprocess.run([cc, *FLAGS, str(src), "-o", str(tmp_lib), "-lm"], capture_output=True, text=True)
             if proc.returncode != 0:
                 raise KernelBuildError(
                     f"compiling '{name}' failed ({cc}): {proc.stderr[-2000:]}; check the C compiler or unset CC"
@@ -99,6 +126,15 @@ def shared_library(name: str, key_parts: tuple[str, ...], source, cc: str | None
     except OSError as exc:  # a corrupt cache entry: rebuild once
         lib_path.unlink(missing_ok=True)
         raise KernelBuildError(f"loading '{name}' from {lib_path} failed: {exc}; retry") from exc
+
+
+def batch_definitions(spec: KernelSpec) -> tuple[tuple[str, object], ...]:
+    """What model/native/kernel_batch.c needs defined before it for the kernel of ``spec``: its CasADi function's
+    name, the batch entry's name, the row sizes and CasADi's work sizes."""
+    f = spec.function
+    name = f.name()
+    return (("KERNEL", name), ("BATCH", name + "_batch"), ("N_IN", spec.n_in), ("N_OUT", spec.n_out),
+            ("SZ_ARG", max(f.sz_arg(), 1)), ("SZ_RES", max(f.sz_res(), 1)), ("SZ_IW", f.sz_iw()), ("SZ_W", f.sz_w()))
 
 
 class CompiledKernel:
@@ -127,10 +163,7 @@ class CompiledKernel:
     def _load(self, cc: str) -> None:
         f = self.spec.function
         name = f.name()
-        wrapper = _WRAPPER.format(
-            batch=name + "_batch", name=name, n_in=self.n_in, n_out=self.n_out,
-            sz_arg=max(f.sz_arg(), 1), sz_res=max(f.sz_res(), 1), sz_iw=f.sz_iw(), sz_w=f.sz_w(),
-        )
+        wrapper = native_source("kernel_batch.c", batch_definitions(self.spec))
 
         def source() -> str:
             with tempfile.TemporaryDirectory() as tmp:

@@ -1,7 +1,7 @@
 """LAPACK and BLAS function pointers for compiled drivers, found without importing ``scipy.linalg``.
 
-The hot path (Newton steps, eigen solves) calls LAPACK from C (model/eigen.py), so it needs the routines'
-addresses, not Python wrappers. ``import scipy.linalg`` costs 0.17-0.3 s of a command-line call's start-up
+The hot path (Newton steps, eigen solves) calls LAPACK from C (model/native/linalg.c, built by model/linalg.py),
+so it needs the routines' addresses, not Python wrappers. ``import scipy.linalg`` costs 0.17-0.3 s of a command-line call's start-up
 (issue 12 item 5), so the first source is the OpenBLAS that numpy's wheel already loaded (``numpy.libs``:
 64-bit integers, symbols ``scipy_<name>64_``); the second is scipy's own (``scipy.linalg.cython_lapack`` and
 ``cython_blas`` export their routines' pointers, 32-bit integers). Each source is accepted only after a
@@ -18,7 +18,8 @@ import os
 
 __all__ = ["Routines", "routines", "NAMES"]
 
-#: The routines the compiled drivers call, in the order of their pointer table.
+#: The routines the compiled drivers call, in the order of their pointer table (model/native/linalg.c indexes it
+#: by an enum of these names, :func:`model.linalg.source_definitions`).
 NAMES = ("dpotrf", "dtrsm", "dsygst", "dsytrd", "dstemr", "dormtr", "dtrtrs", "dgetrf", "dgetrs", "dgbtrf", "dgbtrs",
          "dpbtrf", "dgemv")
 _BLAS = {"dtrsm", "dgemv"}

@@ -1,0 +1,77 @@
+"""The C sources of the compiled routes (model/native/*.c, package data): each compiles without a warning under
+``-Wall -Wextra -Werror`` with what its builder defines in front of it, and the slot tables C indexes by name are
+generated from their one Python list (model.kernels.c_enum)."""
+
+from __future__ import annotations
+
+import subprocess
+
+import pytest
+
+from flexopt.model import kernels, linalg, statics
+from flexopt.model.elements import rotation_update_spec
+
+CC = kernels._compiler()
+needs_cc = pytest.mark.skipif(CC is None, reason="no C compiler (gcc, cc or $CC) to compile model/native with")
+
+
+def _variants() -> dict[str, list[tuple[str, tuple, str]]]:
+    """Every native source with each set of definitions its builder puts in front of it: (label, defines,
+    prelude). The kernel wrapper is compiled alone (its CasADi function declared, not defined)."""
+    return {
+        "assemble.c": [("", (), "")],
+        "kernel_batch.c": [("rot_update", kernels.batch_definitions(rotation_update_spec()), "")],
+        "linalg.c": [(t, *linalg.source_definitions(t)) for t in ("long long", "int")],
+        "newton_point.c": [("", *statics.loop_source_definitions())],
+    }
+
+
+def test_every_native_source_has_its_definitions_here() -> None:
+    """A new file in model/native is compiled by the test below only once it is listed in _variants."""
+    assert sorted(_variants()) == kernels.native_files()
+
+
+@needs_cc
+@pytest.mark.parametrize("file,label,defines,prelude",
+                         [(f, *v) for f, vs in _variants().items() for v in vs],
+                         ids=lambda x: x if isinstance(x, str) else None)
+def test_native_source_compiles_without_warnings(tmp_path, file: str, label: str, defines: tuple,
+                                                 prelude: str) -> None:
+    """gcc (or $CC) with the builds' own flags (model.kernels.FLAGS: ``-Wall -Wextra``) and ``-Werror``, to an
+    object file: a warning fails the test with the compiler's message."""
+    src = tmp_path / file
+    src.write_text(kernels.native_source(file, defines, prelude))
+    flags = [f for f in kernels.FLAGS if f != "-shared"]
+    proc = subprocess.run([CC, *flags, "-Werror", "-c", str(src), "-o", str(tmp_path / "out.o")],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+
+
+def test_flags_ask_for_warnings() -> None:
+    assert {"-Wall", "-Wextra"} <= set(kernels.FLAGS)
+
+
+def test_c_enum_numbers_the_python_list_in_order() -> None:
+    """The enum C indexes the loop's context with: slot i of model.statics.LOOP_SLOTS is enumerator i; names equal
+    up to case, or not C identifiers, are refused (they would collide or not compile)."""
+    text = kernels.c_enum(statics.LOOP_SLOTS, "loop_slot")
+    body = text[text.index("{") + 1 : text.index("}")]
+    assert [x.strip() for x in body.split(",")] == [s.upper() for s in statics.LOOP_SLOTS]
+    with pytest.raises(ValueError):
+        kernels.c_enum(["n", "N"], "bad")
+    with pytest.raises(ValueError):
+        kernels.c_enum(["x-work"], "bad")
+
+
+@needs_cc
+def test_enum_values_seen_by_c_match_the_python_positions(tmp_path) -> None:
+    """Compiled and run: the value of every LOOP_SLOTS enumerator in C is the slot's position in the Python list
+    (what the compiled Newton loop's ctx array is built by)."""
+    prelude = kernels.c_enum(statics.LOOP_SLOTS, "loop_slot")
+    prints = "".join(f'  printf("%d\\n", (int) {s.upper()});\n' for s in statics.LOOP_SLOTS)
+    src = tmp_path / "slots.c"
+    src.write_text(prelude + "#include <stdio.h>\nint main(void) {\n" + prints + "  return 0;\n}\n")
+    exe = tmp_path / "slots"
+    subprocess.run([CC, str(src), "-o", str(exe)], check=True, capture_output=True)
+    out = subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout.split()
+    assert [int(x) for x in out] == list(range(len(statics.LOOP_SLOTS)))
