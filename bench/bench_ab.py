@@ -70,14 +70,13 @@ def _set_routes(systems: list, saved: list | None) -> list:
     if saved is None:
         for s in systems:
             s.eigen_band(True), s.eigen_band(False)  # found before they are switched off
-        saved = [(s._fast, s._fast_update, s._newton_system, dict(s._eigen_band)) for s in systems]
+        saved = [(s.native.switch_off(), dict(s.eigen_bands)) for s in systems]
         for s in systems:
-            s._fast = s._fast_update = s._newton_system = None
-            s._eigen_band.update({True: None, False: None})
+            s.eigen_bands.update({True: None, False: None})
         return saved
-    for s, (fast, upd, ns, band) in zip(systems, saved):
-        s._fast, s._fast_update, s._newton_system = fast, upd, ns
-        s._eigen_band.update(band)
+    for s, (native, band) in zip(systems, saved):
+        s.native.restore(native)
+        s.eigen_bands.update(band)
     return saved
 
 

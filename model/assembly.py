@@ -7,19 +7,26 @@ drive is the single DOF ``structure.drive_dof``.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
 
+from . import linalg
 from .elements import beam_mass_spec, beam_spec, rotation_log_spec, rotation_update_spec, truss_spec
-from .kernels import compiled
+from .kernels import c_enum, compiled
 from .rotations import log_so3, skew, twist_angle, twist_gradient
 from .structure import Structure
 
-__all__ = ["State", "Assembled", "System"]
+__all__ = ["State", "Assembled", "System", "NativeRoute", "MASS_SLOTS"]
 
 _ASSEMBLER: list = []
+
+
+def assemble_source_definitions() -> tuple[tuple, str]:
+    """What model/native/assemble.c needs defined before it: the enum of :data:`MASS_SLOTS` (no defines)."""
+    return (), c_enum(MASS_SLOTS, "mass_slot")
 
 
 def _assembler():
@@ -32,7 +39,7 @@ def _assembler():
         from .kernels import native_library
 
         try:
-            lib = native_library("flexopt_assemble", "assemble.c")
+            lib = native_library("flexopt_assemble", "assemble.c", *assemble_source_definitions())
             fn = lib.assemble
             fn.restype = ctypes.c_int
             fn.argtypes = [ctypes.c_void_p] + [ctypes.c_longlong] * 3 + [ctypes.c_void_p] * 10 \
@@ -106,6 +113,9 @@ class System:
     master's block expressed in the drive basis. Element DOFs are scattered straight into that numbering
     (inactive DOFs go to a dump slot); the driven block is first assembled in global axes in three extra
     slots and then rotated into the drive basis, so no full-size matrix is ever formed.
+
+    Evaluation, mass, update and the Newton loop run in C where they can (:attr:`native`, a :class:`NativeRoute`,
+    owns that route's state); the methods here are the numpy route, with the same numbers.
     """
 
     def __init__(self, structure: Structure) -> None:
@@ -117,17 +127,36 @@ class System:
                              "exact-constraint diagnosis accepts; a frequency curve or equilibrium needs a "
                              "driven coordinate: add a 'stroke'")
         self.s = s
-        n_full = s.n_dof
-        self.n_full = n_full
+        self.n_full = s.n_dof
         self.beam_kernel = compiled(beam_spec()[0]) if s.n_beams else None
         self.truss_kernel = compiled(truss_spec()[0]) if len(s.truss_nodes) else None
-        # --- numbering: active DOFs 0..n-1; the drive block's three global coordinates n..n+2; dump n+3
+        self._number_dofs(s)
+        self._index_elements(s)
+        self._index_constraints(s)
+        self._prepare_mass(s)
+        self._prepare_rotations(s)
+        # caches, made on first use
+        #: :meth:`eigen_band`'s results per drive (``locked``); an entry set to None switches the banded routes off
+        #: (bench/bench_ab.py)
+        self.eigen_bands: dict[bool, tuple[np.ndarray, int] | None] = {}
+        self._pencils: dict[bool, tuple] = {}  # banded_pencil's per drive, with the band each was made for
+        self._proj: np.ndarray | None = None  # support_projector's
+        #: model.statics.path_curvature's upper band storage of the reference stiffness: ``(band, source flat
+        #: indices, target flat indices)`` for the band (:meth:`eigen_band`) it was made for, made there
+        self.curvature_band: tuple | None = None
+        #: the compiled route (model/native): its state, the parts that apply and their C calls
+        self.native = NativeRoute(self)
+
+    def _number_dofs(self, s: Structure) -> None:
+        """Active numbering: active DOFs 0..n-1; the drive block's three global coordinates n..n+2 (staging); a
+        dump slot n+3 for inactive DOFs (``pos``: the extended position of every global DOF), the drive basis,
+        the drive DOF, the free DOFs and the DOF scales."""
         off = 3 if s.drive_kind == "rotation" else 0
         blk_full = np.arange(6 * s.drive_master + off, 6 * s.drive_master + off + 3)
         act_full = np.flatnonzero(s.active)
         n = len(act_full)
         self.n = n
-        pos = np.full(n_full, n + 3)
+        pos = np.full(self.n_full, n + 3)
         pos[act_full] = np.arange(n)
         self.block_active = np.flatnonzero(s.active[blk_full])  # basis coordinates that are active
         self.block_pos = pos[blk_full[self.block_active]]  # their active indices
@@ -154,9 +183,12 @@ class System:
         self.scale[self.block_pos] = s.dof_scale[blk_full[0]]
         self.act_full = act_full
         self.scale_free = self.scale[self.free]
-        N = n + 4
-        self.N = N
-        blocks = np.arange(6)
+        self.N = n + 4
+
+    def _index_elements(self, s: Structure) -> None:
+        """The elements' 12 DOFs (global and extended numbering), their flat indices into the N x N matrices and
+        the kernels' input buffers with the constant columns filled."""
+        blocks, pos, N = np.arange(6), self.pos, self.N
 
         def dofs(nodes: np.ndarray) -> np.ndarray:
             m = s.node_master[nodes]  # (ne, 2)
@@ -173,15 +205,20 @@ class System:
         self.beam_in[:, 30 : 30 + s.beam_const.shape[1]] = s.beam_const
         self.truss_in = np.zeros((nt, 12 + 3 + 1))
         self.truss_in[:, 12:15] = s.truss_const
-        # constraint bookkeeping: multiplier k belongs to (kind, element, mode)
+
+    def _index_constraints(self, s: Structure) -> None:
+        """Constraint bookkeeping: multiplier k belongs to (kind, element, mode)."""
         self.n_con = len(s.constraints)
         cb = s.constraints[s.constraints[:, 0] == 0]
         ct = s.constraints[s.constraints[:, 0] == 1]
         self.con_beam = (np.flatnonzero(s.constraints[:, 0] == 0), cb[:, 1], cb[:, 2])
         self.con_truss = (np.flatnonzero(s.constraints[:, 0] == 1), ct[:, 1])
-        # mass: the translational mass of trusses whose nodes sit on their masters (offset 0) and the
-        # bodies' translational mass are constant; the rest (every beam: its cubic mass follows the end
-        # tangents) is recomputed per state
+
+    def _prepare_mass(self, s: Structure) -> None:
+        """The mass matrix's constant part and the indices of its state-dependent parts. The translational mass of
+        trusses whose nodes sit on their masters (offset 0) and the bodies' translational mass are constant; the
+        rest (every beam: its cubic mass follows the end tangents) is recomputed per state."""
+        N, pos = self.N, self.pos
         self.mcoef = np.array([[2.0, 1.0], [1.0, 2.0]]) / 6.0  # trusses: linear interpolation
         self.beam_mass_kernel = compiled(beam_mass_spec()) if s.n_beams else None
         moved = np.linalg.norm(s.node_offset, axis=1) > 0
@@ -202,51 +239,27 @@ class System:
         const[(N - 1) * (N + 1)] = 0.0
         self._mass_const = const
         rb = pos[6 * np.arange(nm)[:, None] + 3 + np.arange(3)]  # (nm, 3)
-        self._rot_flat = (rb[:, :, None] * N + rb[:, None, :]).ravel()
+        #: flat indices (extended N x N) of each master's 3 x 3 rotation block, masters in order (rotary inertia)
+        self.rot_flat = (rb[:, :, None] * N + rb[:, None, :]).ravel()
         self._has_body_inertia = bool(np.any(s.master_inertia))
-        # masters with an active rotational DOF: the only ones an increment can rotate
+
+    def _prepare_rotations(self, s: Structure) -> None:
+        """The masters an increment can rotate (those with an active rotational DOF), the entries of the chart
+        correction on their rotation blocks (:meth:`chart_correction`), and the compiled Rodrigues update and
+        relative logarithm with their input buffers."""
+        N, nm = self.N, len(s.master_names)
         self._rot_masters = rm = np.flatnonzero(s.active.reshape(nm, 6)[:, 3:].any(axis=1))
         # chart correction C = -1/2 skew(g) of each such master's rotation block: entry (i, j) is
         # sign * g_k / 2 with (i, j, k, sign) below; positions in the extended numbering
-        rp = pos[6 * rm[:, None] + 3 + np.arange(3)]  # (k, 3)
+        rp = self.pos[6 * rm[:, None] + 3 + np.arange(3)]  # (k, 3)
         ijks = ((0, 1, 2, 1.0), (1, 0, 2, -1.0), (0, 2, 1, -1.0), (2, 0, 1, 1.0), (1, 2, 0, 1.0), (2, 1, 0, -1.0))
         self._chart_flat = np.concatenate([rp[:, i] * N + rp[:, j] for i, j, _, _ in ijks])
         self._chart_src = np.concatenate([6 * rm + 3 + k for _, _, k, _ in ijks])
         self._chart_sign = np.repeat([0.5 * sg for _, _, _, sg in ijks], len(rm))
-        # compiled Rodrigues update and relative logarithm of the rotating masters, with input buffers
         self._rot_update = compiled(rotation_update_spec())
         self._rot_log = compiled(rotation_log_spec())
         self._rot_in = np.zeros((len(rm), 12))
         self._log_in = np.zeros((len(rm), 18))
-        # the one-call evaluate, mass and Hessian derivative (model/native/assemble.c): beams only, no rigid
-        # deformations; None: the numpy route. Fixed arrays' addresses are taken once (each ``.ctypes.data``
-        # costs about 1.5 us, which at 17 arguments was a third of a leaf's evaluate).
-        self._fast = None
-        self._d3 = None  # the Hessian derivative's input buffer and its address, made on first use
-        # the compiled Newton system (model.linalg.newton), built on first use by model.statics; False: not
-        # built yet, None: not applicable (the numpy route)
-        self._newton_system = False
-        self._eigen_band: dict[bool, tuple[np.ndarray, int] | None] = {}  # eigen_band's, per drive (locked)
-        asm = _assembler() if (s.n_beams and not len(s.truss_nodes) and not self.n_con
-                               and self.beam_kernel.address is not None) else None
-        if asm is not None:
-            ends = s.beam_nodes.ravel()
-            nc = 30 + s.beam_const.shape[1]
-            self._mass_in = np.zeros((s.n_beams, nc + 1))  # the mass kernel's input: state, constants, mass
-            self._mass_in[:, 30:nc] = s.beam_const
-            self._mass_in[:, nc] = s.beam_mass
-            self._fast_arrays = [np.ascontiguousarray(a, dtype=np.int64) for a in (
-                s.node_master[ends], ends, self.beam_dofs, self.beam_dofs_full, self.beam_flat)]
-            self._fast = (asm[1], *(a.ctypes.data for a in self._fast_arrays))
-            self._beam_in_at, self._mass_in_at = self.beam_in.ctypes.data, self._mass_in.ctypes.data
-        # the compiled update (drive basis of global axes): each global DOF's active index, or -1
-        self._fast_update = None
-        upd = _assembler() if (self.direct and self._rot_update.address is not None) else None
-        if upd is not None:
-            act = np.where(pos < n, pos, -1).astype(np.int64)
-            self._upd_arrays = [act, np.ascontiguousarray(rm, dtype=np.int64), np.zeros((len(rm), 12)),
-                                np.zeros((len(rm), 9))]
-            self._fast_update = (upd[2], self._rot_update.address, *(a.ctypes.data for a in self._upd_arrays))
 
     def pattern(self) -> np.ndarray:
         """Every entry of ``H + chart`` and of the mass matrix (active numbering, n x n, bool) that can be
@@ -257,7 +270,7 @@ class System:
         if not self.direct:
             return np.ones((n, n), dtype=bool)
         P = np.zeros(N * N, dtype=bool)
-        for flat in (self.beam_flat, self.truss_flat, self._chart_flat, self._rot_flat):
+        for flat in (self.beam_flat, self.truss_flat, self._chart_flat, self.rot_flat):
             P[np.asarray(flat, dtype=np.int64).ravel()] = True
         P = P.reshape(N, N)[:n, :n].copy()
         np.fill_diagonal(P, True)
@@ -269,10 +282,8 @@ class System:
         of at most :data:`model.linalg.BAND_FRACTION` of the order), else None. Found once per System. At
         every order where it applies Lanczos was the faster route on the templates, down to the 10-element
         leaf (order 59: 0.22-0.26 against 0.41-0.58 ms a solve)."""
-        cache = self._eigen_band
+        cache = self.eigen_bands
         if locked not in cache:
-            from . import linalg
-
             dofs = self.free if locked else np.arange(self.n)
             out = None
             if self.n_con == 0 and self.direct:
@@ -283,18 +294,16 @@ class System:
             cache[locked] = out
         return cache[locked]
 
-    def banded_pencil(self, locked: bool = True):  # -> linalg.BandedPencil | None
+    def banded_pencil(self, locked: bool = True) -> linalg.BandedPencil | None:
         """The eigen problem's :class:`model.linalg.BandedPencil` (free block of the extended-numbering
         matrices, read in place; :meth:`eigen_band`'s order), made once per drive, or None where
         :meth:`eigen_band` is None."""
         band = self.eigen_band(locked)
         if band is None:
             return None
-        pencils = self.__dict__.setdefault("_pencils", {})
+        pencils = self._pencils
         got = pencils.get(locked)
         if got is None or got[0] is not band:
-            from . import linalg
-
             got = pencils[locked] = (band, linalg.BandedPencil(self.free if locked else np.arange(self.n), self.N,
                                                                 *band))
         return got[1]
@@ -335,13 +344,13 @@ class System:
 
     def support_projector(self) -> np.ndarray:
         """The structure's support-direction projector in active numbering, ``T^T P T`` (cached)."""
-        if getattr(self, "_proj", None) is None:
+        if self._proj is None:
             P = self.s.support_projector
             full = np.kron(np.eye(len(self.s.master_names)), P)
             self._proj = self.from_global(full @ self.to_global(np.eye(self.n)))
         return self._proj
 
-    def _reduce_vec(self, ext: np.ndarray) -> np.ndarray:
+    def reduce_vector(self, ext: np.ndarray) -> np.ndarray:
         """Extended vector (N) -> active numbering: rotate the staged drive block into the basis."""
         n = self.n
         out = ext[:n].copy()
@@ -349,7 +358,7 @@ class System:
             out[self.block_pos] += self.Qa.T @ ext[n : n + 3]
         return out
 
-    def _reduce_mat(self, ext: np.ndarray, rows: bool = True) -> np.ndarray:
+    def reduce_matrix(self, ext: np.ndarray, rows: bool = True) -> np.ndarray:
         """Extended matrix (N x N, or r x N with rows=False) -> active numbering, congruence with T."""
         n, p, Qa = self.n, self.block_pos, self.Qa
         if self.direct:
@@ -366,21 +375,8 @@ class System:
 
     def update(self, st: State, xi: np.ndarray, dlam: np.ndarray | None = None) -> State:
         """New state after the increment ``xi`` (active numbering): x += u, R <- expm(psi) R, exactly."""
-        if self._fast_update is not None and xi.ndim == 1:  # one C call, the same numbers
-            fn, kernel, act, moving, rin, rout = self._fast_update
-            X = np.ascontiguousarray(st.X, dtype=np.float64)
-            R = np.ascontiguousarray(st.R, dtype=np.float64)
-            x = np.ascontiguousarray(xi, dtype=np.float64)
-            Xn, Rn = np.empty(X.shape), np.empty(R.shape)
-            if fn(kernel, len(X), X.ctypes.data, R.ctypes.data, x.ctypes.data, act, moving,
-                  len(self._rot_masters), rin, rout, Xn.ctypes.data, Rn.ctypes.data):
-                from .errors import KernelBuildError
-
-                raise KernelBuildError("the rotation update kernel reported an evaluation error")
-            new = State(Xn, Rn, st.lam.copy())
-            if dlam is not None:
-                new.lam += dlam
-            return new
+        if self.native.update_call is not None and xi.ndim == 1:  # one C call, the same numbers
+            return self.native.update(st, xi, dlam)
         d = self.to_global(xi).reshape(-1, 6)
         R = st.R.copy()
         moving = self._rot_masters
@@ -414,7 +410,10 @@ class System:
         return self.from_global(d.ravel())
 
     # ------------------------------------------------------------ kernels
-    def _fill_inputs(self, st: State) -> None:
+    def fill_inputs(self, st: State) -> None:
+        """Write the state columns (node positions, rotations, offsets; multipliers) of ``st`` into the kernels'
+        input buffers :attr:`beam_in` and :attr:`truss_in` (the numpy route; model.design and model.methods
+        evaluate other kernels on them)."""
         xn, Rn, rn = self.node_states(st)
         s = self.s
         if s.n_beams:
@@ -441,9 +440,9 @@ class System:
     def evaluate(self, st: State) -> Assembled:
         """Gradient, Hessian and constraint rows at ``st`` (one kernel call per element type)."""
         s, N = self.s, self.N
-        if self._fast is not None:
-            return self._evaluate_compiled(st)
-        self._fill_inputs(st)
+        if self.native.assemble_call is not None:
+            return self.native.evaluate(st)
+        self.fill_inputs(st)
         g = np.zeros(N)
         g_full = np.zeros(self.n_full)
         Hflat = np.zeros(N * N)
@@ -472,94 +471,11 @@ class System:
             if len(k):
                 c[k] = e_truss[el]
                 np.add.at(G, (k[:, None], self.truss_dofs[el]), out[el, 157:169])
-        H = self._reduce_mat(Hflat.reshape(N, N))
-        return Assembled(self._reduce_vec(g), H, c, self._reduce_mat(G, rows=False), e_beam, e_truss,
-                         self._chart_correction(g_full))
+        H = self.reduce_matrix(Hflat.reshape(N, N))
+        return Assembled(self.reduce_vector(g), H, c, self.reduce_matrix(G, rows=False), e_beam, e_truss,
+                         self.chart_correction(g_full))
 
-    def _compiled_call(self, st: State, kernel, inputs_at: int, gradient: bool):
-        """Gather the beams' state inputs into the kernel's input buffer (address ``inputs_at``: its state
-        columns are written, the rest kept), run ``kernel`` and scatter its 144-entry block (after a 12-entry
-        gradient when ``gradient``); returns (out, g, g_full, H flat)."""
-        fn, end_master, end_node, dofs, dofs_full, flat = self._fast
-        N, n_full, nb = self.N, self.n_full, self.s.n_beams
-        X = np.ascontiguousarray(st.X, dtype=np.float64)
-        R = np.ascontiguousarray(st.R, dtype=np.float64)
-        r = rotate(R[self.s.node_master], self.s.node_offset)
-        # one new buffer for the outputs (the results keep views of it): one address to take, not four
-        no = nb * kernel.n_out
-        buf = np.empty(no + N + n_full + N * N)
-        b = buf.ctypes.data
-        if fn(kernel.address, nb, kernel.n_in, kernel.n_out, X.ctypes.data, R.ctypes.data, end_master, end_node,
-              r.ctypes.data, inputs_at, b, dofs, dofs_full, flat, N, n_full, b + 8 * no,
-              b + 8 * (no + N), b + 8 * (no + N + n_full), 0 if gradient else -1, 12 if gradient else 0):
-            from .errors import KernelBuildError
-
-            raise KernelBuildError(f"kernel '{kernel.spec.name}' reported an evaluation error")
-        return (buf[:no].reshape(nb, kernel.n_out), buf[no : no + N], buf[no + N : no + N + n_full],
-                buf[no + N + n_full :])
-
-    def _evaluate_compiled(self, st: State) -> Assembled:
-        """:meth:`evaluate` in one C call (beams only, no rigid deformations; same numbers)."""
-        N = self.N
-        out, g, g_full, Hflat = self._compiled_call(st, self.beam_kernel, self._beam_in_at, True)
-        H = self._reduce_mat(Hflat.reshape(N, N))
-        return Assembled(self._reduce_vec(g), H, np.zeros(0), self._reduce_mat(np.zeros((0, N)), rows=False),
-                         out[:, 156:162], np.zeros(0), self._chart_correction(g_full))
-
-    def point_parts(self) -> dict[str, int] | None:
-        """What the compiled Newton loop (model.statics) needs of this system, by name: the addresses of the
-        C ``assemble`` and ``update_state`` (model/native/assemble.c), of the kernels' batch entries, of the
-        fixed index arrays and work buffers, and the sizes. None where :meth:`evaluate` and :meth:`update`
-        do not both run in C (the numpy route). Made once; the arrays stay referenced by the system."""
-        if self._fast is None or self._fast_update is None or self._rot_log.address is None:
-            return None
-        parts = getattr(self, "_point_parts", None)
-        if parts is None:
-            import ctypes
-
-            s, N = self.s, self.N
-            lib = _assembler()[0]
-            fn, end_master, end_node, dofs, dofs_full, flat = self._fast
-            upd, rot_update, act, moving, rin, rout = self._fast_update
-            nm, nmov = len(s.master_names), len(self._rot_masters)
-            keep = [np.ascontiguousarray(s.node_master, dtype=np.int64),
-                    np.ascontiguousarray(s.node_offset, dtype=np.float64),
-                    np.zeros((len(s.node_master), 3)),  # the rotated offsets
-                    np.ascontiguousarray(self._chart_flat, dtype=np.int64),
-                    np.ascontiguousarray(self._chart_src, dtype=np.int64),
-                    np.ascontiguousarray(self._chart_sign, dtype=np.float64),
-                    np.zeros(N * N),  # the chart matrix: its fixed entries rewritten per evaluation, the rest 0
-                    np.zeros((nmov, 18)), np.zeros((nmov, 4)),  # the logarithm kernel's input and output
-                    np.ascontiguousarray(s.master_pos, dtype=np.float64),
-                    np.ascontiguousarray(s.drive_axis, dtype=np.float64)]
-            at = [a.ctypes.data for a in keep]
-            parts = {
-                "assemble": ctypes.cast(lib.assemble, ctypes.c_void_p).value, "kernel": self.beam_kernel.address,
-                "ne": s.n_beams, "n_in": self.beam_kernel.n_in, "n_out": self.beam_kernel.n_out,
-                "end_master": end_master, "end_node": end_node, "kernel_in": self._beam_in_at, "dofs": dofs,
-                "dofs_full": dofs_full, "flat": flat, "n_ext": N, "n_full": self.n_full,
-                "node_master": at[0], "node_offset": at[1], "nodes": len(s.node_master), "offsets": at[2],
-                "update": ctypes.cast(lib.update_state, ctypes.c_void_p).value, "rot_update": rot_update,
-                "masters": nm, "act": act, "moving": moving, "nmov": nmov, "rin": rin, "rout": rout,
-                "nchart": len(self._chart_src), "chart_flat": at[3], "chart_src": at[4], "chart_sign": at[5],
-                "chart": at[6], "rot_log": self._rot_log.address, "log_in": at[7], "log_out": at[8],
-                "drive_master": s.drive_master, "kind": 0 if s.drive_kind == "rotation" else 1,
-                "master_pos": at[9], "axis": at[10], "n_act": self.n,
-            }
-            self._point_keep, self._point_parts = keep, parts
-        return parts
-
-    def assembled_at(self, buf: np.ndarray) -> Assembled:
-        """The :class:`Assembled` whose numbers the compiled Newton loop left in ``buf`` (the layout of
-        :meth:`_compiled_call`: kernel outputs, ``g``, ``g_full``, ``H``); the chart matrix is made on first use."""
-        N, n, n_full, nb = self.N, self.n, self.n_full, self.s.n_beams
-        no = nb * self.beam_kernel.n_out
-        g_full = buf[no + N : no + N + n_full]
-        return Assembled(buf[no : no + n], buf[no + N + n_full :].reshape(N, N)[:n, :n], np.zeros(0),
-                         np.zeros((0, n)), buf[:no].reshape(nb, -1)[:, 156:162], np.zeros(0),
-                         lambda: self._chart_correction(g_full))
-
-    def _chart_correction(self, g_full: np.ndarray) -> np.ndarray:
+    def chart_correction(self, g_full: np.ndarray) -> np.ndarray:
         """``-1/2 skew(g_m)`` on each master's rotation block, in active numbering.
 
         The residual is the gradient in the chart at the *current* state, ``r(psi) = d/d delta
@@ -572,7 +488,7 @@ class System:
         """
         N = self.N
         vals = self._chart_sign * g_full[self._chart_src]
-        return self._reduce_mat(np.bincount(self._chart_flat, vals, minlength=N * N).reshape(N, N))
+        return self.reduce_matrix(np.bincount(self._chart_flat, vals, minlength=N * N).reshape(N, N))
 
     def hessian_derivative(self, st: State, v: np.ndarray) -> np.ndarray:
         """Directional derivative of the Hessian along ``v`` (drive basis): the exact third derivative of
@@ -580,15 +496,9 @@ class System:
         N = self.N
         vg = self.to_global(np.asarray(v, dtype=float))
         kernel = compiled(beam_spec()[1])
-        if self._fast is not None and kernel.address is not None:  # one-call gather/kernel/scatter, same numbers
-            if self._d3 is None:  # input: the main kernel's (constants; state columns gathered), then v
-                buf = np.zeros((self.s.n_beams, kernel.n_in))
-                buf[:, : self.beam_in.shape[1]] = self.beam_in
-                self._d3 = (buf, buf.ctypes.data)
-            buf, at = self._d3
-            buf[:, self.beam_in.shape[1] :] = vg[self.beam_dofs_full]
-            return self._reduce_mat(self._compiled_call(st, kernel, at, False)[3].reshape(N, N))
-        self._fill_inputs(st)
+        if self.native.assemble_call is not None and kernel.address is not None:  # one call, the same numbers
+            return self.native.hessian_derivative(st, kernel, vg)
+        self.fill_inputs(st)
         dH = np.zeros(N * N)
         for kernel_spec, inputs, dofs, flat in (
             (beam_spec()[1], self.beam_in, self.beam_dofs_full, self.beam_flat),
@@ -598,7 +508,7 @@ class System:
                 continue
             out = compiled(kernel_spec)(np.hstack([inputs, vg[dofs]]))
             dH += np.bincount(flat, out.ravel(), minlength=N * N)
-        return self._reduce_mat(dH.reshape(N, N))
+        return self.reduce_matrix(dH.reshape(N, N))
 
     def energy(self, st: State) -> float:
         """The Lagrangian at ``st`` from the kernels' deformations (for checks; not used by solvers)."""
@@ -647,18 +557,11 @@ class System:
         psi_dot`` for nodes offset by ``r`` from their master; beam rotary inertia ``rho l0/2 diag(Iy+Iz, Iy, Iz)`` lumped at each end in the element frame,
         rotated with the node; rigid bodies ``diag(m I, R J R^T)`` at their centre of mass.
         """
-        s, N = self.s, self.N
-        ctx = self._mass_context() if self._fast is not None else None
-        if ctx is not None:  # all of it in one C call (mass_matrix), the same numbers
-            out = np.empty(self._mass_size)
-            if _assembler()[0].mass_matrix(ctx, np.ascontiguousarray(st.X, dtype=np.float64).ctypes.data,
-                                           np.ascontiguousarray(st.R, dtype=np.float64).ctypes.data, out.ctypes.data):
-                from .errors import KernelBuildError
-
-                raise KernelBuildError(f"kernel '{self.beam_mass_kernel.spec.name}' reported an evaluation error")
-            return self._reduce_mat(out[self._mass_size - N * N :].reshape(N, N))
-        if self._fast is not None and self.beam_mass_kernel.address is not None:
-            Mflat = self._mass_const + self._compiled_call(st, self.beam_mass_kernel, self._mass_in_at, False)[3]
+        s, N, native = self.s, self.N, self.native
+        if native.mass_context() is not None:  # all of it in one C call (mass_matrix), the same numbers
+            return native.mass(st)
+        if native.assemble_call is not None and self.beam_mass_kernel.address is not None:
+            Mflat = self._mass_const + native.call(st, self.beam_mass_kernel, native.mass_in_at, False)[3]
         else:
             Mflat = self._mass_const.copy()
             if s.n_beams:
@@ -672,39 +575,12 @@ class System:
         np.add.at(Jm, s.node_master, Jn)
         if self._has_body_inertia:
             Jm += rjrt(st.R, s.master_inertia)
-        np.add.at(Mflat, self._rot_flat, Jm.ravel())
-        return self._reduce_mat(Mflat.reshape(N, N))
-
-    def _mass_context(self) -> int | None:
-        """The address of :meth:`mass`'s C context (``mass_matrix``), made once; None where the compiled
-        evaluate does not apply (the numpy route) or the mass has a part it does not compute (trusses)."""
-        ctx = getattr(self, "_mass_ctx", False)
-        if ctx is False:
-            ctx = None
-            if self._fast is not None and self.beam_mass_kernel.address is not None and not self._mvar:
-                s, N = self.s, self.N
-                _, end_master, end_node, dofs, dofs_full, flat = self._fast
-                nm = len(s.master_names)
-                keep = [np.ascontiguousarray(s.node_master, dtype=np.int64),
-                        np.ascontiguousarray(s.node_offset, dtype=np.float64), np.zeros((len(s.node_master), 3)),
-                        np.ascontiguousarray(self._mass_const, dtype=np.float64),
-                        np.ascontiguousarray(s.node_rot_inertia, dtype=np.float64),
-                        np.ascontiguousarray(s.master_inertia, dtype=np.float64),
-                        np.ascontiguousarray(self._rot_flat, dtype=np.int64), np.zeros(9 * nm)]
-                at = [a.ctypes.data for a in keep]
-                k = self.beam_mass_kernel
-                c = np.array([k.address, s.n_beams, k.n_in, k.n_out, end_master, end_node, self._mass_in_at, dofs,
-                              dofs_full, flat, N, self.n_full, at[0], at[1], len(s.node_master), at[2], at[3], at[4],
-                              nm, at[5] if self._has_body_inertia else 0, at[6], at[7]], dtype=np.int64)
-                keep.append(c)
-                self._mass_keep, self._mass_size = keep, s.n_beams * k.n_out + N + self.n_full + N * N
-                ctx = c.ctypes.data
-            self._mass_ctx = ctx
-        return ctx
+        np.add.at(Mflat, self.rot_flat, Jm.ravel())
+        return self.reduce_matrix(Mflat.reshape(N, N))
 
     def beam_mass_blocks(self, st: State) -> np.ndarray:
         """The beams' 12 x 12 translational mass blocks at ``st`` (nb, 144, column-major)."""
-        self._fill_inputs(st)
+        self.fill_inputs(st)
         nc = 30 + self.s.beam_const.shape[1]
         return self.beam_mass_kernel(np.hstack([self.beam_in[:, :nc], self.s.beam_mass[:, None]]))
 
@@ -714,3 +590,274 @@ class System:
         T[..., :3] = np.eye(3)
         T[..., 3:] = -skew(r)
         return np.einsum("e,ab,eaik,ebil->eakbl", mass, self.mcoef, T, T).ravel()
+
+
+#: The slots of the compiled mass's context (``mass_matrix`` of model/native/assemble.c), in order: the one list of
+#: them, which the C source sees as an enum of the same names upper-cased (:func:`assemble_source_definitions`).
+MASS_SLOTS = ("kernel", "ne", "n_in", "n_out", "end_master", "end_node", "kernel_in", "dofs", "dofs_full", "flat",
+              "n_ext", "n_full", "node_master", "node_offset", "nodes", "offsets", "mass_const", "node_inertia",
+              "masters", "body_inertia", "rot_flat", "inertia_work")
+
+
+class NativeRoute:
+    """The compiled route of one :class:`System`: the C of model/native that evaluates, updates and solves its
+    states in one call each, with the same numbers as the numpy route (tests/test_linalg.py compares them bit for
+    bit). It owns that route's state: which parts apply, their fixed arrays with the addresses taken once (each
+    ``.ctypes.data`` costs about 1.5 us, which at 17 arguments was a third of a leaf's evaluate), and what is
+    built on first use. A part that is None runs in numpy: no C compiler, trusses, rigid deformations, or a drive
+    basis not made of global axes.
+
+    Attributes
+    ----------
+    assemble_call
+        ``(assemble, end_master, end_node, dofs, dofs_full, flat)``: the C ``assemble`` (model/native/assemble.c)
+        and the addresses of the beams' end masters, end nodes, DOFs (extended, global) and flat matrix indices;
+        None where :meth:`System.evaluate`, :meth:`System.mass` and :meth:`System.hessian_derivative` run in
+        numpy (applies to beams only, without rigid deformations).
+    update_call
+        ``(update_state, rodrigues, act, moving, rin, rout)``: the C ``update_state``, the compiled Rodrigues
+        kernel's batch entry and the addresses of each global DOF's active index (-1: not active), the rotating
+        masters and the kernel's buffers; None where :meth:`System.update` runs in numpy (a drive basis not made
+        of global axes).
+    point_loop
+        model.statics' compiled Newton loop of this system, built there on first use (``False``: not built yet;
+        None: not applicable).
+    """
+
+    def __init__(self, sys: System) -> None:
+        self.sys = sys
+        s = sys.s
+        self.assemble_call: tuple | None = None
+        self.update_call: tuple | None = None
+        self.point_loop: object = False
+        self._newton: linalg.NewtonSystem | None | bool = False  # newton_system's; False: not built yet
+        self._d3: tuple[np.ndarray, int] | None = None  # hessian_derivative's input buffer and its address
+        self._parts: dict[str, int] | None = None  # point_parts'
+        self._mass_ctx: int | None | bool = False  # mass_context's; False: not made yet
+        self._keep: dict[str, list] = {}  # arrays whose addresses the contexts hold, by context
+        self.mass_in: np.ndarray | None = None  # the mass kernel's input buffer (state, constants, mass)
+        self.beam_in_at = self.mass_in_at = 0  # addresses of System.beam_in and mass_in
+        self.mass_size = 0  # doubles of the compiled mass's output (kernel outputs, g, g_full, M)
+        asm = _assembler() if (s.n_beams and not len(s.truss_nodes) and not sys.n_con
+                               and sys.beam_kernel.address is not None) else None
+        if asm is not None:
+            ends = s.beam_nodes.ravel()
+            nc = 30 + s.beam_const.shape[1]
+            self.mass_in = np.zeros((s.n_beams, nc + 1))  # the mass kernel's input: state, constants, mass
+            self.mass_in[:, 30:nc] = s.beam_const
+            self.mass_in[:, nc] = s.beam_mass
+            self._keep["assemble"] = arrays = [np.ascontiguousarray(a, dtype=np.int64) for a in (
+                s.node_master[ends], ends, sys.beam_dofs, sys.beam_dofs_full, sys.beam_flat)]
+            self.assemble_call = (asm[1], *(a.ctypes.data for a in arrays))
+            self.beam_in_at, self.mass_in_at = sys.beam_in.ctypes.data, self.mass_in.ctypes.data
+        upd = _assembler() if (sys.direct and sys._rot_update.address is not None) else None
+        if upd is not None:
+            rm = sys._rot_masters
+            act = np.where(sys.pos < sys.n, sys.pos, -1).astype(np.int64)
+            self._keep["update"] = arrays = [act, np.ascontiguousarray(rm, dtype=np.int64), np.zeros((len(rm), 12)),
+                                             np.zeros((len(rm), 9))]
+            self.update_call = (upd[2], sys._rot_update.address, *(a.ctypes.data for a in arrays))
+
+    # ------------------------------------------------------------ switches
+    def switch_off(self) -> tuple:
+        """Switch every compiled part off (the numpy routes run, for comparisons); returns what :meth:`restore`
+        takes to switch them back on."""
+        saved = (self.assemble_call, self.update_call, self._newton, self.point_loop)
+        self.assemble_call = self.update_call = self._newton = self.point_loop = None
+        return saved
+
+    def restore(self, saved: tuple) -> None:
+        """Switch the compiled parts back on as :meth:`switch_off` left them."""
+        self.assemble_call, self.update_call, self._newton, self.point_loop = saved
+
+    @contextmanager
+    def off(self) -> Iterator[None]:
+        """Within the block every compiled part is off (:meth:`switch_off`); on again after it."""
+        saved = self.switch_off()
+        try:
+            yield
+        finally:
+            self.restore(saved)
+
+    # ------------------------------------------------------------ evaluate
+    def call(self, st: State, kernel, inputs_at: int, gradient: bool):
+        """Gather the beams' state inputs into the kernel's input buffer (address ``inputs_at``: its state
+        columns are written, the rest kept), run ``kernel`` and scatter its 144-entry block (after a 12-entry
+        gradient when ``gradient``); returns (out, g, g_full, H flat)."""
+        sys = self.sys
+        fn, end_master, end_node, dofs, dofs_full, flat = self.assemble_call
+        N, n_full, nb = sys.N, sys.n_full, sys.s.n_beams
+        X = np.ascontiguousarray(st.X, dtype=np.float64)
+        R = np.ascontiguousarray(st.R, dtype=np.float64)
+        r = rotate(R[sys.s.node_master], sys.s.node_offset)
+        # one new buffer for the outputs (the results keep views of it): one address to take, not four
+        no = nb * kernel.n_out
+        buf = np.empty(no + N + n_full + N * N)
+        b = buf.ctypes.data
+        if fn(kernel.address, nb, kernel.n_in, kernel.n_out, X.ctypes.data, R.ctypes.data, end_master, end_node,
+              r.ctypes.data, inputs_at, b, dofs, dofs_full, flat, N, n_full, b + 8 * no,
+              b + 8 * (no + N), b + 8 * (no + N + n_full), 0 if gradient else -1, 12 if gradient else 0):
+            from .errors import KernelBuildError
+
+            raise KernelBuildError(f"kernel '{kernel.spec.name}' reported an evaluation error")
+        return (buf[:no].reshape(nb, kernel.n_out), buf[no : no + N], buf[no + N : no + N + n_full],
+                buf[no + N + n_full :])
+
+    def evaluate(self, st: State) -> Assembled:
+        """:meth:`System.evaluate` in one C call (beams only, no rigid deformations; same numbers)."""
+        sys = self.sys
+        N = sys.N
+        out, g, g_full, Hflat = self.call(st, sys.beam_kernel, self.beam_in_at, True)
+        H = sys.reduce_matrix(Hflat.reshape(N, N))
+        return Assembled(sys.reduce_vector(g), H, np.zeros(0), sys.reduce_matrix(np.zeros((0, N)), rows=False),
+                         out[:, 156:162], np.zeros(0), sys.chart_correction(g_full))
+
+    def hessian_derivative(self, st: State, kernel, vg: np.ndarray) -> np.ndarray:
+        """:meth:`System.hessian_derivative` in one C call through the compiled third-derivative ``kernel``, the
+        direction in global axes ``vg`` (same numbers)."""
+        sys = self.sys
+        if self._d3 is None:  # input: the main kernel's (constants; state columns gathered), then v
+            buf = np.zeros((sys.s.n_beams, kernel.n_in))
+            buf[:, : sys.beam_in.shape[1]] = sys.beam_in
+            self._d3 = (buf, buf.ctypes.data)
+        buf, at = self._d3
+        buf[:, sys.beam_in.shape[1] :] = vg[sys.beam_dofs_full]
+        return sys.reduce_matrix(self.call(st, kernel, at, False)[3].reshape(sys.N, sys.N))
+
+    def update(self, st: State, xi: np.ndarray, dlam: np.ndarray | None = None) -> State:
+        """:meth:`System.update` of a vector ``xi`` in one C call (same numbers)."""
+        fn, kernel, act, moving, rin, rout = self.update_call
+        X = np.ascontiguousarray(st.X, dtype=np.float64)
+        R = np.ascontiguousarray(st.R, dtype=np.float64)
+        x = np.ascontiguousarray(xi, dtype=np.float64)
+        Xn, Rn = np.empty(X.shape), np.empty(R.shape)
+        if fn(kernel, len(X), X.ctypes.data, R.ctypes.data, x.ctypes.data, act, moving,
+              len(self.sys._rot_masters), rin, rout, Xn.ctypes.data, Rn.ctypes.data):
+            from .errors import KernelBuildError
+
+            raise KernelBuildError("the rotation update kernel reported an evaluation error")
+        new = State(Xn, Rn, st.lam.copy())
+        if dlam is not None:
+            new.lam += dlam
+        return new
+
+    # ---------------------------------------------------------------- mass
+    def mass_context(self) -> int | None:
+        """The address of the compiled mass's context (``mass_matrix``, one slot per :data:`MASS_SLOTS`), made
+        once; None where the compiled evaluate does not apply (the numpy route) or the mass has a part it does
+        not compute (trusses)."""
+        if self.assemble_call is None:  # not applicable, or switched off (the cached context stays for later)
+            return None
+        if self._mass_ctx is False:
+            sys = self.sys
+            ctx = None
+            if self.assemble_call is not None and sys.beam_mass_kernel.address is not None and not sys._mvar:
+                s, N = sys.s, sys.N
+                _, end_master, end_node, dofs, dofs_full, flat = self.assemble_call
+                keep = [np.ascontiguousarray(s.node_master, dtype=np.int64),
+                        np.ascontiguousarray(s.node_offset, dtype=np.float64), np.zeros((len(s.node_master), 3)),
+                        np.ascontiguousarray(sys._mass_const, dtype=np.float64),
+                        np.ascontiguousarray(s.node_rot_inertia, dtype=np.float64),
+                        np.ascontiguousarray(s.master_inertia, dtype=np.float64),
+                        np.ascontiguousarray(sys.rot_flat, dtype=np.int64), np.zeros(9 * len(s.master_names))]
+                at = [a.ctypes.data for a in keep]
+                k = sys.beam_mass_kernel
+                slots = {"kernel": k.address, "ne": s.n_beams, "n_in": k.n_in, "n_out": k.n_out,
+                         "end_master": end_master, "end_node": end_node, "kernel_in": self.mass_in_at, "dofs": dofs,
+                         "dofs_full": dofs_full, "flat": flat, "n_ext": N, "n_full": sys.n_full,
+                         "node_master": at[0], "node_offset": at[1], "nodes": len(s.node_master), "offsets": at[2],
+                         "mass_const": at[3], "node_inertia": at[4], "masters": len(s.master_names),
+                         "body_inertia": at[5] if sys._has_body_inertia else 0, "rot_flat": at[6],
+                         "inertia_work": at[7]}
+                if set(slots) != set(MASS_SLOTS):
+                    raise ValueError(f"the mass context has slots {sorted(set(slots) ^ set(MASS_SLOTS))} on one side")
+                c = np.array([slots[name] for name in MASS_SLOTS], dtype=np.int64)
+                keep.append(c)
+                self._keep["mass"] = keep
+                self.mass_size = s.n_beams * k.n_out + N + sys.n_full + N * N
+                ctx = c.ctypes.data
+            self._mass_ctx = ctx
+        return self._mass_ctx
+
+    def mass(self, st: State) -> np.ndarray:
+        """:meth:`System.mass` in one C call (where :meth:`mass_context` is not None; same numbers)."""
+        sys = self.sys
+        N = sys.N
+        out = np.empty(self.mass_size)
+        if _assembler()[0].mass_matrix(self.mass_context(), np.ascontiguousarray(st.X, dtype=np.float64).ctypes.data,
+                                       np.ascontiguousarray(st.R, dtype=np.float64).ctypes.data, out.ctypes.data):
+            from .errors import KernelBuildError
+
+            raise KernelBuildError(f"kernel '{sys.beam_mass_kernel.spec.name}' reported an evaluation error")
+        return sys.reduce_matrix(out[self.mass_size - N * N :].reshape(N, N))
+
+    # ------------------------------------------------------ the Newton loop
+    def newton_system(self) -> linalg.NewtonSystem | None:
+        """The compiled Newton system of this system (:class:`model.linalg.NewtonSystem`, made once), or None where
+        model.statics' numpy route applies: no C driver, rigid deformations, a drive basis that is not made of
+        global axes, or no one-call evaluate."""
+        if self._newton is False:
+            sys = self.sys
+            ns = None
+            if self.assemble_call is not None and sys.direct and sys.n_con == 0 and sys.n > 0:
+                comp = np.argmax(sys.Qa, axis=0)  # the global axis of each active basis column
+                ns = linalg.newton_system(sys.n, sys.drive, 0 if sys.s.drive_kind == "rotation" else 1,
+                                          sys.free, sys.block_pos, comp, np.asarray(sys.s.drive_axis, dtype=float),
+                                          sys.scale, sys.scale_free, pattern=sys.pattern())
+            self._newton = ns
+        return self._newton
+
+    def point_parts(self) -> dict[str, int] | None:
+        """What the compiled Newton loop (model.statics) needs of this system, by the names of
+        :data:`model.statics.LOOP_SLOTS`: the addresses of the C ``assemble`` and ``update_state``
+        (model/native/assemble.c), of the kernels' batch entries, of the fixed index arrays and work buffers, and
+        the sizes. None where :meth:`System.evaluate` and :meth:`System.update` do not both run in C (the numpy
+        route). Made once; the arrays stay referenced here."""
+        sys = self.sys
+        if self.assemble_call is None or self.update_call is None or sys._rot_log.address is None:
+            return None
+        if self._parts is None:
+            import ctypes
+
+            s, N = sys.s, sys.N
+            lib = _assembler()[0]
+            fn, end_master, end_node, dofs, dofs_full, flat = self.assemble_call
+            upd, rot_update, act, moving, rin, rout = self.update_call
+            nm, nmov = len(s.master_names), len(sys._rot_masters)
+            keep = [np.ascontiguousarray(s.node_master, dtype=np.int64),
+                    np.ascontiguousarray(s.node_offset, dtype=np.float64),
+                    np.zeros((len(s.node_master), 3)),  # the rotated offsets
+                    np.ascontiguousarray(sys._chart_flat, dtype=np.int64),
+                    np.ascontiguousarray(sys._chart_src, dtype=np.int64),
+                    np.ascontiguousarray(sys._chart_sign, dtype=np.float64),
+                    np.zeros(N * N),  # the chart matrix: its fixed entries rewritten per evaluation, the rest 0
+                    np.zeros((nmov, 18)), np.zeros((nmov, 4)),  # the logarithm kernel's input and output
+                    np.ascontiguousarray(s.master_pos, dtype=np.float64),
+                    np.ascontiguousarray(s.drive_axis, dtype=np.float64)]
+            at = [a.ctypes.data for a in keep]
+            self._keep["point"] = keep
+            self._parts = {
+                "assemble": ctypes.cast(lib.assemble, ctypes.c_void_p).value, "kernel": sys.beam_kernel.address,
+                "ne": s.n_beams, "n_in": sys.beam_kernel.n_in, "n_out": sys.beam_kernel.n_out,
+                "end_master": end_master, "end_node": end_node, "kernel_in": self.beam_in_at, "dofs": dofs,
+                "dofs_full": dofs_full, "flat": flat, "n_ext": N, "n_full": sys.n_full,
+                "node_master": at[0], "node_offset": at[1], "nodes": len(s.node_master), "offsets": at[2],
+                "update": ctypes.cast(lib.update_state, ctypes.c_void_p).value, "rot_update": rot_update,
+                "masters": nm, "act": act, "moving": moving, "nmov": nmov, "rin": rin, "rout": rout,
+                "nchart": len(sys._chart_src), "chart_flat": at[3], "chart_src": at[4], "chart_sign": at[5],
+                "chart": at[6], "rot_log": sys._rot_log.address, "log_in": at[7], "log_out": at[8],
+                "drive_master": s.drive_master, "kind": 0 if s.drive_kind == "rotation" else 1,
+                "master_pos": at[9], "axis": at[10], "n_act": sys.n,
+            }
+        return self._parts
+
+    def assembled_at(self, buf: np.ndarray) -> Assembled:
+        """The :class:`Assembled` whose numbers the compiled Newton loop left in ``buf`` (the layout of
+        :meth:`call`: kernel outputs, ``g``, ``g_full``, ``H``); the chart matrix is made on first use."""
+        sys = self.sys
+        N, n, n_full, nb = sys.N, sys.n, sys.n_full, sys.s.n_beams
+        no = nb * sys.beam_kernel.n_out
+        g_full = buf[no + N : no + N + n_full]
+        return Assembled(buf[no : no + n], buf[no + N + n_full :].reshape(N, N)[:n, :n], np.zeros(0),
+                         np.zeros((0, n)), buf[:no].reshape(nb, -1)[:, 156:162], np.zeros(0),
+                         lambda: sys.chart_correction(g_full))

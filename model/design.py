@@ -12,7 +12,7 @@ Chain of exact derivatives (no finite differences anywhere):
    exact Jacobian; node positions are linear in the scene's (interior mesh nodes ``p + (q - p) i/n``).
 3. *Structure -> equilibrium.* At an equilibrium ``g(xi, p) = 0`` with the drive prescribed, the implicit
    function theorem gives ``(H + C)_ff dxi_f = -dg_f/dp`` (``C`` the chart term of the exact Newton
-   Jacobian, :meth:`model.assembly.System._chart_correction`), where ``dg/dp`` at a fixed state is the
+   Jacobian, :meth:`model.assembly.System.chart_correction`), where ``dg/dp`` at a fixed state is the
    derivative of the element gradients along the change of their packed inputs (constants, reference
    offsets, supported positions), from :func:`model.elements.beam_input_jvp`.
 4. *Equilibrium -> eigenvalues.* The kernels' inputs are absolute (positions, rotation matrices) and their
@@ -241,7 +241,7 @@ class _Frame:
         self.m = s.node_master
         _, self.Rm, self.r = sys.node_states(st)
         self.p, self.q = s.beam_nodes[:, 0], s.beam_nodes[:, 1]
-        sys._fill_inputs(st)
+        sys.fill_inputs(st)
         self.beam_in = sys.beam_in.copy()
 
 
@@ -282,11 +282,11 @@ def _jvp(fr: _Frame, da_state: np.ndarray, dconst: np.ndarray, hessian: bool = T
     da[:, _el.BEAM_STATE : _el.BEAM_STATE + _el.BEAM_CONST] = dconst
     spec = _el.beam_jvp_spec() if hessian else _el.beam_jvp_gradient_spec()
     out = compiled(spec)(np.hstack([a, da]))
-    g = sys._reduce_vec(np.bincount(sys.beam_dofs.ravel(), out[:, :12].ravel(), minlength=N))
+    g = sys.reduce_vector(np.bincount(sys.beam_dofs.ravel(), out[:, :12].ravel(), minlength=N))
     if not hessian:
         return g, None, None
     H = np.bincount(sys.beam_flat, out[:, 12:156].ravel(), minlength=N * N).reshape(N, N)
-    return g, sys._reduce_mat(H), out[:, 156:162]
+    return g, sys.reduce_matrix(H), out[:, 156:162]
 
 
 def _mass_derivative(fr: _Frame, psi: np.ndarray, d: StructureDerivative) -> np.ndarray:
@@ -314,9 +314,9 @@ def _mass_derivative(fr: _Frame, psi: np.ndarray, d: StructureDerivative) -> np.
     dRb = skew(psi) @ st.R
     dJm += (dRb @ s.master_inertia @ st.R.transpose(0, 2, 1) + st.R @ d.master_inertia @ st.R.transpose(0, 2, 1)
             + st.R @ s.master_inertia @ dRb.transpose(0, 2, 1))
-    np.add.at(out, sys._rot_flat, dJm.ravel())
+    np.add.at(out, sys.rot_flat, dJm.ravel())
     out[(N - 1) * (N + 1)] = 0.0
-    return sys._reduce_mat(out.reshape(N, N))
+    return sys.reduce_matrix(out.reshape(N, N))
 
 
 def _stiffness(k: np.ndarray) -> np.ndarray:

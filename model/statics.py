@@ -102,7 +102,7 @@ def _newton_step(sys: System, ev: Assembled, dd: np.ndarray, rhs_drive: float) -
     """Solve the Newton system for the correction and the path tangent.
 
     The Jacobian of the free rows is ``H + chart`` (the Hessian plus ``-1/2 skew(g)`` on rotation blocks,
-    see ``System._chart_correction``): exact, so Newton converges quadratically even under a large drive
+    see ``System.chart_correction``): exact, so Newton converges quadratically even under a large drive
     moment. Without rigid deformations and with the drive gradient along the drive DOF only (no swing of
     the driven node), the system reduces to the free block (one LU solve, two right-hand sides);
     otherwise an LU solve of the full bordered system. Returns (dxi, dlam, tangent, dlam_ds).
@@ -145,21 +145,6 @@ def _newton_step(sys: System, ev: Assembled, dd: np.ndarray, rhs_drive: float) -
     return sol[:n, 0], sol[n:, 0], sol[:n, 1], sol[n:, 1]
 
 
-def _compiled_system(sys: System) -> "linalg.NewtonSystem | None":
-    """The compiled Newton system of ``sys`` (cached on it), or None where the numpy route applies: no C
-    driver, rigid deformations, a drive basis that is not made of global axes, or no one-call evaluate."""
-    ns = sys._newton_system
-    if ns is False:
-        ns = None
-        if sys._fast is not None and sys.direct and sys.n_con == 0 and sys.n > 0:
-            comp = np.argmax(sys.Qa, axis=0)  # the global axis of each active basis column
-            ns = linalg.newton_system(sys.n, sys.drive, 0 if sys.s.drive_kind == "rotation" else 1,
-                                      sys.free, sys.block_pos, comp, np.asarray(sys.s.drive_axis, dtype=float),
-                                      sys.scale, sys.scale_free, pattern=sys.pattern())
-        sys._newton_system = ns
-    return ns
-
-
 def _compiled_step(sys: System, ns, ev: Assembled, st: State, s_target: float, near: float):
     """:func:`_newton_step`, the drive and :func:`_scaled_residual` in one C call; raises like them."""
     rotation = sys.s.drive_kind == "rotation"
@@ -176,16 +161,17 @@ def _compiled_step(sys: System, ns, ev: Assembled, st: State, s_target: float, n
 
 
 #: One whole Newton solve in C (model/native/newton_point.c: :func:`solve_point`'s loop, with the predictor of
-#: :func:`predict` in front when asked): per iteration the evaluation (model/assembly.py's ``assemble`` through its pointer, the rotated node
-#: offsets of :func:`model.assembly.rotate` and the chart entries of ``System._chart_correction``), the Newton
-#: system (model.linalg's ``newton``), the convergence tests of :func:`solve_point` in its order and the update
-#: (``update_state``). The same operations in the same order as the Python loop over the compiled steps, so the
-#: same numbers to the bit (tests/test_linalg.py); what it saves is the Python between them: at the templates'
-#: sizes the wrappers cost more than the C work of an iteration. ``ctx``: one int64 per slot of this list, in its
-#: order, from :meth:`System.point_parts` and the Newton system: the one list of them, which the C source sees as
-#: an enum of the same names upper-cased (:func:`loop_source_definitions`). Output ``out``: the accepted state ``X`` (3 nm), ``R``
-#: (9 nm), the tangent (n), ``info`` (8: status, iterations, dval, inc, res and two status numbers) and the
-#: assembled numbers (:meth:`System.assembled_at`). Status: 0 converged, 1 the element kernel or 2 the update
+#: :func:`predict` in front when asked): per iteration the evaluation (model/native/assemble.c's ``assemble``
+#: through its pointer, the rotated node offsets of :func:`model.assembly.rotate` and the chart entries of
+#: ``System.chart_correction``), the Newton system (model.linalg's ``newton``), the convergence tests of
+#: :func:`solve_point` in its order and the update (``update_state``). The same operations in the same order as the
+#: Python loop over the compiled steps, so the same numbers to the bit (tests/test_linalg.py); what it saves is the
+#: Python between them: at the templates' sizes the wrappers cost more than the C work of an iteration. ``ctx``:
+#: one int64 per slot of this list, in its order, from :meth:`model.assembly.NativeRoute.point_parts` and the
+#: Newton system: the one list of them, which the C source sees as an enum of the same names upper-cased
+#: (:func:`loop_source_definitions`). Output ``out``: the accepted state ``X`` (3 nm), ``R`` (9 nm), the tangent
+#: (n), ``info`` (8: status, iterations, dval, inc, res and two status numbers) and the assembled numbers
+#: (:meth:`model.assembly.NativeRoute.assembled_at`). Status: 0 converged, 1 the element kernel or 2 the update
 #: kernel reported an error, 3 non-finite residual, 4 singular (LAPACK info, reduced form), 5 non-finite
 #: increment, 6 diverging (inc), 7 not converging (inc, the one two iterations before), 8 no convergence
 #: (inc, res), 9 the predictor met a relative rotation near pi (the caller predicts in Python).
@@ -231,7 +217,7 @@ class _PointLoop:
     def __init__(self, sys: System, ns: "linalg.NewtonSystem", fn) -> None:
         import ctypes
 
-        parts = dict(sys.point_parts())
+        parts = dict(sys.native.point_parts())
         nm, n = parts["masters"], parts["n_act"]
         lib, table, _ = ns.drv
         self.work = [np.empty(6 * nm), np.empty(18 * nm), np.empty(max(n, 1)), np.empty(max(n, 1))]
@@ -268,8 +254,8 @@ class _PointLoop:
             raise _loop_failure(self, int(status), info, opts)
         st = State(out[: 3 * nm].reshape(nm, 3), out[3 * nm : 12 * nm].reshape(nm, 3, 3), np.zeros(0))
         sys = self.sys
-        return Equilibrium(stroke=s_target, state=st, ev=sys.assembled_at(out[12 * nm + n + 8 :]), free=sys.free,
-                           tangent=out[12 * nm : 12 * nm + n], iterations=int(info[1]), residual=float(info[4]),
+        return Equilibrium(stroke=s_target, state=st, ev=sys.native.assembled_at(out[12 * nm + n + 8 :]),
+                           free=sys.free, tangent=out[12 * nm : 12 * nm + n], iterations=int(info[1]), residual=float(info[4]),
                            increment=float(info[3]),
                            extra={"drive_dof": sys.drive, "dlam_ds": np.zeros(0), "at": at})
 
@@ -304,22 +290,22 @@ def _loop_failure(pl: _PointLoop, status: int, info: np.ndarray, opts: NewtonOpt
 
 
 def _point_loop(sys: System, opts: NewtonOptions) -> _PointLoop | None:
-    """The compiled Newton loop of ``sys`` (cached on it), or None where the Python loop applies (no compiled
+    """The compiled Newton loop of ``sys`` (cached on ``sys.native.point_loop``), or None where the Python loop applies (no compiled
     Newton system or evaluate/update, no C compiler, or more than :data:`_LOOP_MAX_ITER` iterations asked)."""
-    if sys._fast is None or sys._fast_update is None:  # the compiled routes switched off (tests, bench_ab.py)
+    native = sys.native
+    if native.assemble_call is None or native.update_call is None:  # the compiled routes switched off (tests, bench)
         return None
     if opts.max_iter > _LOOP_MAX_ITER:
         return None
-    pl = getattr(sys, "_point_loop", False)
-    if pl is False:
+    if native.point_loop is False:
         pl = None
-        ns = _compiled_system(sys)
-        if ns is not None and sys.point_parts() is not None:
+        ns = native.newton_system()
+        if ns is not None and native.point_parts() is not None:
             fn = _loop_function()
             if fn is not None:
                 pl = _PointLoop(sys, ns, fn)
-        sys._point_loop = pl
-    return pl
+        native.point_loop = pl
+    return native.point_loop
 
 
 def _advance(sys: System, cur: Equilibrium, ds: float, prev: Equilibrium | None, curvature: np.ndarray | None,
@@ -373,7 +359,7 @@ def solve_point(
     st = start
     inc = res = float("nan")
     incs: list[float] = []  # the increments of the iterations so far
-    ns = _compiled_system(sys)
+    ns = sys.native.newton_system()
     for it in range(opts.max_iter + 1):
         ev = sys.evaluate(st)
         if ns is not None:  # the same system and numbers in one C call (model.linalg.newton)
@@ -438,12 +424,12 @@ def path_curvature(sys: System, eq: Equilibrium) -> np.ndarray:
 
         perm, kd = band
         m = len(perm)
-        got = sys.__dict__.get("_curvature_band")
+        got = sys.curvature_band
         if got is None or got[0] is not band:  # upper band storage ab[kd - u, j] = K[perm[j - u], perm[j]]
             j, u = np.meshgrid(np.arange(m), np.arange(kd + 1))
             ok = j - u >= 0
             src = perm[(j - u)[ok]] * m + perm[j[ok]]  # flat index into K (free order)
-            got = sys.__dict__["_curvature_band"] = (band, src, ((kd - u) * m + j)[ok])
+            got = sys.curvature_band = (band, src, ((kd - u) * m + j)[ok])
         ab = np.zeros((kd + 1, m))
         ab.flat[got[2]] = K.flat[got[1]]
         try:

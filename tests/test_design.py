@@ -119,7 +119,7 @@ def test_gradient_only_jvp_kernel_equals_the_full_kernel() -> None:
     rng = np.random.default_rng(3)
     full, grad = compiled(el.beam_jvp_spec()), compiled(el.beam_jvp_gradient_spec())
     sys_ = Analysis(template("cross-spring-pivot")).system
-    sys_._fill_inputs(sys_.reference_state())
+    sys_.fill_inputs(sys_.reference_state())
     a = np.hstack([sys_.beam_in, rng.standard_normal(sys_.beam_in.shape)])
     assert np.array_equal(grad(a), full(a)[:, :12])
     assert np.abs(grad(a)).max() > 0

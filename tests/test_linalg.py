@@ -112,17 +112,13 @@ def test_compiled_assembly_equals_numpy_route_bit_for_bit(name: str) -> None:
     from flexopt.model.statics import NewtonOptions, solve_point
 
     sys_ = Analysis(template(name)).system
-    assert sys_._fast is not None  # beams only, no rigid deformations: the compiled route applies
+    assert sys_.native.assemble_call is not None  # beams only, no rigid deformations: the compiled route applies
     eq = solve_point(sys_, sys_.reference_state(), 0.0, NewtonOptions(), 0.0)
     st = sys_.update(eq.state, 0.05 * eq.tangent / max(abs(eq.tangent).max(), 1e-300) * sys_.scale)
     step = np.random.default_rng(0).standard_normal(sys_.n) * 0.1 * sys_.scale  # an update rotating every master
     fast = sys_.evaluate(st), sys_.mass(st), sys_.update(st, step), sys_.hessian_derivative(st, step)
-    saved = sys_._fast, sys_._fast_update
-    sys_._fast = sys_._fast_update = None
-    try:
+    with sys_.native.off():
         slow = sys_.evaluate(st), sys_.mass(st), sys_.update(st, step), sys_.hessian_derivative(st, step)
-    finally:
-        sys_._fast, sys_._fast_update = saved
     assert np.array_equal(fast[2].X, slow[2].X) and np.array_equal(fast[2].R, slow[2].R)
     assert np.array_equal(fast[3], slow[3]) and np.abs(fast[3]).max() > 0
     for field in ("g", "H", "c", "G", "e_beam", "e_truss", "chart"):
@@ -297,10 +293,10 @@ def test_compiled_newton_system_reports_a_singular_tangent() -> None:
     """A singular tangent (here: the stiffness of a leaf scaled to zero) raises StepFailure naming LAPACK's
     info, as the numpy route's LinAlgError does."""
     from flexopt.model import Analysis, template
-    from flexopt.model.statics import StepFailure, _compiled_step, _compiled_system
+    from flexopt.model.statics import StepFailure, _compiled_step
 
     sys_ = Analysis(template("leaf-spring")).system
-    ns = _compiled_system(sys_)
+    ns = sys_.native.newton_system()
     st = sys_.reference_state()
     ev = sys_.evaluate(st)
     ev.H[:] = 0.0
@@ -330,11 +326,11 @@ def test_compiled_newton_loop_equals_the_python_loop_bit_for_bit(name: str) -> N
         return got
 
     fast = points()
-    saved, sys_._point_loop = sys_._point_loop, None
+    saved, sys_.native.point_loop = sys_.native.point_loop, None
     try:
         slow = points()
     finally:
-        sys_._point_loop = saved
+        sys_.native.point_loop = saved
     assert "at" in fast[-1].extra and "at" not in slow[-1].extra  # each route ran
     for a, b in zip(fast, slow):
         assert a.iterations == b.iterations and a.residual == b.residual and a.increment == b.increment
@@ -366,16 +362,16 @@ def test_compiled_newton_loop_fails_like_the_python_loop(name: str) -> None:
     for start, target, opts in cases:
         out = []
         for loop in (True, False):
-            saved = sys_._point_loop
+            saved = sys_.native.point_loop
             if not loop:
-                sys_._point_loop = None
+                sys_.native.point_loop = None
             try:
                 eq = solve_point(sys_, start, target, opts, 0.0)
                 out.append(("converged", eq.iterations, eq.state.X.tobytes()))
             except StepFailure as exc:
                 out.append(("failed", str(exc)))
             finally:
-                sys_._point_loop = saved
+                sys_.native.point_loop = saved
         assert out[0] == out[1], (target, opts.max_iter)
         messages.add(out[0][1].split(" (")[0] if out[0][0] == "failed" else "converged")
     # a non-finite state and at least one of Newton's exits (over the four templates: no convergence, not
@@ -433,7 +429,8 @@ with warnings.catch_warnings(record=True) as w:
     an = Analysis(template("cross-spring-pivot"))
     c = an.frequency_curve(np.linspace(-45, 45, 7))
 s = an.system
-print(json.dumps({"off": [s._fast is None, s._fast_update is None, s._newton_system is None],
+print(json.dumps({"off": [s.native.assemble_call is None, s.native.update_call is None,
+                          s.native.newton_system() is None],
                   "warned": any(type(x.message).__name__ == "KernelPerformanceWarning" for x in w),
                   "hz": c.parasitic_hz.tolist()}))
 """

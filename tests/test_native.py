@@ -8,7 +8,7 @@ import subprocess
 
 import pytest
 
-from flexopt.model import kernels, linalg, statics
+from flexopt.model import assembly, kernels, linalg, statics
 from flexopt.model.elements import rotation_update_spec
 
 CC = kernels._compiler()
@@ -19,7 +19,7 @@ def _variants() -> dict[str, list[tuple[str, tuple, str]]]:
     """Every native source with each set of definitions its builder puts in front of it: (label, defines,
     prelude). The kernel wrapper is compiled alone (its CasADi function declared, not defined)."""
     return {
-        "assemble.c": [("", (), "")],
+        "assemble.c": [("", *assembly.assemble_source_definitions())],
         "kernel_batch.c": [("rot_update", kernels.batch_definitions(rotation_update_spec()), "")],
         "linalg.c": [(t, *linalg.source_definitions(t)) for t in ("long long", "int")],
         "newton_point.c": [("", *statics.loop_source_definitions())],
@@ -43,7 +43,7 @@ def test_native_source_compiles_without_warnings(tmp_path, file: str, label: str
     src.write_text(kernels.native_source(file, defines, prelude))
     flags = [f for f in kernels.FLAGS if f != "-shared"]
     proc = subprocess.run([CC, *flags, "-Werror", "-c", str(src), "-o", str(tmp_path / "out.o")],
-                          capture_output=True, text=True)
+                          capture_output=True, text=True, check=False)
     assert proc.returncode == 0, proc.stderr
 
 
@@ -51,12 +51,14 @@ def test_flags_ask_for_warnings() -> None:
     assert {"-Wall", "-Wextra"} <= set(kernels.FLAGS)
 
 
-def test_c_enum_numbers_the_python_list_in_order() -> None:
-    """The enum C indexes the loop's context with: slot i of model.statics.LOOP_SLOTS is enumerator i; names equal
-    up to case, or not C identifiers, are refused (they would collide or not compile)."""
-    text = kernels.c_enum(statics.LOOP_SLOTS, "loop_slot")
+@pytest.mark.parametrize("slots", [statics.LOOP_SLOTS, assembly.MASS_SLOTS], ids=["loop", "mass"])
+def test_c_enum_numbers_the_python_list_in_order(slots: tuple) -> None:
+    """The enums C indexes the Newton loop's and the mass's contexts with: slot i of model.statics.LOOP_SLOTS
+    (model.assembly.MASS_SLOTS) is enumerator i; names equal up to case, or not C identifiers, are refused (they
+    would collide or not compile)."""
+    text = kernels.c_enum(slots, "slot")
     body = text[text.index("{") + 1 : text.index("}")]
-    assert [x.strip() for x in body.split(",")] == [s.upper() for s in statics.LOOP_SLOTS]
+    assert [x.strip() for x in body.split(",")] == [s.upper() for s in slots]
     with pytest.raises(ValueError):
         kernels.c_enum(["n", "N"], "bad")
     with pytest.raises(ValueError):
@@ -64,14 +66,15 @@ def test_c_enum_numbers_the_python_list_in_order() -> None:
 
 
 @needs_cc
-def test_enum_values_seen_by_c_match_the_python_positions(tmp_path) -> None:
-    """Compiled and run: the value of every LOOP_SLOTS enumerator in C is the slot's position in the Python list
-    (what the compiled Newton loop's ctx array is built by)."""
-    prelude = kernels.c_enum(statics.LOOP_SLOTS, "loop_slot")
-    prints = "".join(f'  printf("%d\\n", (int) {s.upper()});\n' for s in statics.LOOP_SLOTS)
+@pytest.mark.parametrize("slots", [statics.LOOP_SLOTS, assembly.MASS_SLOTS], ids=["loop", "mass"])
+def test_enum_values_seen_by_c_match_the_python_positions(tmp_path, slots: tuple) -> None:
+    """Compiled and run: the value of every slot's enumerator in C is the slot's position in the Python list (what
+    the compiled Newton loop's and mass's context arrays are built by)."""
+    prelude = kernels.c_enum(slots, "slot")
+    prints = "".join(f'  printf("%d\\n", (int) {s.upper()});\n' for s in slots)
     src = tmp_path / "slots.c"
     src.write_text(prelude + "#include <stdio.h>\nint main(void) {\n" + prints + "  return 0;\n}\n")
     exe = tmp_path / "slots"
     subprocess.run([CC, str(src), "-o", str(exe)], check=True, capture_output=True)
     out = subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout.split()
-    assert [int(x) for x in out] == list(range(len(statics.LOOP_SLOTS)))
+    assert [int(x) for x in out] == list(range(len(slots)))

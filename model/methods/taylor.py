@@ -83,7 +83,7 @@ def hessian_second_derivative(sys: System, st: State, v: np.ndarray) -> np.ndarr
     ``v`` (active numbering, drive basis); the companion of :meth:`System.hessian_derivative`.
     """
     N = sys.N
-    sys._fill_inputs(st)
+    sys.fill_inputs(st)
     vg = sys.to_global(np.asarray(v, dtype=float))
     out = np.zeros(N * N)
     for fn, inputs, dofs, flat in ((_el.beam_d4, sys.beam_in, sys.beam_dofs_full, sys.beam_flat),
@@ -93,7 +93,7 @@ def hessian_second_derivative(sys: System, st: State, v: np.ndarray) -> np.ndarr
         arg = np.hstack([inputs, vg[dofs]])
         res = np.asarray(fn().map(arg.shape[0])(arg.T)).T  # (ne, 144), column-major blocks
         out += np.bincount(flat, res.ravel(), minlength=N * N)
-    return sys._reduce_mat(out.reshape(N, N))
+    return sys.reduce_matrix(out.reshape(N, N))
 
 
 #: Inverse Vandermonde matrix of the nodes -2..2: Taylor coefficients of the quartic through five values.

@@ -4,7 +4,8 @@
    g_full and H in the order numpy.bincount adds them, so the numbers are the same to the last bit
    (tests/test_linalg.py compares both routes). The beams' consistent mass (mass_matrix) and the Hessian's
    directional derivative go the same way (no gradient, g_off < 0; their 144 outputs from h_off = 0);
-   update_state is System.update. Built by model.assembly (no definitions before this source). */
+   update_state is System.update. model.assembly defines before this source the enum of MASS_SLOTS, the slots of
+   mass_matrix's context c (slot KERNEL is MASS_SLOTS' "kernel", and so on). */
 #include <string.h>
 typedef int (*batch_t)(long long, const double*, double*);
 int assemble(void* kernel, long long ne, long long n_in, long long n_out, const double* X, const double* R,
@@ -50,26 +51,26 @@ static void rjrt(const double* R, const double* J, double* B) {
       B[3 * i + j] = A[3 * i] * R[3 * j] + A[3 * i + 1] * R[3 * j + 1] + A[3 * i + 2] * R[3 * j + 2];
 }
 
-/* System.mass in one call (beams only, no rigid deformations; c: System._mass_context): the beams' consistent
-   mass scattered by assemble (no gradient), plus the constant part (const + scatter, as numpy adds them), then
-   each node's and body's rotary inertia R J R^T summed per master in node order (np.add.at's) and added to the
-   masters' rotation blocks at rot_flat in that order. out: the layout of System._compiled_call, the matrix
-   last. The same numbers as the numpy route. */
+/* System.mass in one call (beams only, no rigid deformations; c: one int64 per entry of
+   model.assembly.MASS_SLOTS): the beams' consistent mass scattered by assemble (no gradient), plus the constant
+   part (const + scatter, as numpy adds them), then each node's and body's rotary inertia R J R^T summed per
+   master in node order (np.add.at's) and added to the masters' rotation blocks at rot_flat in that order. out:
+   the layout of NativeRoute.call, the matrix last. The same numbers as the numpy route. */
 int mass_matrix(const long long* c, const double* X, const double* R, double* out) {
-  long long ne = c[1], n_out = c[3], N = c[10], n_full = c[11], nn = c[14], nm = c[18], i, e;
-  const long long* node_master = (const long long*) c[12];
-  const double *off = (const double*) c[13], *Mc = (const double*) c[16], *Jn = (const double*) c[17],
-               *Jb = (const double*) c[19];
-  const long long* rot_flat = (const long long*) c[20];
-  double *r = (double*) c[15], *Jm = (double*) c[21], B[9];
+  long long ne = c[NE], n_out = c[N_OUT], N = c[N_EXT], n_full = c[N_FULL], nn = c[NODES], nm = c[MASTERS], i, e;
+  const long long* node_master = (const long long*) c[NODE_MASTER];
+  const double *off = (const double*) c[NODE_OFFSET], *Mc = (const double*) c[MASS_CONST],
+               *Jn = (const double*) c[NODE_INERTIA], *Jb = (const double*) c[BODY_INERTIA];
+  const long long* rot_flat = (const long long*) c[ROT_FLAT];
+  double *r = (double*) c[OFFSETS], *Jm = (double*) c[INERTIA_WORK], B[9];
   for (i = 0; i < nn; ++i) {  /* model.assembly.rotate */
     const double *Rm = R + 9 * node_master[i], *o = off + 3 * i;
     for (int a = 0; a < 3; ++a) r[3 * i + a] = Rm[3 * a] * o[0] + Rm[3 * a + 1] * o[1] + Rm[3 * a + 2] * o[2];
   }
   double *g = out + ne * n_out, *M = g + N + n_full;
-  if (assemble((void*) c[0], ne, c[2], n_out, X, R, (const long long*) c[4], (const long long*) c[5], r,
-               (double*) c[6], out, (const long long*) c[7], (const long long*) c[8], (const long long*) c[9], N,
-               n_full, g, g + N, M, -1, 0))
+  if (assemble((void*) c[KERNEL], ne, c[N_IN], n_out, X, R, (const long long*) c[END_MASTER],
+               (const long long*) c[END_NODE], r, (double*) c[KERNEL_IN], out, (const long long*) c[DOFS],
+               (const long long*) c[DOFS_FULL], (const long long*) c[FLAT], N, n_full, g, g + N, M, -1, 0))
     return 1;
   for (i = 0; i < N * N; ++i) M[i] = Mc[i] + M[i];
   for (i = 0; i < 9 * nm; ++i) Jm[i] = 0.0;
