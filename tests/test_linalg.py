@@ -307,7 +307,7 @@ def test_compiled_newton_system_reports_a_singular_tangent() -> None:
 
 @pytest.mark.parametrize("name", NEWTON_CASES)
 def test_compiled_newton_loop_equals_the_python_loop_bit_for_bit(name: str) -> None:
-    """model.statics' compiled Newton loop (_LOOP_SOURCE: the predictor, evaluations, Newton systems, convergence
+    """model.statics' compiled Newton loop (model/native/newton_point.c: the predictor, evaluations, Newton systems, convergence
     tests and updates of a whole point in one C call) against the Python loop over the same compiled steps
     (statics.predict, System.evaluate, model.linalg.newton, System.update) along a walk of three steps from the
     reference (tangent predictor, then the cubic one): the same states, tangents, assembled numbers and iteration
