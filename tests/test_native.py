@@ -78,3 +78,43 @@ def test_enum_values_seen_by_c_match_the_python_positions(tmp_path, slots: tuple
     subprocess.run([CC, str(src), "-o", str(exe)], check=True, capture_output=True)
     out = subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout.split()
     assert [int(x) for x in out] == list(range(len(slots)))
+
+
+def test_native_off_switches_every_compiled_part_off(monkeypatch) -> None:
+    """System.native.off(), which the bit-for-bit comparisons of tests/test_linalg.py use to get the numpy routes:
+    inside it no NativeRoute call runs (evaluate, mass, update, Hessian derivative) and the Newton system and loop
+    are not offered; outside it they run again. Checked by counting the calls, so an off() that switched nothing
+    off fails here (the comparisons themselves would then compare the C route with itself and pass)."""
+    import numpy as np
+
+    from flexopt.model import Analysis, template
+    from flexopt.model.assembly import NativeRoute
+    from flexopt.model.statics import _point_loop
+
+    an = Analysis(template("cross-spring-pivot"))
+    sys_ = an.system
+    if sys_.native.assemble_call is None:
+        pytest.skip("no compiled route here (no C compiler)")
+    calls: list[str] = []
+    for name in ("evaluate", "mass", "update", "hessian_derivative", "call"):
+        orig = getattr(NativeRoute, name)
+        monkeypatch.setattr(NativeRoute, name,
+                            lambda self, *a, _orig=orig, _name=name: calls.append(_name) or _orig(self, *a))
+    st = sys_.reference_state()
+    step = np.full(sys_.n, 1e-3)
+
+    def run() -> None:
+        sys_.evaluate(st), sys_.mass(st), sys_.update(st, step), sys_.hessian_derivative(st, step)
+
+    run()
+    assert {"evaluate", "mass", "update", "hessian_derivative"} <= set(calls)
+    assert _point_loop(sys_, an.options) is not None and sys_.native.newton_system() is not None
+    calls.clear()
+    with sys_.native.off():
+        run()
+        assert _point_loop(sys_, an.options) is None and sys_.native.newton_system() is None
+        assert sys_.native.point_parts() is None and sys_.native.mass_context() is None
+    assert calls == []
+    run()
+    assert {"evaluate", "mass", "update", "hessian_derivative"} <= set(calls)
+    assert _point_loop(sys_, an.options) is not None
