@@ -66,7 +66,7 @@ def oracle_curve(an: Analysis, internal: np.ndarray, sides: dict[int, list[float
         hz = hermite._hz(lam)
         par[sel] = np.where(np.array(labels, dtype=object) == "parasitic", hz, np.inf).min(axis=1)
     if len(sides) > 1:
-        par[internal == 0] = an._labels(m0, eq0.tangent)[1]
+        par[internal == 0] = an.label_modes(m0, eq0.tangent)[1]
     return par
 
 

@@ -108,7 +108,7 @@ class Analysis:
         self.system = System(self.structure)
         self.options = options or NewtonOptions()
 
-    def _labels(self, modes: Modes, tangent: np.ndarray | None = None) -> tuple[list[str], float]:
+    def label_modes(self, modes: Modes, tangent: np.ndarray | None = None) -> tuple[list[str], float]:
         """Labels of the modes (``drive``, ``parasitic``, ``intended``) and the first parasitic frequency.
 
         With the drive free, the drive mode is the one that moves the drive coordinate itself: the largest
@@ -323,7 +323,7 @@ class Analysis:
                 if prev[0] is not None:
                     perm = track(prev[0], modes)
                     modes = Modes(modes.omega2[perm], modes.phi[:, perm], modes.M, modes.lanczos)
-                labels, par = self._labels(modes, eq.tangent)
+                labels, par = self.label_modes(modes, eq.tangent)
                 if visit is not None:
                     visit(eq, modes, labels)
                 vm = von_mises(s, self.system, eq)

@@ -88,7 +88,7 @@ def _first_parasitic(an: "Analysis", targets: np.ndarray) -> dict[float, float]:
         modes = last[0] = modes_at(sys, eq, k, drive, last[0])
         if not len(modes.omega2) or not modes.omega2[0] > 0:
             return WalkFailure("unstable", eq.stroke, eq.stroke, "")
-        labels, par = an._labels(modes, eq.tangent)
+        labels, par = an.label_modes(modes, eq.tangent)
         out[float(eq.stroke)] = par if np.isfinite(par) else float(modes.hz[0])
         return None
 

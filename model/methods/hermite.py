@@ -260,7 +260,7 @@ class _Side:
         i = next(j for j, x in enumerate(self.samples) if x.s == a_s)  # the interval [S_i, S_i+1]
         a, b = self.samples[i], self.samples[i + 1]
         smp = self.sample(a, 0.5 * (a_s + b_s), b, slopes=False)
-        smp.labels = self.an._labels(smp.modes, smp.eq.tangent)[0]
+        smp.labels = self.an.label_modes(smp.modes, smp.eq.tangent)[0]
         is_par = np.array(smp.labels) == "parasitic"
         at = np.array(self.labels[i]) == "parasitic"  # the labels of the nearer sample, as interpolate gives
         if not (is_par.any() and at.any()):
@@ -344,8 +344,8 @@ class _Side:
             elif k == 2:
                 smp = full(e)
                 half[0] = smp.s
-                smp.labels, f_half = an._labels(smp.modes, e.tangent)
-                first.labels, f_zero[0] = an._labels(first.modes, first.eq.tangent)  # retrack reuses the labels
+                smp.labels, f_half = an.label_modes(smp.modes, e.tangent)
+                first.labels, f_zero[0] = an.label_modes(first.modes, first.eq.tangent)  # retrack reuses the labels
                 flat[0] = bool(abs(f_half / f_zero[0] - 1) <= SMOOTH)  # False when either is NaN (no parasitic)
                 if flat[0]:
                     self.coarse = {(0.0, float(e.stroke)), (float(e.stroke), float(smax))}
@@ -367,7 +367,7 @@ class _Side:
             raise _Fallback(fail.message)
         if not flat[0]:
             q = self.at(float(quarter[0].stroke))
-            q.labels, f_quarter = an._labels(q.modes, q.eq.tangent)  # retrack reuses the labels
+            q.labels, f_quarter = an.label_modes(q.modes, q.eq.tangent)  # retrack reuses the labels
             if not abs(f_quarter / f_zero[0] - 1) <= STEEP:  # also where either is NaN (no parasitic mode)
                 self.add(self.sample(first, 0.5 * q.s, q))  # Newton from the cubic through 0 and s/4
 
@@ -417,7 +417,7 @@ class _Side:
                 # like the equilibrium path's tangent; a label belongs to a mode, so it is computed once per
                 # sample and follows the mode through the permutation
                 if smp.labels is None:
-                    smp.labels = self.an._labels(m, smp.eq.tangent)[0]
+                    smp.labels = self.an.label_modes(m, smp.eq.tangent)[0]
                 # interpolated variable: mu = 1 / lambda (see module docstring), and its slope
                 hit = self._tracked[key] = (perm, groups, 1.0 / w2, -smp.slope[perm] / w2**2,
                                             [smp.labels[j] for j in perm], match, full)
@@ -823,7 +823,7 @@ def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samp
             s_req = internal[sel]
             if not len(s_req) or np.abs(s_req).max() == 0:
                 if len(s_req):  # only stroke 0 on this side
-                    lab, par0 = an._labels(m0, eq0.tangent)
+                    lab, par0 = an.label_modes(m0, eq0.tangent)
                     hz[sel] = _hz(1.0 / m0.omega2)[:n_rep]
                     labels[sel] = np.array(lab[:n_rep], dtype=object)
                     par[sel] = par0

@@ -69,7 +69,7 @@ def eigen_curve(prep: _Prepared, eta: np.ndarray, reduced: bool, n_rep: int) -> 
             modes = Modes(w[:k], V @ Y[:, :k], Mm)
         else:
             modes = modes_at(sys, _eq_at(sys, st), k, "locked")
-        lab, pz = an._labels(modes)
+        lab, pz = an.label_modes(modes)
         hz[p], labels[p], par[p] = modes.hz[:n_rep], np.array(lab[:n_rep], dtype=object), pz
     return hz, labels, par, drive_dev
 

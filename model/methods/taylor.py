@@ -441,7 +441,7 @@ def modal_derivatives(an: Analysis, eq0: Equilibrium | None = None, n_theta: int
     r = min(len(w), n_theta if n_theta is not None else max(2 * (an.scene.modes + 2), 12))
     theta = np.zeros((sys.n, r))
     theta[f] = -solve((K1 @ phi[:, :r])[f])  # eq. 6: theta_ij = -K^-1 dK/deta_j phi_i
-    labels, _ = an._labels(Modes(w, phi, M))
+    labels, _ = an.label_modes(Modes(w, phi, M))
     return ModalDerivatives(w, phi, M, phi_j, theta_jj, theta, gamma, gamma2, tuple(clusters),
                             tuple(A1s), tuple(A2s), tuple(labels), time.perf_counter() - t0, dyn[:, :r])
 
