@@ -22,6 +22,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 __all__ = [
     "SCENE_FORMAT",
+    "AUTO_START",
     "SCENE_VERSION",
     "MODE_NAMES",
     "Material",
@@ -41,6 +42,10 @@ __all__ = [
     "expand_modes",
     "did_you_mean",
 ]
+
+#: First mesh of a ``segments: "auto"`` beam (model.mesh refines it; model.structure compiles an unresolved
+#: "auto" beam at it).
+AUTO_START = 4
 
 SCENE_FORMAT = "flexopt.scene"
 SCENE_VERSION = 1

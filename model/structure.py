@@ -17,8 +17,7 @@ import numpy as np
 
 from .elements import BEAM_CONST, TRUSS_CONST
 from .errors import ModelSizeError, SceneError
-from .mesh import AUTO_START
-from .scene import Beam, Scene, Truss, expand_modes
+from .scene import AUTO_START, Beam, Scene, Truss, expand_modes
 from .sections import beam_segment, section_properties
 
 __all__ = ["Structure", "compile_scene", "MAX_DOFS"]
@@ -171,7 +170,7 @@ def compile_scene(scene: Scene) -> Structure:  # noqa: C901 - a straight sequenc
         assert isinstance(el, Beam)
         props = section_properties(el.section)
         warping.append(props.warping)
-        n = el.segments if el.segments != "auto" else AUTO_START  # Analysis resolves "auto" (model.mesh)
+        n = el.segments if el.segments != "auto" else AUTO_START  # model.curve resolves "auto" (model.mesh)
         seg = beam_segment(p, q, el.y_axis, props, mat.E, mat.G, mat.density, n)
         E0 = np.array(seg["E0"], dtype=float)
         chain = [node_index[p_name]]

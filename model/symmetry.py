@@ -15,7 +15,7 @@ of the equilibrium at ``s`` is then the equilibrium at ``-s`` (the continuation'
 symmetric reference), with the mass matrix congruent under ``S``: the same natural frequencies, the same
 shares of kinetic energy in the (mapped) support directions, the drive reaction with the opposite sign and
 each member's stresses those of its image member. The frequency curve is even in the stroke, and one side
-gives the other (:meth:`model.analysis.Analysis.frequency_curve`, ``hermite``).
+gives the other (:meth:`model.analysis.MeshAnalysis.exact_curve`, ``hermite``).
 
 Every comparison is exact up to a relative tolerance of :data:`TOL` (positions: of the design's size), and
 any doubt -- an end-specific rigid deformation (eps3..eps6) or warping condition on an element whose image
