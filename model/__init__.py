@@ -1,7 +1,8 @@
 """flexopt.model: SPACAR-style 3D flexure model in CasADi, stroke equilibrium and natural frequencies."""
 
-from .analysis import Analysis, frequency_curve
-from .constraints import ConstraintDiagnosis, diagnose
+from .constraints import ConstraintDiagnosis
+from .curve import Analysis, frequency_curve
+from .diagnosis import diagnose
 from .errors import EquilibriumError, FlexoptError, KernelBuildError, ModelSizeError, SceneError
 from .io import load_scene, scene_from_dict
 from .results import Failure, FrequencyCurve

@@ -18,24 +18,25 @@ from .assembly import System
 from .checks import annotate_curve
 from .elements import von_mises_spec
 from .kernels import compiled
-from .mesh import mesh_error as estimate_mesh_error
-from .mesh import resolve_auto_segments
 from .causes import check_free_motions, check_mass, stiff_axis_drives
 from .modal import Modes, modes_at, participation, track
 from .results import Failure, FrequencyCurve
 from .scene import Scene
-from .errors import EquilibriumError
+from .errors import EquilibriumError, SceneError
 from .statics import Equilibrium, NewtonOptions, StepFailure, WalkFailure, solve_point, walk
 from .structure import Structure, compile_scene
 from .symmetry import StrokeSymmetry, image_indices, one_side, stroke_symmetry
 
-__all__ = ["frequency_curve", "Analysis", "von_mises"]
+__all__ = ["MeshAnalysis", "von_mises", "beam_sigma", "beam_end_stresses", "DRIVE_CONVENTION", "MESH_CONVENTION"]
 
 #: A loss of stability is bracketed by re-walking the failed interval in this many equal steps with the
-#: stability check at each, and the failing step again, ... (Analysis._locate_loss) ...
+#: stability check at each, and the failing step again, ... (MeshAnalysis._locate_loss) ...
 LOSS_SUBSTEPS = 8
 #: ... until the bracket is at most this fraction of the stroke at the loss (or of the first interval).
 LOSS_RESOLUTION = 1e-3
+
+#: What ``conventions["mesh"]`` says of a curve of one given mesh (model.curve states its estimate there).
+MESH_CONVENTION = "one given mesh; no discretisation estimate (model.curve.Analysis estimates it)"
 
 DRIVE_CONVENTION = {
     "rotation": "stroke = twist angle about the fixed drive axis (swing-twist); the actuator exerts a moment "
@@ -96,13 +97,16 @@ class _Point:
     iterations: int
 
 
-class Analysis:
-    """A compiled scene with its kernels, ready to compute curves (reuse it for repeated calls)."""
+class MeshAnalysis:
+    """A compiled scene of one given mesh with its kernels, ready to compute exact curves (reuse it for
+    repeated calls). The public curve pipeline, which resolves ``segments: "auto"`` and estimates the mesh's
+    discretisation error, is :class:`model.curve.Analysis` (``flexopt.model.Analysis``)."""
 
     def __init__(self, scene: Scene, options: NewtonOptions | None = None) -> None:
-        self.auto_note: str | None = None  # what segments 'auto' resolved to (model.mesh)
-        if any(getattr(e, "segments", 1) == "auto" for e in scene.elements):
-            scene, self.auto_note = resolve_auto_segments(scene, options)
+        auto = [e.name for e in scene.elements if getattr(e, "segments", 1) == "auto"]
+        if auto:
+            raise SceneError("elements[].segments", f"beams {', '.join(auto)} have segments 'auto', which one given "
+                             "mesh cannot solve: use flexopt.model.Analysis (model.curve), which resolves them")
         self.scene = scene
         self.structure = compile_scene(scene)
         self.system = System(self.structure)
@@ -261,15 +265,23 @@ class Analysis:
 
     def frequency_curve(
         self, stroke: np.ndarray | None = None, progress: Callable[[int, int], None] | None = None,
-        visit: Callable[[Equilibrium, Modes, list[str]], None] | None = None,
-        mesh_error: bool | None = None, mirror: bool = True,
+        visit: Callable[[Equilibrium, Modes, list[str]], None] | None = None, mirror: bool = True,
     ) -> FrequencyCurve:
-        """The exact frequency curve at ``stroke`` (stroke unit; default: the scene's stroke grid).
+        """The exact frequency curve of this mesh with its checks' warnings and provenance
+        (:func:`model.checks.annotate_curve`); arguments as :meth:`exact_curve`."""
+        curve, _ = self.exact_curve(stroke, progress, visit, mirror)
+        return annotate_curve(curve, self.scene, self.options)  # warnings and provenance (model.checks)
+
+    def exact_curve(
+        self, stroke: np.ndarray | None = None, progress: Callable[[int, int], None] | None = None,
+        visit: Callable[[Equilibrium, Modes, list[str]], None] | None = None, mirror: bool = True,
+    ) -> tuple[FrequencyCurve, dict[float, float]]:
+        """The exact frequency curve at ``stroke`` (stroke unit; default: the scene's stroke grid), before
+        its checks, and the first parasitic frequency at every solved stroke (internal units; the solved
+        side only when mirrored), which the mesh estimate reads (:mod:`model.curve`).
 
         ``visit(eq, modes, labels)``, if given, sees every converged point with its tracked modes and their
-        labels (the design sensitivities of :mod:`model.design` are computed there). ``mesh_error``: estimate
-        the discretisation error (:func:`model.mesh.mesh_error`, about a tenth of the curve's time) into
-        ``FrequencyCurve.mesh_error``; None = unless ``visit`` is given (the optimiser's inner loop).
+        labels (the design sensitivities of :mod:`model.design` are computed there).
         ``mirror``: when the design has a symmetry that reverses the stroke (:attr:`symmetry`), solve the
         side of positive strokes only and give each point at ``-s`` from the one at ``s`` (same frequencies
         and labels, opposite drive reaction, each member's stresses those of its image); the exact curve on
@@ -277,19 +289,36 @@ class Analysis:
         ``visit``, which sees every equilibrium solved.
         """
         t0 = time.perf_counter()
-        s = self.structure
-        spec = s.scene.stroke
+        spec = self.structure.scene.stroke
         values = np.asarray(spec.values() if stroke is None else stroke, dtype=float)
         internal = spec.to_internal(values)
-        n_rep = s.scene.modes
-        k_track = n_rep + 2
         points: dict[float, _Point] = {}
         failures: list[Failure] = []
-        total = len(values)
-        iters = []
-
+        iters: list[int] = []
         # Branch order is the frequency order at stroke 0 on both sides: tracking starts from the modes of
         # the reference equilibrium, so a mirror-symmetric design gives the same branches left and right.
+        eq0, modes0 = self._reference()
+        sym = self.symmetry if (mirror and visit is None) else None
+        if sym is not None:  # one side: every requested |s|; the other side is its image (_mirrored)
+            sides: tuple[np.ndarray, ...] = (one_side(internal),)
+            total = len(sides[0])
+        else:
+            sides = (internal[internal >= 0], internal[internal < 0][::-1])
+            total = len(values)
+        report = None if progress is None else (lambda: progress(len(points), total))
+        for side in sides:
+            if len(side):
+                failures += self._walk_side(side, eq0, modes0, points, iters, visit, report)
+        solved = dict(points)
+        if sym is not None:
+            points, failures = self._mirrored(sym, internal, points, failures)
+        curve = self._curve_record(points, failures, iters, sym if np.any(internal < 0) else None,
+                                   time.perf_counter() - t0)
+        return curve, {k: p.parasitic for k, p in solved.items()}
+
+    def _reference(self) -> tuple[Equilibrium, Modes]:
+        """The checks (:meth:`check`), then the equilibrium at the stress-free reference (stroke 0) and its
+        modes, where continuation and mode tracking start on both sides."""
         self.check()
         try:
             eq0 = solve_point(self.system, self.system.reference_state(), 0.0, self.options, 0.0)
@@ -299,79 +328,80 @@ class Analysis:
                 "singular, so some part moves without deforming anything (a mechanism or an unconnected part); "
                 "support it or connect it to the structure", stroke=0.0,
                 last_converged=float("nan"), reason="divergence") from exc
-        modes0 = modes_at(self.system, eq0, k_track, s.scene.stroke.drive)
-        sym = self.symmetry if (mirror and visit is None) else None
-        if sym is not None:  # one side: every requested |s|; the other side is its image (_mirrored)
-            sides = (one_side(internal),)
-            total = len(sides[0])
-        else:
-            sides = (internal[internal >= 0], internal[internal < 0][::-1])
-        for side in sides:
-            if len(side) == 0:
-                continue
-            prev: list[Modes | None] = [modes0]
-            prev_w2: list[float] = [float(modes0.omega2[0]) if len(modes0.omega2) else float("nan")]
-            last_eq: list[Equilibrium] = [eq0]  # last accepted (converged, stable) equilibrium
-            bad: list[float] = [float("nan")]  # the target at which accept() found an unstable equilibrium
+        s = self.structure
+        return eq0, modes_at(self.system, eq0, s.scene.modes + 2, s.scene.stroke.drive)
 
-            def accept(eq: Equilibrium) -> WalkFailure | None:
-                modes = modes_at(self.system, eq, k_track, s.scene.stroke.drive, prev[0])
-                lowest = float(modes.omega2[0]) if len(modes.omega2) else 1.0
-                if not lowest > 0:  # stop here; _locate_loss confirms and locates it
-                    bad[0] = eq.stroke
-                    return WalkFailure("unstable", eq.stroke, last_eq[0].stroke, "")
-                if prev[0] is not None:
-                    perm = track(prev[0], modes)
-                    modes = Modes(modes.omega2[perm], modes.phi[:, perm], modes.M, modes.lanczos)
-                labels, par = self.label_modes(modes, eq.tangent)
-                if visit is not None:
-                    visit(eq, modes, labels)
-                vm = von_mises(s, self.system, eq)
-                points[eq.stroke] = _Point(eq.stroke, modes.hz[:n_rep].copy(), labels[:n_rep], par,
-                                           eq.drive_reaction, vm, eq.iterations)
-                iters.append(eq.iterations)
-                prev[0], prev_w2[0], last_eq[0] = modes, lowest, eq
-                if progress is not None:
-                    progress(len(points), total)
-                return None
+    def _walk_side(self, side: np.ndarray, eq0: Equilibrium, modes0: Modes, points: dict[float, "_Point"],
+                   iters: list[int], visit: Callable[[Equilibrium, Modes, list[str]], None] | None,
+                   report: Callable[[], None] | None) -> list[Failure]:
+        """Continuation from ``eq0`` through the targets of one side (internal units, ordered away from 0)
+        with tracked modes at every point, into ``points`` (and the Newton iterations into ``iters``); a
+        loss of stability is located (:meth:`_locate_loss`) and ends the side. Returns its failures."""
+        s = self.structure
+        n_rep = s.scene.modes
+        k_track = n_rep + 2
+        drive = s.scene.stroke.drive
+        prev: list[Modes | None] = [modes0]
+        prev_w2: list[float] = [float(modes0.omega2[0]) if len(modes0.omega2) else float("nan")]
+        last_eq: list[Equilibrium] = [eq0]  # last accepted (converged, stable) equilibrium
+        bad: list[float] = [float("nan")]  # the target at which accept() found an unstable equilibrium
 
-            targets = side
-            if targets[0] == 0.0:  # the reference itself: eq0, already solved
-                if accept(eq0) is not None:
-                    failures.append(self._failure(WalkFailure("unstable", 0.0, 0.0, "")))
-                    continue
-                targets = targets[1:]
-            while len(targets):
-                fail = walk(self.system, targets, self.options, accept, start=last_eq[0])
-                if fail is None:
-                    break
-                # the requested stroke the walk could not pass: where accept() found instability, else the
-                # first target beyond the last accepted point
-                target = bad[0] if fail.reason == "unstable" else float(
-                    targets[np.abs(targets) > abs(last_eq[0].stroke)][0])
-                reached = self._locate_loss(last_eq[0], prev_w2[0], target)
-                if isinstance(reached, WalkFailure):
-                    failures.append(self._failure(reached))
-                    break
-                # small steps reach the target on a stable path: the coarse step had landed on another
-                # (unstable) equilibrium branch. Keep the point and go on.
-                accept(reached)
-                targets = targets[np.abs(targets) > abs(target)]
+        def accept(eq: Equilibrium) -> WalkFailure | None:
+            modes = modes_at(self.system, eq, k_track, drive, prev[0])
+            lowest = float(modes.omega2[0]) if len(modes.omega2) else 1.0
+            if not lowest > 0:  # stop here; _locate_loss confirms and locates it
+                bad[0] = eq.stroke
+                return WalkFailure("unstable", eq.stroke, last_eq[0].stroke, "")
+            if prev[0] is not None:
+                perm = track(prev[0], modes)
+                modes = Modes(modes.omega2[perm], modes.phi[:, perm], modes.M, modes.lanczos)
+            labels, par = self.label_modes(modes, eq.tangent)
+            if visit is not None:
+                visit(eq, modes, labels)
+            vm = von_mises(s, self.system, eq)
+            points[eq.stroke] = _Point(eq.stroke, modes.hz[:n_rep].copy(), labels[:n_rep], par,
+                                       eq.drive_reaction, vm, eq.iterations)
+            iters.append(eq.iterations)
+            prev[0], prev_w2[0], last_eq[0] = modes, lowest, eq
+            if report is not None:
+                report()
+            return None
 
-        solved = dict(points)
-        if sym is not None:
-            points, failures = self._mirrored(sym, internal, points, failures)
+        targets = side
+        if targets[0] == 0.0:  # the reference itself: eq0, already solved
+            if accept(eq0) is not None:
+                return [self._failure(WalkFailure("unstable", 0.0, 0.0, ""))]
+            targets = targets[1:]
+        while len(targets):
+            fail = walk(self.system, targets, self.options, accept, start=last_eq[0])
+            if fail is None:
+                break
+            # the requested stroke the walk could not pass: where accept() found instability, else the
+            # first target beyond the last accepted point
+            target = bad[0] if fail.reason == "unstable" else float(
+                targets[np.abs(targets) > abs(last_eq[0].stroke)][0])
+            reached = self._locate_loss(last_eq[0], prev_w2[0], target)
+            if isinstance(reached, WalkFailure):
+                return [self._failure(reached)]
+            # small steps reach the target on a stable path: the coarse step had landed on another
+            # (unstable) equilibrium branch. Keep the point and go on.
+            accept(reached)
+            targets = targets[np.abs(targets) > abs(target)]
+        return []
+
+    def _curve_record(self, points: dict[float, "_Point"], failures: list[Failure], iters: list[int],
+                      sym: StrokeSymmetry | None, seconds: float) -> FrequencyCurve:
+        """The :class:`FrequencyCurve` of the solved ``points`` (internal strokes, both sides), before its
+        checks; ``sym`` the symmetry that mirrored negative strokes, if it did."""
+        s = self.structure
+        spec = s.scene.stroke
         keys = sorted(points)
         pts = [points[k] for k in keys]
-        err = None
-        if (mesh_error if mesh_error is not None else visit is None) and keys:
-            # on a symmetric design the other side's estimate is the same: the solved side only
-            err = estimate_mesh_error(self, np.array(sorted(solved)), {k: p.parasitic for k, p in solved.items()})
         to_unit = np.degrees if spec.resolved_unit == "deg" else (lambda v: np.asarray(v, dtype=float))
         mats = {m.name: m for m in s.scene.materials}
         allow = {e.name: mats[e.material].allowable_stress for e in s.scene.elements}
         k = min((len(p.hz) for p in pts), default=0)
-        curve = FrequencyCurve(
+        return FrequencyCurve(
             scene=s.scene.name,
             method="exact",
             stroke=np.asarray(to_unit(np.array(keys)), dtype=float),
@@ -386,29 +416,26 @@ class Analysis:
             allowable_stress=allow,
             status="complete" if not failures else "truncated",
             failures=tuple(failures),
-            conventions={
-                "drive": DRIVE_CONVENTION[spec.kind],
-                "drive_in_eigen_analysis": spec.drive,
-                "parasitic": "modes with more than half their kinetic energy in the declared support directions"
-                if s.support_projector is not None else "every mode with the drive locked",
-                "warping": ", ".join(f"{n}: {w}" for n, w in zip(s.member_names, s.warping)),
-                "mesh": "mesh_error: Richardson estimate (order 2) from the same analysis on a mesh with half the "
-                "segments per beam, at a few stroke points (model.mesh)"
-                + (f"; {self.auto_note}" if self.auto_note else ""),
-                **({"symmetry": f"negative strokes mirrored from positive ones: {sym.describe()} maps the design "
-                    "onto itself and reverses the stroke (model.symmetry); mirror=False solves both sides"}
-                   if sym is not None and np.any(internal < 0) else {}),
-                "mass": "consistent translational mass of the cubic (Hermite) centre line (Przemieniecki 1968 ch. 11); rotary "
-                "inertia the mean of lumped and consistent (model.elements.beam_mass_spec)",
-            },
-            solver={"tol": self.options.tol, "seconds": time.perf_counter() - t0,
+            conventions=self._conventions(sym),
+            solver={"tol": self.options.tol, "seconds": seconds,
                     "mean_newton_iterations": float(np.mean(iters)) if iters else 0.0},
-            mesh_error=err,
         )
-        return annotate_curve(curve, self.scene, self.options)  # warnings and provenance (model.checks)
 
+    def _conventions(self, sym: StrokeSymmetry | None) -> dict[str, str]:
+        """What the curve's numbers mean (``FrequencyCurve.conventions``)."""
+        s = self.structure
+        spec = s.scene.stroke
+        return {
+            "drive": DRIVE_CONVENTION[spec.kind],
+            "drive_in_eigen_analysis": spec.drive,
+            "parasitic": "modes with more than half their kinetic energy in the declared support directions"
+            if s.support_projector is not None else "every mode with the drive locked",
+            "warping": ", ".join(f"{n}: {w}" for n, w in zip(s.member_names, s.warping)),
+            "mesh": MESH_CONVENTION,
+            **({"symmetry": f"negative strokes mirrored from positive ones: {sym.describe()} maps the design "
+                "onto itself and reverses the stroke (model.symmetry); mirror=False solves both sides"}
+               if sym is not None else {}),
+            "mass": "consistent translational mass of the cubic (Hermite) centre line (Przemieniecki 1968 ch. 11); "
+            "rotary inertia the mean of lumped and consistent (model.elements.beam_mass_spec)",
+        }
 
-def frequency_curve(scene: Scene, stroke: np.ndarray | None = None,
-                    progress: Callable[[int, int], None] | None = None) -> FrequencyCurve:
-    """Exact stroke-dependent natural frequencies of ``scene`` (see :class:`Analysis`)."""
-    return Analysis(scene).frequency_curve(stroke, progress)

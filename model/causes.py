@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .constraints import RANK_RTOL, columns, jacobian_rows
 from .errors import MassUnderflowError, SceneError
 from .scene import Beam, RectangularSection
 from .structure import Structure
@@ -152,8 +153,6 @@ def free_motions(structure: Structure) -> list[FreeMotion]:
     Parts joined to no supported coordinate and not driven are reported as ``unconnected``; any other
     null vector of ``D_cc`` (every deformation rigid) as a ``mechanism``, naming the masters it moves.
     """
-    from .constraints import RANK_RTOL, _columns, _jacobian_rows
-
     s = structure
     nm = len(s.master_names)
     anchored = np.zeros(nm, dtype=bool)  # supported (any coordinate) or driven
@@ -179,11 +178,11 @@ def free_motions(structure: Structure) -> list[FreeMotion]:
         names = sorted({member_of_master(s, s.master_names[i]) for i in comp if "#" not in s.master_names[i]})
         out.append(FreeMotion("unconnected", tuple(els), tuple(names), 6))
     rows = [(0, i, k) for i in range(s.n_beams) for k in range(6)] + [(1, i, 0) for i in range(len(s.truss_nodes))]
-    T, _, col_masters, trans = _columns(s)
+    T, _, col_masters, trans = columns(s)
     if not rows or T.shape[1] == 0 or T.shape[1] > MECHANISM_MAX_COLUMNS:
         return out
     X, R = s.master_pos.copy(), np.tile(np.eye(3), (nm, 1, 1))
-    D = _jacobian_rows(s, X, R, rows) @ T
+    D = jacobian_rows(s, X, R, rows) @ T
     c = np.where(trans, s.length_scale, 1.0)
     Dh = D * c / s.length_scale
     keep = np.array([s.master_names.index(m) not in loose for m in col_masters])

@@ -10,7 +10,7 @@ their nodes exactly, so unlike SPACAR (section 4.2, last paragraph) they need no
 both the extra nodal coordinates and the extra rows are absent, which leaves ``D_cc`` square if it was.
 
 Deformations ``e``: ``e(o)`` the rigid ones, ``e(m)`` the generalised ones (``Beam.generalised``), ``e(c)``
-the rest. In a *kinematic* diagnosis (``Scene.kinematic`` or ``diagnose(kinematic=True)``) the rigid set
+the rest. In a *kinematic* diagnosis (``Scene.kinematic`` or ``model.diagnosis.diagnose(kinematic=True)``) the rigid set
 of each element is its ``kinematic_rigid`` field, or else derived from its section: a sheet keeps its
 elongation and in-plane bending rigid, a wire its elongation, a truss is a rigid bar (section 4.2).
 
@@ -49,15 +49,15 @@ from typing import Any
 
 import numpy as np
 
-from .checks import annotate_diagnosis
 from .elements import beam_spec, truss_spec
 from .errors import SceneError
 from .kernels import compiled
 from .results import ResultWarning
-from .scene import Beam, GeneralSection, RectangularSection, Scene, Truss, expand_modes
-from .structure import Structure, compile_scene
+from .scene import Beam, GeneralSection, RectangularSection, Truss, expand_modes
+from .structure import Structure
 
-__all__ = ["ConstraintDiagnosis", "diagnose", "kinematic_rigid_set", "RANK_RTOL", "NEAR_RTOL"]
+__all__ = ["ConstraintDiagnosis", "kinematic_rigid_set", "partition", "split_label", "columns", "jacobian_rows",
+           "sign_fix", "deformation_label", "RANK_RTOL", "NEAR_RTOL", "DEFORMATION_NAMES"]
 
 RANK_RTOL = 1e-8
 NEAR_RTOL = 1e-4
@@ -260,7 +260,7 @@ def _fmt(v: list[float]) -> str:
     return "(" + ", ".join(f"{x:+.4f}" for x in v) + ")"
 
 
-def _sign_fix(v: np.ndarray) -> np.ndarray:
+def sign_fix(v: np.ndarray) -> np.ndarray:
     """Deterministic sign: the first entry within 1e-9 of the largest magnitude is made positive."""
     a = np.abs(v)
     if not a.size or a.max() == 0:
@@ -269,7 +269,7 @@ def _sign_fix(v: np.ndarray) -> np.ndarray:
     return v if v[k] > 0 else -v
 
 
-def _partition(s: Structure, kinematic: bool) -> tuple[list[tuple[int, int, int]], list[str], list[str], int]:
+def partition(s: Structure, kinematic: bool) -> tuple[list[tuple[int, int, int]], list[str], list[str], int]:
     """Rows [e(o); e(m)] as (kind 0 beam / 1 truss, element, deformation), their labels and kinds."""
     scene = s.scene
     rigid_rows: list[tuple[int, int, int]] = []
@@ -308,15 +308,15 @@ def _partition(s: Structure, kinematic: bool) -> tuple[list[tuple[int, int, int]
     return rigid_rows + gen_rows, labels, kinds, len(rigid_rows)
 
 
-def _split_label(s: Structure, row: tuple[int, int, int], label: str) -> tuple[str, str]:
-    """(element label, deformation name) of a row label built by :func:`_partition`."""
+def split_label(s: Structure, row: tuple[int, int, int], label: str) -> tuple[str, str]:
+    """(element label, deformation name) of a row label built by :func:`partition`."""
     kind, i, k = row
     nodes = s.beam_nodes[i] if kind == 0 else s.truss_nodes[i]
     d = deformation_label(k, s.node_names[nodes[0]], s.node_names[nodes[1]])
     return label[: -len(d) - 1], d
 
 
-def _columns(s: Structure) -> tuple[np.ndarray, list[str], list[str], np.ndarray]:
+def columns(s: Structure) -> tuple[np.ndarray, list[str], list[str], np.ndarray]:
     """Columns x(c): (6 nm, n) map T from column velocities to all masters' (u, psi), labels, masters,
     and a flag per column (True = translation)."""
     nm = len(s.master_names)
@@ -352,7 +352,7 @@ def _columns(s: Structure) -> tuple[np.ndarray, list[str], list[str], np.ndarray
     return T, labels, masters, np.array(trans, dtype=bool)
 
 
-def _jacobian_rows(s: Structure, X: np.ndarray, R: np.ndarray, rows: list[tuple[int, int, int]]) -> np.ndarray:
+def jacobian_rows(s: Structure, X: np.ndarray, R: np.ndarray, rows: list[tuple[int, int, int]]) -> np.ndarray:
     """Rows of D_x D (all masters' (u, psi), global axes) for the chosen deformations, from the kernels."""
     nm = len(s.master_names)
     m = s.node_master
@@ -378,148 +378,3 @@ def _jacobian_rows(s: Structure, X: np.ndarray, R: np.ndarray, rows: list[tuple[
         vals = De_b[el, :, k] if kind == 0 else De_t[el]
         np.add.at(D[i], dofs, vals)
     return D
-
-
-def _state_at(scene: Scene, at_stroke: float) -> tuple[np.ndarray, np.ndarray]:
-    """Master positions and rotations of the equilibrium at ``at_stroke`` (stroke unit)."""
-    from .analysis import Analysis
-    from .errors import EquilibriumError
-    from .statics import walk
-
-    if scene.stroke is None:
-        raise SceneError("stroke", "a diagnosis at a stroke value needs a 'stroke' in the scene; omit "
-                         "--at-stroke to diagnose the reference configuration")
-    an = Analysis(scene)
-    target = float(scene.stroke.to_internal(at_stroke))
-    got: list = []
-    targets = np.linspace(0.0, target, 9)[1:] if target != 0 else np.array([0.0])
-
-    def accept(eq):  # noqa: ANN001, ANN202 - statics callback
-        got.append(eq)
-        return None
-
-    fail = walk(an.system, targets, an.options, accept)
-    if fail is not None or not got:
-        raise EquilibriumError(f"no equilibrium at stroke {at_stroke:g}: {fail.message if fail else ''}",
-                               stroke=at_stroke, last_converged=float("nan"),
-                               reason=fail.reason if fail else "divergence")
-    st = got[-1].state
-    return st.X, st.R
-
-
-def diagnose(scene: Scene, at_stroke: float | None = None, kinematic: bool | None = None) -> ConstraintDiagnosis:
-    """Exact-constraint diagnosis of a scene (seed 002, section 3).
-
-    Parameters
-    ----------
-    scene
-        A validated scene (``stroke`` may be null: then no x(m)).
-    at_stroke
-        Stroke value (stroke unit) of the equilibrium to diagnose; None = the reference configuration.
-    kinematic
-        Use the kinematic idealisation (section 4.2); None = the scene's ``kinematic`` flag.
-
-    Returns
-    -------
-    ConstraintDiagnosis
-        D_cc (eq. 9), the SVD of its scaled form (eq. 11), the Table-1 counts, kinematic modes from V and
-        static modes from U (eq. 15).
-
-    Raises
-    ------
-    SceneError
-        When the partition has no rows (every deformation released and none generalised) or no columns
-        (every coordinate supported or driven), or a deformation is both rigid and generalised.
-    """
-    notes: list[str] = []
-    kin = scene.kinematic if kinematic is None else bool(kinematic)
-    if kinematic is None and not kin and not any(e.rigid or e.generalised for e in scene.elements):
-        kin = True
-        notes.append("kinematic idealisation used: the scene declares no rigid or generalised deformation, so "
-                     "each flexure keeps only its compliant deformations (kinematic_rigid; seed 002 sec. 4.2); "
-                     "--declared (kinematic=false) diagnoses the declared partition instead")
-    full = compile_scene(scene)
-    flex = scene.model_copy(update={"elements": tuple(
-        e.model_copy(update={"segments": 1}) if isinstance(e, Beam) and e.segments != 1 else e
-        for e in scene.elements)})
-    s = compile_scene(flex) if flex.elements != scene.elements else full
-    if s is not full:
-        n_inner = len(full.master_names) - len(s.master_names)
-        notes.append(f"each meshed beam is diagnosed as one flexure: {n_inner} segment-internal nodes condensed, "
-                     "so motions are those of bodies and flexure ends")
-    rows, row_labels, row_kind, n_rigid = _partition(s, kin)
-    row_parts = [_split_label(s, r, lab) for r, lab in zip(rows, row_labels)]
-    if not rows:
-        raise SceneError("elements[].rigid", "no rigid and no generalised deformations: D_cc has no rows, so "
-                         "nothing constrains the structure; declare rigid deformations (e.g. "
-                         "rigid: ['elongation'] for a wire) or set 'kinematic': true")
-    T, col_labels, col_masters, trans = _columns(s)
-    if T.shape[1] == 0:
-        raise SceneError("supports", "every nodal coordinate is supported or driven: D_cc has no columns; "
-                         "remove supports from the moving parts")
-    if at_stroke is None:
-        X, R = s.master_pos.copy(), np.tile(np.eye(3), (len(s.master_names), 1, 1))
-    else:
-        Xf, Rf = _state_at(scene, at_stroke)
-        keep = [full.master_names.index(m) for m in s.master_names]
-        X, R = Xf[keep], Rf[keep]
-    Dfull = _jacobian_rows(s, X, R, rows)
-    D = Dfull @ T
-    pos = np.array([n.position for n in scene.nodes], dtype=float)
-    Lc = float(np.sqrt(((pos[:, None, :] - pos[None, :, :]) ** 2).sum(-1).max()))
-    c = np.where(trans, Lc, 1.0)
-    Dh = D * c / Lc
-    U, sv, Vt = np.linalg.svd(Dh)
-    rank = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
-    V = Vt.T
-    mcount, ncount = D.shape
-
-    kin_modes = []
-    dirs = T.T.reshape(ncount, -1, 6)  # (n, nm, 6)
-    for j in range(rank, ncount):
-        v = _sign_fix(V[:, j])
-        blk = np.einsum("c,cmk->mk", v, dirs)
-        mode: dict[str, dict[str, list[float]]] = {}
-        for mi, name in enumerate(s.master_names):
-            if name in col_masters:
-                b = np.where(np.abs(blk[mi]) < 1e-12, 0.0, blk[mi])
-                mode[name] = {"translation": [float(x) for x in b[:3]], "rotation": [float(x) for x in b[3:]]}
-        kin_modes.append(mode)
-    stat_modes = []
-    releases = []
-    for j in range(rank, mcount):
-        u = _sign_fix(U[:, j])
-        mode2: dict[str, dict[str, float]] = {}
-        for (el, dname), val in zip(row_parts, u):
-            if abs(val) >= 1e-12:
-                mode2.setdefault(el, {})[dname] = float(val)
-        stat_modes.append(mode2)
-        order = np.argsort(-np.abs(u), kind="stable")
-        big = [row_labels[i] for i in order if abs(u[i]) >= 0.5 * abs(u[order[0]])]
-        releases.append(tuple(big[:12]))
-    diag = ConstraintDiagnosis(
-        scene=scene.name,
-        stroke=at_stroke,
-        kinematic=kin,
-        rows=tuple(row_labels),
-        row_kind=tuple(row_kind),
-        columns=tuple(col_labels),
-        column_master=tuple(col_masters),
-        column_direction=np.array([T[6 * s.master_names.index(mn):6 * s.master_names.index(mn) + 6, k]
-                                   for k, mn in enumerate(col_masters)]).reshape(ncount, 6),
-        D_cc=D,
-        D_scaled=Dh,
-        characteristic_length=Lc,
-        singular_values=sv,
-        U=U,
-        V=V,
-        rank=rank,
-        n_generalised_coordinates=0 if s.drive_kind == "none" else 1,
-        n_rigid=n_rigid,
-        kinematic_modes=tuple(kin_modes),
-        static_modes=tuple(stat_modes),
-        release_candidates=tuple(releases),
-        notes=tuple(notes),
-    )
-    settings = {"at_stroke": at_stroke, "kinematic": kin, "rank_rtol": RANK_RTOL, "almost_singular_rtol": NEAR_RTOL}
-    return annotate_diagnosis(diag, scene, settings)  # scene checks and provenance (model.checks)

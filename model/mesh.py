@@ -22,7 +22,7 @@ templates are within 10 % of the error against 80 segments (leaf 7.7e-4 vs 7.4e-
 
 Cost: the coarse model holds half the fine model's degrees of freedom and is solved at ``2
 ESTIMATE_POINTS + 1`` stroke points instead of the curve's ``points`` (continuation over the longer steps
-may halve them a few times), plus compiling the coarse structure (once per ``Analysis``, reused by every
+may halve them a few times), plus compiling the coarse structure (once per :class:`model.curve.Analysis`, reused by every
 curve it computes): measured on the default 91-point
 templates (medians of 4 interleaved runs, 2 shared cores at load 5-7, ``python bench/bench_mesh.py``)
 between -25 % and +27 % of the curve's time, i.e. below the noise of that machine. Curves computed with a ``visit`` callback (the optimiser's inner loop) skip it unless
@@ -37,14 +37,13 @@ or :data:`AUTO_MAX` segments, or the model would exceed ``MAX_DOFS``.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
-from .scene import Beam, Scene
-
-if TYPE_CHECKING:
-    from .analysis import Analysis
+from .analysis import MeshAnalysis
+from .modal import modes_at
+from .scene import AUTO_START, Beam, Scene
+from .statics import NewtonOptions, WalkFailure, solve_point, walk
+from .structure import MAX_DOFS
 
 __all__ = ["mesh_error", "coarsened", "resolve_auto_segments", "AUTO_START", "AUTO_MAX", "ESTIMATE_POINTS", "ORDER"]
 
@@ -52,8 +51,7 @@ __all__ = ["mesh_error", "coarsened", "resolve_auto_segments", "AUTO_START", "AU
 ESTIMATE_POINTS = 4
 #: Convergence order used for the Richardson estimate (see the module docstring).
 ORDER = 2.0
-#: First mesh of a ``segments: "auto"`` beam, and the most it is refined to.
-AUTO_START = 4
+#: The most a ``segments: "auto"`` beam is refined to (it starts at :data:`model.scene.AUTO_START`).
 AUTO_MAX = 128
 
 
@@ -71,12 +69,9 @@ def coarsened(scene: Scene, factor: int) -> Scene | None:
     return scene.model_copy(update={"elements": tuple(els)}) if changed else None
 
 
-def _first_parasitic(an: "Analysis", targets: np.ndarray) -> dict[float, float]:
+def _first_parasitic(an: MeshAnalysis, targets: np.ndarray) -> dict[float, float]:
     """First parasitic frequency (lowest mode where none is parasitic) at each converged, stable target
     (internal units, one side, monotone away from 0), by continuation on ``an``'s model."""
-    from .modal import modes_at
-    from .statics import NewtonOptions, WalkFailure, solve_point, walk
-
     sys = an.system
     drive = an.structure.scene.stroke.drive
     k = an.structure.scene.modes + 2
@@ -111,27 +106,18 @@ def _estimate_points(strokes: np.ndarray) -> list[np.ndarray]:
     return out
 
 
-def mesh_error(an: "Analysis", strokes: np.ndarray, fine: dict[float, float]) -> float | None:
+def mesh_error(an: MeshAnalysis, coarse: MeshAnalysis, strokes: np.ndarray, fine: dict[float, float]
+               ) -> float | None:
     """Estimated relative discretisation error of the first parasitic frequency of ``an``'s curve (see the
-    module docstring). ``strokes`` are the curve's converged stroke values (internal units); ``fine`` maps
-    stroke values to the fine mesh's first parasitic frequency there (points missing from it are skipped). None when no
-    beam can be coarsened (every beam has one segment)."""
-    from .analysis import Analysis
-
-    half_scene = coarsened(an.scene, 2)
-    if half_scene is None:
-        return None
+    module docstring). ``coarse`` is the same analysis on :func:`coarsened` ``(an.scene, 2)`` (the caller
+    builds it once and reuses it: model.curve); ``strokes`` are the curve's converged stroke values
+    (internal units); ``fine`` maps stroke values to the fine mesh's first parasitic frequency there (points
+    missing from it are skipped)."""
     ns = [e.segments for e in an.scene.elements if isinstance(e, Beam) and isinstance(e.segments, int)
           and e.segments >= 2]
     r = min(n / (n // 2) for n in ns)  # refinement ratio (2 for even counts; the smallest is conservative)
     sides = _estimate_points(np.asarray(strokes, dtype=float))
-    # the coarse model depends only on the scene and the options: compiled once per analysis and reused by
-    # every curve it computes (a repeated curve re-solves the coarse points but does not rebuild the model)
-    cached = getattr(an, "_mesh_sub", None)
-    if cached is not None and cached.options is an.options:
-        sub = cached
-    else:
-        sub = an._mesh_sub = Analysis(half_scene, an.options)
+    sub = coarse
     f2: dict[float, float] = {}
     for side in sides:
         f2.update(_first_parasitic(sub, side))
@@ -145,11 +131,9 @@ def mesh_error(an: "Analysis", strokes: np.ndarray, fine: dict[float, float]) ->
     return float(np.max(np.abs(d2) / (r**p - 1.0) / np.abs(fv)))
 
 
-def resolve_auto_segments(scene: Scene, options=None) -> tuple[Scene, str | None]:  # noqa: ANN001
+def resolve_auto_segments(scene: Scene, options: NewtonOptions | None = None) -> tuple[Scene, str | None]:
     """``scene`` with every ``segments: "auto"`` beam given the segments that meet ``scene.mesh_tolerance``
     (see the module docstring), and a one-line note of what was chosen (None when nothing was "auto")."""
-    from .analysis import Analysis
-    from .structure import MAX_DOFS
 
     auto = [i for i, e in enumerate(scene.elements) if isinstance(e, Beam) and e.segments == "auto"]
     if not auto:
@@ -170,7 +154,7 @@ def resolve_auto_segments(scene: Scene, options=None) -> tuple[Scene, str | None
     est = float("nan")
     while n <= AUTO_MAX:
         sc = with_n(n)
-        an = Analysis(sc, options)
+        an = MeshAnalysis(sc, options)
         if int(an.structure.active.sum()) > MAX_DOFS:
             break
         chosen = (sc, n)

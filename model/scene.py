@@ -22,6 +22,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 __all__ = [
     "SCENE_FORMAT",
+    "AUTO_START",
     "SCENE_VERSION",
     "MODE_NAMES",
     "Material",
@@ -41,6 +42,10 @@ __all__ = [
     "expand_modes",
     "did_you_mean",
 ]
+
+#: First mesh of a ``segments: "auto"`` beam (model.mesh refines it; model.structure compiles an unresolved
+#: "auto" beam at it).
+AUTO_START = 4
 
 SCENE_FORMAT = "flexopt.scene"
 SCENE_VERSION = 1
@@ -399,118 +404,146 @@ class Scene(_Strict):
         return data
 
     @model_validator(mode="after")
-    def _references(self) -> "Scene":  # noqa: C901 - one table of checks, read top to bottom
-        errors: list[str] = []
-        names_of = {"node": [n.name for n in self.nodes], "body": [b.name for b in self.bodies],
-                    "material": [m.name for m in self.materials]}
+    def _references(self) -> "Scene":
+        """Cross-references and geometry, one table of checks (:class:`_ReferenceCheck`): every error found,
+        joined in one message."""
+        errors = _ReferenceCheck(self).errors()
+        if errors:
+            raise ValueError("; ".join(errors))
+        return self
 
-        def unknown(kind: str, name: str) -> str:
-            return f"unknown {kind} '{name}'{did_you_mean(name, names_of[kind])}"
 
-        def unique(kind: str, names: list[str]) -> set[str]:
-            seen: set[str] = set()
-            for i, n in enumerate(names):
-                if n in seen:
-                    errors.append(f"{kind}[{i}].name: duplicate name '{n}'; names must be unique")
-                seen.add(n)
-            return seen
+class _ReferenceCheck:
+    """The checks of :meth:`Scene._references`, read top to bottom: unique names, bodies, elements, supports
+    and the stroke; each appends its messages to ``self.out``."""
 
-        mats = unique("materials", [m.name for m in self.materials])
-        nodes = unique("nodes", [n.name for n in self.nodes])
-        bodies = unique("bodies", [b.name for b in self.bodies])
-        unique("elements", [e.name for e in self.elements])
-        pos = {n.name: np.array(n.position) for n in self.nodes}
-        extent = max(
-            float(np.ptp(np.array([n.position for n in self.nodes]), axis=0).max()), 1e-300
-        )
+    def __init__(self, scene: Scene) -> None:
+        self.scene = scene
+        self.out: list[str] = []
+        self.names_of = {"node": [n.name for n in scene.nodes], "body": [b.name for b in scene.bodies],
+                         "material": [m.name for m in scene.materials]}
+        self.carrier: dict[str, str] = {}
+        self.supported: dict[str, set[str]] = {}
+        self.grounded: set[str] = set()
 
-        carrier: dict[str, str] = {}
-        for i, b in enumerate(self.bodies):
+    def unknown(self, kind: str, name: str) -> str:
+        return f"unknown {kind} '{name}'{did_you_mean(name, self.names_of[kind])}"
+
+    def unique(self, kind: str, names: list[str]) -> set[str]:
+        seen: set[str] = set()
+        for i, n in enumerate(names):
+            if n in seen:
+                self.out.append(f"{kind}[{i}].name: duplicate name '{n}'; names must be unique")
+            seen.add(n)
+        return seen
+
+    def errors(self) -> list[str]:
+        sc = self.scene
+        self.mats = self.unique("materials", [m.name for m in sc.materials])
+        self.nodes = self.unique("nodes", [n.name for n in sc.nodes])
+        self.bodies = self.unique("bodies", [b.name for b in sc.bodies])
+        self.unique("elements", [e.name for e in sc.elements])
+        self.pos = {n.name: np.array(n.position) for n in sc.nodes}
+        self.extent = max(float(np.ptp(np.array([n.position for n in sc.nodes]), axis=0).max()), 1e-300)
+        self.check_bodies()
+        for i, e in enumerate(sc.elements):
+            self.check_element(i, e)
+        self.check_supports()
+        self.check_stroke()
+        return self.out
+
+    def check_bodies(self) -> None:
+        for i, b in enumerate(self.scene.bodies):
             for n in b.nodes:
-                if n not in nodes:
-                    errors.append(f"bodies[{i}].nodes: {unknown('node', n)}; define it under 'nodes'")
-                elif n in carrier:
-                    errors.append(
-                        f"bodies[{i}].nodes: node '{n}' is already carried by body '{carrier[n]}'; "
+                if n not in self.nodes:
+                    self.out.append(f"bodies[{i}].nodes: {self.unknown('node', n)}; define it under 'nodes'")
+                elif n in self.carrier:
+                    self.out.append(
+                        f"bodies[{i}].nodes: node '{n}' is already carried by body '{self.carrier[n]}'; "
                         "a node belongs to at most one body"
                     )
                 else:
-                    carrier[n] = b.name
+                    self.carrier[n] = b.name
 
-        for i, e in enumerate(self.elements):
-            where = f"elements[{i}]"
-            for n in e.nodes:
-                if n not in nodes:
-                    errors.append(f"{where}.nodes: {unknown('node', n)}; define it under 'nodes' or fix the name")
-            if e.material not in mats:
-                errors.append(f"{where}.material: {unknown('material', e.material)}; define it under 'materials'")
-            if all(n in pos for n in e.nodes):
-                p, q = pos[e.nodes[0]], pos[e.nodes[1]]
-                length = float(np.linalg.norm(q - p))
-                if e.nodes[0] == e.nodes[1] or length <= 1e-9 * extent:
-                    errors.append(
-                        f"{where}.nodes: element '{e.name}' has zero length: nodes '{e.nodes[0]}' and "
-                        f"'{e.nodes[1]}' coincide; move one node or remove the element"
-                    )
-                elif isinstance(e, Beam):
-                    ex = (q - p) / length
-                    y = np.array(e.y_axis, dtype=float)
-                    ny = float(np.linalg.norm(y))
-                    if ny == 0 or float(np.linalg.norm(np.cross(ex, y / ny))) < 1e-6:
-                        errors.append(
-                            f"{where}.y_axis: section orientation {tuple(e.y_axis)} is parallel to the axis "
-                            f"of beam '{e.name}'; give a direction across the beam (the width direction)"
-                        )
-            both = set(expand_modes(e.rigid)) & set(expand_modes(e.generalised))
-            if both:
-                errors.append(
-                    f"{where}.generalised: deformations {sorted(both)} (0-based) of '{e.name}' are both rigid "
-                    "and generalised; remove them from one of 'rigid' and 'generalised'"
-                )
-            if isinstance(e, Beam) and e.generalised and e.segments != 1:
-                errors.append(
-                    f"{where}.generalised: beam '{e.name}' has {e.segments} segments; generalised "
-                    "deformations need segments = 1 (split the member into separate elements instead)"
-                )
-            if isinstance(e, Beam) and len(set(i for r in e.rigid for i in MODE_NAMES[r])) == 6:
-                errors.append(
-                    f"{where}.rigid: all six deformations of beam '{e.name}' are rigid; "
-                    "model a rigid connection as a rigid body instead"
+    def check_element(self, i: int, e: Beam | Truss) -> None:
+        where = f"elements[{i}]"
+        errors = self.out
+        for n in e.nodes:
+            if n not in self.nodes:
+                errors.append(f"{where}.nodes: {self.unknown('node', n)}; define it under 'nodes' or fix the name")
+        if e.material not in self.mats:
+            errors.append(f"{where}.material: {self.unknown('material', e.material)}; define it under 'materials'")
+        if all(n in self.pos for n in e.nodes):
+            self.check_geometry(where, e)
+        both = set(expand_modes(e.rigid)) & set(expand_modes(e.generalised))
+        if both:
+            errors.append(
+                f"{where}.generalised: deformations {sorted(both)} (0-based) of '{e.name}' are both rigid "
+                "and generalised; remove them from one of 'rigid' and 'generalised'"
+            )
+        if isinstance(e, Beam) and e.generalised and e.segments != 1:
+            errors.append(
+                f"{where}.generalised: beam '{e.name}' has {e.segments} segments; generalised "
+                "deformations need segments = 1 (split the member into separate elements instead)"
+            )
+        if isinstance(e, Beam) and len(set(i for r in e.rigid for i in MODE_NAMES[r])) == 6:
+            errors.append(
+                f"{where}.rigid: all six deformations of beam '{e.name}' are rigid; "
+                "model a rigid connection as a rigid body instead"
+            )
+
+    def check_geometry(self, where: str, e: Beam | Truss) -> None:
+        p, q = self.pos[e.nodes[0]], self.pos[e.nodes[1]]
+        length = float(np.linalg.norm(q - p))
+        if e.nodes[0] == e.nodes[1] or length <= 1e-9 * self.extent:
+            self.out.append(
+                f"{where}.nodes: element '{e.name}' has zero length: nodes '{e.nodes[0]}' and "
+                f"'{e.nodes[1]}' coincide; move one node or remove the element"
+            )
+        elif isinstance(e, Beam):
+            ex = (q - p) / length
+            y = np.array(e.y_axis, dtype=float)
+            ny = float(np.linalg.norm(y))
+            if ny == 0 or float(np.linalg.norm(np.cross(ex, y / ny))) < 1e-6:
+                self.out.append(
+                    f"{where}.y_axis: section orientation {tuple(e.y_axis)} is parallel to the axis "
+                    f"of beam '{e.name}'; give a direction across the beam (the width direction)"
                 )
 
-        supported: dict[str, set[str]] = {}
-        grounded: set[str] = set()
-        for i, s in enumerate(self.supports):
+    def check_supports(self) -> None:
+        for i, s in enumerate(self.scene.supports):
             if s.node is not None:
-                if s.node not in nodes:
-                    errors.append(f"supports[{i}].node: {unknown('node', s.node)}")
-                elif s.node in carrier:
+                if s.node not in self.nodes:
+                    self.out.append(f"supports[{i}].node: {self.unknown('node', s.node)}")
+                elif s.node in self.carrier:
                     if set(s.dofs) != {"x", "y", "z", "rx", "ry", "rz"}:
-                        errors.append(
-                            f"supports[{i}].dofs: node '{s.node}' is carried by body '{carrier[s.node]}'; "
+                        self.out.append(
+                            f"supports[{i}].dofs: node '{s.node}' is carried by body '{self.carrier[s.node]}'; "
                             "support it fully or ground the body"
                         )
-                    grounded.add(carrier[s.node])
+                    self.grounded.add(self.carrier[s.node])
                 else:
-                    supported.setdefault(s.node, set()).update(s.dofs)
+                    self.supported.setdefault(s.node, set()).update(s.dofs)
             if s.body is not None:
-                if s.body not in bodies:
-                    errors.append(f"supports[{i}].body: {unknown('body', s.body)}")
-                grounded.add(s.body)
+                if s.body not in self.bodies:
+                    self.out.append(f"supports[{i}].body: {self.unknown('body', s.body)}")
+                self.grounded.add(s.body)
 
-        st = self.stroke
+    def check_stroke(self) -> None:
+        st = self.scene.stroke
+        errors = self.out
         if st is None:
-            pass
-        elif st.node is not None:
-            if st.node not in nodes:
-                errors.append(f"stroke.node: {unknown('node', st.node)}")
-            elif st.node in carrier:
+            return
+        if st.node is not None:
+            if st.node not in self.nodes:
+                errors.append(f"stroke.node: {self.unknown('node', st.node)}")
+            elif st.node in self.carrier:
                 errors.append(
-                    f"stroke.node: node '{st.node}' is carried by body '{carrier[st.node]}'; "
-                    f"drive the body instead (stroke.body = '{carrier[st.node]}')"
+                    f"stroke.node: node '{st.node}' is carried by body '{self.carrier[st.node]}'; "
+                    f"drive the body instead (stroke.body = '{self.carrier[st.node]}')"
                 )
             else:
-                fixed = supported.get(st.node, set())
+                fixed = self.supported.get(st.node, set())
                 axis = np.array(st.axis) / np.linalg.norm(st.axis)
                 names = ("rx", "ry", "rz") if st.kind == "rotation" else ("x", "y", "z")
                 blocked = [names[k] for k in range(3) if names[k] in fixed and abs(axis[k]) > 1e-12]
@@ -519,16 +552,13 @@ class Scene(_Strict):
                         f"stroke.node: the stroke drives node '{st.node}' along {blocked}, which a support "
                         "fixes; drive an unsupported node or remove that support"
                     )
-        if st is not None and st.body is not None:
-            if st.body not in bodies:
-                errors.append(f"stroke.body: {unknown('body', st.body)}")
-            elif st.body in grounded:
+        if st.body is not None:
+            if st.body not in self.bodies:
+                errors.append(f"stroke.body: {self.unknown('body', st.body)}")
+            elif st.body in self.grounded:
                 errors.append(
                     f"stroke.body: body '{st.body}' is grounded by a support; drive a moving body instead"
                 )
-        if errors:
-            raise ValueError("; ".join(errors))
-        return self
 
 
 def did_you_mean(name: str, choices: list[str] | tuple[str, ...]) -> str:

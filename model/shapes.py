@@ -1,7 +1,7 @@
 """Deflected configurations and mode shapes at stroke points: what the structure looks like and how it vibrates.
 
 Numeric only: everything here is read off a converged :class:`~model.statics.Equilibrium` and its
-:class:`~model.modal.Modes`, obtained through the public :meth:`model.analysis.Analysis.frequency_curve`
+:class:`~model.modal.Modes`, obtained through the public :meth:`model.analysis.MeshAnalysis.frequency_curve`
 (its ``visit`` hook sees every converged stroke point with its tracked modes and labels), so a shape is
 always the one behind the frequencies of the curve at the same stroke.
 
@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .analysis import Analysis, von_mises
+from .analysis import MeshAnalysis, von_mises
 from .errors import FlexoptError
 from .modal import Modes
 from .results import ResultWarning
@@ -143,7 +143,7 @@ def configuration_dict(node_names: Sequence[str], body_names: Sequence[str], mem
     }
 
 
-def _geometry(an: Analysis) -> tuple[dict[str, dict], dict[str, dict]]:
+def _geometry(an: MeshAnalysis) -> tuple[dict[str, dict], dict[str, dict]]:
     """Member chains (scene and segment-internal nodes, in order) with section sizes, and body boxes."""
     s = an.structure
     scene = s.scene
@@ -175,7 +175,7 @@ def _geometry(an: Analysis) -> tuple[dict[str, dict], dict[str, dict]]:
     return members, bodies
 
 
-def _configuration(an: Analysis, eq: Equilibrium, stroke: float) -> Configuration:
+def _configuration(an: MeshAnalysis, eq: Equilibrium, stroke: float) -> Configuration:
     s, sys = an.structure, an.system
     x, R, _ = sys.node_states(eq.state)
     nbd = len(s.scene.bodies)  # bodies are the first masters (model.structure)
@@ -184,7 +184,7 @@ def _configuration(an: Analysis, eq: Equilibrium, stroke: float) -> Configuratio
                          von_mises=von_mises(s, sys, eq))
 
 
-def _mode_shapes(an: Analysis, eq: Equilibrium, modes: Modes, labels: list[str], k: int) -> tuple[ModeShape, ...]:
+def _mode_shapes(an: MeshAnalysis, eq: Equilibrium, modes: Modes, labels: list[str], k: int) -> tuple[ModeShape, ...]:
     s, sys = an.structure, an.system
     _, _, r = sys.node_states(eq.state)
     m = s.node_master
@@ -198,10 +198,10 @@ def _mode_shapes(an: Analysis, eq: Equilibrium, modes: Modes, labels: list[str],
     return tuple(out)
 
 
-def shapes_along(an: Analysis, stroke: Sequence[float], modes: bool = True, strict: bool = True) -> list[Shapes]:
+def shapes_along(an: MeshAnalysis, stroke: Sequence[float], modes: bool = True, strict: bool = True) -> list[Shapes]:
     """Deflected configurations (and, with ``modes``, mode shapes) at the stroke values ``stroke``
     (stroke unit), in ascending stroke order, computed by the exact continuation of
-    :meth:`~model.analysis.Analysis.frequency_curve`. With ``strict=False`` the stroke values past a loss
+    :meth:`~model.analysis.MeshAnalysis.frequency_curve`. With ``strict=False`` the stroke values past a loss
     of equilibrium are left out instead.
 
     Raises
@@ -260,6 +260,6 @@ def shapes_along(an: Analysis, stroke: Sequence[float], modes: bool = True, stri
     return out
 
 
-def shapes_at(an: Analysis, stroke: float = 0.0) -> Shapes:
+def shapes_at(an: MeshAnalysis, stroke: float = 0.0) -> Shapes:
     """Deflected configuration and mode shapes at one stroke value (stroke unit); see :func:`shapes_along`."""
     return shapes_along(an, [stroke])[0]

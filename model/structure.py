@@ -17,8 +17,7 @@ import numpy as np
 
 from .elements import BEAM_CONST, TRUSS_CONST
 from .errors import ModelSizeError, SceneError
-from .mesh import AUTO_START
-from .scene import Beam, Scene, Truss, expand_modes
+from .scene import AUTO_START, Beam, Scene, Truss, expand_modes
 from .sections import beam_segment, section_properties
 
 __all__ = ["Structure", "compile_scene", "MAX_DOFS"]
@@ -110,199 +109,190 @@ def _basis(a: np.ndarray) -> np.ndarray:
     return np.column_stack([a, b, np.cross(a, b)])
 
 
-def compile_scene(scene: Scene) -> Structure:  # noqa: C901 - a straight sequence of table builds
-    """Mesh and index a validated scene.
+@dataclass
+class _Mesh:
+    """The nodes of a scene being meshed and the masters that carry them (compile_scene's working tables)."""
 
-    Raises
-    ------
-    SceneError
-        For a node that is connected to nothing.
-    ModelSizeError
-        When the meshed model has more than ``MAX_DOFS`` active degrees of freedom.
-    """
-    mats = {m.name: m for m in scene.materials}
-    pos0 = {n.name: np.array(n.position, dtype=float) for n in scene.nodes}
-    carrier = {n: b.name for b in scene.bodies for n in b.nodes}
-    all_pos = np.array(list(pos0.values()))
-    length_scale = float(np.ptp(all_pos, axis=0).max())
+    master_names: list[str]
+    master_pos: list[np.ndarray]
+    body_index: dict[str, int]
+    node_names: list[str] = field(default_factory=list)
+    node_pos: list[np.ndarray] = field(default_factory=list)
+    node_master: list[int] = field(default_factory=list)
+    node_index: dict[str, int] = field(default_factory=dict)
 
-    # --- masters: bodies first (at their centre of mass), then free nodes
-    master_names: list[str] = [b.name for b in scene.bodies]
-    master_pos: list[np.ndarray] = [np.array(b.center_of_mass, dtype=float) for b in scene.bodies]
-    body_index = {b.name: i for i, b in enumerate(scene.bodies)}
-    node_names: list[str] = []
-    node_pos: list[np.ndarray] = []
-    node_master: list[int] = []
-    node_index: dict[str, int] = {}
-
-    def add_node(name: str, p: np.ndarray, owner: str | None) -> int:
-        node_index[name] = len(node_names)
-        node_names.append(name)
-        node_pos.append(p)
+    def add_node(self, name: str, p: np.ndarray, owner: str | None) -> int:
+        """Add node ``name`` at ``p``, carried by body ``owner`` or, with None, its own master."""
+        self.node_index[name] = len(self.node_names)
+        self.node_names.append(name)
+        self.node_pos.append(p)
         if owner is not None:
-            node_master.append(body_index[owner])
+            self.node_master.append(self.body_index[owner])
         else:
-            node_master.append(len(master_names))
-            master_names.append(name)
-            master_pos.append(p)
-        return node_index[name]
+            self.node_master.append(len(self.master_names))
+            self.master_names.append(name)
+            self.master_pos.append(p)
+        return self.node_index[name]
 
+
+def _masters(scene: Scene, pos0: dict[str, np.ndarray], carrier: dict[str, str]) -> _Mesh:
+    """Masters: bodies first (at their centre of mass), then the free nodes; every scene node added."""
+    mesh = _Mesh([b.name for b in scene.bodies], [np.array(b.center_of_mass, dtype=float) for b in scene.bodies],
+                 {b.name: i for i, b in enumerate(scene.bodies)})
     for n in scene.nodes:
-        add_node(n.name, pos0[n.name], carrier.get(n.name))
+        mesh.add_node(n.name, pos0[n.name], carrier.get(n.name))
+    return mesh
 
-    # --- elements, meshed
+
+def _truss_row(el: Truss, ie: int, mat, mesh: _Mesh, pos0: dict[str, np.ndarray]) -> dict:  # noqa: ANN001
+    """The kernel table row of truss ``el`` (scene element ``ie``)."""
+    p_name, q_name = el.nodes
+    L = float(np.linalg.norm(pos0[q_name] - pos0[p_name]))
+    return dict(nodes=(mesh.node_index[p_name], mesh.node_index[q_name]), member=ie, l0=L,
+                k1=mat.E * el.area / L, mask=0.0 if el.rigid else 1.0, area=el.area,
+                mass=mat.density * el.area * L)
+
+
+def _beam_rows(el: Beam, ie: int, mat, props, mesh: _Mesh, pos0: dict[str, np.ndarray]) -> list[dict]:  # noqa: ANN001
+    """The kernel table rows of beam ``el`` (scene element ``ie``) meshed into its segments; adds the
+    segment-internal nodes to ``mesh``."""
+    p_name, q_name = el.nodes
+    p, q = pos0[p_name], pos0[q_name]
+    n = el.segments if el.segments != "auto" else AUTO_START  # model.curve resolves "auto" (model.mesh)
+    seg = beam_segment(p, q, el.y_axis, props, mat.E, mat.G, mat.density, n)
+    E0 = np.array(seg["E0"], dtype=float)
+    chain = [mesh.node_index[p_name]]
+    for i in range(1, n):
+        chain.append(mesh.add_node(f"{el.name}#{i}", p + (q - p) * i / n, None))
+    chain.append(mesh.node_index[q_name])
+    l0 = float(seg["l0"])
+    rigid = expand_modes(el.rigid)
+    mask = np.ones(6)
+    mask[list(rigid)] = 0.0
+    k1, k2, ky, kz = (float(seg[k]) for k in ("k1", "k2", "ky", "kz"))
+    S = np.zeros((6, 6))
+    S[0, 0] = k1
+    S[1, 1] = k2
+    S[2:4, 2:4] = ky * np.array([[4.0, -2.0], [-2.0, 4.0]])
+    S[4:6, 4:6] = kz * np.array([[4.0, -2.0], [-2.0, 4.0]])
+    const = np.concatenate([[l0], E0.ravel(order="F"), [k1, k2, ky, kz, float(props.ct)], mask])
+    assert const.size == BEAM_CONST
+    nan = float("nan")
+    stress = [props.A, props.Iy, props.Iz, props.cy or nan, props.cz or nan, props.tau_per_torque or nan, l0]
+    rot = np.array(seg["rot"], dtype=float)
+    return [dict(nodes=(a_, b_), member=ie, const=const, S=S, mask=mask, stress=stress, mass=float(seg["mass"]),
+                 rot=rot) for a_, b_ in zip(chain[:-1], chain[1:])]
+
+
+def _elements(scene: Scene, mesh: _Mesh, pos0: dict[str, np.ndarray], carrier: dict[str, str]
+              ) -> tuple[list[dict], list[dict], list[str]]:
+    """The meshed beam and truss rows and each member's torsion assumption; refuses a node that is connected
+    to nothing."""
+    mats = {m.name: m for m in scene.materials}
     beam_rows: list[dict] = []
     truss_rows: list[dict] = []
     used = set(carrier)
-    member_names = tuple(e.name for e in scene.elements)
     warping: list[str] = []
     for ie, el in enumerate(scene.elements):
-        p_name, q_name = el.nodes
         used.update(el.nodes)
-        mat = mats[el.material]
-        p, q = pos0[p_name], pos0[q_name]
-        L = float(np.linalg.norm(q - p))
         if isinstance(el, Truss):
             warping.append("n/a")
-            truss_rows.append(dict(nodes=(node_index[p_name], node_index[q_name]), member=ie, l0=L,
-                                   k1=mat.E * el.area / L, mask=0.0 if el.rigid else 1.0,
-                                   area=el.area, mass=mat.density * el.area * L))
+            truss_rows.append(_truss_row(el, ie, mats[el.material], mesh, pos0))
             continue
         assert isinstance(el, Beam)
         props = section_properties(el.section)
         warping.append(props.warping)
-        n = el.segments if el.segments != "auto" else AUTO_START  # Analysis resolves "auto" (model.mesh)
-        seg = beam_segment(p, q, el.y_axis, props, mat.E, mat.G, mat.density, n)
-        E0 = np.array(seg["E0"], dtype=float)
-        chain = [node_index[p_name]]
-        for i in range(1, n):
-            chain.append(add_node(f"{el.name}#{i}", p + (q - p) * i / n, None))
-        chain.append(node_index[q_name])
-        l0 = float(seg["l0"])
-        rigid = expand_modes(el.rigid)
-        mask = np.ones(6)
-        mask[list(rigid)] = 0.0
-        k1, k2, ky, kz = (float(seg[k]) for k in ("k1", "k2", "ky", "kz"))
-        S = np.zeros((6, 6))
-        S[0, 0] = k1
-        S[1, 1] = k2
-        S[2:4, 2:4] = ky * np.array([[4.0, -2.0], [-2.0, 4.0]])
-        S[4:6, 4:6] = kz * np.array([[4.0, -2.0], [-2.0, 4.0]])
-        const = np.concatenate([[l0], E0.ravel(order="F"), [k1, k2, ky, kz, float(props.ct)], mask])
-        assert const.size == BEAM_CONST
-        nan = float("nan")
-        stress = [props.A, props.Iy, props.Iz, props.cy or nan, props.cz or nan,
-                  props.tau_per_torque or nan, l0]
-        rot = np.array(seg["rot"], dtype=float)
-        for a_, b_ in zip(chain[:-1], chain[1:]):
-            beam_rows.append(dict(nodes=(a_, b_), member=ie, const=const, S=S, mask=mask, stress=stress,
-                                  mass=float(seg["mass"]), rot=rot))
-
-    for i, name in enumerate(node_names):
+        beam_rows += _beam_rows(el, ie, mats[el.material], props, mesh, pos0)
+    for i, name in enumerate(mesh.node_names):
         if name in pos0 and name not in used:
             raise SceneError(
                 f"nodes[{i}]", f"node '{name}' is not connected to any element or body; remove it or connect it"
             )
+    return beam_rows, truss_rows, warping
 
-    nn, nm = len(node_names), len(master_names)
-    node_pos_a = np.array(node_pos)
-    node_master_a = np.array(node_master, dtype=int)
-    master_pos_a = np.array(master_pos)
-    node_offset = node_pos_a - master_pos_a[node_master_a]
 
-    node_rot = np.zeros((nn, 3, 3))
-    rot_used = np.zeros(nm, dtype=bool)
-    rot_used[: len(scene.bodies)] = True
-    for r in beam_rows:
-        for a_ in r["nodes"]:
-            node_rot[a_] += r["rot"]
-            rot_used[node_master_a[a_]] = True
-
-    master_mass = np.zeros(nm)
-    master_inertia = np.zeros((nm, 3, 3))
-    for i, b in enumerate(scene.bodies):
-        master_mass[i] = b.mass
-        master_inertia[i] = np.array(b.inertia, dtype=float)
-
+def _active(scene: Scene, mesh: _Mesh, rot_used: np.ndarray, carrier: dict[str, str]) -> np.ndarray:
+    """Free DOFs (6 nm,): not supported, and no rotation of a master that no beam and no body uses."""
+    nm = len(mesh.master_names)
     active = np.ones(6 * nm, dtype=bool)
     active.reshape(nm, 6)[~rot_used, 3:] = False
     for s in scene.supports:
         if s.body is not None:
-            active[6 * body_index[s.body] : 6 * body_index[s.body] + 6] = False
+            active[6 * mesh.body_index[s.body] : 6 * mesh.body_index[s.body] + 6] = False
         elif s.node in carrier:
-            b = body_index[carrier[s.node]]
+            b = mesh.body_index[carrier[s.node]]
             active[6 * b : 6 * b + 6] = False
         else:
-            m = node_master_a[node_index[s.node]]
+            m = mesh.node_master[mesh.node_index[s.node]]
             for d in s.dofs:
                 active[6 * m + _DOF_INDEX[d]] = False
+    return active
 
+
+def _drive(scene: Scene, mesh: _Mesh, active: np.ndarray, rot_used: np.ndarray
+           ) -> tuple[int, np.ndarray, int, np.ndarray, str]:
+    """The drive: master, axis, DOF, basis of its block (first column the axis) and kind; frees the drive
+    block's DOFs in that basis (``active`` is updated)."""
     st = scene.stroke
     if st is None:
         # no drive (a structure for exact-constraint diagnosis only): System refuses it with a clear error
-        drive_master, axis, drive_dof, basis, drive_kind = -1, np.zeros(3), -1, np.eye(3), "none"
+        return -1, np.zeros(3), -1, np.eye(3), "none"
+    drive_master = (mesh.body_index[st.body] if st.body is not None
+                    else int(mesh.node_master[mesh.node_index[st.node]]))
+    axis = _unit(st.axis)
+    drive_dof = 6 * drive_master + (3 if st.kind == "rotation" else 0)
+    if st.kind == "rotation" and not rot_used[drive_master]:
+        raise SceneError("stroke.node", f"node '{st.node}' has no rotational stiffness (it joins only "
+                         "trusses); drive it in translation or attach it to a beam")
+    blk = np.arange(drive_dof, drive_dof + 3)
+    fixed_dirs = [np.eye(3)[k] for k in range(3) if not active[blk[k]]]
+    if fixed_dirs:
+        # partially supported driven node: the basis keeps the supported coordinate directions, so the
+        # drive axis must be perpendicular to them (the scene validator already refuses a parallel one)
+        if any(abs(f @ axis) > 1e-12 for f in fixed_dirs):
+            raise SceneError("stroke.axis", "the drive axis is not perpendicular to the supported "
+                             "coordinates of the driven node; align it with a free coordinate axis")
+        f0 = fixed_dirs[0]
+        basis = np.column_stack([axis, f0, np.cross(axis, f0)])
+        active[blk] = [True, False, len(fixed_dirs) < 2]
     else:
-        drive_kind = st.kind
-        drive_master = body_index[st.body] if st.body is not None else int(node_master_a[node_index[st.node]])
-        axis = _unit(st.axis)
-        drive_dof = 6 * drive_master + (3 if st.kind == "rotation" else 0)
-        if st.kind == "rotation" and not rot_used[drive_master]:
-            raise SceneError("stroke.node", f"node '{st.node}' has no rotational stiffness (it joins only "
-                             "trusses); drive it in translation or attach it to a beam")
-        blk = np.arange(drive_dof, drive_dof + 3)
-        fixed_dirs = [np.eye(3)[k] for k in range(3) if not active[blk[k]]]
-        if fixed_dirs:
-            # partially supported driven node: the basis keeps the supported coordinate directions, so the
-            # drive axis must be perpendicular to them (the scene validator already refuses a parallel one)
-            if any(abs(f @ axis) > 1e-12 for f in fixed_dirs):
-                raise SceneError("stroke.axis", "the drive axis is not perpendicular to the supported "
-                                 "coordinates of the driven node; align it with a free coordinate axis")
-            f0 = fixed_dirs[0]
-            basis = np.column_stack([axis, f0, np.cross(axis, f0)])
-            active[blk] = [True, False, len(fixed_dirs) < 2]
-        else:
-            basis = _basis(axis)
+        basis = _basis(axis)
+    return drive_master, axis, drive_dof, basis, st.kind
 
-    n_active = int(active.sum())
-    if n_active > MAX_DOFS:
-        raise ModelSizeError(
-            "elements[].segments",
-            f"the meshed model has {n_active} degrees of freedom, more than the limit of {MAX_DOFS}; "
-            "use fewer segments per beam or model stiff parts as rigid bodies",
-        )
 
-    projector = None
-    if scene.support_directions is not None:
-        sd = scene.support_directions
-        projector = np.zeros((6, 6))
-        for off, dirs in ((0, sd.translations), (3, sd.rotations)):
-            if dirs:
-                Qd, _ = np.linalg.qr(np.array(dirs, dtype=float).T)
-                rank = np.linalg.matrix_rank(np.array(dirs, dtype=float))
-                Qd = Qd[:, :rank]
-                projector[off : off + 3, off : off + 3] = Qd @ Qd.T
+def _support_projector(scene: Scene) -> np.ndarray | None:
+    """(6, 6) projector on the declared support directions of a master block, or None."""
+    if scene.support_directions is None:
+        return None
+    sd = scene.support_directions
+    projector = np.zeros((6, 6))
+    for off, dirs in ((0, sd.translations), (3, sd.rotations)):
+        if dirs:
+            Qd, _ = np.linalg.qr(np.array(dirs, dtype=float).T)
+            rank = np.linalg.matrix_rank(np.array(dirs, dtype=float))
+            Qd = Qd[:, :rank]
+            projector[off : off + 3, off : off + 3] = Qd @ Qd.T
+    return projector
 
+
+def _constraints(beam_rows: list[dict], truss_rows: list[dict]) -> np.ndarray:
+    """(nr, 3) rigid deformations: (kind 0 beam / 1 truss, element index, deformation index)."""
     cons: list[tuple[int, int, int]] = []
     for i, r in enumerate(beam_rows):
         cons += [(0, i, k) for k in range(6) if r["mask"][k] == 0.0]
     for i, r in enumerate(truss_rows):
         if r["mask"] == 0.0:
             cons.append((1, i, 0))
+    return np.array(cons, dtype=int).reshape(-1, 3)
 
-    def arr(rows, key, shape):
+
+def _element_tables(beam_rows: list[dict], truss_rows: list[dict]) -> dict[str, np.ndarray]:
+    """The Structure's beam and truss arrays from the rows."""
+    def arr(rows, key, shape):  # noqa: ANN001, ANN202
         return np.array([r[key] for r in rows], dtype=float).reshape(shape) if rows else np.zeros(shape)
 
     nb, nt = len(beam_rows), len(truss_rows)
-    truss_const = np.array([[r["l0"], r["k1"], r["mask"]] for r in truss_rows]).reshape(nt, TRUSS_CONST)
-    return Structure(
-        scene=scene,
-        length_scale=length_scale,
-        node_names=tuple(node_names),
-        node_master=node_master_a,
-        node_offset=node_offset,
-        master_names=tuple(master_names),
-        master_pos=master_pos_a,
-        active=active,
+    return dict(
         beam_nodes=np.array([r["nodes"] for r in beam_rows], dtype=int).reshape(nb, 2),
         beam_const=arr(beam_rows, "const", (nb, BEAM_CONST)),
         beam_member=np.array([r["member"] for r in beam_rows], dtype=int),
@@ -311,20 +301,78 @@ def compile_scene(scene: Scene) -> Structure:  # noqa: C901 - a straight sequenc
         beam_stress=arr(beam_rows, "stress", (nb, 7)),
         beam_mass=arr(beam_rows, "mass", (nb,)),
         truss_nodes=np.array([r["nodes"] for r in truss_rows], dtype=int).reshape(nt, 2),
-        truss_const=truss_const,
+        truss_const=np.array([[r["l0"], r["k1"], r["mask"]] for r in truss_rows]).reshape(nt, TRUSS_CONST),
         truss_member=np.array([r["member"] for r in truss_rows], dtype=int),
         truss_area=arr(truss_rows, "area", (nt,)),
         truss_mass=arr(truss_rows, "mass", (nt,)),
+    )
+
+
+def compile_scene(scene: Scene) -> Structure:
+    """Mesh and index a validated scene: masters and nodes (:func:`_masters`), meshed elements
+    (:func:`_elements`), lumped rotary inertia and body mass, free DOFs (:func:`_active`), the drive
+    (:func:`_drive`), the size limit, support directions and rigid deformations.
+
+    Raises
+    ------
+    SceneError
+        For a node that is connected to nothing.
+    ModelSizeError
+        When the meshed model has more than ``MAX_DOFS`` active degrees of freedom.
+    """
+    pos0 = {n.name: np.array(n.position, dtype=float) for n in scene.nodes}
+    carrier = {n: b.name for b in scene.bodies for n in b.nodes}
+    length_scale = float(np.ptp(np.array(list(pos0.values())), axis=0).max())
+    mesh = _masters(scene, pos0, carrier)
+    beam_rows, truss_rows, warping = _elements(scene, mesh, pos0, carrier)
+
+    nn, nm = len(mesh.node_names), len(mesh.master_names)
+    node_master_a = np.array(mesh.node_master, dtype=int)
+    master_pos_a = np.array(mesh.master_pos)
+    node_offset = np.array(mesh.node_pos) - master_pos_a[node_master_a]
+
+    node_rot = np.zeros((nn, 3, 3))
+    rot_used = np.zeros(nm, dtype=bool)
+    rot_used[: len(scene.bodies)] = True
+    for r in beam_rows:
+        for a_ in r["nodes"]:
+            node_rot[a_] += r["rot"]
+            rot_used[node_master_a[a_]] = True
+    master_mass = np.zeros(nm)
+    master_inertia = np.zeros((nm, 3, 3))
+    for i, b in enumerate(scene.bodies):
+        master_mass[i] = b.mass
+        master_inertia[i] = np.array(b.inertia, dtype=float)
+
+    active = _active(scene, mesh, rot_used, carrier)
+    drive_master, axis, drive_dof, basis, drive_kind = _drive(scene, mesh, active, rot_used)
+    n_active = int(active.sum())
+    if n_active > MAX_DOFS:
+        raise ModelSizeError(
+            "elements[].segments",
+            f"the meshed model has {n_active} degrees of freedom, more than the limit of {MAX_DOFS}; "
+            "use fewer segments per beam or model stiff parts as rigid bodies",
+        )
+    return Structure(
+        scene=scene,
+        length_scale=length_scale,
+        node_names=tuple(mesh.node_names),
+        node_master=node_master_a,
+        node_offset=node_offset,
+        master_names=tuple(mesh.master_names),
+        master_pos=master_pos_a,
+        active=active,
+        **_element_tables(beam_rows, truss_rows),
         node_rot_inertia=node_rot,
         master_mass=master_mass,
         master_inertia=master_inertia,
-        constraints=np.array(cons, dtype=int).reshape(-1, 3),
+        constraints=_constraints(beam_rows, truss_rows),
         drive_master=drive_master,
         drive_kind=drive_kind,
         drive_axis=axis,
         drive_basis=basis,
         drive_dof=drive_dof,
-        support_projector=projector,
-        member_names=member_names,
+        support_projector=_support_projector(scene),
+        member_names=tuple(e.name for e in scene.elements),
         warping=tuple(warping),
     )

@@ -15,7 +15,7 @@ of the equilibrium at ``s`` is then the equilibrium at ``-s`` (the continuation'
 symmetric reference), with the mass matrix congruent under ``S``: the same natural frequencies, the same
 shares of kinetic energy in the (mapped) support directions, the drive reaction with the opposite sign and
 each member's stresses those of its image member. The frequency curve is even in the stroke, and one side
-gives the other (:meth:`model.analysis.Analysis.frequency_curve`, ``hermite``).
+gives the other (:meth:`model.analysis.MeshAnalysis.exact_curve`, ``hermite``).
 
 Every comparison is exact up to a relative tolerance of :data:`TOL` (positions: of the design's size), and
 any doubt -- an end-specific rigid deformation (eps3..eps6) or warping condition on an element whose image
@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scene import Beam, RectangularSection, Scene, Truss
+from .scene import Beam, Element, RectangularSection, Scene, Truss
 
 __all__ = ["StrokeSymmetry", "stroke_symmetry", "one_side", "image_indices", "mirror_tol", "TOL"]
 
@@ -81,10 +81,8 @@ def _projector(vectors: list[np.ndarray]) -> np.ndarray:
     return U @ U.T
 
 
-def _check(scene: Scene, c: np.ndarray, S: np.ndarray, X: dict[str, np.ndarray], scale: float
-           ) -> tuple[dict, dict] | None:
-    """The node and element maps of ``x -> c + S (x - c)`` (``S`` symmetric orthogonal) if it maps the scene
-    onto itself, else None."""
+def _node_map(c: np.ndarray, S: np.ndarray, X: dict[str, np.ndarray], scale: float) -> dict[str, str] | None:
+    """Each node's image under ``x -> c + S (x - c)`` (another node within TOL), or None."""
     names = list(X)
     P = np.array([X[k] for k in names])
     img = (P - c) @ S.T + c
@@ -92,10 +90,42 @@ def _check(scene: Scene, c: np.ndarray, S: np.ndarray, X: dict[str, np.ndarray],
     j = np.argmin(d, axis=1)
     if np.any(d[np.arange(len(names)), j] > TOL * scale) or len(set(j.tolist())) != len(names):
         return None
-    nmap = {names[i]: names[int(j[i])] for i in range(len(names))}
-    mats = {m.name: m for m in scene.materials}
+    return {names[i]: names[int(j[i])] for i in range(len(names))}
 
-    # elements: a partner of the same kind and properties on the mirrored nodes
+
+def _partners(scene: Scene, e: Element, f: Element, nmap: dict[str, str], S: np.ndarray,
+              X: dict[str, np.ndarray]) -> bool:
+    """Whether element ``f`` (on the mirrored nodes of ``e``) is the image of ``e``: the same kind and
+    properties, and for a beam the mirrored section orientation."""
+    mats = {m.name: m for m in scene.materials}
+    p, q = e.nodes
+    if f.kind != e.kind or mats[f.material] != mats[e.material] or f.segments != e.segments:
+        return False
+    if f.rigid != e.rigid or f.generalised != e.generalised or f.kinematic_rigid != e.kinematic_rigid:
+        return False
+    reversed_ = f.nodes != (nmap[p], nmap[q])
+    if isinstance(e, Truss):
+        return f.area == e.area
+    if isinstance(e, Beam):
+        if f.section != e.section:
+            return False
+        ends = set(e.rigid) | set(e.generalised) | set(e.kinematic_rigid or ())
+        warp_one = isinstance(e.section, RectangularSection) and e.section.warping == "one_end"
+        if reversed_ and (ends & _END_SPECIFIC or warp_one):
+            return False  # end-specific data on an element the mirror runs the other way: no claim
+        tf = X[f.nodes[1]] - X[f.nodes[0]]
+        tf = tf / np.linalg.norm(tf)
+        y_img = _perp_unit(S @ np.asarray(e.y_axis, float), tf)
+        y_f = _perp_unit(np.asarray(f.y_axis, float), tf)
+        # a doubly symmetric section (all the model has): its y axis matters up to sign
+        if y_img is None or y_f is None or abs(abs(float(y_img @ y_f)) - 1.0) > TOL * 10:
+            return False
+    return True
+
+
+def _element_map(scene: Scene, nmap: dict[str, str], S: np.ndarray, X: dict[str, np.ndarray]
+                 ) -> dict[str, str] | None:
+    """Each element's partner of the same kind and properties on the mirrored nodes, or None."""
     by_nodes: dict[frozenset, list] = {}
     for e in scene.elements:
         by_nodes.setdefault(frozenset(e.nodes), []).append(e)
@@ -104,40 +134,18 @@ def _check(scene: Scene, c: np.ndarray, S: np.ndarray, X: dict[str, np.ndarray],
     for e in scene.elements:
         p, q = e.nodes
         cands = [f for f in by_nodes.get(frozenset((nmap[p], nmap[q])), []) if f.name not in used]
-        match = None
-        for f in cands:
-            if f.kind != e.kind or mats[f.material] != mats[e.material] or f.segments != e.segments:
-                continue
-            if f.rigid != e.rigid or f.generalised != e.generalised or f.kinematic_rigid != e.kinematic_rigid:
-                continue
-            reversed_ = f.nodes != (nmap[p], nmap[q])
-            if isinstance(e, Truss):
-                if f.area != e.area:
-                    continue
-            elif isinstance(e, Beam):
-                if f.section != e.section:
-                    continue
-                ends = set(e.rigid) | set(e.generalised) | set(e.kinematic_rigid or ())
-                warp_one = isinstance(e.section, RectangularSection) and e.section.warping == "one_end"
-                if reversed_ and (ends & _END_SPECIFIC or warp_one):
-                    continue  # end-specific data on an element the mirror runs the other way: no claim
-                t = X[q] - X[p]
-                t = t / np.linalg.norm(t)
-                tf = X[f.nodes[1]] - X[f.nodes[0]]
-                tf = tf / np.linalg.norm(tf)
-                y_img = _perp_unit(S @ np.asarray(e.y_axis, float), tf)
-                y_f = _perp_unit(np.asarray(f.y_axis, float), tf)
-                # a doubly symmetric section (all the model has): its y axis matters up to sign
-                if y_img is None or y_f is None or abs(abs(float(y_img @ y_f)) - 1.0) > TOL * 10:
-                    continue
-            match = f
-            break
+        match = next((f for f in cands if _partners(scene, e, f, nmap, S, X)), None)
         if match is None:
             return None
         used.add(match.name)
         emap[e.name] = match.name
+    return emap
 
-    # bodies: mass, mirrored centre of mass and inertia, the mirrored set of attached nodes
+
+def _body_map(scene: Scene, c: np.ndarray, S: np.ndarray, nmap: dict[str, str], scale: float
+              ) -> dict[str, str] | None:
+    """Each body's image: the same mass, mirrored centre of mass and inertia, the mirrored set of attached
+    nodes; or None."""
     free_bodies = {b.name: b for b in scene.bodies}
     bmap: dict[str, str] = {}
     for b in scene.bodies:
@@ -155,8 +163,12 @@ def _check(scene: Scene, c: np.ndarray, S: np.ndarray, X: dict[str, np.ndarray],
             return None
         bmap[b.name] = hit.name
         del free_bodies[hit.name]
+    return bmap
 
-    # supports: the mirrored node or body with the mirrored set of fixed directions
+
+def _supports_map(scene: Scene, S: np.ndarray, nmap: dict[str, str], bmap: dict[str, str]) -> bool:
+    """Whether every support has an image (the mirrored node or body with the mirrored set of fixed
+    directions) and the declared support directions map onto themselves."""
     def fixed(sup) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
         idx = [_DOF[d] for d in sup.dofs]
         E = np.eye(3)
@@ -177,18 +189,30 @@ def _check(scene: Scene, c: np.ndarray, S: np.ndarray, X: dict[str, np.ndarray],
                 hit = other
                 break
         if hit is None:
-            return None
+            return False
         remaining.remove(hit)
-
-    # declared support directions map onto themselves
     sd = scene.support_directions
     if sd is not None:
         for vecs in (sd.translations, sd.rotations):
             Pv = _projector([np.asarray(v, float) for v in vecs])
             if np.abs(S @ Pv @ S - Pv).max() > 1e-9:
-                return None
+                return False
+    return True
 
-    # the driven node or body onto itself
+
+def _check(scene: Scene, c: np.ndarray, S: np.ndarray, X: dict[str, np.ndarray], scale: float
+           ) -> tuple[dict, dict] | None:
+    """The node and element maps of ``x -> c + S (x - c)`` (``S`` symmetric orthogonal) if it maps the scene
+    onto itself (nodes, elements, bodies, supports, and the driven node or body onto itself), else None."""
+    nmap = _node_map(c, S, X, scale)
+    if nmap is None:
+        return None
+    emap = _element_map(scene, nmap, S, X)
+    if emap is None:
+        return None
+    bmap = _body_map(scene, c, S, nmap, scale)
+    if bmap is None or not _supports_map(scene, S, nmap, bmap):
+        return None
     st = scene.stroke
     if st.node is not None and nmap[st.node] != st.node:
         return None

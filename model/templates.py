@@ -646,6 +646,27 @@ def topology_layout(descriptor: str) -> list[dict]:
     return stages
 
 
+def _layer_heights(stages: list[dict], w: Any, t_gap: Any) -> dict[tuple[int, int], Any]:
+    """The z of every leaf's centre, keyed (stage, leaf): layers (a stacked leaf, or one in-plane crossing)
+    stacked along z with ``t_gap`` between them and centred on z = 0, stage 1's in the middle and each later
+    stage's first half above, second half below the earlier ones (see :func:`_topology_hinge`)."""
+    # layers (top to bottom): (stage index, leaf indices, width multiple)
+    order: list[tuple[int, list[int], int]] = []
+    for k, st in enumerate(stages):
+        own = ([(k, list(range(len(st["leaves"]))), max(lf[1] for lf in st["leaves"]))] if st["inplane"]
+               else [(k, [i], lf[1]) for i, lf in enumerate(st["leaves"])])
+        up = (len(own) + 1) // 2
+        order = own if k == 0 else own[:up] + order + own[up:]
+    total = sum(m for *_, m in order) * w + (len(order) - 1) * t_gap
+    z_of: dict[tuple[int, int], Any] = {}
+    top = total / 2.0
+    for k, idx, m in order:
+        for i in idx:
+            z_of[(k, i)] = top - m * w / 2.0
+        top = top - m * w - t_gap
+    return z_of
+
+
 def _topology_hinge(p: dict) -> dict:
     """A generated hinge topology (``topology``: see :func:`topology_layout`), built like the families.
 
@@ -670,20 +691,7 @@ def _topology_hinge(p: dict) -> dict:
     level = int(p["flexure_level"])
     n = 1 if level else int(p["segments"])
     n_half = max(n // 2, 1)
-    # layers (top to bottom): (stage index, leaf indices, width multiple)
-    order: list[tuple[int, list[int], int]] = []
-    for k, st in enumerate(stages):
-        own = ([(k, list(range(len(st["leaves"]))), max(lf[1] for lf in st["leaves"]))] if st["inplane"]
-               else [(k, [i], lf[1]) for i, lf in enumerate(st["leaves"])])
-        up = (len(own) + 1) // 2
-        order = own if k == 0 else own[:up] + order + own[up:]
-    total = sum(m for *_, m in order) * w + (len(order) - 1) * t_gap
-    z_of: dict[tuple[int, int], Any] = {}
-    top = total / 2.0
-    for k, idx, m in order:
-        for i in idx:
-            z_of[(k, i)] = top - m * w / 2.0
-        top = top - m * w - t_gap
+    z_of = _layer_heights(stages, w, t_gap)
     nodes: list[tuple[str, list]] = []
     elements: list[dict] = []
     bodies: list[dict] = []

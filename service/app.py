@@ -416,16 +416,16 @@ def _template_info(name: str) -> TemplateInfo:
 
 def _methods() -> list[str]:
     try:
-        from ..model import derivatives
+        from ..model import methods
 
-        return list(getattr(derivatives, "METHODS", ("exact",)))
-    except ImportError:  # pragma: no cover - before model.derivatives lands
+        return list(getattr(methods, "METHODS", ("exact",)))
+    except ImportError:  # pragma: no cover - before model.methods lands
         return ["exact"]
 
 
 def _diagnosis_available() -> bool:
     try:
-        from ..model.constraints import diagnose  # noqa: F401
+        from ..model.diagnosis import diagnose  # noqa: F401
     except ImportError:  # pragma: no cover - before model.constraints lands
         return False
     return True

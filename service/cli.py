@@ -106,7 +106,7 @@ def _cmd_curve(args: argparse.Namespace) -> int:
     if args.method == "exact":
         curve = Analysis(scene).frequency_curve(progress=progress)
     else:
-        from ..model.derivatives import curve_with_method
+        from ..model.curve import curve_with_method
 
         curve = curve_with_method(Analysis(scene), args.method, args.tolerance)
     progress.close()

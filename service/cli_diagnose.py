@@ -33,7 +33,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 def _cmd_diagnose(args: argparse.Namespace) -> int:
     import sys
 
-    from ..model.constraints import diagnose
+    from ..model.diagnosis import diagnose
     from .cli import scene_from_args
 
     scene = scene_from_args(args)

@@ -117,7 +117,7 @@ def curve(spec: str) -> Outcome:
         if s["method"] == "exact":
             result = an.frequency_curve(stroke)
         else:
-            from ..model.derivatives import curve_with_method
+            from ..model.curve import curve_with_method
 
             result = curve_with_method(an, s["method"], s["tolerance"], stroke)
         if s.get("shapes"):
@@ -197,7 +197,7 @@ def _modes(s: dict) -> Outcome:
 
 def diagnosis(spec: str) -> Outcome:
     """Exact-constraint diagnosis of ``{"scene", "at_stroke", "kinematic"}`` as JSON bytes."""
-    from ..model.constraints import diagnose
+    from ..model.diagnosis import diagnose
     from ..model.errors import FlexoptError
     from ..model.scene import Scene
 

@@ -232,7 +232,7 @@ def test_provenance_on_curves_and_diagnosis() -> None:
     assert p["method"] == "exact" and p["settings"]["newton"]["tol"] == an.options.tol
     assert p["settings"]["stroke_points"] == 3 and p["settings"]["segments"] == {"leaf": 4}
     assert exact.to_dict()["provenance"] == p
-    from flexopt.model.derivatives import curve_with_method
+    from flexopt.model.methods import curve_with_method
 
     fast = curve_with_method(an, "fd2")
     assert fast.provenance["method"] == "fd2" and fast.provenance["scene_sha256"] == expected

@@ -14,7 +14,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from flexopt.model import Analysis, SceneError, scene_from_dict
-from flexopt.model.constraints import NEAR_RTOL, RANK_RTOL, diagnose
+from flexopt.model.constraints import NEAR_RTOL, RANK_RTOL
+from flexopt.model.diagnosis import diagnose
 from flexopt.service.cli import main
 
 from . import references as ref

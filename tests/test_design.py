@@ -13,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from flexopt.model.analysis import Analysis, beam_end_stresses
+from flexopt.model import Analysis
+from flexopt.model.analysis import beam_end_stresses
 from flexopt.model.design import point_sensitivity, structure_derivative, trace_template
 from flexopt.model.elements import beam_segment_design
 from flexopt.model.errors import FlexoptError

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from flexopt.model import Analysis, scene_from_dict, template
-from flexopt.model.derivatives import estimate_error, frequency_curve
+from flexopt.model.methods import estimate_error, frequency_curve
 from tests import references as ref
 
 # (label, length, width, thickness): t/w from 1e-4 (10 um foil on a 100 mm wide sheet) to 0.5, L/t from
@@ -45,7 +45,7 @@ def test_zero_stroke_closed_forms_hold_at_the_extremes(label, L, w, t):
 def test_curves_converge_and_fast_methods_stay_finite_at_the_extremes(label, L, w, t):
     """The exact curve converges over +-45 deg; every fast method returns finite numbers, and the auto
     estimator's error estimate is never below the true max error by more than its documented factor 2
-    (model/derivatives.py estimate_error). A fast method may be useless at an extreme (the quadratic
+    (model/methods/auto.py estimate_error). A fast method may be useless at an extreme (the quadratic
     manifold of the stubby leaf reaches an unstable configuration by +-45 deg and reports negative
     eigenvalues as negative Hz): then its estimate says so and auto does not pick it."""
     an = Analysis(template("leaf-spring", length=L, width=w, thickness=t, segments=12, points=31))

@@ -11,13 +11,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from flexopt.model import Analysis, scene_from_dict, template
-from flexopt.model.derivatives import (
-    _eq_at,
-    _prepare,
-    estimate_error,
-    frequency_curve,
-    modal_derivatives,
-)
+from flexopt.model.methods import estimate_error, frequency_curve
+from flexopt.model.methods.taylor import _eq_at, _prepare, modal_derivatives
 from flexopt.model.errors import FlexoptError
 from flexopt.model.modal import modes_at
 from flexopt.model.rotations import skew
@@ -75,7 +70,7 @@ def test_theta_ij_against_finite_differences_of_K(analyses):
     K at a state is the Hessian in the chart *at that state* (what the exact method uses); along a chart
     line through the reference (gradient 0) its derivative is ``DK[v] - J1^T K - K J1`` with
     ``J1 = 1/2 [v_rot]`` per master (the Baker-Campbell-Hausdorff term,
-    model.derivatives._to_reference_chart), which model.derivatives uses for theta_ij and gamma.
+    model.methods.taylor._to_reference_chart), which model.methods.taylor uses for theta_ij and gamma.
     Truncation O(h^2) with h = 1e-5 of the stroke scale: ~1e-9 relative; rounding eps |K| / h ~ 1e-10 |K|
     scale; tolerance 1e-6 relative.
     """

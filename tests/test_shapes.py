@@ -251,7 +251,7 @@ def test_curve_plot_of_a_curve_lost_at_once_says_why() -> None:
 def test_diagnosis_plot_draws_the_rotation_of_the_free_motion() -> None:
     """wire-guide-parallel's free motion is mainly a rotation (0.95 rad per unit) of the slider: the drawn
     motion of the slider's nodes must contain psi x r, not only the 0.30 translation."""
-    from flexopt.model.constraints import diagnose
+    from flexopt.model.diagnosis import diagnose
 
     sc = template("wire-guide-parallel")
     dg = diagnose(sc).to_dict()

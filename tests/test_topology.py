@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from flexopt.model.analysis import Analysis
+from flexopt.model import Analysis
 from flexopt.model.errors import SceneError
 from flexopt.model.templates import TEMPLATES, template
 from flexopt.optim.topology import (FAMILIES, canonical, enumerate_topologies, family_of, parse, screen_scene,

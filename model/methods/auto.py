@@ -12,7 +12,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..analysis import Analysis
+from ..analysis import MeshAnalysis
 from ..checks import annotate_curve
 from ..errors import FlexoptError
 from ..results import FrequencyCurve
@@ -29,7 +29,7 @@ METHODS = ("exact", "fd1", "fd2", "manifold", "reduced", "hermite", "auto")
 AUTO_ORDER = ("fd1", "fd2", "reduced", "manifold", "exact")  # candidates of estimate_error (auto: _auto)
 
 
-def frequency_curve(obj: Scene | Analysis, method: str = "auto", tolerance: float = 0.01,
+def frequency_curve(obj: Scene | MeshAnalysis, method: str = "auto", tolerance: float = 0.01,
                     stroke: np.ndarray | None = None) -> FrequencyCurve:
     """Stroke-dependent frequencies by ``method`` (one of :data:`METHODS`).
 
@@ -42,15 +42,15 @@ def frequency_curve(obj: Scene | Analysis, method: str = "auto", tolerance: floa
     ``hermite`` when it meets ``tolerance`` within a sample budget, otherwise ``exact`` (:func:`_auto`).
     The fast methods' estimator for the Taylor and manifold methods is :func:`estimate_error`.
     """
-    an = obj if isinstance(obj, Analysis) else Analysis(obj)
+    an = obj if isinstance(obj, MeshAnalysis) else MeshAnalysis(obj)
     curve = _frequency_curve(an, method, tolerance, stroke)
-    if method == "exact":  # Analysis.frequency_curve has attached the checks and the provenance already
+    if method == "exact":  # MeshAnalysis.frequency_curve has attached the checks and the provenance already
         return curve
     # every other method's curve leaves with the model's checks (warnings) and its provenance (model.checks)
     return annotate_curve(curve, an.scene, an.options)
 
 
-def _frequency_curve(an: Analysis, method: str, tolerance: float, stroke: np.ndarray | None) -> FrequencyCurve:
+def _frequency_curve(an: MeshAnalysis, method: str, tolerance: float, stroke: np.ndarray | None) -> FrequencyCurve:
     if method not in METHODS:
         raise FlexoptError(f"unknown method '{method}': choose one of {', '.join(METHODS)}")
     if not (tolerance > 0):
@@ -93,7 +93,7 @@ AUTO_MIN_POINTS = 12
 AUTO_MIN_TOLERANCE = 1e-4
 
 
-def _auto(an: Analysis, values: np.ndarray, tolerance: float) -> FrequencyCurve:
+def _auto(an: MeshAnalysis, values: np.ndarray, tolerance: float) -> FrequencyCurve:
     """``auto``: on curves with at least ``AUTO_MIN_POINTS`` points per side and a tolerance of at least
     ``AUTO_MIN_TOLERANCE``, ``hermite`` within a sample budget; on shorter curves (an optimiser's screening
     grid) the cheapest Taylor or manifold method whose :func:`estimate_error` meets ``tolerance``; otherwise
@@ -145,7 +145,7 @@ def _auto(an: Analysis, values: np.ndarray, tolerance: float) -> FrequencyCurve:
                                 "auto_estimate": 0.0, "auto_tolerance": tolerance, **tried})
 
 
-def estimate_error(an: Analysis, values: np.ndarray, n_check: int = 2) -> dict[str, float]:
+def estimate_error(an: MeshAnalysis, values: np.ndarray, n_check: int = 2) -> dict[str, float]:
     """Estimated max relative error of the first parasitic frequency for each fast method.
 
     The estimator solves the exact problem at a few check strokes per side (the largest requested stroke
@@ -182,7 +182,7 @@ def estimate_error(an: Analysis, values: np.ndarray, n_check: int = 2) -> dict[s
     return est
 
 
-def curve_with_method(analysis: Analysis, method: str, tolerance: float = 0.01,
+def curve_with_method(analysis: MeshAnalysis, method: str, tolerance: float = 0.01,
                       stroke: np.ndarray | None = None) -> FrequencyCurve:
-    """CLI entry point: :func:`frequency_curve` on a ready :class:`Analysis` (result has ``.method`` set)."""
+    """CLI entry point: :func:`frequency_curve` on a ready :class:`MeshAnalysis` (result has ``.method`` set)."""
     return frequency_curve(analysis, method, tolerance, stroke)

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..analysis import Analysis
+from ..analysis import MeshAnalysis
 from ..results import FrequencyCurve
 
 #: Relative eigenvalue gap below which modes are treated as one (quasi-)degenerate cluster.
 CLUSTER_GAP = 2e-2
 
 
-def _curve_from(an: Analysis, method: str, stroke_user: np.ndarray, hz: np.ndarray, labels: np.ndarray,
+def _curve_from(an: MeshAnalysis, method: str, stroke_user: np.ndarray, hz: np.ndarray, labels: np.ndarray,
                 par: np.ndarray, seconds: float, extra: dict, conventions: dict | None = None) -> FrequencyCurve:
     spec = an.scene.stroke
     nan = np.full(len(stroke_user), np.nan)

@@ -55,7 +55,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..analysis import Analysis
+from ..analysis import MeshAnalysis
 from ..errors import FlexoptError
 from ..modal import Modes, assign, mac_matrix, modes_at
 from ..statics import Equilibrium, StepFailure, path_curvature, solve_point, walk
@@ -132,7 +132,7 @@ class HermiteResult:
     filled: int = 0  # requested points computed exactly in intervals that missed the tolerance (``fill``)
 
 
-def stroke_slopes(an: Analysis, eq: Equilibrium, modes: Modes) -> np.ndarray:
+def stroke_slopes(an: MeshAnalysis, eq: Equilibrium, modes: Modes) -> np.ndarray:
     """Exact ``d lambda_i / ds`` of the eigenpairs ``modes`` at the equilibrium ``eq`` (see module docstring).
 
     With ``K1 = D3L[t]`` (reference chart of ``eq``), the chart change of :func:`_to_reference_chart` to
@@ -185,7 +185,7 @@ def _hz(mu: np.ndarray) -> np.ndarray:
 class _Side:
     """Samples on one side of stroke 0 and their tracked branches."""
 
-    def __init__(self, an: Analysis, first: _Sample, k: int, drive: str, curvature: np.ndarray | None = None) -> None:
+    def __init__(self, an: MeshAnalysis, first: _Sample, k: int, drive: str, curvature: np.ndarray | None = None) -> None:
         self.an, self.k, self.drive = an, k, drive
         self.samples = [first]
         self.lam = self.slope = np.zeros((0, k))
@@ -769,7 +769,7 @@ def _quintic_all(S: np.ndarray, y: np.ndarray, dy: np.ndarray, i: np.ndarray, nb
     return cubic + ((xs - a3) ** 2 * (xs - b[:, :, None]) ** 2) * (alpha[:, None, :] + beta[:, None, :] * (xs - a3))
 
 
-def _stroke_zero(an: Analysis, k: int, drive: str) -> _Sample:
+def _stroke_zero(an: MeshAnalysis, k: int, drive: str) -> _Sample:
     """The sample at stroke 0: the reference equilibrium, its ``k`` lowest eigenpairs and their slopes."""
     sys = an.system
     eq0 = solve_point(sys, sys.reference_state(), 0.0, an.options, 0.0)
@@ -782,7 +782,7 @@ def _stroke_zero(an: Analysis, k: int, drive: str) -> _Sample:
     return _Sample(0.0, eq0, m0, stroke_slopes(an, eq0, m0))
 
 
-def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samples: int | None = None,
+def hermite_curve(an: MeshAnalysis, internal: np.ndarray, tolerance: float, max_samples: int | None = None,
                   mirror: bool = True, fill: bool = False) -> HermiteResult | None:
     """Frequencies at the internal strokes ``internal`` by adaptive exact samples and cubic Hermite branches.
 
@@ -791,7 +791,7 @@ def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samp
     ``max_samples`` bounds the exact samples per side (default: unlimited up to intervals of s_max/64).
     ``mirror``: on a design whose symmetry reverses the stroke (:mod:`model.symmetry`) only the side of
     positive strokes is sampled and each point at ``-s`` takes the interpolated branches at ``s`` (as the
-    exact method does, :meth:`Analysis.frequency_curve`).
+    exact method does, :meth:`MeshAnalysis.frequency_curve`).
     ``fill``: when the samples stop (budget or shortest interval) with intervals whose estimate misses the
     tolerance, the requested points inside those intervals are computed exactly (:meth:`_Side.fill`): what
     remains interpolated has an estimate within the tolerance, at the cost of those exact points (``auto``).
@@ -880,7 +880,7 @@ def hermite_curve(an: Analysis, internal: np.ndarray, tolerance: float, max_samp
     return HermiteResult(hz, labels, par, estimate, used, converged, filled=filled)
 
 
-def hermite_frequency_curve(an: Analysis, values: np.ndarray, tolerance: float,
+def hermite_frequency_curve(an: MeshAnalysis, values: np.ndarray, tolerance: float,
                             max_samples: int | None = None, fill: bool = False):
     """The ``hermite`` method as a :class:`~model.results.FrequencyCurve`; the exact curve when a sample fails.
 

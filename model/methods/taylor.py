@@ -65,7 +65,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from .. import elements as _el
-from ..analysis import Analysis
+from ..analysis import MeshAnalysis
 from ..assembly import State, System
 from ..errors import FlexoptError
 from ..modal import Modes
@@ -350,13 +350,13 @@ def _multiple(lam: np.ndarray, gap: float) -> list[np.ndarray]:
     return out
 
 
-def modal_derivatives(an: Analysis, eq0: Equilibrium | None = None, n_theta: int | None = None,
+def modal_derivatives(an: MeshAnalysis, eq0: Equilibrium | None = None, n_theta: int | None = None,
                       labeller=None) -> ModalDerivatives:
     """Modes, modal derivatives (eq. 6) and first and second frequency derivatives at stroke 0.
 
     Parameters
     ----------
-    an : Analysis
+    an : MeshAnalysis
         The compiled scene.
     eq0 : Equilibrium, optional
         The reference equilibrium (solved if not given).
@@ -449,13 +449,13 @@ def modal_derivatives(an: Analysis, eq0: Equilibrium | None = None, n_theta: int
 
 @dataclass
 class _Prepared:
-    an: Analysis
+    an: MeshAnalysis
     eq0: Equilibrium
     md: ModalDerivatives
     basis: np.ndarray | None = None
 
 
-def _prepare(an: Analysis) -> _Prepared:
+def _prepare(an: MeshAnalysis) -> _Prepared:
     cached = getattr(an, "_flexopt_md", None)
     if cached is None:
         sys = an.system

@@ -22,7 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...model.constraints import RANK_RTOL, ConstraintDiagnosis, diagnose
+from ...model.constraints import RANK_RTOL, ConstraintDiagnosis
+from ...model.diagnosis import diagnose
 from ...model.scene import Scene
 from ...model.structure import compile_scene
 from ...model.templates import template
