@@ -1,4 +1,4 @@
-"""Cost of a synchronous frequency curve against model size: the data behind ``service.app.seconds_per_point``.
+"""Cost of a synchronous frequency curve against model size: the data behind ``service.api.guards.seconds_per_point``.
 
 The leaf-spring template meshed with 10 to 320 segments, exact method, 5 stroke points, one process (kernels
 compiled once, before the timed runs). Prints a markdown table: DOFs, measured seconds per point, and the
@@ -15,7 +15,7 @@ import time
 
 from flexopt.model import Analysis, template
 from flexopt.model.structure import compile_scene
-from flexopt.service.app import seconds_per_point
+from flexopt.service.api.guards import seconds_per_point
 
 
 def main() -> None:

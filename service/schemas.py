@@ -12,6 +12,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, FiniteFloat, PositiveFloat
 
+from .._methods import METHODS, Method  # the one list of method names (imports nothing)
 from ..optim.problem import Problem as OptimisationProblem  # pydantic only (no CasADi)
 
 __all__ = [
@@ -38,8 +39,6 @@ __all__ = [
 ]
 
 API_VERSION = "1"
-METHODS = ("exact", "fd1", "fd2", "manifold", "reduced", "hermite", "auto")
-Method = Literal["exact", "fd1", "fd2", "manifold", "reduced", "hermite", "auto"]
 
 SceneDocument = Annotated[
     dict[str, Any],

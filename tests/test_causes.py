@@ -118,7 +118,7 @@ def test_stable_curve_unchanged_by_the_checks():
 def test_worker_keeps_the_mass_underflow_field():
     """A worker process reports errors by name; the service rebuilds them with their field (HTTP 422 with
     loc body.scene.materials.0.density)."""
-    from flexopt.service.worker import _error, raise_error
+    from flexopt.service.jobs.worker import _error, raise_error
 
     with pytest.raises(MassUnderflowError) as e:
         raise_error(_error(MassUnderflowError("materials[0].density", "mass underflow: x"))[1])

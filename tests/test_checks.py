@@ -23,7 +23,7 @@ from flexopt.model.checks import (
     stress_warnings,
     units_warnings,
 )
-from flexopt.service.cli import main
+from flexopt.service.cli.main import main
 
 from .helpers import scale_units, scene_dict
 

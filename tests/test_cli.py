@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from flexopt.model import template
-from flexopt.service.cli import main
+from flexopt.service.cli.main import main
 
 
 def _run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
@@ -133,7 +133,7 @@ def test_truncated_curve_exits_1_and_says_where(capsys, tmp_path: Path):
 
 def test_console_script_runs_in_a_fresh_process():
     """The installed entry point (not only main()) works and does not import the web stack."""
-    code = ("import sys; from flexopt.service.cli import main; rc = main(['template']); "
+    code = ("import sys; from flexopt.service.cli.main import main; rc = main(['template']); "
             "assert 'fastapi' not in sys.modules; sys.exit(rc)")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr

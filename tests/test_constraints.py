@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 from flexopt.model import Analysis, SceneError, scene_from_dict
 from flexopt.model.constraints import NEAR_RTOL, RANK_RTOL
 from flexopt.model.diagnosis import diagnose
-from flexopt.service.cli import main
+from flexopt.service.cli.main import main
 
 from . import references as ref
 from .helpers import edit, rigid_motion, rotation_from_quaternion, scale_units, scene_dict
@@ -296,7 +296,7 @@ def test_pivot_without_kinematic_uses_the_idealisation_condenses_and_names_defor
     carry the scene's deformation names. Two full-width sheets crossing: one self-stress of their stiff
     (out-of-plane) bending, no free motion beyond the drive (kinematically determinate)."""
     from flexopt.model import template
-    from flexopt.service.cli import main
+    from flexopt.service.cli.main import main
 
     d = diagnose(template("cross-spring-pivot"))
     assert d.kinematic and any("kinematic idealisation used" in n for n in d.notes)

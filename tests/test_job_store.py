@@ -19,7 +19,7 @@ import pytest
 
 pytest.importorskip("sqlalchemy")
 
-from flexopt.service.store import (  # noqa: E402
+from flexopt.service.jobs.store import (  # noqa: E402
     MAX_ATTEMPTS,
     JobStore,
     KeyReused,
@@ -194,7 +194,7 @@ def test_concurrent_claims_give_each_job_once(store: JobStore) -> None:
 def test_dispatcher_survives_database_errors(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The audit: one database error (a lock held for 40 s) ended the dispatch thread for good, while /health
     said 200. Now each failing tick is logged and retried with backoff, and ``healthy()`` tells /ready."""
-    from flexopt.service.dispatch import Dispatcher
+    from flexopt.service.jobs.dispatch import Dispatcher
 
     store = JobStore(f"sqlite:///{tmp_path / 'jobs.sqlite'}", tmp_path)
     real, calls = store.expired, []

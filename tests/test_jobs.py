@@ -17,8 +17,9 @@ pytest.importorskip("fastapi")
 pytest.importorskip("sqlalchemy")
 
 from flexopt.service.client import Client, InvalidInput, JobFailed, NotFound  # noqa: E402
-from flexopt.service.jobs import JobStore, run_job  # noqa: E402
-from flexopt.service.settings import Settings  # noqa: E402
+from flexopt.service.jobs.run import run_job
+from flexopt.service.jobs.store import JobStore  # noqa: E402
+from flexopt.service.api.settings import Settings  # noqa: E402
 from tests.test_job_store import pg_server, pg_url  # noqa: E402,F401 - fixtures
 from tests.test_service import _Server  # noqa: E402
 

@@ -115,7 +115,7 @@ def test_two_parameter_pivot_optimum_beats_a_grid_search():
 def test_cli_optimise_prints_the_ranking_and_writes_scenes(tmp_path, capsys):
     import json
 
-    from flexopt.service.cli import main
+    from flexopt.service.cli.main import main
 
     spec = tmp_path / "spec.json"
     spec.write_text(json.dumps(LEAF))
@@ -129,7 +129,7 @@ def test_cli_optimise_prints_the_ranking_and_writes_scenes(tmp_path, capsys):
 def test_cli_optimise_bad_spec_is_one_line_naming_the_field(tmp_path, capsys):
     import json
 
-    from flexopt.service.cli import main
+    from flexopt.service.cli.main import main
 
     spec = tmp_path / "spec.json"
     spec.write_text(json.dumps({**LEAF, "samples": 1}))
@@ -427,7 +427,7 @@ def test_cli_optimise_a_cluster_without_workers_is_one_line_and_exit_4(tmp_path,
 
     import flexopt.optim
     import flexopt.optim.batch as batch
-    from flexopt.service.cli import main
+    from flexopt.service.cli.main import main
 
     class _Executor:
         def shutdown(self) -> None:

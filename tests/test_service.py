@@ -20,7 +20,7 @@ pytest.importorskip("uvicorn")
 
 import uvicorn  # noqa: E402
 
-from flexopt.service.app import create_app, openapi_json  # noqa: E402
+from flexopt.service.api.app import create_app, openapi_json  # noqa: E402
 from flexopt.service.client import (  # noqa: E402
     Client,
     InvalidInput,
@@ -30,7 +30,7 @@ from flexopt.service.client import (  # noqa: E402
     Unauthorized,
 )
 from flexopt.service.client import ComputeTimeout as ClientTimeout  # noqa: E402
-from flexopt.service.settings import Settings  # noqa: E402
+from flexopt.service.api.settings import Settings  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -279,11 +279,11 @@ def test_client_import_is_light() -> None:
 def test_openapi_committed_and_current() -> None:
     committed = (ROOT / "service" / "openapi.json").read_text()
     assert json.loads(committed) == json.loads(openapi_json()), (
-        "service/openapi.json is stale: regenerate with `python -m flexopt.service.app > service/openapi.json`")
+        "service/openapi.json is stale: regenerate with `python -m flexopt.service.api.app > service/openapi.json`")
 
 
 def test_cli_registers_serve() -> None:
-    from flexopt.service.cli import _parser
+    from flexopt.service.cli.main import _parser
 
     args = _parser().parse_args(["serve", "--port", "8123"])
     assert args.port == 8123 and args.host == "127.0.0.1"
@@ -306,7 +306,7 @@ def test_async_client(server: _Server) -> None:
 
 
 def test_response_cache_is_bounded_lru() -> None:
-    from flexopt.service.app import Runtime
+    from flexopt.service.api.runtime import Runtime
 
     rt = Runtime(Settings(cache_size=2))
     for k in "abc":

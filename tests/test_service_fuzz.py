@@ -18,7 +18,7 @@ schemathesis = pytest.importorskip("schemathesis")
 from hypothesis import HealthCheck, settings  # noqa: E402
 from schemathesis.checks import not_a_server_error, response_schema_conformance  # noqa: E402
 
-from flexopt.service.settings import Settings  # noqa: E402
+from flexopt.service.api.settings import Settings  # noqa: E402
 from tests.test_service import _Server  # noqa: E402
 
 # The committed schema (kept equal to the app's by test_service.test_openapi_committed_and_current).

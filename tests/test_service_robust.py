@@ -22,9 +22,9 @@ import pytest
 
 uvicorn = pytest.importorskip("uvicorn")
 
-from flexopt.service.app import create_app, openapi_json  # noqa: E402
-from flexopt.service.middleware import JsonLogFormatter  # noqa: E402
-from flexopt.service.settings import Settings  # noqa: E402
+from flexopt.service.api.app import create_app, openapi_json  # noqa: E402
+from flexopt.service.logs import JsonLogFormatter  # noqa: E402
+from flexopt.service.api.settings import Settings  # noqa: E402
 from tests.test_service import _free_port, _Server  # noqa: E402
 
 

@@ -17,7 +17,7 @@ import pytest
 from flexopt.model import Analysis, template
 from flexopt.model.shapes import shapes_at
 from flexopt.service import plots
-from flexopt.service.cli import main
+from flexopt.service.cli.main import main
 from tests import references as ref
 
 
@@ -170,8 +170,8 @@ def test_http_modes_and_curve_shapes() -> None:
 
     import httpx
 
-    from flexopt.service.app import create_app
-    from flexopt.service.settings import Settings
+    from flexopt.service.api.app import create_app
+    from flexopt.service.api.settings import Settings
 
     scene = template("leaf-spring", points=5).model_dump(mode="json")
     app = create_app(Settings(executor="thread", api_keys=""))  # the runtime exists before startup (in-process)

@@ -162,7 +162,7 @@ def test_spec_errors_name_the_field() -> None:
 
 
 def test_cli_example_and_rejected_only(tmp_path, capsys) -> None:
-    from flexopt.service.cli import main
+    from flexopt.service.cli.main import main
 
     assert main(["topology", "--example"]) == 0
     spec = json.loads(capsys.readouterr().out)
@@ -185,7 +185,7 @@ def test_search_restricted_to_a_family_reproduces_its_optimum(tmp_path, capsys) 
     template (optim.optimise) under the identical problem: the same optimum within 1 %."""
     from flexopt.optim import optimise
     from flexopt.optim.topology.rank import TopologySpec, candidate_problem
-    from flexopt.service.cli import main
+    from flexopt.service.cli.main import main
 
     raw = {"topologies": ["R:-+@"], "segments": 4, "samples": 5, "verify_points": 31, "refine_rounds": 1}
     f = tmp_path / "spec.json"

@@ -115,8 +115,8 @@ def test_async_client_submits_and_cancels_a_topology_search(tmp_path: Path) -> N
 
 @pytest.mark.slow
 def test_restarted_topology_search_resumes_from_its_finished_cases(tmp_path: Path) -> None:
-    from flexopt.service.jobs import JobStore
-    from flexopt.service.settings import Settings
+    from flexopt.service.jobs.store import JobStore
+    from flexopt.service.api.settings import Settings
 
     spec = {**TINY, "topologies": ["R:+-", "R:+-@"], "starts": 4}  # 8 cases of a second or two each
     srv = _server(tmp_path)

@@ -22,8 +22,8 @@ sync_api = pytest.importorskip("playwright.sync_api", reason="playwright for Pyt
 
 import uvicorn  # noqa: E402
 
-from flexopt.service.app import create_app  # noqa: E402
-from flexopt.service.settings import Settings  # noqa: E402
+from flexopt.service.api.app import create_app  # noqa: E402
+from flexopt.service.api.settings import Settings  # noqa: E402
 
 CHROMIUM = next((p for p in (os.environ.get("FLEXOPT_CHROMIUM"), shutil.which("chromium"),
                              shutil.which("chromium-browser"), "/usr/bin/chromium") if p and os.path.exists(p)), None)

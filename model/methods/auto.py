@@ -12,6 +12,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..._methods import METHODS  # the one list of method names (imports nothing)
 from ..analysis import MeshAnalysis
 from ..checks import annotate_curve
 from ..errors import FlexoptError
@@ -24,7 +25,6 @@ from .taylor import _prepare, taylor_curve
 
 __all__ = ["METHODS", "AUTO_ORDER", "frequency_curve", "estimate_error", "curve_with_method"]
 
-METHODS = ("exact", "fd1", "fd2", "manifold", "reduced", "hermite", "auto")
 #: Cheapest first: the fast methods :func:`estimate_error` rates.
 AUTO_ORDER = ("fd1", "fd2", "reduced", "manifold", "exact")  # candidates of estimate_error (auto: _auto)
 

@@ -1,7 +1,7 @@
 """Optimisation jobs that are never lost nor run twice: the job process, on top of ``store`` and ``dispatch``.
 
 Each job runs ``optim.optimise`` in its own OS process (``python -m flexopt.service.jobs run ID ATTEMPT``),
-started by :class:`~flexopt.service.dispatch.Dispatcher` in its own process group, never in the server's
+started by :class:`~flexopt.service.jobs.dispatch.Dispatcher` in its own process group, never in the server's
 event loop. The process holds the job's lease (heartbeat with ``host:pid``) and writes progress and its
 verdict only while the row carries its attempt number (the fencing token, :mod:`.store`).
 
@@ -22,19 +22,18 @@ from __future__ import annotations
 import concurrent.futures as cf
 import json
 import logging
-import math
 import os
 import signal
 import sys
 import threading
 import time
 from pathlib import Path
-from typing import Any
 
-from .dispatch import Dispatcher
-from .store import HOST, MAX_ATTEMPTS, STATUSES, Job, JobStore, KeyReused, StoreUnavailable
+from . import worker
+from .store import HOST, JobStore, StoreUnavailable
+from .worker import finite
 
-__all__ = ["MAX_ATTEMPTS", "STATUSES", "Dispatcher", "Job", "JobStore", "KeyReused", "run_job"]
+__all__ = ["RETRY", "main", "run_job"]
 
 log = logging.getLogger("flexopt.service.jobs")
 
@@ -64,8 +63,8 @@ def _all_failed(result: dict) -> str | None:
 def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
     """Body of a job process (run ``attempt`` of the job). Returns the process's exit code: 0 with a
     verdict written (or nothing to do), :data:`RETRY` without one (the dispatcher requeues), 1 on failure."""
-    from ..optim import optimise
-    from ..optim.batch import BatchCancelled
+    from ...optim import optimise
+    from ...optim.batch import BatchCancelled
 
     store = JobStore(os.environ["FLEXOPT_DATABASE_URL"], Path(os.environ["FLEXOPT_DATA_DIR"]),
                      float(os.environ.get("FLEXOPT_LEASE_SECONDS", "15")))
@@ -113,7 +112,7 @@ def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
             pass
         try:  # best effort: a database busy for longer than its timeout must not fail the optimisation
             store.update(job_id, attempt, progress=json.dumps({"done": event["done"], "total": event["total"]}),
-                         partial=json.dumps(_finite(partial), allow_nan=False))
+                         partial=json.dumps(finite(partial), allow_nan=False))
         except StoreUnavailable:  # the next case's progress writes it again
             log.warning("job %s: progress not written", job_id)
 
@@ -126,13 +125,13 @@ def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
     workers = int(os.environ["FLEXOPT_JOB_WORKERS"]) if os.environ.get("FLEXOPT_JOB_WORKERS") else None
     try:
         if spec.get("kind") == "topology-search":  # same batch machinery, same case store: a rerun resumes
-            from ..optim.topology import run_topology_search
+            from ...optim.topology import run_topology_search
 
             search = {k: v for k, v in spec.items() if k != "kind"}
             result = run_topology_search(search, workers=workers, store=cases, progress=progress, cancel=cancel)
         else:
             result = optimise(spec, workers=workers, store=cases, progress=progress, cancel=cancel)
-        blob = json.dumps(_finite(result), allow_nan=False)
+        blob = json.dumps(finite(result), allow_nan=False)
     except BatchCancelled:
         if interrupted.is_set():
             return RETRY
@@ -170,8 +169,6 @@ def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
 def _curve_job(store: JobStore, job_id: str, attempt: int, spec: dict, holder: str) -> int:
     """Compute a frequency curve (``worker.curve``) while a thread renews the lease; store it as the result.
     SIGTERM ends the process (default action): the dispatcher requeues the run, which starts again."""
-    from . import worker
-
     done = threading.Event()
 
     def beat() -> None:
@@ -193,24 +190,14 @@ def _curve_job(store: JobStore, job_id: str, attempt: int, spec: dict, holder: s
     return 1
 
 
-def _finite(obj: Any) -> Any:
-    """JSON-safe: non-finite floats become null (the wire format has no NaN)."""
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, list):
-        return [_finite(v) for v in obj]
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
-
-
-if __name__ == "__main__":
-    if len(sys.argv) == 4 and sys.argv[1] == "run" and sys.argv[3].isdigit():
+def main(argv: list[str]) -> int:
+    """``run JOB_ID ATTEMPT``: the job process's command line (``python -m flexopt.service.jobs``)."""
+    if len(argv) == 3 and argv[0] == "run" and argv[2].isdigit():
         import logging.config
 
-        from .middleware import log_config
+        from ..logs import log_config
 
         logging.config.dictConfig(log_config(os.environ.get("FLEXOPT_LOG_LEVEL", "info")))
-        sys.exit(run_job(sys.argv[2], int(sys.argv[3])))
+        return run_job(argv[1], int(argv[2]))
     print("usage: python -m flexopt.service.jobs run JOB_ID ATTEMPT", file=sys.stderr)
-    sys.exit(2)
+    return 2

@@ -12,10 +12,10 @@ def _cmd_serve(args: argparse.Namespace) -> int:
 
     import uvicorn
 
-    from .app import create_app
-    from .middleware import log_config
-    from .settings import Settings
-    from .store import JobStore, StoreCorrupt
+    from ..api.app import create_app
+    from ..api.settings import Settings
+    from ..jobs.store import JobStore, StoreCorrupt
+    from ..logs import log_config
 
     settings = Settings()
     try:  # refuse a corrupt or unreachable job store before listening, with one line naming it and the fix

@@ -1,6 +1,6 @@
 """``flexopt optimise``: maximise the worst-case first parasitic frequency over the stroke (optim/).
 
-Registered by service.cli through :func:`add_parser`; imports optim lazily.
+Registered by service.cli.main through :func:`add_parser`; imports optim lazily.
 """
 
 from __future__ import annotations
@@ -59,14 +59,14 @@ def executor_for(scheduler: str | None) -> Any:
     """A Dask client's executor for ``scheduler`` (an address), or None for the local process pool."""
     if not scheduler:
         return None
-    from ..optim.batch import dask_executor
+    from ...optim.batch import dask_executor
 
     return dask_executor(scheduler)
 
 
 def _cmd_optimise(args: argparse.Namespace) -> int:
-    from ..optim import Problem, optimise
-    from ..optim.batch import NoWorkers
+    from ...optim import Problem, optimise
+    from ...optim.batch import NoWorkers
 
     prob = read_spec(args.spec, Problem)
     executor = executor_for(args.scheduler)

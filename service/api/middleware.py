@@ -1,4 +1,5 @@
-"""ASGI middleware of the service: one JSON log line per request, 415 for bodies that are not JSON.
+"""ASGI middleware of the service: one JSON log line per request, 413 for bodies too large, 415 for bodies that
+are not JSON.
 
 ``RequestLog`` is the outermost layer (inside Starlette's own error middleware): it gives each request an id
 (the client's ``X-Request-ID`` when it is a short token, else a new one), echoes it in the response, and logs
@@ -7,24 +8,22 @@ that escapes the application is logged here and answered with a 500 problem body
 again, so the server keeps the connection open (a raised exception makes uvicorn close it, and the
 client's next request on that connection fails too).
 
-``JsonLogFormatter`` writes every log record of the process as one JSON object per line; ``flexopt serve``
-installs it for the ``flexopt`` and ``uvicorn`` loggers.
+``BodyLimit`` answers 413 for a body larger than the limit, declared or streamed. The JSON log lines
+themselves are written by :mod:`service.logs`.
 """
 
 from __future__ import annotations
 
-import json
 import logging
 import re
 import time
 import uuid
-from typing import Any
 
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from . import errors_http
+from . import errors
 
-__all__ = ["JsonLogFormatter", "JsonOnly", "RequestLog", "log_config"]
+__all__ = ["BodyLimit", "JsonOnly", "RequestLog"]
 
 log = logging.getLogger("flexopt.service.access")
 _TOKEN = re.compile(r"^[A-Za-z0-9._:-]{1,100}$")
@@ -58,8 +57,8 @@ class RequestLog:
         except Exception:  # noqa: BLE001 - logged with its traceback; the client gets a problem body
             log.exception("unhandled error", extra={"request_id": rid})
             if not started:
-                await errors_http.problem(500, "internal error; the server log has the details "
-                                               f"(request id {rid})")(scope, receive, send_with_id)
+                await errors.problem(500, "internal error; the server log has the details "
+                                          f"(request id {rid})")(scope, receive, send_with_id)
         finally:
             route = scope.get("route")
             log.info("request", extra={"event": "request", "request_id": rid, "method": scope["method"],
@@ -84,35 +83,46 @@ class JsonOnly:
         has_body = b"transfer-encoding" in headers or (length is not None and length.strip() not in (b"", b"0"))
         if has_body and not _JSON.match(media):
             shown = media or "none"
-            await errors_http.problem(415, f"Content-Type '{shown}' is not accepted: send the body as JSON with "
-                                           "'Content-Type: application/json'")(scope, receive, send)
+            await errors.problem(415, f"Content-Type '{shown}' is not accepted: send the body as JSON with "
+                                      "'Content-Type: application/json'")(scope, receive, send)
             return
         await self.app(scope, receive, send)
 
 
-_STANDARD = set(logging.makeLogRecord({}).__dict__) | {"message", "asctime", "color_message"}
+class BodyLimit:
+    """ASGI middleware: 413 for request bodies larger than ``limit`` bytes (declared or streamed)."""
 
+    def __init__(self, app: ASGIApp, limit: int) -> None:
+        self.app = app
+        self.limit = limit
 
-class JsonLogFormatter(logging.Formatter):
-    """One JSON object per record: time, level, logger, message, the record's extra fields, the traceback."""
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        too_large = errors.problem(413, f"request body larger than the limit of {self.limit} bytes")
+        declared = dict(scope["headers"]).get(b"content-length")
+        if declared is not None and declared.isdigit() and int(declared) > self.limit:
+            await too_large(scope, receive, send)
+            return
+        body = bytearray()
+        while True:
+            msg = await receive()
+            if msg["type"] == "http.disconnect":
+                return
+            body += msg.get("body", b"")
+            if len(body) > self.limit:
+                await too_large(scope, receive, send)
+                return
+            if not msg.get("more_body", False):
+                break
+        replayed = False
 
-    def format(self, record: logging.LogRecord) -> str:
-        out: dict[str, Any] = {"time": self.formatTime(record, "%Y-%m-%dT%H:%M:%S%z"), "level": record.levelname,
-                               "logger": record.name, "message": record.getMessage()}
-        out.update({k: v for k, v in record.__dict__.items() if k not in _STANDARD and not k.startswith("_")})
-        if record.exc_info:
-            out["traceback"] = self.formatException(record.exc_info)
-        return json.dumps(out, default=str)
+        async def replay() -> Message:
+            nonlocal replayed
+            if not replayed:
+                replayed = True
+                return {"type": "http.request", "body": bytes(body), "more_body": False}
+            return await receive()
 
-
-def log_config(level: str = "info") -> dict[str, Any]:
-    """``logging.config.dictConfig`` form: JSON lines on stderr for flexopt and uvicorn (its access log off:
-    :class:`RequestLog` writes a richer one)."""
-    lvl = level.upper()
-    handler = {"class": "logging.StreamHandler", "formatter": "json", "stream": "ext://sys.stderr"}
-    return {"version": 1, "disable_existing_loggers": False,
-            "formatters": {"json": {"()": f"{__name__}.JsonLogFormatter"}},
-            "handlers": {"stderr": handler},
-            "loggers": {"flexopt": {"handlers": ["stderr"], "level": lvl, "propagate": False},
-                        "uvicorn": {"handlers": ["stderr"], "level": lvl, "propagate": False},
-                        "uvicorn.access": {"handlers": [], "level": "WARNING", "propagate": False}}}
+        await self.app(scope, replay, send)

@@ -12,17 +12,26 @@ import json
 import math
 from typing import Any
 
-__all__ = ["curve", "diagnosis", "modes", "raise_error", "warm_up"]
+__all__ = ["ComputationFailed", "broken", "curve", "diagnosis", "finite", "modes", "raise_error", "warm_up"]
 
 Outcome = tuple[bool, Any]
 
 
-def _finite(obj: Any) -> Any:
-    """JSON-safe copy: non-finite floats become null, numpy scalars plain numbers."""
+class ComputationFailed(Exception):
+    """A valid scene whose numbers broke the computation (overflow, division by zero, a failed solve)."""
+
+    def __init__(self, fields: list[str], message: str) -> None:
+        super().__init__(message)
+        self.fields = fields
+
+
+def finite(obj: Any) -> Any:
+    """JSON-safe copy (the service's one sanitiser; the wire has no NaN): non-finite floats become null, numpy
+    scalars plain numbers, tuples lists, keys strings."""
     if isinstance(obj, dict):
-        return {str(k): _finite(v) for k, v in obj.items()}
+        return {str(k): finite(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_finite(v) for v in obj]
+        return [finite(v) for v in obj]
     if isinstance(obj, bool) or obj is None or isinstance(obj, (str, int)):
         return obj
     try:
@@ -34,7 +43,7 @@ def _finite(obj: Any) -> Any:
 
 def _png(curve: Any, scene: dict | None = None) -> bytes:
     """The curve plot (service.plots, matplotlib's object API: thread-safe, no pyplot state) as PNG."""
-    from .plots import curve_png
+    from ..plots import curve_png
 
     return curve_png(curve, scene)
 
@@ -69,11 +78,11 @@ def _model_error(exc: Exception, scene: dict) -> Outcome:
     """A model error of a valid scene: as it is when it names its field; when it names none (e.g. a singular
     reference equilibrium) and the scene holds extreme numbers, those numbers are the likely cause, named."""
     if not getattr(exc, "field", "") and _extreme_fields(scene):
-        return _broken(exc, scene)
+        return broken(exc, scene)
     return _error(exc)
 
 
-def _broken(exc: Exception, scene: dict) -> Outcome:
+def broken(exc: Exception, scene: dict) -> Outcome:
     """A computation that broke on a valid scene (overflow, division by zero, a failed solve): name the
     scene's extreme numbers as the likely cause, or the scene as a whole."""
     fields = _extreme_fields(scene)
@@ -86,12 +95,10 @@ def _broken(exc: Exception, scene: dict) -> Outcome:
 
 def raise_error(err: dict[str, Any]) -> None:
     """Rebuild and raise a model error reported by a worker."""
-    from ..model.errors import FlexoptError, KernelBuildError, MassUnderflowError, ModelSizeError, SceneError
+    from ...model.errors import FlexoptError, KernelBuildError, MassUnderflowError, ModelSizeError, SceneError
 
     kind, field, message = err["kind"], err["field"], err["message"]
     if kind == "ComputationError":
-        from .errors_http import ComputationFailed
-
         raise ComputationFailed(list(field), message)
     scene_errors = {c.__name__: c for c in (SceneError, ModelSizeError, MassUnderflowError)}
     if kind in scene_errors:
@@ -105,9 +112,9 @@ def curve(spec: str) -> Outcome:
     """Frequency curve of ``{"scene", "stroke", "method", "tolerance", "media"}`` as JSON, CSV or PNG bytes."""
     import numpy as np
 
-    from ..model import Analysis
-    from ..model.errors import FlexoptError
-    from ..model.scene import Scene
+    from ...model import Analysis
+    from ...model.errors import FlexoptError
+    from ...model.scene import Scene
 
     s = json.loads(spec)
     shapes = None
@@ -117,7 +124,7 @@ def curve(spec: str) -> Outcome:
         if s["method"] == "exact":
             result = an.frequency_curve(stroke)
         else:
-            from ..model.curve import curve_with_method
+            from ...model.curve import curve_with_method
 
             result = curve_with_method(an, s["method"], s["tolerance"], stroke)
         if s.get("shapes"):
@@ -129,16 +136,16 @@ def curve(spec: str) -> Outcome:
         out = result.to_dict()
         if shapes is not None:
             out["shapes"] = shapes
-        return True, json.dumps(_finite(out), allow_nan=False).encode()
+        return True, json.dumps(finite(out), allow_nan=False).encode()
     except FlexoptError as exc:
         return _model_error(exc, s["scene"])
     except Exception as exc:  # noqa: BLE001 - overflow, zero division, a failed solve: named, never a 500
-        return _broken(exc, s["scene"])
+        return broken(exc, s["scene"])
 
 
 def _configurations(an: Any, stroke: Any) -> dict:
     """The deflected configuration at every stroke point of a curve, with the drawing geometry once."""
-    from ..model.shapes import configuration_dict, shapes_along
+    from ...model.shapes import configuration_dict, shapes_along
 
     found = shapes_along(an, stroke, modes=False, strict=False)
     if not found:
@@ -156,25 +163,25 @@ def modes(spec: str) -> Outcome:
     try:
         return _modes(s)
     except Exception as exc:  # noqa: BLE001 - overflow, zero division, a failed solve: named, never a 500
-        from ..model.errors import FlexoptError
+        from ...model.errors import FlexoptError
 
         if isinstance(exc, FlexoptError):
             return _model_error(exc, s["scene"])
-        return _broken(exc, s["scene"])
+        return broken(exc, s["scene"])
 
 
 def _modes(s: dict) -> Outcome:
     import os
     import tempfile
 
-    from ..model import Analysis
-    from ..model.errors import FlexoptError
-    from ..model.scene import Scene
-    from ..model.shapes import shapes_at
+    from ...model import Analysis
+    from ...model.errors import FlexoptError
+    from ...model.scene import Scene
+    from ...model.shapes import shapes_at
 
     d = shapes_at(Analysis(Scene.model_validate(s["scene"])), s["at_stroke"]).to_dict()
     if s["media"] in ("image/png", "image/gif"):
-        from . import plots
+        from .. import plots
 
         k = s.get("mode")
         if k is None:
@@ -192,25 +199,25 @@ def _modes(s: dict) -> Outcome:
                 return True, fh.read()
         finally:
             os.unlink(path)
-    return True, json.dumps(_finite(d), allow_nan=False).encode()
+    return True, json.dumps(finite(d), allow_nan=False).encode()
 
 
 def diagnosis(spec: str) -> Outcome:
     """Exact-constraint diagnosis of ``{"scene", "at_stroke", "kinematic"}`` as JSON bytes."""
-    from ..model.diagnosis import diagnose
-    from ..model.errors import FlexoptError
-    from ..model.scene import Scene
+    from ...model.diagnosis import diagnose
+    from ...model.errors import FlexoptError
+    from ...model.scene import Scene
 
     s = json.loads(spec)
     try:
         d = diagnose(Scene.model_validate(s["scene"]), at_stroke=s["at_stroke"], kinematic=s["kinematic"])
-        return True, json.dumps(_finite(d.to_dict()), allow_nan=False).encode()
+        return True, json.dumps(finite(d.to_dict()), allow_nan=False).encode()
     except FlexoptError as exc:
         return _model_error(exc, s["scene"])
     except Exception as exc:  # noqa: BLE001 - overflow, zero division, a failed solve: named, never a 500
-        return _broken(exc, s["scene"])
+        return broken(exc, s["scene"])
 
 
 def warm_up() -> None:
     """Import the model in a fresh worker process (so the first request does not pay for it)."""
-    from .. import model  # noqa: F401
+    from ... import model  # noqa: F401

@@ -328,8 +328,8 @@ class JobStore:
 
     def case_files(self, spec: dict) -> list[Path]:
         """Where the finished cases of a job with ``spec`` are (or will be) stored."""
-        from ..optim.batch import case_id
-        from ..optim.search import cases
+        from ...optim.batch import case_id
+        from ...optim.search import cases
 
         try:
             return [self.case_dir() / f"{case_id(c)}.json" for c in cases(spec)]

@@ -35,7 +35,7 @@ class Settings(BaseSettings):
                                            "the scene's own stroke.points (422 past it)")
     max_cost: PositiveFloat = Field(
         30.0, description="largest estimated cost of a synchronous computation [s], estimated before any work "
-                          "as app.seconds_per_point(DOFs) x stroke points (413 past it, or a job with "
+                          "as guards.seconds_per_point(DOFs) x stroke points (413 past it, or a job with "
                           "'Prefer: respond-async')")
     max_job_cost: PositiveFloat = Field(
         3600.0, description="largest estimated cost of a frequency curve run as a job [s] (413 past it)")

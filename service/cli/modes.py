@@ -1,6 +1,6 @@
 """``flexopt modes``: the deflected structure and the mode shapes at a stroke value (plots, GIF, VTK export).
 
-Registered by service.cli through :func:`add_parser`; imports the model lazily.
+Registered by service.cli.main through :func:`add_parser`; imports the model lazily.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ __all__ = ["add_parser", "write_vtk"]
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Add the ``modes`` subcommand to an argparse subparsers object."""
-    from .cli import add_scene_arguments
+    from .scene_args import add_scene_arguments
 
     d = subparsers.add_parser("modes", help="deflected structure and mode shapes at a stroke value")
     add_scene_arguments(d)
@@ -33,7 +33,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 
 def _scene(args: argparse.Namespace) -> Any:
-    from .cli import scene_from_args
+    from .scene_args import scene_from_args
 
     if args.scene is None and args.template is None:
         raise ValueError("give a scene file or --template NAME (one of them)")
@@ -141,9 +141,9 @@ def write_vtk(shapes: list[dict], directory: str) -> list[str]:
 
 
 def _cmd_modes(args: argparse.Namespace) -> int:
-    from ..model import Analysis
-    from ..model.shapes import shapes_along, shapes_at
-    from . import plots
+    from ...model import Analysis
+    from ...model.shapes import shapes_along, shapes_at
+    from .. import plots
 
     scene = _scene(args)
     an = Analysis(scene)

@@ -1,6 +1,6 @@
 """``flexopt diagnose``: exact-constraint diagnosis of a scene (D_cc, its SVD, Table 1 of seed 002).
 
-Registered by service.cli through :func:`add_parser`; imports the model lazily.
+Registered by service.cli.main through :func:`add_parser`; imports the model lazily.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ __all__ = ["add_parser", "plot_diagnosis"]
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Add the ``diagnose`` subcommand to an argparse subparsers object."""
     d = subparsers.add_parser("diagnose", help="exact-constraint diagnosis: D_cc rank, free motions, self-stresses")
-    from .cli import add_scene_arguments
+    from .scene_args import add_scene_arguments
 
     add_scene_arguments(d)
     d.add_argument("--at-stroke", type=float, default=None, metavar="VALUE",
@@ -33,8 +33,8 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 def _cmd_diagnose(args: argparse.Namespace) -> int:
     import sys
 
-    from ..model.diagnosis import diagnose
-    from .cli import scene_from_args
+    from ...model.diagnosis import diagnose
+    from .scene_args import scene_from_args
 
     scene = scene_from_args(args)
     diag = diagnose(scene, at_stroke=args.at_stroke, kinematic=args.kinematic)
@@ -51,6 +51,6 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 def plot_diagnosis(scene: Any, diag: Any, path: str) -> None:
     """Draw the structure, its free motions (translations and rotations) and the first self-stress (colour
     bar): :func:`service.plots.diagnosis_figure`."""
-    from . import plots
+    from .. import plots
 
     plots.save(plots.diagnosis_figure(scene.model_dump(mode="json"), diag.to_dict()), path, dpi=110)

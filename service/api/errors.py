@@ -4,16 +4,18 @@
 
     model.FlexoptError      -> 422 (SceneError, ModelSizeError, EquilibriumError: the input cannot be analysed)
       KernelBuildError      -> 500 (a server-side compiler problem)
-    ComputationFailed       -> 422 (the numbers of a valid scene broke the computation: the fields named)
+    jobs.worker.ComputationFailed -> 422 (the numbers of a valid scene broke the computation: the fields named)
     RequestValidationError  -> 422 with one entry per invalid field (loc path and reason)
-    store.KeyReused         -> 422 at header Idempotency-Key
-    store.TooManyJobs       -> 429 with Retry-After
-    store.StoreUnavailable  -> 503 with Retry-After (the job database is locked or unreachable)
+    jobs.store.KeyReused    -> 422 at header Idempotency-Key
+    jobs.store.TooManyJobs  -> 429 with Retry-After
+    jobs.store.StoreUnavailable -> 503 with Retry-After (the job database is locked or unreachable)
     HTTPException           -> its status (404, 401, 413, ...)
     Busy                    -> 429 with Retry-After
     ComputeTimeout          -> 504
     anything else           -> 500 with a generic message (details only in the server log); the
                                connection stays open (middleware.RequestLog)
+
+``ERRORS``, ``HEAVY`` and ``JOBS`` document these error responses on the routes (OpenAPI ``responses``).
 """
 
 from __future__ import annotations
@@ -28,9 +30,10 @@ from fastapi.responses import JSONResponse
 from pydantic import ValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from .schemas import FieldError, Problem
+from ..jobs.worker import ComputationFailed
+from ..schemas import FieldError, Problem
 
-__all__ = ["Busy", "ComputationFailed", "ComputeTimeout", "problem", "install", "validation_errors"]
+__all__ = ["Busy", "ComputeTimeout", "ERRORS", "HEAVY", "JOBS", "problem", "install", "validation_errors"]
 
 log = logging.getLogger("flexopt.service")
 
@@ -38,6 +41,22 @@ _TITLES = {400: "Bad request", 401: "Unauthorized", 404: "Not found", 405: "Meth
            413: "Payload too large", 415: "Unsupported media type", 422: "Unprocessable content",
            429: "Too many requests", 500: "Internal server error", 503: "Service unavailable",
            504: "Gateway timeout", 406: "Not acceptable"}
+
+
+ERRORS: dict[int | str, dict[str, Any]] = {
+    422: {"model": Problem, "description": "invalid input (field path and reason in errors)"},
+    401: {"model": Problem, "description": "API key missing or invalid (when keys are configured)"},
+    413: {"model": Problem, "description": "request body too large"},
+}
+#: the responses of a route that computes (in the worker pool, within the slot and time limits)
+HEAVY: dict[int | str, dict[str, Any]] = {
+    **ERRORS,
+    429: {"model": Problem, "description": "too many concurrent computations; see Retry-After"},
+    504: {"model": Problem, "description": "the computation exceeded the time limit"},
+}
+#: the responses of a route that reads or writes the job store
+JOBS: dict[int | str, dict[str, Any]] = {
+    503: {"model": Problem, "description": "the job store is unavailable; see Retry-After"}}
 
 
 class Busy(Exception):
@@ -55,14 +74,6 @@ class ComputeTimeout(Exception):
     def __init__(self, limit: float) -> None:
         super().__init__(f"the computation exceeded the server's time limit of {limit:g} s; use fewer stroke "
                          f"points, a cheaper method, or a smaller model")
-
-
-class ComputationFailed(Exception):
-    """A valid scene whose numbers broke the computation (overflow, division by zero, a failed solve)."""
-
-    def __init__(self, fields: list[str], message: str) -> None:
-        super().__init__(message)
-        self.fields = fields
 
 
 def problem(status: int, detail: str, errors: list[FieldError] | None = None,
@@ -111,8 +122,8 @@ def _summary(errors: list[FieldError]) -> str:
 
 def install(app: FastAPI) -> None:
     """Register every exception handler on ``app``."""
-    from ..model.errors import FlexoptError, KernelBuildError, SceneError
-    from .store import KeyReused, StoreUnavailable, TooManyJobs
+    from ..jobs.store import KeyReused, StoreUnavailable, TooManyJobs
+    from ...model.errors import FlexoptError, KernelBuildError, SceneError
 
     @app.exception_handler(RequestValidationError)
     async def _request_validation(_: Request, exc: RequestValidationError) -> JSONResponse:

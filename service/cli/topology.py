@@ -1,6 +1,6 @@
 """``flexopt topology``: generate hinge topologies, screen them by exact constraint, optimise and rank them.
 
-Registered by service.cli through :func:`add_parser`; imports optim lazily.
+Registered by service.cli.main through :func:`add_parser`; imports optim lazily.
 """
 
 from __future__ import annotations
@@ -36,8 +36,8 @@ def _file_name(descriptor: str) -> str:
 
 
 def _cmd_topology(args: argparse.Namespace) -> int:
-    from ..optim.topology.spec import TopologySpec, example_spec
-    from .cli_optimise import executor_for, read_spec
+    from ...optim.topology.spec import TopologySpec, example_spec
+    from .optimise import executor_for, read_spec
 
     if args.example:
         print(json.dumps(example_spec(), indent=2))
@@ -45,8 +45,8 @@ def _cmd_topology(args: argparse.Namespace) -> int:
     if args.spec is None:
         raise ValueError("give a spec file (flexopt topology --example > spec.json) or --example")
     spec = read_spec(args.spec, TopologySpec)
-    from ..optim.batch import NoWorkers
-    from ..optim.topology import run_topology_search
+    from ...optim.batch import NoWorkers
+    from ...optim.topology import run_topology_search
 
     executor = executor_for(args.scheduler)
     try:

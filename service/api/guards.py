@@ -1,0 +1,174 @@
+"""What a request must pass before any work starts: the API key, a valid scene, the model-size and cost limits,
+an optimisation problem that its cases will accept, finite numbers.
+
+Each guard raises what :mod:`.errors` turns into a problem body: 401 (key), 422 (``RequestValidationError``
+naming the field, or ``ComputationFailed`` for numbers that break the tables), :class:`TooCostly` (413, or a
+job when the client accepts an asynchronous answer).
+"""
+
+from __future__ import annotations
+
+import hmac
+import math
+import re
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from fastapi import Request, Security
+from fastapi.exceptions import RequestValidationError
+from fastapi.security import APIKeyHeader
+from pydantic import ValidationError
+from starlette.exceptions import HTTPException
+
+from ..jobs import worker
+from ..jobs.worker import ComputationFailed
+from ..schemas import OptimisationProblem
+from .settings import Settings
+
+__all__ = ["TooCostly", "check_cost", "check_problem", "key_checker", "nonfinite", "scene_from",
+           "seconds_per_point"]
+
+
+def seconds_per_point(dofs: int) -> float:
+    """Estimated seconds per stroke point of the exact method for a model with ``dofs`` degrees of freedom,
+    checked before a synchronous computation starts: ``1e-9 n^3 + 1e-4 n`` (dense eigen-analysis, plus a
+    per-DOF overhead). Fitted to one measured series (leaf spring, 10 to 320 segments, 66 to 1926 DOFs, 5 points:
+    0.011, 0.044, 1.0, 6.3 s per point at load average 7 on 2 cores, ``bench/bench_request_cost.py``), so
+    it errs on the slow side on a quiet machine; it only has to keep requests that cannot finish in time off
+    the request path."""
+    return 1e-9 * dofs**3 + 1e-4 * dofs
+
+
+def key_checker(settings: Settings) -> Callable[..., None]:
+    """A dependency checking the API key header when keys are configured (constant-time comparison).
+
+    Declared through ``APIKeyHeader`` so the OpenAPI document shows the security scheme.
+    """
+    header = APIKeyHeader(name=settings.api_key_header, auto_error=False,
+                          description="API key; required only when the server has FLEXOPT_API_KEYS set")
+
+    def require_key(request: Request, given: str | None = Security(header)) -> None:
+        keys = settings.keys()
+        if not keys:
+            request.state.owner = ""
+            return
+        if not any(hmac.compare_digest((given or "").encode(), k.encode()) for k in keys):
+            raise HTTPException(401, f"missing or invalid API key: send it in the '{settings.api_key_header}' "
+                                     "header", headers={"WWW-Authenticate": "ApiKey"})
+        from ..jobs.store import owner_of
+
+        request.state.owner = owner_of(given)  # jobs belong to the key that submitted them
+
+    return require_key
+
+
+def scene_from(data: dict[str, Any]) -> Any:
+    """Validate a scene document; errors are located inside the request's ``scene`` field."""
+    from ...model.io import clean_errors
+    from ...model.scene import Scene
+
+    try:
+        return Scene.model_validate(data)
+    except ValidationError as exc:
+        errs = [{**e, "loc": ("body", "scene", *e["loc"])} for e in clean_errors(exc.errors(include_url=False))]
+        raise RequestValidationError(errs) from None
+    except Exception as exc:  # noqa: BLE001 - a validator's arithmetic broke on extreme numbers: named, not a 500
+        ok, err = worker.broken(exc, data)
+        raise ComputationFailed(err["field"], err["message"]) from None
+
+
+def _dofs(scene: Any) -> int:
+    """Degrees of freedom of the meshed scene (``compile_scene``: numeric tables only, about a millisecond);
+    the model-size limit (422) is checked here, and numbers that break the tables are named (422)."""
+    from ...model.errors import FlexoptError
+    from ...model.structure import compile_scene
+
+    try:
+        return compile_scene(scene).n_dof
+    except FlexoptError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - overflow and the like on extreme numbers: named, never a 500
+        ok, err = worker.broken(exc, scene.model_dump(mode="json"))
+        raise ComputationFailed(err["field"], err["message"]) from None
+
+
+class TooCostly(Exception):
+    """A synchronous computation estimated to exceed ``max_cost`` (413, or a job when the client asks)."""
+
+    def __init__(self, seconds: float, message: str) -> None:
+        super().__init__(message)
+        self.seconds = seconds
+
+
+def check_cost(scene: Any, stroke: list[float] | None, settings: Settings) -> None:
+    """422 for more stroke points than allowed, :class:`TooCostly` for a computation estimated to exceed
+    ``max_cost``."""
+    points, loc = (len(stroke), ("body", "stroke")) if stroke is not None else (
+        scene.stroke.points, ("body", "scene", "stroke", "points"))
+    if not 1 <= points <= settings.max_stroke_points:
+        raise RequestValidationError([{"loc": loc, "type": "value_error",
+                                       "msg": f"{points} stroke points; give 1 to {settings.max_stroke_points}"}])
+    dofs = _dofs(scene)
+    seconds = seconds_per_point(dofs) * points
+    if seconds > settings.max_cost:
+        raise TooCostly(seconds, f"estimated cost {seconds:.0f} s ({dofs} degrees of freedom x {points} stroke "
+                                 f"points) exceeds this server's limit of {settings.max_cost:g} s for a request; "
+                                 "send 'Prefer: respond-async' to run it as a job, or use fewer stroke points or "
+                                 "fewer segments")
+
+
+def nonfinite(obj: Any, loc: tuple = ()) -> tuple | None:
+    """The location of the first NaN or infinite number in a JSON-like value, or None."""
+    if isinstance(obj, dict):
+        return next((r for k, v in obj.items() if (r := nonfinite(v, (*loc, k))) is not None), None)
+    if isinstance(obj, (list, tuple)):
+        return next((r for i, v in enumerate(obj) if (r := nonfinite(v, (*loc, i))) is not None), None)
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return loc
+    return None
+
+
+def check_problem(spec: OptimisationProblem) -> None:
+    """Everything the job's cases would check, done at submission (422 naming the field): finite numbers,
+    each family as the optimiser builds it (``optim.search._Family``), design parameters that are real
+    numbers, and the scene of every family at both corners of its design box (template, scene validation,
+    model size)."""
+    from ...model import TEMPLATES, template
+    from ...model.errors import FlexoptError, SceneError
+    from ...model.structure import compile_scene
+    from ...optim.search import _Family
+
+    def bad(loc: tuple, msg: str) -> RequestValidationError:
+        return RequestValidationError([{"loc": ("body", *loc), "type": "value_error", "msg": msg}])
+
+    where = nonfinite(spec.model_dump())
+    if where is not None:
+        raise bad(where, "must be a finite number (Infinity and NaN are not accepted)")
+    for i, fam in enumerate(spec.families):
+        try:
+            built = _Family(spec, fam)
+        except FlexoptError as exc:
+            path = str(exc).split(":")[0].removeprefix("families[].").split(".")  # e.g. design.thickness
+            raise bad(("families", i, *path) if path[0] in ("template", "design") else ("families", i),
+                      str(exc)) from None
+        defaults = TEMPLATES[fam.template][1]
+        for k in fam.design:
+            if not isinstance(defaults[k], float):
+                raise bad(("families", i, "design", k), f"'{k}' is not a real-valued parameter of template "
+                          f"'{fam.template}' (default {defaults[k]!r}); set it in 'fixed' instead")
+        for corner in (0.0, 1.0):
+            params = built.params(np.full(len(built.names), corner))
+            try:
+                compile_scene(template(fam.template, **params))
+            except SceneError as exc:
+                # the scene's field (elements[0].beam.segments) named by the template parameter it comes from
+                path = exc.field or exc.message.split(":")[0]  # a pydantic error's path leads the message
+                key = [p for p in re.split(r"[.\[\]]", path.removeprefix("template.")) if p][-1:]
+                key = key[0] if key else ""
+                loc = ("families", i, "fixed", key) if key in fam.fixed else (
+                    ("families", i, "design", key) if key in fam.design else ("families", i))
+                raise bad(loc, f"{exc.message} (at the {'lower' if corner == 0 else 'upper'} corner of the design "
+                               "box)") from None
+            except FlexoptError as exc:
+                raise bad(("families", i), str(exc)) from None

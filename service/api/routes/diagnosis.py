@@ -1,0 +1,33 @@
+"""``POST /v1/diagnosis``: exact-constraint diagnosis of a scene (D_cc, its SVD, the Table-1 class)."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+from fastapi import APIRouter, Request
+from fastapi.responses import Response
+
+from ...jobs import worker
+from ...schemas import DiagnosisRequest
+from ..errors import HEAVY
+from ..guards import check_cost, scene_from
+from ..runtime import runtime
+
+__all__ = ["router"]
+
+
+def router(prefix: str) -> APIRouter:
+    """The diagnosis route (under ``prefix``, ``/v1``)."""
+    r = APIRouter(prefix=prefix)
+
+    @r.post("/diagnosis", summary="Exact-constraint diagnosis of a scene (D_cc, SVD, Table-1 class)",
+            response_model=dict[str, Any], responses=HEAVY)
+    async def diagnosis(req: DiagnosisRequest, request: Request) -> Response:
+        rt = runtime(request)
+        scene = scene_from(req.scene)
+        check_cost(scene, [0.0], rt.settings)
+        spec = {"scene": scene.model_dump(mode="json"), "at_stroke": req.at_stroke, "kinematic": req.kinematic}
+        return Response(await rt.run(worker.diagnosis, json.dumps(spec)), media_type="application/json")
+
+    return r

@@ -1,0 +1,207 @@
+"""The runtime state of one application, owned by its lifespan: the worker pool, the computation slots, the
+response cache, the job store and the job dispatcher."""
+
+from __future__ import annotations
+
+import asyncio
+import concurrent.futures
+import multiprocessing
+import threading
+from collections import OrderedDict
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from fastapi import Request, Response
+from starlette.exceptions import HTTPException
+
+from ..jobs import worker
+from ..jobs.worker import ComputationFailed
+from ..schemas import Job
+from .errors import Busy, ComputeTimeout, log
+from .settings import Settings
+
+__all__ = ["Runtime", "job_store", "runtime", "submit_job"]
+
+
+@dataclass
+class Runtime:
+    """Per-application state owned by the lifespan.
+
+    Heavy computations: at most ``max_concurrent`` run at once (one worker process, or thread, each); up to ``max_queued``
+    more wait at most ``queue_timeout`` seconds for a slot; anything past that gets 429 with Retry-After.
+    A slot is given back when the computation really ends, also for a computation abandoned at the time
+    limit (the computation is not interrupted), so the CPU is never oversubscribed.
+    """
+
+    settings: Settings
+    waiting: int = 0  # requests queued for a slot
+    lock: threading.Lock = field(default_factory=threading.Lock)
+    cache: OrderedDict[str, Any] = field(default_factory=OrderedDict)  # canonical request -> result (LRU)
+    _slots: asyncio.Semaphore | None = None
+    pool: concurrent.futures.ProcessPoolExecutor | None = None
+    jobs: Any = None  # service.jobs.store.JobStore, opened by start()
+    dispatcher: Any = None  # service.jobs.dispatch.Dispatcher
+
+    def slots(self) -> asyncio.Semaphore:
+        """The slot semaphore, created on first use inside the server's event loop."""
+        if self._slots is None:
+            self._slots = asyncio.Semaphore(self.settings.max_concurrent)
+        return self._slots
+
+    def cached(self, key: str) -> Any | None:
+        """The cached result for ``key`` (marking it recently used), or None."""
+        with self.lock:
+            if key in self.cache:
+                self.cache.move_to_end(key)
+                return self.cache[key]
+        return None
+
+    def store(self, key: str, value: Any) -> None:
+        """Cache ``value``; the least recently used entry goes once the cache is full."""
+        if self.settings.cache_size <= 0:
+            return
+        with self.lock:
+            self.cache[key] = value
+            self.cache.move_to_end(key)
+            while len(self.cache) > self.settings.cache_size:
+                self.cache.popitem(last=False)
+
+    async def _acquire(self) -> None:
+        s = self.settings
+        slots = self.slots()
+        if not slots.locked():
+            await slots.acquire()
+            return
+        busy = Busy(s.retry_after, s.max_concurrent)
+        if self.waiting >= s.max_queued or s.queue_timeout <= 0:
+            raise busy
+        self.waiting += 1
+        try:
+            await asyncio.wait_for(slots.acquire(), s.queue_timeout)
+        except TimeoutError:
+            raise busy from None
+        finally:
+            self.waiting -= 1
+
+    async def run(self, fn: Callable[[str], tuple[bool, Any]], spec: str) -> Any:
+        """``fn(spec)`` in the worker pool within the slot limit (429) and the time limit (504).
+
+        ``fn`` is a :mod:`service.jobs.worker` function; a model error it reports is raised here again.
+        """
+        s = self.settings
+        await self._acquire()
+        loop = asyncio.get_running_loop()
+        release = self.slots().release
+        if self.pool is not None:
+            try:
+                future = self.pool.submit(fn, spec)
+            except concurrent.futures.BrokenExecutor:  # a worker died: replace the pool, once
+                self.slots().release()
+                self._new_pool()
+                return await self.run(fn, spec)
+        else:
+            future = concurrent.futures.Future()
+
+            def in_thread() -> None:
+                try:
+                    future.set_result(fn(spec))
+                except BaseException as exc:  # noqa: BLE001 - handed to the awaiting request
+                    future.set_exception(exc)
+
+            threading.Thread(target=in_thread, daemon=True, name="flexopt-compute").start()
+        # The slot is released when the work really ends (not when the request gives up at the time limit).
+        future.add_done_callback(lambda _: loop.call_soon_threadsafe(release))
+        try:
+            ok, payload = await asyncio.wait_for(asyncio.shield(asyncio.wrap_future(future)), s.request_timeout)
+        except TimeoutError:
+            future.cancel()  # drops it if still queued in the pool; a running computation finishes on its own
+            raise ComputeTimeout(s.request_timeout) from None
+        except concurrent.futures.BrokenExecutor:  # the worker running it died (killed, out of memory)
+            self._new_pool()
+            raise ComputationFailed([], "the worker process computing this request died (out of memory or "
+                                        "killed); retry, or use fewer stroke points or a smaller model") from None
+        if not ok:
+            worker.raise_error(payload)
+        return payload
+
+    def _new_pool(self) -> None:
+        old, self.pool = self.pool, None
+        if old is not None:
+            old.shutdown(wait=False, cancel_futures=True)
+        ctx = multiprocessing.get_context("spawn")  # never fork the threaded server
+        self.pool = concurrent.futures.ProcessPoolExecutor(self.settings.max_concurrent, mp_context=ctx,
+                                                           initializer=worker.warm_up)
+
+    def start(self) -> None:
+        """Open the job store (a corrupt one raises ``store.StoreCorrupt``), start the pool and the dispatcher."""
+        from ..jobs.dispatch import Dispatcher
+        from ..jobs.store import JobStore
+
+        s = self.settings
+        self.jobs = JobStore(s.job_store_url(), s.data_dir, s.lease_seconds)
+        if s.executor == "process":
+            self._new_pool()
+        self.dispatcher = Dispatcher(self.jobs, s.max_jobs, s.job_workers or None, s.job_stop_timeout)
+        self.dispatcher.start()  # jobs whose lease expired (their server and process gone) are requeued
+
+    def not_ready(self) -> list[str]:
+        """Why the service cannot take work now (empty: ready): the store, the dispatcher, the pool."""
+        from ..jobs.store import StoreUnavailable
+
+        out = []
+        if self.jobs is None:
+            out.append("the job store is not open")
+        else:
+            try:
+                self.jobs.ping()
+            except StoreUnavailable as exc:
+                out.append(str(exc))
+        if self.dispatcher is not None and (why := self.dispatcher.healthy()):
+            out.append(why)
+        if self.settings.executor == "process" and self.pool is None:
+            out.append("the worker pool is not running")
+        return out
+
+    def stop(self) -> None:
+        """Stop the job dispatcher (running jobs resume at the next start), the pool, and drop the cache."""
+        if self.dispatcher is not None:
+            self.dispatcher.stop()
+            self.dispatcher = None
+        if self.pool is not None:
+            # Queued work is dropped and running computations are ended: their requests were answered or cut
+            # when the server stopped listening, and waiting for them would outlast a container's stop grace.
+            workers = list(getattr(self.pool, "_processes", {}).values())
+            self.pool.shutdown(wait=False, cancel_futures=True)
+            for p in workers:
+                p.terminate()
+            for p in workers:
+                p.join(5)
+            self.pool.shutdown(wait=True)  # the pool's manager sees its workers gone and frees its queues
+            self.pool = None
+        self.cache.clear()
+
+
+def runtime(request: Request) -> Runtime:
+    """The runtime of the application serving ``request``."""
+    return request.app.state.runtime
+
+
+def job_store(request: Request) -> Any:
+    """The job store (``service.jobs.store.JobStore``) of the application serving ``request``."""
+    store = runtime(request).jobs
+    if store is None:  # pragma: no cover - only before the lifespan started
+        raise HTTPException(503, "the job store is not open yet; retry")
+    return store
+
+
+async def submit_job(request: Request, response: Response, body: dict, idempotency_key: str | None,
+                     collection: str) -> Job:
+    """Store a job (or find the one this idempotency key made), point Location at it, log a new one."""
+    job, created = await asyncio.to_thread(job_store(request).submit, body, idempotency_key, request.state.owner,
+                                           runtime(request).settings.max_active_jobs)
+    response.headers["Location"] = f"/v1/{collection}/{job['id']}"
+    if created:
+        log.info("job submitted", extra={"event": "job.submitted", "job_id": job["id"],
+                                         "request_id": request.state.request_id})
+    return Job(**job)
