@@ -118,3 +118,20 @@ def test_native_off_switches_every_compiled_part_off(monkeypatch) -> None:
     run()
     assert {"evaluate", "mass", "update", "hessian_derivative"} <= set(calls)
     assert _point_loop(sys_, an.options) is not None
+
+
+def test_no_c_source_in_python_strings() -> None:
+    """The C of the compiled routes lives in model/native/*.c, not in Python strings (issue 27: 877 lines of C were in
+    string constants of model/linalg.py, statics.py, assembly.py and kernels.py): no string constant in the model
+    package holds a C ``#include``."""
+    import ast
+    from pathlib import Path
+
+    import flexopt.model as model
+
+    found = []
+    for path in Path(model.__file__).parent.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Constant) and isinstance(node.value, str) and "#include" in node.value:
+                found.append(f"{path.name}:{node.lineno}")
+    assert found == []
