@@ -105,7 +105,9 @@ def _static_modes(U: np.ndarray, rank: int, row_parts: list[tuple[str, str]], ro
                 mode2.setdefault(el, {})[dname] = float(val)
         stat_modes.append(mode2)
         order = np.argsort(-np.abs(u), kind="stable")
-        big = [row_labels[i] for i in order if abs(u[i]) >= 0.5 * abs(u[order[0]])]
+        # at least half the largest entry; a tie at exactly half (a geometric ratio of 1/2, as in
+        # wire-guide-parallel) counts, within round-off, rather than falling either way by the last bit
+        big = [row_labels[i] for i in order if abs(u[i]) >= 0.5 * abs(u[order[0]]) * (1 - 1e-9)]
         releases.append(tuple(big[:12]))
     return stat_modes, releases
 
