@@ -1,6 +1,6 @@
 """The documentation site builds with warnings as errors, and every code block in it runs.
 
-A fenced block in ``docs/*.md`` is run unless the line before it is ``<!-- not run: REASON -->`` (a block that
+A fenced block in ``docs/pages/*.md`` is run unless the line before it is ``<!-- not run: REASON -->`` (a block that
 starts a server, installs the package or runs the whole test suite); the reason is required, so a skipped block
 says why. ``python`` blocks run in a fresh interpreter, ``sh`` blocks in bash, each in a temporary directory with
 the repository's ``examples/`` beside it; other languages (json, text) are data, not run.
@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-DOCS = ROOT / "docs"
+DOCS = ROOT / "docs" / "pages"
 FENCE = re.compile(r"(?P<before>[^\n]*)\n```(?P<lang>[a-z]*)[^\n]*\n(?P<body>.*?)\n```", re.S)
 SKIP = re.compile(r"<!--\s*not run:\s*(?P<why>.+?)\s*-->")
 RUN = {"python", "sh", "bash"}
@@ -56,7 +56,7 @@ def _env() -> dict[str, str]:
 def test_site_builds_with_warnings_as_errors(tmp_path: Path) -> None:
     pytest.importorskip("mkdocs", reason="the docs extra (mkdocs, mkdocstrings) is part of the test extra")
     run = subprocess.run(
-        [sys.executable, "-m", "mkdocs", "build", "--strict", "-f", str(DOCS / "mkdocs.yml"), "-d",
+        [sys.executable, "-m", "mkdocs", "build", "--strict", "-f", str(ROOT / "docs" / "mkdocs.yml"), "-d",
          str(tmp_path / "site")], capture_output=True, text=True, cwd=ROOT, env=_env(), timeout=600,
     )
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
