@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import html
 import io
 import json
 from dataclasses import asdict, dataclass, field
@@ -45,7 +46,7 @@ class Failure:
     message: str
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class FrequencyCurve:
     """Stroke-dependent natural frequencies of a scene.
 
@@ -138,3 +139,61 @@ class FrequencyCurve:
         for wn in self.warnings:
             lines.append(f"# warning [{wn.kind}] {wn.message}")
         return "\n".join(lines)
+
+    # ------------------------------------------------------------------------------------ notebook forms
+    def _summary(self) -> str:
+        par = self.parasitic_hz[np.isfinite(self.parasitic_hz)]
+        span = f"{par.min():.4g}..{par.max():.4g} Hz" if par.size else "none"
+        rng = f"{self.stroke[0]:.4g}..{self.stroke[-1]:.4g} {self.stroke_unit}" if len(self.stroke) else "empty"
+        mesh = "" if self.mesh_error is None else f", mesh_error {self.mesh_error:.2g}"
+        return (f"{len(self.stroke)} points over {rng}, first parasitic {span}, {self.status}"
+                f"{mesh}, {len(self.warnings)} warning{'s' * (len(self.warnings) != 1)}")
+
+    def __repr__(self) -> str:
+        """One line: scene, method, range, the first parasitic frequency's span, status (not the arrays)."""
+        return f"FrequencyCurve({self.scene!r}, method={self.method!r}: {self._summary()})"
+
+    def _repr_html_(self) -> str:
+        """Jupyter's rich form: the summary, the warnings and a table of at most eleven rows (every string
+        from the scene or the solver escaped)."""
+        e = html.escape
+        n = len(self.stroke)
+        rows = sorted(set(np.linspace(0, n - 1, min(n, 11)).round().astype(int))) if n else []
+        head = "".join(f"<th>{e(h)}</th>" for h in
+                       (f"stroke [{self.stroke_unit}]", "first parasitic [Hz]",
+                        f"drive reaction [{self.drive_reaction_unit}]"))
+        body = "".join(
+            f"<tr><td>{self.stroke[i]:.4g}</td><td>{self.parasitic_hz[i]:.5g}</td>"
+            f"<td>{self.drive_reaction[i]:.4g}</td></tr>" for i in rows)
+        warns = "".join(f"<li><b>{e(w.kind)}</b>: {e(w.message)}</li>" for w in self.warnings)
+        fails = "".join(f"<li><b>truncated</b>: {e(f.message)}</li>" for f in self.failures)
+        notes = f"<ul>{fails}{warns}</ul>" if warns or fails else ""
+        return (f"<div><p><b>FrequencyCurve</b> <code>{e(self.scene)}</code>, method <code>{e(self.method)}"
+                f"</code>: {e(self._summary())}</p>{notes}<table><thead><tr>{head}</tr></thead>"
+                f"<tbody>{body}</tbody></table></div>")
+
+    def to_dataframe(self):  # noqa: ANN201 - pandas is optional, so no annotation names it
+        """The curve as a pandas DataFrame indexed by stroke: the first parasitic frequency, every tracked
+        mode (``mode1_hz`` ...), the drive reaction and each member's largest von Mises stress.
+
+        Requires pandas (``pip install pandas``); the rest of flexopt does not.
+        """
+        try:
+            import pandas as pd
+        except ImportError as exc:  # pragma: no cover - depends on the environment
+            raise ImportError("FrequencyCurve.to_dataframe needs pandas: pip install pandas") from exc
+        cols: dict[str, np.ndarray] = {"parasitic_hz": self.parasitic_hz}
+        for i in range(self.modes_hz.shape[1]):
+            cols[f"mode{i + 1}_hz"] = self.modes_hz[:, i]
+        cols[f"drive_reaction_{self.drive_reaction_unit.replace(' ', '')}"] = self.drive_reaction
+        for m, v in self.max_von_mises.items():
+            cols[f"von_mises_{m}_Pa"] = v
+        return pd.DataFrame(cols, index=pd.Index(self.stroke, name=f"stroke_{self.stroke_unit}"))
+
+    def plot(self, log: bool | None = None):  # noqa: ANN201 - a matplotlib Figure, imported lazily
+        """The curve and the stress utilisation against stroke, as a matplotlib ``Figure`` (the figure of
+        ``flexopt curve --plot``; ``log`` chooses a logarithmic frequency axis, ``None``: when the modes span
+        more than a factor 8)."""
+        from ..service.plots import curve_figure  # numpy and matplotlib only; loaded on first plot
+
+        return curve_figure(self, log=log)
