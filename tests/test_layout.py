@@ -9,9 +9,8 @@ package's folders mapped to its module names as pyproject.toml maps them (``flex
 implicit import of a module's parent package (every submodule would otherwise form a circle with its
 package's ``__init__``) and imports by string (``importlib.import_module``).
 
-Scope: model/ and optim/ only for now. service/ still has two circles (app <-> routes_shapes, cli <->
-cli_diagnose/cli_modes) that the move of service/ into api/, cli/ and jobs/ removes; the lead extends
-``SCOPE`` to ``flexopt.service`` after that merge.
+Scope: the whole package (model/, optim/, service/ and the root package); service/'s two circles (app <->
+routes_shapes, cli <-> cli_diagnose/cli_modes) went with its move into api/, cli/ and jobs/.
 """
 
 from __future__ import annotations
@@ -22,7 +21,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 #: Module-name prefixes whose import graph must be free of circles (see the module docstring).
-SCOPE = ("flexopt.model", "flexopt.optim")
+SCOPE = ("flexopt",)
 
 
 def _modules() -> dict[str, Path]:
