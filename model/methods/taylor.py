@@ -58,7 +58,7 @@ reduced resolvent, so no division by a gap inside the cluster ever occurs. A sin
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import SimpleNamespace
 
 import numpy as np
@@ -464,6 +464,8 @@ class _Prepared:
     eq0: Equilibrium
     md: ModalDerivatives
     basis: np.ndarray | None = None
+    #: the exact first parasitic frequencies at check strokes (:mod:`.accuracy`), keyed by the strokes' bytes
+    checks: dict = field(default_factory=dict)
 
 
 def _prepare(an: MeshAnalysis) -> _Prepared:
