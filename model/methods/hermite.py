@@ -26,7 +26,13 @@ stiffness of a flexure is a support stiffness in series with a compliance that g
 Where the lowest two parasitic modes exchange their shapes between two samples (a veering, as on the double
 cross hinge near 37 deg, where the MAC cannot tell which branch continues which), the two are interpolated
 together through ``mu_1 + mu_2`` and ``(mu_1 - mu_2)^2`` (the pair form, :func:`_pair_forms`), smooth
-through the veering where each branch alone turns sharply.
+through the veering where each branch alone turns sharply. The eigenvalues at the samples cannot tell a
+veering from a crossing where the MAC follows the two cleanly (both exchange the shapes), so the eigenvectors
+decide: where the lowest parasitic branch at one sample is not the lowest at the next (a swap), or keeps its
+place while its shape turns (MAC with itself below ``VEER_MAC``), the two lowest are interpolated as a pair,
+and the branches read as a crossing are its comparison in the estimate; a probe is trusted only where the
+lowest parasitic mode at each end is, by its shape, the lowest at the midpoint (:func:`_follows`), otherwise
+the midpoint becomes a sample.
 
 Adaptive samples (per side of stroke 0): the continuation passes 0, s_max/4, s_max/2, 3 s_max/4 and s_max, with
 samples at 0, s_max/2 and s_max and, unless the first parasitic frequency at s_max/2 is within ``SMOOTH`` of
@@ -97,6 +103,10 @@ PROBE_GATE = 0.1
 #: lowest two: 1.09 to 1.51 across its veering). Farther apart (the leaf's: 2.8 to 2.9) a MAC below ``MAC_MIN``
 #: is the lowest mode's own change of shape, which its single branch follows, checked by a probe as before.
 PAIR_RATIO = 1.6
+#: Where the lowest parasitic branch keeps its place but its shape turns across an interval (its MAC with itself
+#: below this) while the lowest two parasitic modes span the same subspace at both ends, the two are in or near a
+#: veering: they are interpolated as a pair (:func:`_pair_forms`) and compared with the single branches.
+VEER_MAC = 0.98
 #: The initial samples (:meth:`_Side.initial`) skip the quarter points where the first parasitic frequency at
 #: half the stroke differs from its value at 0 by at most this (leaf 7 %, guide 0.03 %, double cross 0.4 %;
 #: pivot, cartwheel and three-fold 71 to 83 %).
@@ -256,14 +266,19 @@ class _Side:
         and the interval's error estimate from them: ``PROBE_FACTOR`` times the relative difference of the
         interpolated first parasitic frequency from the exact one there (infinite where either has none).
         The midpoint is the sample a refinement would add, so a probe whose estimate misses the tolerance
-        becomes that sample once its slopes are added (:meth:`promote`); nothing is computed twice."""
+        becomes that sample once its slopes are added (:meth:`promote`); nothing is computed twice.
+        Infinite too where the lowest parasitic mode at either end is not, by its shape, the lowest at the
+        midpoint (:func:`_follows`): a crossing, a veering or a mixing of the lowest with other modes inside the
+        interval, where the error can peak away from the midpoint (butterfly-like double cross hinges: 0.1 % at
+        31 deg, 10 times the midpoint's at 28 deg; 1.3 % at 27 deg where the midpoint 34 deg read 0.33 %), is
+        sampled, not judged by one point."""
         i = next(j for j, x in enumerate(self.samples) if x.s == a_s)  # the interval [S_i, S_i+1]
         a, b = self.samples[i], self.samples[i + 1]
         smp = self.sample(a, 0.5 * (a_s + b_s), b, slopes=False)
         smp.labels = self.an.label_modes(smp.modes, smp.eq.tangent)[0]
         is_par = np.array(smp.labels) == "parasitic"
         at = np.array(self.labels[i]) == "parasitic"  # the labels of the nearer sample, as interpolate gives
-        if not (is_par.any() and at.any()):
+        if not (is_par.any() and at.any()) or not (_follows(a, smp) and _follows(smp, b)):
             return np.inf, smp
         # the interpolant at the midpoint: cubic Hermite per branch, and the pair form where the estimate just
         # made chose it, the midpoint taking the branches of S_i (as its labels)
@@ -466,6 +481,34 @@ class _Side:
         return A
 
 
+def _lowest_parasitic(smp: _Sample) -> int | None:
+    """The index (in ``smp.modes``' own order) of the sample's lowest parasitic mode, None if it has none."""
+    par = np.flatnonzero(np.array(smp.labels) == "parasitic")
+    return int(par[np.argmin(smp.modes.omega2[par])]) if len(par) else None
+
+
+def _follows(p: _Sample, q: _Sample) -> bool:
+    """Whether the lowest parasitic mode of ``p`` is, by its shape, the lowest parasitic mode of ``q`` and the
+    other way round: a MAC of at least ``MAC_MIN`` between the two, or with the subspace of a cluster of nearly
+    equal eigenvalues holding the other (``CLUSTER_GAP``, whose single shapes are arbitrary mixtures:
+    :meth:`_Side.retrack`). False across a crossing, a veering or a mixing of the lowest with another mode."""
+    lp, lq = _lowest_parasitic(p), _lowest_parasitic(q)
+    if lp is None or lq is None:
+        return lp is None and lq is None
+    F = mac_matrix(p.modes, q.modes)  # (mode at p, mode at q)
+    return _cluster_share(F[lp], q.modes.omega2, lq) >= MAC_MIN and _cluster_share(F[:, lq], p.modes.omega2,
+                                                                                     lp) >= MAC_MIN
+
+
+def _cluster_share(row: np.ndarray, lam: np.ndarray, j: int) -> float:
+    """``row[j]``, or the sum of ``row`` over the cluster of nearly equal eigenvalues ``lam`` holding ``j``."""
+    order = np.argsort(lam)
+    for c in _multiple(lam[order], CLUSTER_GAP):
+        if j in order[c]:
+            return float(row[order[c]].sum())
+    return float(row[j])
+
+
 class _Fallback(Exception):
     """The samples cannot be computed (loss of equilibrium, instability): the caller uses the exact method."""
 
@@ -528,10 +571,18 @@ def _errors(side: _Side) -> np.ndarray:
     # the pair form (:func:`_pair_forms`) where the single branches are uncertain but the two lowest parasitic
     # modes span the same subspace at both ends (a veering or a crossing between them); on the lone intervals
     # where the pair is closed, the pair form is the second comparison instead of the quintic
-    key, closed, ia, ib, V, W = _pair_forms(S, fr.mu, fr.d, fr.P, side.macs, (inf | lone) & ~exact_iv)
-    side.pairs = (key, closed & inf, ia, ib, V, W)  # the intervals interpolated in the pair form
+    # a swap: the lowest parasitic branch at S_i is not the lowest at S_i+1 (by their shapes the two lowest
+    # cross in between), a crossing or a veering, which the end samples cannot tell apart (both exchange the
+    # shapes); the pair form is exact for either in a 2 x 2 model, and the branches read as a crossing are its
+    # comparison (their difference is what a veering would change: :func:`_compare`)
+    turn = np.asarray(side.mac, dtype=float)[np.arange(n_iv), fr.low[:-1]] < VEER_MAC  # the lowest's shape turns
+    swap = fr.has[:-1] & fr.has[1:] & ((fr.low[:-1] != fr.low[1:]) | turn) & ~inf & ~exact_iv
+    key, closed, ia, ib, V, W = _pair_forms(S, fr.mu, fr.d, fr.P, side.macs, (inf | lone | swap) & ~exact_iv)
+    side.pairs = (key, closed & (inf | swap), ia, ib, V, W)  # the intervals interpolated in the pair form
+    cross = np.flatnonzero(closed & swap)
+    crossing = (cross, fr.A[cross].copy())  # the single branches, before the pair form is written in
     in_r = _apply_pairs(fr, side.pairs, inf, unc)
-    est = _compare(fr, side.pairs, quintic, closed & lone, in_r)
+    est = _compare(fr, side.pairs, quintic, closed & lone & ~swap, in_r, crossing)
     out = np.where(inf, np.inf, est)
     out[exact_iv] = 0.0  # every requested point of the interval is an exact sample
     return out
@@ -632,10 +683,12 @@ def _apply_pairs(fr: _Frame, pairs: tuple, inf: np.ndarray, unc: np.ndarray) -> 
     return R, aR, bRr, r1, r2
 
 
-def _compare(fr: _Frame, pairs: tuple, quintic: list[np.ndarray], cmp: np.ndarray, in_r: tuple) -> np.ndarray:
+def _compare(fr: _Frame, pairs: tuple, quintic: list[np.ndarray], cmp: np.ndarray, in_r: tuple,
+             crossing: tuple) -> np.ndarray:
     """The largest relative difference (I,) of the reported interpolant's first parasitic frequency from the
     comparison interpolants of :func:`_errors` (in r, the quintic, the pair form on ``cmp``), over the interior
-    points; ``in_r``: what :func:`_apply_pairs` returns."""
+    points; ``in_r``: what :func:`_apply_pairs` returns; ``crossing``: the swapped intervals and their single
+    branches (I_c, 16, k)."""
     n_iv = len(fr.S) - 1
     idx = np.arange(n_iv)
     mu, d, basis = fr.mu, fr.d, fr.basis
@@ -665,6 +718,9 @@ def _compare(fr: _Frame, pairs: tuple, quintic: list[np.ndarray], cmp: np.ndarra
     if len(iv):
         others.append(_quintic_all(fr.S, mu, d, iv, np.concatenate(nbs), fr.x[iv], fr.A[iv]))
         rows.append(iv)
+    if len(crossing[0]):  # the pair form against the single branches read as a crossing (a swap)
+        others.append(crossing[1])
+        rows.append(crossing[0])
     C = np.flatnonzero(cmp)
     if len(C):  # the pair form against the single branches where no quintic is built
         m1, m2 = _pair_at(tuple(c[C] for c in basis), V, W, C)
