@@ -1,8 +1,10 @@
 """The speed-accuracy ladder of the frequency-curve methods (issue 4), as markdown tables.
 
-For every template: warm time of a 91-point curve (median of ``--repeat`` runs) and its speed-up over the
+For every template: warm time of a 91-point curve (median of ``--repeat`` runs; for the expansions fd1, fd2,
+manifold and reduced with their exact check points, model/methods/accuracy.py) and its speed-up over the
 exact curve in the same run, build time (modal and
 frequency derivatives, for the fast methods), max and RMS relative error of the first parasitic frequency
+(for the expansions: at every requested point, before the accuracy rule keeps those within the tolerance)
 against the exact curve over a third, two thirds and all of the stroke (+-15, +-30, +-45 deg for
 rotations), and the stroke range over which each method stays within 1 % and 5 %.
 
@@ -28,11 +30,12 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from flexopt.model import Analysis, template  # noqa: E402
-from flexopt.model.methods import frequency_curve  # noqa: E402
+from flexopt.model.methods import expansion_curve, frequency_curve  # noqa: E402
 
 TEMPLATES = ("leaf-spring", "parallel-leaf-spring", "cross-spring-pivot")
 FAMILIES = ("cartwheel-hinge", "three-fold-cross-hinge", "double-cross-hinge")  # the optimiser's other families
 METHODS = ("exact", "fd1", "fd2", "manifold", "reduced", "hermite", "auto")
+FAST = ("fd1", "fd2", "manifold", "reduced")  # the expansions about stroke 0 (model/methods/accuracy.py)
 
 
 def _range_within(stroke: np.ndarray, err: np.ndarray, tol: float) -> float:
@@ -60,9 +63,13 @@ def bench_template(name: str, repeat: int) -> tuple[list[str], dict]:
         build = c.solver.get("build_seconds", float("nan"))
         times = []
         for _ in range(repeat):
+            if an_m.expansion is not None:  # the expansions' exact check points are paid on every curve
+                an_m.expansion.checks.clear()
             t0 = time.perf_counter()
             c = frequency_curve(an_m, m, stroke=values)
             times.append(time.perf_counter() - t0)
+        if m in FAST:  # every point of the expansion (its curve keeps only those within 1 %: accuracy.py)
+            c = expansion_curve(an_m, m, values)[0]
         curves[m] = c
         if m == "exact":
             exact, exact_median = c, statistics.median(times)

@@ -102,6 +102,9 @@ class MeshAnalysis:
     repeated calls). The public curve pipeline, which resolves ``segments: "auto"`` and estimates the mesh's
     discretisation error, is :class:`model.curve.Analysis` (``flexopt.model.Analysis``)."""
 
+    #: The stroke-0 expansion of the fast methods (modal derivatives, model.methods.taylor), built on first use.
+    expansion: object | None = None
+
     def __init__(self, scene: Scene, options: NewtonOptions | None = None) -> None:
         auto = [e.name for e in scene.elements if getattr(e, "segments", 1) == "auto"]
         if auto:

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from flexopt.model import Analysis, scene_from_dict, template
-from flexopt.model.methods import estimate_error, frequency_curve
+from flexopt.model.methods import estimate_error, expansion_curve, frequency_curve
 from tests import references as ref
 
 # (label, length, width, thickness): t/w from 1e-4 (10 um foil on a 100 mm wide sheet) to 0.5, L/t from
@@ -43,23 +43,29 @@ def test_zero_stroke_closed_forms_hold_at_the_extremes(label, L, w, t):
 
 @pytest.mark.parametrize("label,L,w,t", LEAVES, ids=[x[0] for x in LEAVES])
 def test_curves_converge_and_fast_methods_stay_finite_at_the_extremes(label, L, w, t):
-    """The exact curve converges over +-45 deg; every fast method returns finite numbers, and the auto
-    estimator's error estimate is never below the true max error by more than its documented factor 2
-    (model/methods/auto.py estimate_error). A fast method may be useless at an extreme (the quadratic
-    manifold of the stubby leaf reaches an unstable configuration by +-45 deg and reports negative
-    eigenvalues as negative Hz): then its estimate says so and auto does not pick it."""
+    """The exact curve converges over +-45 deg. Every expansion about stroke 0 (fd1, fd2, manifold, reduced)
+    keeps, at the tolerance 1 %, only points with positive frequencies within 1 % of the exact curve and says
+    where it stops (a failure of reason ``accuracy``); its estimate over the whole stroke
+    (model/methods/accuracy.py, from exact check points) is not below the expansion's true max error by more
+    than 10 % (test_modal_derivatives.py: measured 0.974 of it at worst), infinite where the expansion goes
+    negative (the quadratic manifold of the stubby leaf reaches an unstable configuration by +-45 deg), and
+    auto, which picks by these estimates, meets the tolerance."""
     an = Analysis(template("leaf-spring", length=L, width=w, thickness=t, segments=12, points=31))
     ex = an.frequency_curve()
     assert ex.status == "complete", ex.failures
     assert np.all(ex.parasitic_hz > 0)
     est = estimate_error(an, ex.stroke)
     for m in ("fd1", "fd2", "manifold", "reduced"):
-        c = frequency_curve(an, m)
-        assert np.all(np.isfinite(c.parasitic_hz)), (label, m)
-        true = float(np.max(np.abs(c.parasitic_hz / ex.parasitic_hz - 1)))
-        assert est[m] >= true / 2, (label, m, est[m], true)
-    chosen = frequency_curve(an, "auto", tolerance=0.01)  # within 2 x tolerance: the estimator's factor
-    assert np.all(chosen.parasitic_hz > 0) and np.max(np.abs(chosen.parasitic_hz / ex.parasitic_hz - 1)) < 0.02
+        raw = expansion_curve(an, m, ex.stroke)[0].parasitic_hz
+        true = float(np.max(np.abs(raw / ex.parasitic_hz - 1))) if np.all(raw > 0) else np.inf
+        assert est[m] >= true / 1.1, (label, m, est[m], true)
+        c = frequency_curve(an, m, tolerance=0.01)
+        keep = np.array([np.isclose(c.stroke, x, rtol=1e-9, atol=1e-9).any() for x in ex.stroke])
+        assert keep.sum() == len(c.stroke) and np.all(np.isfinite(c.parasitic_hz)) and np.all(c.parasitic_hz > 0)
+        assert np.max(np.abs(c.parasitic_hz / ex.parasitic_hz[keep] - 1)) <= 0.01, (label, m)
+        assert c.status == "complete" or any(f.reason == "accuracy" for f in c.failures), (label, m)
+    chosen = frequency_curve(an, "auto", tolerance=0.01)
+    assert np.all(chosen.parasitic_hz > 0) and np.max(np.abs(chosen.parasitic_hz / ex.parasitic_hz - 1)) <= 0.01
 
 
 def test_a_coarse_stroke_grid_reports_no_false_loss():
@@ -85,8 +91,9 @@ def test_mode_crossing_labels_follow_the_mode_and_the_minimum_is_found():
     """A narrow leaf (6 x 0.5 mm): the out-of-plane (parasitic) branch starts above the second driving-plane
     branch (502 vs 368 Hz) and crosses below it by +-45 deg (about 188 vs 340 Hz). Tracked branches keep
     their labels along the stroke, the first parasitic frequency is the minimum over the parasitic branches
-    at every point, and each fast method finds the curve's minimum within its own error estimate (x 2, the
-    estimator's documented factor) or that estimate rules it out (auto then takes another method)."""
+    at every point, and each expansion about stroke 0 finds the curve's minimum within its own error estimate
+    (x 1.1, the estimate's measured factor: test_modal_derivatives.py) or that estimate rules it out (auto then
+    takes another method)."""
     an = Analysis(template("leaf-spring", width=0.006, points=61))
     c = an.frequency_curve()
     assert np.all(c.mode_labels == c.mode_labels[0]), "labels follow the tracked modes"
@@ -97,6 +104,6 @@ def test_mode_crossing_labels_follow_the_mode_and_the_minimum_is_found():
     np.testing.assert_array_equal(c.parasitic_hz, par.min(axis=1))
     est = estimate_error(an, c.stroke)
     for m in ("fd1", "fd2", "manifold", "reduced"):
-        f = frequency_curve(an, m)
+        f = expansion_curve(an, m, c.stroke)[0]
         err = abs(f.parasitic_hz.min() / c.parasitic_hz.min() - 1)
-        assert err <= 2 * est[m] + 1e-9, (m, err, est[m])
+        assert err <= 1.1 * est[m] + 1e-9, (m, err, est[m])

@@ -14,6 +14,7 @@ from flexopt.model import Analysis, scene_from_dict, template
 from flexopt.model.methods import estimate_error, frequency_curve
 from flexopt.model.methods.taylor import _eq_at, _prepare, modal_derivatives
 from flexopt.model.errors import FlexoptError
+from flexopt.model.methods import expansion_curve
 from flexopt.model.modal import modes_at
 from flexopt.model.rotations import skew
 from flexopt.model.statics import solve_point
@@ -201,10 +202,11 @@ def test_fd2_curvature_matches_exact(analyses, name, h, tol):
     ("cross-spring-pivot", "reduced", 1 / 9, 0.2),  # measured 0.064 over +-5 deg
 ])
 def test_fast_methods_error_bounds(analyses, exact_curves, name, method, frac, bound):
-    """Each fast method within its measured error of the exact curve over the stated stroke range."""
+    """Each expansion (every requested point, before the accuracy rule of model/methods/accuracy.py cuts
+    it) within its measured error of the exact curve over the stated stroke range."""
     an, ex = analyses[name], exact_curves[name]
     sel = np.abs(ex.stroke) <= frac * np.abs(ex.stroke).max() + 1e-12
-    c = frequency_curve(an, method, stroke=ex.stroke[sel])
+    c = expansion_curve(an, method, ex.stroke[sel])[0]
     assert c.method == method
     err = np.abs(c.parasitic_hz / ex.parasitic_hz[sel] - 1).max()
     assert err < bound, f"{name} {method}: max error {err:.3g} over {frac:.2f} of the stroke"
@@ -212,20 +214,23 @@ def test_fast_methods_error_bounds(analyses, exact_curves, name, method, frac, b
 
 @pytest.mark.parametrize("name", ["leaf-spring", "parallel-leaf-spring", "cross-spring-pivot"])
 def test_auto_estimate_bounds_true_error(analyses, exact_curves, name):
-    """The auto estimator (exact at the largest stroke and its half per side) is never below the true
-    max error over the requested range by more than a factor 2 (stated bound; measured factor <= 1.03),
-    and ``auto`` returns a curve within twice the tolerance."""
+    """The auto estimator (the largest per-point estimate of model/methods/accuracy.py, from exact check
+    points) is never below the expansion's true max error over the requested range (infinite where the
+    expansion goes negative) by more than 10 % (measured: 0.974 of it, fd1 on the parallel leaf spring's
+    middle third, whose error grows more slowly than linearly between two checks; 1.0 to rounding where the
+    largest error is at a check), and ``auto`` returns a curve within the tolerance."""
     an, ex = analyses[name], exact_curves[name]
     for frac in (1 / 3, 1.0):
         sel = np.abs(ex.stroke) <= frac * np.abs(ex.stroke).max() + 1e-12
         est = estimate_error(an, ex.stroke[sel])
         for m in FAST:
-            true = np.abs(frequency_curve(an, m, stroke=ex.stroke[sel]).parasitic_hz / ex.parasitic_hz[sel] - 1).max()
-            assert est[m] >= true / 2, f"{name} {m}: estimate {est[m]:.3g} < true {true:.3g} / 2"
+            f = expansion_curve(an, m, ex.stroke[sel])[0].parasitic_hz
+            true = np.abs(f / ex.parasitic_hz[sel] - 1).max() if np.all(f > 0) else np.inf
+            assert est[m] >= true / 1.1, f"{name} {m}: estimate {est[m]:.3g} < true {true:.3g} / 1.1"
     c = frequency_curve(an, "auto", tolerance=0.01)
     err = np.abs(c.parasitic_hz / ex.parasitic_hz - 1).max()
     assert c.method in ("fd1", "fd2", "manifold", "reduced", "hermite", "exact")
-    assert err <= 0.02, f"auto chose {c.method} with error {err:.3g}"
+    assert err <= 0.01, f"auto chose {c.method} with error {err:.3g}"
 
 
 def test_degenerate_pair_square_bar():
@@ -264,8 +269,8 @@ def test_units_invariance(name, tol):
     """
     a1 = Analysis(template(name))
     a2 = Analysis(scene_from_dict(scale_units(scene_dict(name), 1e-3, 1e3)))
-    for m in FAST:
-        c1, c2 = frequency_curve(a1, m), frequency_curve(a2, m)
+    for m in FAST:  # the expansions at every point (the accuracy rule may cut different points near its edge)
+        c1, c2 = (expansion_curve(a, m, a.scene.stroke.values())[0] for a in (a1, a2))
         sel = slice(30, 61)
         err = np.abs(c2.parasitic_hz[sel] / c1.parasitic_hz[sel] - 1).max()
         assert err < (1e-6 if m == "reduced" else tol), f"{name} {m}: {err:.3g}"

@@ -284,3 +284,19 @@ def test_modes_carry_the_scene_checks_and_provenance() -> None:
     assert any(w["kind"] == "validity" and w["element"] == "leaf" for w in d["warnings"]), d["warnings"]
     assert d["provenance"]["scene_sha256"] == scene_hash(thick)
     assert d["provenance"]["flexopt_version"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, stroke", [("cartwheel-hinge", 45.0), ("cross-spring-pivot", -33.0),
+                                          ("parallel-leaf-spring", 0.01)])
+def test_modes_at_a_stroke_are_the_curves_modes_there_with_its_labels(name: str, stroke: float) -> None:
+    """Issue 26 item 3: ``modes --at-stroke`` showed other modes than the curve at that stroke (the cartwheel
+    at 45 deg: the curve's sixth branch, 352 Hz, left out and a 2,116 Hz mode shown). The modes at a stroke
+    are the curve's row there, in its branch order and with its labels (same solves: equal to rounding)."""
+    an = Analysis(template(name))
+    curve = an.frequency_curve()
+    i = int(np.argmin(np.abs(curve.stroke - stroke)))
+    assert curve.stroke[i] == pytest.approx(stroke)
+    d = shapes_at(an, stroke).to_dict()
+    np.testing.assert_allclose([m["hz"] for m in d["modes"]], curve.modes_hz[i], rtol=1e-8)
+    assert [m["label"] for m in d["modes"]] == list(curve.mode_labels[i])

@@ -18,12 +18,13 @@ from ..checks import annotate_curve
 from ..errors import FlexoptError
 from ..results import FrequencyCurve
 from ..scene import Scene
+from .accuracy import check_strokes, estimates, limit
 from .common import _curve_from
 from .hermite import hermite_frequency_curve
 from .manifold import eigen_curve
 from .taylor import _prepare, taylor_curve
 
-__all__ = ["METHODS", "AUTO_ORDER", "frequency_curve", "estimate_error", "curve_with_method"]
+__all__ = ["METHODS", "AUTO_ORDER", "frequency_curve", "estimate_error", "curve_with_method", "expansion_curve"]
 
 #: Cheapest first: the fast methods :func:`estimate_error` rates.
 AUTO_ORDER = ("fd1", "fd2", "reduced", "manifold", "exact")  # candidates of estimate_error (auto: _auto)
@@ -69,18 +70,51 @@ def _frequency_curve(an: MeshAnalysis, method: str, tolerance: float, stroke: np
         raise FlexoptError(f"method '{method}' computes modes with the drive locked, but scene '{an.scene.name}' "
                            "asks for the drive free in its eigen analysis (stroke.drive: free): use method "
                            "'exact', 'hermite' or 'auto', or set stroke.drive to 'locked'")
+    curve, est = expansion_curve(an, method, values)
+    return limit(curve, est, tolerance)
+
+
+def expansion_curve(an: MeshAnalysis, method: str, values: np.ndarray) -> tuple[FrequencyCurve, np.ndarray]:
+    """The curve of an expansion about stroke 0 (fd1, fd2, manifold, reduced) at every requested stroke, and
+    its estimated relative error per point (:mod:`.accuracy`: from exact check points, cached on the
+    analysis's expansion)."""
     t0 = time.perf_counter()
     prep = _prepare(an)
-    eta = np.asarray(spec.to_internal(values), dtype=float)
+    checks = check_strokes(values)
+    f_exact, check_seconds = _exact_checks(an, prep, checks)
+    both = np.concatenate([values, checks])
+    eta = np.asarray(an.scene.stroke.to_internal(both), dtype=float)
     # a structure with fewer locked DOFs than requested modes has only that many (wire guides: 5 of 6)
     n_rep = min(an.scene.modes, len(an.system.free) - an.system.n_con)
-    extra: dict = {"build_seconds": prep.md.build_seconds}
+    extra: dict = {"build_seconds": prep.md.build_seconds, "exact_checks": len(checks),
+                   "check_seconds": check_seconds}
     if method in ("fd1", "fd2"):
         hz, labels, par = taylor_curve(prep, eta, 1 if method == "fd1" else 2, n_rep)
     else:
         hz, labels, par, dev = eigen_curve(prep, eta, method == "reduced", n_rep)
         extra["max_drive_deviation"] = dev
-    return _curve_from(an, method, values, hz, labels, par, time.perf_counter() - t0, extra)
+    p = len(values)
+    est = estimates(values, par[:p], checks, par[p:], f_exact)
+    curve = _curve_from(an, method, values, hz[:p], labels[:p], par[:p], time.perf_counter() - t0, extra)
+    return curve, est
+
+
+def _exact_checks(an: MeshAnalysis, prep, checks: np.ndarray) -> tuple[np.ndarray, float]:
+    """The exact first parasitic frequency at the ``checks`` (NaN where the exact curve stops before them)
+    and the seconds it took (0 when cached on ``prep``)."""
+    key = checks.tobytes()
+    if key not in prep.checks:
+        t0 = time.perf_counter()
+        f = np.full(len(checks), np.nan)
+        if len(checks):
+            ref = an.exact_curve(checks)[0]
+            for i, c in enumerate(checks):
+                hit = np.flatnonzero(np.isclose(ref.stroke, c, rtol=1e-9, atol=1e-12 * np.abs(checks).max()))
+                if len(hit):
+                    f[i] = ref.parasitic_hz[hit[0]]
+        prep.checks[key] = (f, time.perf_counter() - t0)
+        return prep.checks[key]
+    return prep.checks[key][0], 0.0
 
 
 #: Fewest requested stroke points on one side of 0 for which ``auto`` tries ``hermite`` (it solves four exact
@@ -130,12 +164,18 @@ def _auto(an: MeshAnalysis, values: np.ndarray, tolerance: float) -> FrequencyCu
         tried = {"auto_rejected": f"hermite (estimated error {extra.get('estimated_error', float('nan')):.3g}, "
                                   f"{extra.get('samples', 0)} samples)"}
     elif an.scene.stroke.drive == "locked" and not an.system.n_con:
-        # short curves (e.g. an optimiser's screening grid): the Taylor and manifold methods rated by
-        # estimate_error (exact solves at the largest stroke and its half per side)
-        est = estimate_error(an, values)
+        # short curves (e.g. an optimiser's screening grid): the cheapest Taylor or manifold method whose
+        # estimated error (:mod:`.accuracy`, from exact check points) meets the tolerance at every point
+        est: dict[str, float] = {}
         for m in AUTO_ORDER[:-1]:
+            try:
+                cur, e = expansion_curve(an, m, values)
+            except FlexoptError:
+                est[m] = float("inf")
+                continue
+            est[m] = float(e.max()) if len(e) else 0.0
             if est[m] <= tolerance:
-                cur = frequency_curve(an, m, tolerance, values)
+                cur = limit(cur, e, tolerance)
                 return replace(cur, solver={**cur.solver, "seconds": time.perf_counter() - t0, "auto_method": m,
                                             "auto_estimate": est[m], "auto_tolerance": tolerance})
         tried = {"auto_rejected": "fd1, fd2, reduced, manifold (estimated errors "
@@ -145,40 +185,24 @@ def _auto(an: MeshAnalysis, values: np.ndarray, tolerance: float) -> FrequencyCu
                                 "auto_estimate": 0.0, "auto_tolerance": tolerance, **tried})
 
 
-def estimate_error(an: MeshAnalysis, values: np.ndarray, n_check: int = 2) -> dict[str, float]:
-    """Estimated max relative error of the first parasitic frequency for each fast method.
-
-    The estimator solves the exact problem at a few check strokes per side (the largest requested stroke
-    and its half; the Taylor and manifold errors grow monotonically with |stroke| on the templates, so the
-    ends dominate) and returns, per method, the largest relative deviation from exact at those points.
-    Cost: ``2 n_check`` exact points instead of the whole curve. Tested (tests/test_modal_derivatives.py)
-    to stay within a factor 2 of the true max error over the whole curve on the templates.
-    """
+def estimate_error(an: MeshAnalysis, values: np.ndarray) -> dict[str, float]:
+    """Estimated max relative error of the first parasitic frequency at the strokes ``values`` for each
+    expansion about stroke 0 (fd1, fd2, reduced, manifold; ``exact``: 0): the largest of the per-point
+    estimates of :mod:`.accuracy` (exact check points per side, shared by the methods), infinite where a
+    method gives a negative or non-finite frequency, where the exact check curve stops, or where the
+    method does not apply (drive free, rigid deformations)."""
     values = np.asarray(values, dtype=float)
-    checks = []
-    for side in (values[values > 0], values[values < 0]):
-        if len(side):
-            far = side[np.argmax(np.abs(side))]
-            checks += [far * (i + 1) / n_check for i in range(n_check)]
-    checks = np.array(sorted(set(checks)))
-    if len(checks) == 0:
-        return {m: 0.0 for m in AUTO_ORDER}
-    ref = an.frequency_curve(checks)
-    # points the exact continuation reached (a truncated curve makes every fast method unusable below)
-    ok = np.array([np.any(np.isclose(c, ref.stroke, rtol=1e-9, atol=1e-12 * np.abs(checks).max()))
-                   for c in checks])
-    exact = ref.parasitic_hz
     est = {"exact": 0.0}
     for m in AUTO_ORDER[:-1]:
+        if an.scene.stroke.drive == "free":
+            est[m] = float("inf")
+            continue
         try:
-            c = frequency_curve(an, m, 1.0, checks[ok])
-            est[m] = float(np.max(np.abs(c.parasitic_hz / exact - 1.0))) if len(exact) else 0.0
+            e = expansion_curve(an, m, values)[1]
         except FlexoptError:
             est[m] = float("inf")
-        if not np.isfinite(est[m]):
-            est[m] = float("inf")
-    if ref.status != "complete":
-        est = {m: (v if m == "exact" else float("inf")) for m, v in est.items()}
+            continue
+        est[m] = float(e.max()) if len(e) else 0.0
     return est
 
 

@@ -26,7 +26,13 @@ stiffness of a flexure is a support stiffness in series with a compliance that g
 Where the lowest two parasitic modes exchange their shapes between two samples (a veering, as on the double
 cross hinge near 37 deg, where the MAC cannot tell which branch continues which), the two are interpolated
 together through ``mu_1 + mu_2`` and ``(mu_1 - mu_2)^2`` (the pair form, :func:`_pair_forms`), smooth
-through the veering where each branch alone turns sharply.
+through the veering where each branch alone turns sharply. The eigenvalues at the samples cannot tell a
+veering from a crossing where the MAC follows the two cleanly (both exchange the shapes), so the eigenvectors
+decide: where the lowest parasitic branch at one sample is not the lowest at the next (a swap), or keeps its
+place while its shape turns (MAC with itself below ``VEER_MAC``), the two lowest are interpolated as a pair,
+and the branches read as a crossing are its comparison in the estimate; a probe is trusted only where the
+lowest parasitic mode at each end is, by its shape, the lowest at the midpoint (:func:`_follows`), otherwise
+the midpoint becomes a sample.
 
 Adaptive samples (per side of stroke 0): the continuation passes 0, s_max/4, s_max/2, 3 s_max/4 and s_max, with
 samples at 0, s_max/2 and s_max and, unless the first parasitic frequency at s_max/2 is within ``SMOOTH`` of
@@ -97,6 +103,10 @@ PROBE_GATE = 0.1
 #: lowest two: 1.09 to 1.51 across its veering). Farther apart (the leaf's: 2.8 to 2.9) a MAC below ``MAC_MIN``
 #: is the lowest mode's own change of shape, which its single branch follows, checked by a probe as before.
 PAIR_RATIO = 1.6
+#: Where the lowest parasitic branch keeps its place but its shape turns across an interval (its MAC with itself
+#: below this) while the lowest two parasitic modes span the same subspace at both ends, the two are in or near a
+#: veering: they are interpolated as a pair (:func:`_pair_forms`) and compared with the single branches.
+VEER_MAC = 0.98
 #: The initial samples (:meth:`_Side.initial`) skip the quarter points where the first parasitic frequency at
 #: half the stroke differs from its value at 0 by at most this (leaf 7 %, guide 0.03 %, double cross 0.4 %;
 #: pivot, cartwheel and three-fold 71 to 83 %).
@@ -256,14 +266,19 @@ class _Side:
         and the interval's error estimate from them: ``PROBE_FACTOR`` times the relative difference of the
         interpolated first parasitic frequency from the exact one there (infinite where either has none).
         The midpoint is the sample a refinement would add, so a probe whose estimate misses the tolerance
-        becomes that sample once its slopes are added (:meth:`promote`); nothing is computed twice."""
+        becomes that sample once its slopes are added (:meth:`promote`); nothing is computed twice.
+        Infinite too where the lowest parasitic mode at either end is not, by its shape, the lowest at the
+        midpoint (:func:`_follows`): a crossing, a veering or a mixing of the lowest with other modes inside the
+        interval, where the error can peak away from the midpoint (butterfly-like double cross hinges: 0.1 % at
+        31 deg, 10 times the midpoint's at 28 deg; 1.3 % at 27 deg where the midpoint 34 deg read 0.33 %), is
+        sampled, not judged by one point."""
         i = next(j for j, x in enumerate(self.samples) if x.s == a_s)  # the interval [S_i, S_i+1]
         a, b = self.samples[i], self.samples[i + 1]
         smp = self.sample(a, 0.5 * (a_s + b_s), b, slopes=False)
         smp.labels = self.an.label_modes(smp.modes, smp.eq.tangent)[0]
         is_par = np.array(smp.labels) == "parasitic"
         at = np.array(self.labels[i]) == "parasitic"  # the labels of the nearer sample, as interpolate gives
-        if not (is_par.any() and at.any()):
+        if not (is_par.any() and at.any()) or not (_follows(a, smp) and _follows(smp, b)):
             return np.inf, smp
         # the interpolant at the midpoint: cubic Hermite per branch, and the pair form where the estimate just
         # made chose it, the midpoint taking the branches of S_i (as its labels)
@@ -466,6 +481,34 @@ class _Side:
         return A
 
 
+def _lowest_parasitic(smp: _Sample) -> int | None:
+    """The index (in ``smp.modes``' own order) of the sample's lowest parasitic mode, None if it has none."""
+    par = np.flatnonzero(np.array(smp.labels) == "parasitic")
+    return int(par[np.argmin(smp.modes.omega2[par])]) if len(par) else None
+
+
+def _follows(p: _Sample, q: _Sample) -> bool:
+    """Whether the lowest parasitic mode of ``p`` is, by its shape, the lowest parasitic mode of ``q`` and the
+    other way round: a MAC of at least ``MAC_MIN`` between the two, or with the subspace of a cluster of nearly
+    equal eigenvalues holding the other (``CLUSTER_GAP``, whose single shapes are arbitrary mixtures:
+    :meth:`_Side.retrack`). False across a crossing, a veering or a mixing of the lowest with another mode."""
+    lp, lq = _lowest_parasitic(p), _lowest_parasitic(q)
+    if lp is None or lq is None:
+        return lp is None and lq is None
+    F = mac_matrix(p.modes, q.modes)  # (mode at p, mode at q)
+    return _cluster_share(F[lp], q.modes.omega2, lq) >= MAC_MIN and _cluster_share(F[:, lq], p.modes.omega2,
+                                                                                     lp) >= MAC_MIN
+
+
+def _cluster_share(row: np.ndarray, lam: np.ndarray, j: int) -> float:
+    """``row[j]``, or the sum of ``row`` over the cluster of nearly equal eigenvalues ``lam`` holding ``j``."""
+    order = np.argsort(lam)
+    for c in _multiple(lam[order], CLUSTER_GAP):
+        if j in order[c]:
+            return float(row[order[c]].sum())
+    return float(row[j])
+
+
 class _Fallback(Exception):
     """The samples cannot be computed (loss of equilibrium, instability): the caller uses the exact method."""
 
@@ -517,106 +560,182 @@ def _errors(side: _Side) -> np.ndarray:
     """
     S = side.strokes()
     n_iv = len(S) - 1
-    out = np.zeros(max(n_iv, 0))
     if n_iv <= 0:
         side.pairs = _no_pairs(S)
-        return out
+        return np.zeros(max(n_iv, 0))
+    fr = _frame(side, S)
+    inf, unc = _uncertain(fr)
+    quintic = _quintic_sides(fr)
+    exact_iv = fr.filled[:-1] | fr.filled[1:]
+    lone = ~inf & ~exact_iv & ~(quintic[0] | quintic[1])  # single branches with no quintic comparison
+    # the pair form (:func:`_pair_forms`) where the single branches are uncertain but the two lowest parasitic
+    # modes span the same subspace at both ends (a veering or a crossing between them); on the lone intervals
+    # where the pair is closed, the pair form is the second comparison instead of the quintic
+    # a swap: the lowest parasitic branch at S_i is not the lowest at S_i+1 (by their shapes the two lowest
+    # cross in between), a crossing or a veering, which the end samples cannot tell apart (both exchange the
+    # shapes); the pair form is exact for either in a 2 x 2 model, and the branches read as a crossing are its
+    # comparison (their difference is what a veering would change: :func:`_compare`)
+    turn = np.asarray(side.mac, dtype=float)[np.arange(n_iv), fr.low[:-1]] < VEER_MAC  # the lowest's shape turns
+    swap = fr.has[:-1] & fr.has[1:] & ((fr.low[:-1] != fr.low[1:]) | turn) & ~inf & ~exact_iv
+    key, closed, ia, ib, V, W = _pair_forms(S, fr.mu, fr.d, fr.P, side.macs, (inf | lone | swap) & ~exact_iv)
+    side.pairs = (key, closed & (inf | swap), ia, ib, V, W)  # the intervals interpolated in the pair form
+    cross = np.flatnonzero(closed & swap)
+    crossing = (cross, fr.A[cross].copy())  # the single branches, before the pair form is written in
+    in_r = _apply_pairs(fr, side.pairs, inf, unc)
+    est = _compare(fr, side.pairs, quintic, closed & lone & ~swap, in_r, crossing)
+    out = np.where(inf, np.inf, est)
+    out[exact_iv] = 0.0  # every requested point of the interval is an exact sample
+    return out
+
+
+@dataclass
+class _Frame:
+    """What :func:`_errors` compares, over the I intervals of one side, each at its 16 interior points."""
+
+    S: np.ndarray  # (I + 1,) the samples' strokes
+    mu: np.ndarray  # (I + 1, k) the tracked branches' 1 / lambda at the samples
+    d: np.ndarray  # (I + 1, k) their stroke slopes
+    P: np.ndarray  # (I + 1, k) parasitic labels
+    sure: np.ndarray  # (I, k) branch matched with certainty across interval i (MAC >= MAC_MIN)
+    filled: np.ndarray  # (I + 1,) the sample is an exact point filled in (no slope)
+    x: np.ndarray  # (I, 16) interior points
+    basis: tuple  # :func:`_basis` of the intervals at x
+    left: np.ndarray  # (I, 16) the point is nearer S_i than S_i+1
+    par: np.ndarray  # (I, 16, k) labels of the nearer sample
+    low: np.ndarray  # (I + 1,) each sample's lowest parasitic branch (0 if none)
+    has: np.ndarray  # (I + 1,) the sample has a parasitic branch
+    A: np.ndarray  # (I, 16, k) the reported interpolant in mu (the pair form written in by _apply_pairs)
+    hz_a: np.ndarray  # (I, 16, k) its frequencies
+
+
+def _frame(side: _Side, S: np.ndarray) -> _Frame:
+    """The samples' data of ``side`` and the cubic Hermite interpolant in mu on every interval (:class:`_Frame`)."""
     mu, d = np.asarray(side.lam, dtype=float), np.asarray(side.slope, dtype=float)  # (samples, k)
     P = np.array(side.labels) == "parasitic"  # (samples, k)
-    sure = np.asarray(side.mac, dtype=float) >= MAC_MIN  # (I, k): branch matched with certainty across interval i
-    filled = np.array([x.filled for x in side.samples])
     a_, b_ = S[:-1], S[1:]
     # (I, 16) interior points: numpy.linspace(a, b, 18)[1:-1] of each interval, written out (its checks cost
     # more than the rest of this estimate)
     x = _INTERIOR[None, :] * ((b_ - a_) / 17)[:, None] + a_[:, None]
     basis = _basis(a_, b_, x)
-    low = np.where(P, _hz(mu), np.inf).argmin(axis=1)  # each sample's lowest parasitic branch (0 if none)
-    has = P.any(axis=1)
-    idx = np.arange(n_iv)
-    inf = (has[:-1] & ~sure[idx, low[:-1]]) | (has[1:] & ~sure[idx, low[1:]])
     A = _interpolate(basis, mu[:-1], mu[1:], d[:-1], d[1:])  # (I, 16, k)
-    hz_a = _hz(A)
     left = np.abs(x - a_[:, None]) <= np.abs(b_[:, None] - x)
-    par = np.where(left[:, :, None], P[:-1, None, :], P[1:, None, :])  # (I, 16, k) labels of the nearer sample
+    return _Frame(S=S, mu=mu, d=d, P=P, sure=np.asarray(side.mac, dtype=float) >= MAC_MIN,
+                  filled=np.array([x.filled for x in side.samples]), x=x, basis=basis, left=left,
+                  par=np.where(left[:, :, None], P[:-1, None, :], P[1:, None, :]),
+                  low=np.where(P, _hz(mu), np.inf).argmin(axis=1), has=P.any(axis=1), A=A, hz_a=_hz(A))
+
+
+def _uncertain(fr: _Frame) -> tuple[np.ndarray, np.ndarray]:
+    """The intervals where a crossing may change the first parasitic frequency (I,) (see :func:`_errors`), and
+    the branches uncertain across each interval (I, k)."""
+    idx = np.arange(len(fr.S) - 1)
+    sure, low, has, P = fr.sure, fr.low, fr.has, fr.P
+    inf = (has[:-1] & ~sure[idx, low[:-1]]) | (has[1:] & ~sure[idx, low[1:]])
     # a crossing of uncertain branches that may reach the lowest certain one: every pairing (j at S_i, l at
     # S_i+1) of the branches uncertain across the interval, all intervals and pairings at once
     either = P[:-1] | P[1:]
     unc = ~sure & either
     check = unc & ~inf[:, None]  # an interval already uncertain in its lowest branch needs no crossing check
     if check.any():
-        lowest = np.where((sure & either)[:, None, :], hz_a, np.inf).min(axis=2)
-        inf |= np.any(_crossings(basis, mu, d, check) < (1 + CROSS_MARGIN) * lowest, axis=1)
-    # the intervals with a certain neighbour sample, through which the quintic comparison below is built
+        lowest = np.where((sure & either)[:, None, :], fr.hz_a, np.inf).min(axis=2)
+        inf |= np.any(_crossings(fr.basis, fr.mu, fr.d, check) < (1 + CROSS_MARGIN) * lowest, axis=1)
+    return inf, unc
+
+
+def _quintic_sides(fr: _Frame) -> list[np.ndarray]:
+    """The intervals (I,) with a certain neighbour sample on the left and on the right, through which the
+    quintic comparison of :func:`_compare` is built."""
+    n_iv = len(fr.S) - 1
+    idx = np.arange(n_iv)
     quintic = []
     for shift in (-1, 2):
         nb = idx + shift
         between = idx - 1 if shift < 0 else idx + 1
         ok = (nb >= 0) & (nb <= n_iv)
-        ok[ok] &= ~filled[nb[ok]] & sure[between[ok], low[:-1][ok]]
+        ok[ok] &= ~fr.filled[nb[ok]] & fr.sure[between[ok], fr.low[:-1][ok]]
         quintic.append(ok)
-    exact_iv = filled[:-1] | filled[1:]
-    lone = ~inf & ~exact_iv & ~(quintic[0] | quintic[1])  # single branches with no quintic comparison
-    # the pair form (:func:`_pair_forms`) where the single branches are uncertain but the two lowest parasitic
-    # modes span the same subspace at both ends (a veering or a crossing between them); on the lone intervals
-    # where the pair is closed, the pair form is the second comparison instead of the quintic
-    key, closed, ia, ib, V, W = _pair_forms(S, mu, d, P, side.macs, (inf | lone) & ~exact_iv)
-    use, cmp = closed & inf, closed & lone
-    side.pairs = (key, use, ia, ib, V, W)
+    return quintic
+
+
+def _apply_pairs(fr: _Frame, pairs: tuple, inf: np.ndarray, unc: np.ndarray) -> tuple:
+    """Writes the pair form into ``fr.A`` and ``fr.hz_a`` on the intervals ``pairs`` puts in it (uncertain,
+    their pair closed), which are then infinite only where a branch outside the pair with an uncertain match comes near
+    the pair's lowest frequency (``inf`` updated in place). Returns (those intervals, their pair branches at
+    both ends, the pair form in r) for the second comparison."""
+    _, use, ia, ib, V, W = pairs
     R = np.flatnonzero(use)
-    if len(R):
-        bR = tuple(c[R] for c in basis)
-        aR, bRr = ia[R], ib[R]
-        m1, m2, r1, r2 = _pair_at(bR, V, W, R, in_r=True)
-        _put_pair(A, R, left[R], aR, bRr, m1, m2)
-        hz_a[R] = _hz(A[R])
-        # branches outside the pair whose match is uncertain must stay clear of the pair's lowest frequency
-        out_unc = unc[R]
-        rr = np.arange(len(R))[:, None]
-        out_unc[rr, aR] = False
-        out_unc[rr, bRr] = False
-        near = np.zeros(len(R), dtype=bool)
-        if out_unc.any():
-            near = np.any(_crossings(bR, mu, d, out_unc, R) < (1 + CROSS_MARGIN) * _hz(m1), axis=1)
-        inf[R] = near
-    fa = np.where(par, hz_a, np.inf).min(axis=2)
+    if not len(R):
+        return R, None, None, None, None
+    bR = tuple(c[R] for c in fr.basis)
+    aR, bRr = ia[R], ib[R]
+    m1, m2, r1, r2 = _pair_at(bR, V, W, R, in_r=True)
+    _put_pair(fr.A, R, fr.left[R], aR, bRr, m1, m2)
+    fr.hz_a[R] = _hz(fr.A[R])
+    # branches outside the pair whose match is uncertain must stay clear of the pair's lowest frequency
+    out_unc = unc[R]
+    rr = np.arange(len(R))[:, None]
+    out_unc[rr, aR] = False
+    out_unc[rr, bRr] = False
+    near = np.zeros(len(R), dtype=bool)
+    if out_unc.any():
+        near = np.any(_crossings(bR, fr.mu, fr.d, out_unc, R) < (1 + CROSS_MARGIN) * _hz(m1), axis=1)
+    inf[R] = near
+    return R, aR, bRr, r1, r2
+
+
+def _compare(fr: _Frame, pairs: tuple, quintic: list[np.ndarray], cmp: np.ndarray, in_r: tuple,
+             crossing: tuple) -> np.ndarray:
+    """The largest relative difference (I,) of the reported interpolant's first parasitic frequency from the
+    comparison interpolants of :func:`_errors` (in r, the quintic, the pair form on ``cmp``), over the interior
+    points; ``in_r``: what :func:`_apply_pairs` returns; ``crossing``: the swapped intervals and their single
+    branches (I_c, 16, k)."""
+    n_iv = len(fr.S) - 1
+    idx = np.arange(n_iv)
+    mu, d, basis = fr.mu, fr.d, fr.basis
+    _, _, ia, ib, V, W = pairs
+    R, aR, bRr, r1, r2 = in_r
+    fa = np.where(fr.par, fr.hz_a, np.inf).min(axis=2)
     # second interpolant in r = mu^(-1/2) (proportional to the frequency): dr/ds = -mu'/(2 mu^(3/2))
     r = mu**-0.5
     dr = -0.5 * d * r**3
     Br = _interpolate(basis, r[:-1], r[1:], dr[:-1], dr[1:]) ** -2.0
     if len(R):  # the pair form in r as well
-        _put_pair(Br, R, left[R], aR, bRr, r1, r2)
+        _put_pair(Br, R, fr.left[R], aR, bRr, r1, r2)
     others = [Br]
     rows = [idx]
     # third: the quintic through this interval's samples and a neighbour's (values and slopes at three
     # strokes), the next order of the same data: the left neighbour (through interval i - 1) and the right
     # one (through interval i + 1), where it is a sample and its match of the lowest branch is certain (not
     # for the pair form, whose branches are not matched one by one)
+    in_pair = np.zeros(n_iv, dtype=bool)
+    in_pair[R] = True
     ivs, nbs = [], []
     for shift, ok in zip((-1, 2), quintic):
-        ok &= ~use
+        ok = ok & ~in_pair
         ivs.append(idx[ok])
         nbs.append(idx[ok] + shift)
     iv = np.concatenate(ivs)
     if len(iv):
-        others.append(_quintic_all(S, mu, d, iv, np.concatenate(nbs), x[iv], A[iv]))
+        others.append(_quintic_all(fr.S, mu, d, iv, np.concatenate(nbs), fr.x[iv], fr.A[iv]))
         rows.append(iv)
+    if len(crossing[0]):  # the pair form against the single branches read as a crossing (a swap)
+        others.append(crossing[1])
+        rows.append(crossing[0])
     C = np.flatnonzero(cmp)
     if len(C):  # the pair form against the single branches where no quintic is built
         m1, m2 = _pair_at(tuple(c[C] for c in basis), V, W, C)
-        Ac = A[C]
-        _put_pair(Ac, np.arange(len(C)), left[C], ia[C], ib[C], m1, m2)
+        Ac = fr.A[C]
+        _put_pair(Ac, np.arange(len(C)), fr.left[C], ia[C], ib[C], m1, m2)
         others.append(Ac)
         rows.append(C)
     rows = np.concatenate(rows)
-    fb = np.where(par[rows], _hz(np.concatenate(others)), np.inf).min(axis=2)
+    fb = np.where(fr.par[rows], _hz(np.concatenate(others)), np.inf).min(axis=2)
     f = fa[rows]
     ok = np.isfinite(f) & np.isfinite(fb)
     rel = np.abs(np.divide(f, fb, out=np.ones_like(f), where=ok) - 1).max(axis=1)
     est = np.zeros(n_iv)
     np.maximum.at(est, rows, rel)
-    out[:] = np.where(inf, np.inf, est)
-    out[filled[:-1] | filled[1:]] = 0.0  # every requested point of the interval is an exact sample
-    return out
+    return est
 
 
 def _crossings(basis: tuple, mu: np.ndarray, d: np.ndarray, unc: np.ndarray,
@@ -782,6 +901,49 @@ def _stroke_zero(an: MeshAnalysis, k: int, drive: str) -> _Sample:
     return _Sample(0.0, eq0, m0, stroke_slopes(an, eq0, m0))
 
 
+def _refine(side: _Side, s_req: np.ndarray, tolerance: float, max_samples: int | None) -> dict:
+    """The samples of one side (the requested strokes ``s_req``): the initial ones at s/4, s/2, 3s/4 and s
+    (:meth:`_Side.initial`), then bisection of every interval whose estimate exceeds the tolerance, each
+    first probed at its midpoint (:meth:`_Side.probe`), down to intervals of s_max/64 or the budget
+    ``max_samples``. Returns the intervals' estimates."""
+    smax = s_req[np.argmax(np.abs(s_req))]
+    side.initial(smax)
+    side.retrack()
+    h_min = abs(smax) / 64.0
+    while True:
+        est = side.estimates()
+        todo = [iv for iv, e in est.items() if (e > tolerance or (iv in side.coarse and iv not in side.checked))
+                and abs(iv[1] - iv[0]) > h_min * 1.5]
+        if not todo or (max_samples is not None and len(side.samples) - 1 >= max_samples):
+            return est
+        # every interval of the round probed against the tracked branches of its start, then the
+        # probes that miss the tolerance join the samples (within the budget)
+        room = np.inf if max_samples is None else max_samples - (len(side.samples) - 1)
+        grow = []
+        for a_s, b_s in sorted(todo, key=lambda iv: abs(iv[0])):
+            if len(grow) >= room:
+                break
+            e, smp = side.probe(a_s, b_s)
+            if e <= tolerance and not (PROBE_GATE < est[(a_s, b_s)] < np.inf):
+                side.checked[(a_s, b_s)] = est[(a_s, b_s)] = e
+            else:
+                grow.append(smp)
+        if not grow:
+            return est
+        for smp in grow:
+            side.promote(smp)
+        side.retrack()
+
+
+def _fill(side: _Side, est: dict, s_req: np.ndarray, tolerance: float) -> int:
+    """The requested points inside the intervals whose estimate ``est`` misses the tolerance, computed
+    exactly (:meth:`_Side.fill`), the branches retracked; returns their number."""
+    missed = [iv for iv, e in est.items() if e > tolerance]
+    n = sum(side.fill(a_s, b_s, s_req) for a_s, b_s in missed)
+    side.retrack()
+    return n
+
+
 def hermite_curve(an: MeshAnalysis, internal: np.ndarray, tolerance: float, max_samples: int | None = None,
                   mirror: bool = True, fill: bool = False) -> HermiteResult | None:
     """Frequencies at the internal strokes ``internal`` by adaptive exact samples and cubic Hermite branches.
@@ -828,41 +990,10 @@ def hermite_curve(an: MeshAnalysis, internal: np.ndarray, tolerance: float, max_
                     labels[sel] = np.array(lab[:n_rep], dtype=object)
                     par[sel] = par0
                 continue
-            smax = s_req[np.argmax(np.abs(s_req))]
             side = _Side(an, first, k, drive, curvature)
-            # initial samples at s/4, s/2, 3s/4 and s, then bisection of every interval whose estimate
-            # exceeds the tolerance
-            side.initial(smax)
-            side.retrack()
-            h_min = abs(smax) / 64.0
-            while True:
-                est = side.estimates()
-                todo = [iv for iv, e in est.items() if (e > tolerance or (iv in side.coarse and iv not in side.checked))
-                        and abs(iv[1] - iv[0]) > h_min * 1.5]
-                if not todo or (max_samples is not None and len(side.samples) - 1 >= max_samples):
-                    break
-                # every interval of the round probed against the tracked branches of its start, then the
-                # probes that miss the tolerance join the samples (within the budget)
-                room = np.inf if max_samples is None else max_samples - (len(side.samples) - 1)
-                grow = []
-                for a_s, b_s in sorted(todo, key=lambda iv: abs(iv[0])):
-                    if len(grow) >= room:
-                        break
-                    e, smp = side.probe(a_s, b_s)
-                    if e <= tolerance and not (PROBE_GATE < est[(a_s, b_s)] < np.inf):
-                        side.checked[(a_s, b_s)] = est[(a_s, b_s)] = e
-                    else:
-                        grow.append(smp)
-                if not grow:
-                    break
-                for smp in grow:
-                    side.promote(smp)
-                side.retrack()
-            missed = [iv for iv, e in est.items() if e > tolerance]
-            if fill and missed:
-                for a_s, b_s in missed:
-                    filled += side.fill(a_s, b_s, s_req)
-                side.retrack()
+            est = _refine(side, s_req, tolerance, max_samples)
+            if fill and any(e > tolerance for e in est.values()):
+                filled += _fill(side, est, s_req, tolerance)
                 est = side.estimates()
             side_est = max(est.values())
             estimate = max(estimate, side_est)

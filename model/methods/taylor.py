@@ -58,7 +58,7 @@ reduced resolvent, so no division by a gap inside the cluster ever occurs. A sin
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import SimpleNamespace
 
 import numpy as np
@@ -350,6 +350,49 @@ def _multiple(lam: np.ndarray, gap: float) -> list[np.ndarray]:
     return out
 
 
+def _perturbation(sys: System, M: np.ndarray, Kff: np.ndarray, K1: np.ndarray, K2: np.ndarray, M1: np.ndarray,
+                  M2: np.ndarray) -> tuple:
+    """All locked modes at the reference and the (quasi-)degenerate perturbation of their eigenvalues along
+    the path (module docstring): ``w``, ``phi``, the clusters, their ``A1``, ``A2``, ``gamma``, ``gamma2`` and
+    the outside-cluster mode-shape derivatives, from the stiffness and mass derivatives in the exact method's
+    chart (:func:`_to_reference_chart`)."""
+    f = sys.free
+    # all locked modes (resolvent of the mode-shape term); small models: a dense solve
+    # eigen solve on the DOF-scaled matrices D K D, D M D (D = the DOFs' length scales): the same
+    # numbers in any consistent units, so results are unit-invariant to rounding
+    Dv = sys.scale_free
+    Mf = sys.free_block(M)
+    Ms = Dv[:, None] * (0.5 * (Mf + Mf.T)) * Dv[None, :]
+    w, V = sla.eigh(Dv[:, None] * Kff * Dv[None, :], Ms)
+    V = Dv[:, None] * V
+    phi = np.zeros((sys.n, len(w)))
+    phi[f] = V
+    # modal matrices of K(eta) = Lam + eta k1 + eta^2/2 k2 and M(eta) = I + eta m1 + eta^2/2 m2, then the
+    # symmetric form S K S with S = M^-1/2 = I + eta s1 + eta^2 s2 (s1 = -m1/2, s2 = 3/8 m1^2 - 1/4 m2)
+    k1, k2 = phi.T @ K1 @ phi, phi.T @ K2 @ phi
+    m1, m2 = phi.T @ M1 @ phi, phi.T @ M2 @ phi
+    s1, s2 = -0.5 * m1, 0.375 * m1 @ m1 - 0.25 * m2
+    Lam = np.diag(w)
+    t1 = k1 + s1 @ Lam + Lam @ s1
+    t2 = 2.0 * (s2 @ Lam + Lam @ s2 + s1 @ Lam @ s1 + s1 @ k1 + k1 @ s1 + 0.5 * k2)
+    t1, t2 = 0.5 * (t1 + t1.T), 0.5 * (t2 + t2.T)
+    clusters = _clusters(w, CLUSTER_GAP)
+    A1s, A2s = [], []
+    dyn = np.zeros((sys.n, len(w)))  # exact (dynamic) mode-shape derivatives, outside-cluster part
+    for c in clusters:
+        lam_c = float(np.mean(w[c]))
+        out = np.setdiff1d(np.arange(len(w)), c)
+        R = 1.0 / (lam_c - w[out])
+        A1s.append(t1[np.ix_(c, c)])
+        A2s.append(t2[np.ix_(c, c)] + 2.0 * (t1[np.ix_(c, out)] * R) @ t1[np.ix_(out, c)])
+        dyn[:, c] = phi[:, out] @ (R[:, None] * t1[np.ix_(out, c)])
+    gamma = np.diag(t1).copy()
+    gamma2 = np.empty(len(w))
+    for c, a2 in zip(clusters, A2s):
+        gamma2[c] = np.diag(a2)
+    return w, phi, clusters, A1s, A2s, gamma, gamma2, dyn
+
+
 def modal_derivatives(an: MeshAnalysis, eq0: Equilibrium | None = None, n_theta: int | None = None,
                       labeller=None) -> ModalDerivatives:
     """Modes, modal derivatives (eq. 6) and first and second frequency derivatives at stroke 0.
@@ -405,39 +448,7 @@ def modal_derivatives(an: MeshAnalysis, eq0: Equilibrium | None = None, n_theta:
     K2 = 0.5 * (K2 + K2.T)
     M1, M2 = mass_derivatives(sys, eq0.state, phi_j, theta_jj)
     K1, K2, M1, M2 = _to_reference_chart(sys, K, M, K1, K2, M1, M2, phi_j, theta_jj)
-    # all locked modes (resolvent of the mode-shape term); small models: a dense solve
-    # eigen solve on the DOF-scaled matrices D K D, D M D (D = the DOFs' length scales): the same
-    # numbers in any consistent units, so results are unit-invariant to rounding
-    Dv = sys.scale_free
-    Mf = sys.free_block(M)
-    Ms = Dv[:, None] * (0.5 * (Mf + Mf.T)) * Dv[None, :]
-    w, V = sla.eigh(Dv[:, None] * Kff * Dv[None, :], Ms)
-    V = Dv[:, None] * V
-    phi = np.zeros((sys.n, len(w)))
-    phi[f] = V
-    # modal matrices of K(eta) = Lam + eta k1 + eta^2/2 k2 and M(eta) = I + eta m1 + eta^2/2 m2, then the
-    # symmetric form S K S with S = M^-1/2 = I + eta s1 + eta^2 s2 (s1 = -m1/2, s2 = 3/8 m1^2 - 1/4 m2)
-    k1, k2 = phi.T @ K1 @ phi, phi.T @ K2 @ phi
-    m1, m2 = phi.T @ M1 @ phi, phi.T @ M2 @ phi
-    s1, s2 = -0.5 * m1, 0.375 * m1 @ m1 - 0.25 * m2
-    Lam = np.diag(w)
-    t1 = k1 + s1 @ Lam + Lam @ s1
-    t2 = 2.0 * (s2 @ Lam + Lam @ s2 + s1 @ Lam @ s1 + s1 @ k1 + k1 @ s1 + 0.5 * k2)
-    t1, t2 = 0.5 * (t1 + t1.T), 0.5 * (t2 + t2.T)
-    clusters = _clusters(w, CLUSTER_GAP)
-    A1s, A2s = [], []
-    dyn = np.zeros((sys.n, len(w)))  # exact (dynamic) mode-shape derivatives, outside-cluster part
-    for c in clusters:
-        lam_c = float(np.mean(w[c]))
-        out = np.setdiff1d(np.arange(len(w)), c)
-        R = 1.0 / (lam_c - w[out])
-        A1s.append(t1[np.ix_(c, c)])
-        A2s.append(t2[np.ix_(c, c)] + 2.0 * (t1[np.ix_(c, out)] * R) @ t1[np.ix_(out, c)])
-        dyn[:, c] = phi[:, out] @ (R[:, None] * t1[np.ix_(out, c)])
-    gamma = np.diag(t1).copy()
-    gamma2 = np.empty(len(w))
-    for c, a2 in zip(clusters, A2s):
-        gamma2[c] = np.diag(a2)
+    w, phi, clusters, A1s, A2s, gamma, gamma2, dyn = _perturbation(sys, M, Kff, K1, K2, M1, M2)
     r = min(len(w), n_theta if n_theta is not None else max(2 * (an.scene.modes + 2), 12))
     theta = np.zeros((sys.n, r))
     theta[f] = -solve((K1 @ phi[:, :r])[f])  # eq. 6: theta_ij = -K^-1 dK/deta_j phi_i
@@ -453,16 +464,17 @@ class _Prepared:
     eq0: Equilibrium
     md: ModalDerivatives
     basis: np.ndarray | None = None
+    #: the exact first parasitic frequencies at check strokes (:mod:`.accuracy`), keyed by the strokes' bytes
+    checks: dict = field(default_factory=dict)
 
 
 def _prepare(an: MeshAnalysis) -> _Prepared:
-    cached = getattr(an, "_flexopt_md", None)
-    if cached is None:
+    """The stroke-0 equilibrium and modal derivatives of ``an``, kept on it (``MeshAnalysis.expansion``)."""
+    if not isinstance(an.expansion, _Prepared):
         sys = an.system
         eq0 = solve_point(sys, sys.reference_state(), 0.0, an.options, 0.0)
-        cached = _Prepared(an, eq0, modal_derivatives(an, eq0))
-        an._flexopt_md = cached
-    return cached
+        an.expansion = _Prepared(an, eq0, modal_derivatives(an, eq0))
+    return an.expansion
 
 
 
