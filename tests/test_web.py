@@ -143,7 +143,8 @@ def test_bad_field_shows_its_problem_beside_it_and_units_are_read(url: str, brow
     field = page.locator("#params input[data-name=E]")
     assert field.input_value() == "210 GPa"
     assert page.evaluate("(i) => i.scrollWidth <= i.clientWidth", field.element_handle()), "E is cut off"
-    assert page.locator("#params input[data-name=thickness]").input_value() == "500 µm"
+    assert page.locator("#params input[data-name=thickness]").input_value() == "0.5 mm"
+    assert page.locator("#params input[data-name=length]").input_value() == "100 mm"
     assert page.locator("#params input[data-name=segments]").input_value() == "10"
     thickness = page.locator("#params input[data-name=thickness]")
     for typed, says in (("-0.3 mm", "must be greater than 0"), ("", "cannot read ''")):
@@ -326,6 +327,12 @@ def test_optimisation_from_the_page_shows_progress_and_ranking(url: str, browser
     cells = page.get_by_test_id("ranking").locator("tr").nth(1).locator("td").all_inner_texts()
     best = job["result"]["ranking"][0]
     assert cells[1] == "cross-spring-pivot" and float(cells[2]) == pytest.approx(best["worst_hz"], rel=1e-4)
+    # issue 26 item 6: the design with its unit, and whether it sits on a bound of its box (1e-4 to 4e-4 m)
+    t = best["design"]["thickness"]
+    side = (best["active_bounds"] or {}).get("thickness")
+    want = f"thickness {t * 1e3:.4g} mm" + (f" (at its {side} bound {4e-4 * 1e3 if side == 'upper' else 1e-4 * 1e3:.4g} mm)"
+                                            if side else "")
+    assert cells[4] == want
     page.close()
 
 

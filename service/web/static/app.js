@@ -60,12 +60,13 @@ async function busy(label, fn) {
 }
 
 // --------------------------------------------------------------------------------------------- units
-// A number shown with its unit and a readable prefix (210 GPa, 0.3 mm, 100 g), in a form the server reads back
+// A number shown with its unit and a readable prefix (210 GPa, 0.3 mm, 50 mm, 0.1 kg), in a form the server reads back
 // with pint (template parameters accept '0.3 mm'; the page sends what is typed and the server converts it).
-const PREFIXED = {
-  m: [["µm", 1e-6], ["mm", 1e-3], ["m", 1]], Pa: [["Pa", 1], ["kPa", 1e3], ["MPa", 1e6], ["GPa", 1e9]],
-  kg: [["mg", 1e-6], ["g", 1e-3], ["kg", 1]], N: [["mN", 1e-3], ["N", 1], ["kN", 1e3]],
-  "N m": [["mN m", 1e-3], ["N m", 1]], Hz: [["Hz", 1], ["kHz", 1e3]],
+const PREFIXED = { // [unit, factor to SI, smallest |value| in SI shown in it]: lengths in mm from 10 um to 1 m
+  m: [["µm", 1e-6, 0], ["mm", 1e-3, 1e-5], ["m", 1, 1]],
+  Pa: [["Pa", 1, 0], ["kPa", 1e3, 1e3], ["MPa", 1e6, 1e5], ["GPa", 1e9, 1e9]],
+  kg: [["mg", 1e-6, 0], ["g", 1e-3, 1e-4], ["kg", 1, 0.1]], N: [["mN", 1e-3, 0], ["N", 1, 0.1], ["kN", 1e3, 1e3]],
+  "N m": [["mN m", 1e-3, 0], ["N m", 1, 0.1]], Hz: [["Hz", 1, 0], ["kHz", 1e3, 1e4]],
 };
 
 function trimmed(v, digits) { // 0.30000000000000004 -> 0.3; 6.164e-5, not 0.00006164
@@ -79,7 +80,7 @@ function quantity(v, unit, digits = 4) {
   const scales = PREFIXED[unit];
   if (!scales || +v === 0) return `${trimmed(v, digits)} ${unit}`;
   let pick = scales[0];
-  for (const sc of scales) if (Math.abs(v) >= sc[1] * (1 - 1e-9)) pick = sc;
+  for (const sc of scales) if (Math.abs(v) >= sc[2] * (1 - 1e-9)) pick = sc;
   return `${trimmed(v / pick[1], digits)} ${pick[0]}`;
 }
 
