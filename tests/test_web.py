@@ -67,6 +67,10 @@ def browser() -> Iterator[object]:
         b.close()
 
 
+CSP_WATCH = ("window.__csp = []; document.addEventListener('securitypolicyviolation', "
+             "(e) => window.__csp.push(`${e.violatedDirective} ${e.blockedURI}`));")
+
+
 @pytest.fixture
 def shots(tmp_path: Path) -> Path:
     out = Path(os.environ.get("FLEXOPT_SCREENSHOTS") or tmp_path)
@@ -80,6 +84,7 @@ def test_page_computes_leaf_curve_and_shows_a_mode(url: str, browser: object, sh
     from flexopt.model import template
 
     page = browser.new_page(viewport={"width": 1400, "height": 1500})
+    page.add_init_script(CSP_WATCH)  # the page, plotly's 2D and 3D plots included, runs under its CSP
     errors: list[str] = []
     page.on("pageerror", lambda e: errors.append(str(e)))
     external: list[str] = []
@@ -123,6 +128,7 @@ def test_page_computes_leaf_curve_and_shows_a_mode(url: str, browser: object, sh
     page.screenshot(path=str(shots / "web_page.png"), full_page=False)
     assert not errors, f"JavaScript errors on the page: {errors}"
     assert not external, f"the page loaded assets from outside the server: {external}"
+    assert page.evaluate("() => window.__csp") == [], "the page's Content-Security-Policy blocked something"
     page.close()
 
 
@@ -342,6 +348,7 @@ def test_topology_search_from_the_page_shows_ranking_with_thumbnails(url: str, b
     from flexopt.optim.topology.spec import TopologySpec
 
     page = browser.new_page(viewport={"width": 1400, "height": 1100})
+    page.add_init_script(CSP_WATCH)
     page.goto(f"{url}/")
     page.wait_for_function("() => document.querySelector('#topo-spec').value.length > 0")
     assert json.loads(page.input_value("#topo-spec")) == TopologySpec().model_dump(mode="json"), "the defaults"
@@ -364,4 +371,5 @@ def test_topology_search_from_the_page_shows_ranking_with_thumbnails(url: str, b
     assert second[2] == "R:++" and second[6].startswith("rejected: underconstrained")
     assert table.locator("tr").nth(2).locator("svg.thumb line.leaf").count() == 2, "drawn from the template"
     page.locator("section", has=table).screenshot(path=str(shots / "web_topology.png"))
+    assert page.evaluate("() => window.__csp") == [], "the page's Content-Security-Policy blocked something"
     page.close()
