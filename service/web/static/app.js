@@ -386,9 +386,9 @@ function leafNormals(geo) {
 
 // A camera that shows the whole structure from an oblique view: of the directions 20-40 deg above the x-y plane
 // that see every leaf's face at least 20 deg from edge-on (else the best any sees), the nearest to a standard
-// front-right view; and a
-// distance that fits the bounding box (the scene's aspect box, whose half-diagonal is |aspect| / 2 in plotly's
-// normalised scene units) into plotly's 45 deg vertical field of view with a margin.
+// front-right view; at a distance proportional to the diagonal of the scene's aspect box (the axes' ranges span
+// the whole oscillation), its factor set on screenshots so that the box clears the view's edges with a margin
+// (tests/test_web.py checks the pivot's pixels).
 function obliqueCamera(geo, aspect) {
   const normals = leafNormals(geo);
   const preferred = [0.6, -0.7, 0.4], pn = Math.hypot(...preferred);
