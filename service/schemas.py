@@ -68,6 +68,9 @@ class ParameterInfo(_Wire):
     default: float | int | str
     bounds: str = Field(description="accepted values, derived from the parameter's kind (the templates declare "
                                     "no numeric ranges; the scene validator has the final word)")
+    unit: str | None = Field(None, description="the SI unit of the default and of a plain number (None for counts, "
+                                               "words and ratios); a string with any unit of this dimension is "
+                                               "converted, e.g. '0.3 mm'")
 
 
 class TemplateInfo(_Wire):

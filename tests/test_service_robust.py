@@ -104,7 +104,7 @@ def test_unexpected_error_answers_500_and_keeps_the_connection(tmp_path: Path) -
     try:
         while not server.started:
             time.sleep(0.02)
-        get = b"GET %s HTTP/1.1\r\nHost: x\r\n\r\n"
+        get = b"GET %s HTTP/1.1\r\nHost: localhost\r\n\r\n"
         first, second = _raw(port, [get % b"/boom", get % b"/health"])
         assert first.startswith(b"HTTP/1.1 500") and b"application/problem+json" in first
         assert b"connection: close" not in first.lower()

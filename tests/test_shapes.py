@@ -177,7 +177,7 @@ def test_http_modes_and_curve_shapes() -> None:
     app = create_app(Settings(executor="thread", api_keys=""))  # the runtime exists before startup (in-process)
 
     async def run() -> None:
-        async with httpx.AsyncClient(transport=httpx.ASGITransport(app=app), base_url="http://t") as c:
+        async with httpx.AsyncClient(transport=httpx.ASGITransport(app=app), base_url="http://localhost") as c:
             r = await c.post("/v1/modes", json={"scene": scene, "at_stroke": 0})
             assert r.status_code == 200
             d = r.json()
@@ -201,7 +201,7 @@ def test_http_modes_and_curve_shapes() -> None:
         # the typed client hands the same wire dict to the one plotting module
         from flexopt.client import AsyncClient
 
-        async with AsyncClient("http://t", transport=httpx.ASGITransport(app=app)) as client:
+        async with AsyncClient("http://localhost", transport=httpx.ASGITransport(app=app)) as client:
             d = await client.modes(scene, 0.0)
             gif = await client.modes(scene, 0.0, format="gif", mode=1)
         assert gif[:6] == b"GIF89a"

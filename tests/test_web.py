@@ -67,6 +67,10 @@ def browser() -> Iterator[object]:
         b.close()
 
 
+CSP_WATCH = ("window.__csp = []; document.addEventListener('securitypolicyviolation', "
+             "(e) => window.__csp.push(`${e.violatedDirective} ${e.blockedURI}`));")
+
+
 @pytest.fixture
 def shots(tmp_path: Path) -> Path:
     out = Path(os.environ.get("FLEXOPT_SCREENSHOTS") or tmp_path)
@@ -80,6 +84,7 @@ def test_page_computes_leaf_curve_and_shows_a_mode(url: str, browser: object, sh
     from flexopt.model import template
 
     page = browser.new_page(viewport={"width": 1400, "height": 1500})
+    page.add_init_script(CSP_WATCH)  # the page, plotly's 2D and 3D plots included, runs under its CSP
     errors: list[str] = []
     page.on("pageerror", lambda e: errors.append(str(e)))
     external: list[str] = []
@@ -123,6 +128,156 @@ def test_page_computes_leaf_curve_and_shows_a_mode(url: str, browser: object, sh
     page.screenshot(path=str(shots / "web_page.png"), full_page=False)
     assert not errors, f"JavaScript errors on the page: {errors}"
     assert not external, f"the page loaded assets from outside the server: {external}"
+    assert page.evaluate("() => window.__csp") == [], "the page's Content-Security-Policy blocked something"
+    page.close()
+
+
+CURVE_DRAWN = ("() => { const d = document.querySelector('[data-testid=curve]'); "
+               "return d && d.data && d.data.length > 0; }")
+
+
+def test_bad_field_shows_its_problem_beside_it_and_units_are_read(url: str, browser: object, shots: Path) -> None:
+    """Issue 26 item 5: a 422 named the field and the page showed nothing, under the old curve and a stale
+    'done'; inputs now take units ('0.4 mm', converted by the server with pint as the CLI's --set) and show
+    long numbers with a prefix ('210 GPa', not '210000000000' cut off)."""
+    page = browser.new_page(viewport={"width": 1400, "height": 1100})
+    page.goto(f"{url}/")
+    page.wait_for_function("() => document.querySelectorAll('#params input').length > 0")
+    page.locator("#params input[data-name=points]").fill("5")  # a short curve: the tests run on 2 cores
+    page.get_by_test_id("compute").click()
+    page.wait_for_function(CURVE_DRAWN, timeout=30_000)
+    field = page.locator("#params input[data-name=E]")
+    assert field.input_value() == "210 GPa"
+    assert page.evaluate("(i) => i.scrollWidth <= i.clientWidth", field.element_handle()), "E is cut off"
+    assert page.locator("#params input[data-name=thickness]").input_value() == "0.5 mm"
+    assert page.locator("#params input[data-name=length]").input_value() == "100 mm"
+    assert page.locator("#params input[data-name=segments]").input_value() == "10"
+    thickness = page.locator("#params input[data-name=thickness]")
+    for typed, says in (("-0.3 mm", "must be greater than 0"), ("", "cannot read ''")):
+        thickness.fill(typed)
+        page.get_by_test_id("compute").click()
+        error = page.get_by_test_id("error-thickness")
+        error.wait_for(timeout=10_000)
+        assert "thickness" in error.inner_text() and says in error.inner_text(), error.inner_text()
+        assert thickness.get_attribute("aria-invalid") == "true"
+        assert "failed" in page.get_by_test_id("status").inner_text()
+        assert page.evaluate("() => window.flexopt.curve") is None
+        assert page.evaluate("() => !(document.querySelector('[data-testid=curve]').data || []).length"), (
+            "the previous design's curve is still drawn")
+        assert "field(s) marked" in page.get_by_test_id("curve-note").inner_text()
+        if typed:
+            page.locator("#design").screenshot(path=str(shots / "web_field_error.png"))
+    thickness.fill("0.4 mm")
+    page.locator("#params input[data-name=E]").fill("0.2 TPa")
+    page.get_by_test_id("compute").click()
+    page.wait_for_function(CURVE_DRAWN, timeout=30_000)
+    assert page.locator(".field-error").count() == 0 and "done" in page.get_by_test_id("status").inner_text()
+    section = page.evaluate("() => window.flexopt.scene.elements[0].section")
+    material = page.evaluate("() => window.flexopt.scene.materials[0]")
+    # 0.4 mm = 4e-4 m and 0.2 TPa = 2e11 Pa exactly, up to one rounding per pint factor
+    assert section["thickness"] == pytest.approx(4e-4, rel=1e-15)
+    assert material["E"] == pytest.approx(2e11, rel=1e-15)
+    page.close()
+
+
+def _leaf_normals(scene: dict) -> list[list[float]]:
+    """Each rectangular leaf's face normal (tangent x width direction) from the scene, independently of the page."""
+    import numpy as np
+
+    pos = {n["name"]: np.array(n["position"]) for n in scene["nodes"]}
+    out = []
+    for e in scene["elements"]:
+        if (e.get("section") or {}).get("kind") == "rectangular" and e.get("y_axis"):
+            p, q = (pos[n] for n in e["nodes"])
+            n = np.cross(q - p, np.array(e["y_axis"]))
+            out.append(list(n / np.linalg.norm(n)))
+    return out
+
+
+def test_pivot_camera_sees_every_leaf_and_frames_the_structure(url: str, browser: object, shots: Path) -> None:
+    """Issue 26 item 5: the cross-spring pivot's 3D view showed a leaf edge-on and cut off the structure's bottom."""
+    import io
+
+    import numpy as np
+
+    Image = pytest.importorskip("PIL.Image")
+    from flexopt.model import template
+
+    page = browser.new_page(viewport={"width": 1400, "height": 1100})
+    page.goto(f"{url}/")
+    page.wait_for_function("() => document.querySelectorAll('#template option').length > 0")
+    page.select_option("#template", "cross-spring-pivot")
+    page.locator("#params input[data-name=segments]").fill("2")  # the geometry is the same; a smaller model
+    page.evaluate("() => loadModes(0)")  # the structure and modes at stroke 0, without the curve
+    page.get_by_test_id("mode-1").wait_for(timeout=30_000)
+    page.get_by_test_id("mode-1").click()
+    page.click("#stop")
+    page.wait_for_timeout(300)
+    eye = page.evaluate("() => document.querySelector('[data-testid=shape]').layout.scene.camera.eye")
+    d = np.array([eye["x"], eye["y"], eye["z"]])
+    d /= np.linalg.norm(d)
+    normals = _leaf_normals(template("cross-spring-pivot").model_dump(mode="json"))
+    assert len(normals) == 2
+    # |cos| of the angle between the view and a leaf's normal: 0 is edge-on (the old camera: 0.00 for one leaf);
+    # 0.3 is 17 deg away from edge-on
+    faces = [abs(float(np.dot(d, n))) for n in normals]
+    assert min(faces) > 0.3, f"a leaf is seen nearly edge-on: |cos| {faces}"
+    assert np.degrees(np.arcsin(abs(d[2]))) > 10, "not an oblique view from above"
+    png = page.get_by_test_id("shape").screenshot(path=str(shots / "web_pivot_3d.png"))
+    img = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
+    r, g, b = img[..., 0], img[..., 1], img[..., 2]
+    orange = (r - b > 90) & (r - g > 40)  # the mode shape (#e67e22, shaded); the axes are grey, the page white
+    rows, cols = np.nonzero(orange)
+    assert rows.size > 2000, "the mode shape is hardly visible"
+    margin = 4
+    assert rows.min() >= margin and cols.min() >= margin and rows.max() < img.shape[0] - margin and (
+        cols.max() < img.shape[1] - margin), f"the structure touches the view's edge: rows {rows.min()}-{rows.max()} " \
+                                             f"of {img.shape[0]}, columns {cols.min()}-{cols.max()} of {img.shape[1]}"
+    page.close()
+
+
+def test_server_strings_render_as_text(url: str, browser: object, tmp_path: Path) -> None:
+    """Issue 29 item 9: server text went into innerHTML (job.error, names, ...) while the API key is in
+    localStorage. A scene and a member named as markup, and a job whose every string is markup, render as text."""
+    import json
+
+    from flexopt.model import template
+
+    attack = '<img src=x onerror="window.__xss=(window.__xss||0)+1">'
+    scene = template("leaf-spring").model_dump(mode="json")
+    scene["name"] = attack
+    scene["elements"][0]["name"] = "<img/src=y>"  # member names have no spaces
+    scene["stroke"]["points"] = 5
+    page = browser.new_page(viewport={"width": 1400, "height": 1100})
+    page.goto(f"{url}/")
+    page.wait_for_function("() => document.querySelectorAll('#template option').length > 0")
+    path = tmp_path / "attack.json"
+    path.write_text(json.dumps(scene))
+    page.set_input_files("#scene-file", str(path))
+    page.wait_for_function("() => window.flexopt.fileScene !== null")
+    page.get_by_test_id("compute").click()
+    page.wait_for_function(CURVE_DRAWN, timeout=30_000)
+    assert attack in page.locator("#curve .gtitle").text_content()
+    page.evaluate("() => loadModes(0)")
+    page.get_by_test_id("mode-1").wait_for(timeout=30_000)
+    fake = {"id": attack, "status": attack, "error": attack, "progress": {"done": 1, "total": 2}, "partial": [],
+            "result": {"ranking": [{"template": attack, "worst_hz": 1.0, "zero_stroke_hz": 2.0,
+                                    "design": {attack: 1e-4}, "active_bounds": {attack: "upper"}}],
+                       "families": [], "warnings": [{"kind": attack, "message": attack}]}}
+    page.evaluate("(job) => renderJob(job)", fake)
+    topo = {"id": attack, "status": attack, "error": attack, "progress": {},
+            "result": {"counts": {"generated": 1, "rejected": 0, "untraceable": 0, "optimised": 1, "failed": 0},
+                       "best": {"topology": attack}, "ranking": [attack], "spec": {"motion": "rotation"},
+                       "candidates": [{"topology": attack, "family": attack, "dof": attack, "overconstraints": attack,
+                                       "status": attack, "reason": attack, "scene": scene}]}}
+    page.evaluate("(job) => renderTopology(job)", topo)
+    page.wait_for_timeout(300)
+    assert page.locator("img").count() == 0, "server text was parsed as markup"
+    assert page.evaluate("() => window.__xss") is None, "server text ran as script"
+    assert attack in page.get_by_test_id("opt-progress").inner_text()
+    assert attack in page.get_by_test_id("ranking").inner_text()
+    assert attack in page.get_by_test_id("topo-progress").inner_text()
+    assert attack in page.get_by_test_id("topo-ranking").inner_text()
     page.close()
 
 
@@ -159,7 +314,7 @@ def test_diagnosis_and_docs_offline(url: str, browser: object, shots: Path, tmp_
     page.close()
 
 
-def test_optimisation_from_the_page_shows_progress_and_ranking(url: str, browser: object) -> None:
+def test_optimisation_from_the_page_shows_progress_and_ranking(url: str, browser: object, shots: Path) -> None:
     import json
 
     page = browser.new_page(viewport={"width": 1400, "height": 1100})
@@ -179,6 +334,13 @@ def test_optimisation_from_the_page_shows_progress_and_ranking(url: str, browser
     cells = page.get_by_test_id("ranking").locator("tr").nth(1).locator("td").all_inner_texts()
     best = job["result"]["ranking"][0]
     assert cells[1] == "cross-spring-pivot" and float(cells[2]) == pytest.approx(best["worst_hz"], rel=1e-4)
+    # issue 26 item 6: the design with its unit, and whether it sits on a bound of its box (1e-4 to 4e-4 m)
+    t = best["design"]["thickness"]
+    side = (best["active_bounds"] or {}).get("thickness")
+    want = f"thickness {t * 1e3:.4g} mm" + (f" (at its {side} bound {4e-4 * 1e3 if side == 'upper' else 1e-4 * 1e3:.4g} mm)"
+                                            if side else "")
+    assert cells[4] == want
+    page.locator("section", has=page.get_by_test_id("ranking")).screenshot(path=str(shots / "web_optimisation.png"))
     page.close()
 
 
@@ -188,6 +350,7 @@ def test_topology_search_from_the_page_shows_ranking_with_thumbnails(url: str, b
     from flexopt.optim.topology.spec import TopologySpec
 
     page = browser.new_page(viewport={"width": 1400, "height": 1100})
+    page.add_init_script(CSP_WATCH)
     page.goto(f"{url}/")
     page.wait_for_function("() => document.querySelector('#topo-spec').value.length > 0")
     assert json.loads(page.input_value("#topo-spec")) == TopologySpec().model_dump(mode="json"), "the defaults"
@@ -210,4 +373,5 @@ def test_topology_search_from_the_page_shows_ranking_with_thumbnails(url: str, b
     assert second[2] == "R:++" and second[6].startswith("rejected: underconstrained")
     assert table.locator("tr").nth(2).locator("svg.thumb line.leaf").count() == 2, "drawn from the template"
     page.locator("section", has=table).screenshot(path=str(shots / "web_topology.png"))
+    assert page.evaluate("() => window.__csp") == [], "the page's Content-Security-Policy blocked something"
     page.close()

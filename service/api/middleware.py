@@ -8,6 +8,10 @@ that escapes the application is logged here and answered with a 500 problem body
 again, so the server keeps the connection open (a raised exception makes uvicorn close it, and the
 client's next request on that connection fails too).
 
+``AllowedHosts`` answers 400 for a Host header not in the settings' allow-list (default the loopback names):
+a page from another origin whose name an attacker re-points at 127.0.0.1 (DNS rebinding) sends its own
+name as Host, so it cannot reach a local server, keyless or not.
+
 ``BodyLimit`` answers 413 for a body larger than the limit, declared or streamed. The JSON log lines
 themselves are written by :mod:`service.logs`.
 """
@@ -23,7 +27,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from . import errors
 
-__all__ = ["BodyLimit", "JsonOnly", "RequestLog"]
+__all__ = ["AllowedHosts", "BodyLimit", "JsonOnly", "RequestLog", "host_name"]
 
 log = logging.getLogger("flexopt.service.access")
 _TOKEN = re.compile(r"^[A-Za-z0-9._:-]{1,100}$")
@@ -65,6 +69,43 @@ class RequestLog:
                                        "route": getattr(route, "path", None), "path": scope["path"],
                                        "status": status,
                                        "duration_ms": round(1000 * (time.perf_counter() - t0), 2)})
+
+
+def host_name(header: str) -> str:
+    """The host of a Host header without its port, lower case (``[::1]:8000`` -> ``[::1]``)."""
+    h = header.strip().lower()
+    if h.startswith("["):
+        return h[: h.find("]") + 1] if "]" in h else h
+    return h.rsplit(":", 1)[0] if h.count(":") == 1 else h
+
+
+class AllowedHosts:
+    """400 for a request whose Host header names a host not in ``hosts`` (``*.domain`` matches subdomains,
+    ``*`` anything); lifespan and websocket scopes of allowed hosts pass unchanged."""
+
+    def __init__(self, app: ASGIApp, hosts: tuple[str, ...]) -> None:
+        self.app = app
+        self.any = "*" in hosts
+        self.exact = frozenset(h for h in hosts if not h.startswith("*"))
+        self.suffixes = tuple(h[1:] for h in hosts if h.startswith("*."))
+        self.shown = ", ".join(hosts)
+
+    def allows(self, host: str) -> bool:
+        return self.any or host in self.exact or (bool(host) and host.endswith(self.suffixes))
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] not in ("http", "websocket") or self.any:
+            await self.app(scope, receive, send)
+            return
+        raw = dict(scope["headers"]).get(b"host", b"").decode("latin-1")
+        host = host_name(raw)
+        if self.allows(host):
+            await self.app(scope, receive, send)
+            return
+        shown = (raw[:100] + "...") if len(raw) > 100 else raw
+        what = f"host '{shown}' is not served here" if raw else "the request has no Host header"
+        await errors.problem(400, f"{what}: this server answers to {self.shown}; add the name clients use to "
+                                  "FLEXOPT_ALLOWED_HOSTS (comma-separated) to serve it")(scope, receive, send)
 
 
 class JsonOnly:

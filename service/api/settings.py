@@ -42,6 +42,11 @@ class Settings(BaseSettings):
     cache_size: int = Field(256, ge=0, description="entries of the LRU response cache for identical requests (0 = off)")
     api_keys: str = Field("", description="comma-separated API keys; empty = no authentication")
     api_key_header: str = Field("X-API-Key", description="header carrying the API key")
+    allowed_hosts: str = Field(
+        "localhost,127.0.0.1,[::1]", description="comma-separated host names this server answers to (the Host "
+        "header, port ignored; '*.example.com' matches its subdomains, '*' any host): others get 400, so a web "
+        "page on another name resolved to this address (DNS rebinding) cannot call a local keyless server; add "
+        "the name clients use, e.g. 'localhost,127.0.0.1,[::1],flexopt.example.com'")
 
     data_dir: Path = Field(default_factory=lambda: _default_data_dir(), description="where the job database (SQLite) and the jobs' "
                            "finished cases are kept; mount it as a volume in a container")
@@ -60,6 +65,10 @@ class Settings(BaseSettings):
     def job_store_url(self) -> str:
         """The job store's SQLAlchemy URL."""
         return self.database_url or f"sqlite:///{(self.data_dir / 'jobs.sqlite').resolve()}"
+
+    def hosts(self) -> tuple[str, ...]:
+        """The allowed host names, lower case (see ``allowed_hosts``)."""
+        return tuple(h.strip().lower() for h in self.allowed_hosts.split(",") if h.strip())
 
     def keys(self) -> frozenset[str]:
         """The configured API keys (empty: authentication off)."""

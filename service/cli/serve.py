@@ -18,6 +18,8 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     from ..logs import log_config
 
     settings = Settings()
+    if args.host not in ("0.0.0.0", "::", "") and args.host.lower() not in settings.hosts():  # a named interface
+        settings.allowed_hosts += f",{f'[{args.host}]' if ':' in args.host else args.host}"  # answers to its name
     try:  # refuse a corrupt or unreachable job store before listening, with one line naming it and the fix
         JobStore(settings.job_store_url(), settings.data_dir, settings.lease_seconds).engine.dispose()
     except StoreCorrupt as exc:
@@ -33,7 +35,9 @@ def _cmd_serve(args: argparse.Namespace) -> int:
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     """Register the ``serve`` subcommand."""
     s = subparsers.add_parser("serve", help="run the HTTP service (settings from FLEXOPT_* environment variables)")
-    s.add_argument("--host", default="127.0.0.1", help="interface to listen on (0.0.0.0 in a container)")
+    s.add_argument("--host", default="127.0.0.1", help="interface to listen on (0.0.0.0 in a container; the "
+                   "Host names the server answers to are FLEXOPT_ALLOWED_HOSTS, default the loopback names, plus "
+                   "this address when it is a specific one)")
     s.add_argument("--port", type=int, default=8000, help="TCP port")
     s.add_argument("--log-level", default="info", choices=["critical", "error", "warning", "info", "debug"])
     s.set_defaults(func=_cmd_serve)

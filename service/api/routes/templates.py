@@ -30,7 +30,7 @@ def _parameter_info(name: str, default: Any, unit: str | None = None) -> Paramet
     bounds = "any real number (signed offset)" if "offset" in name else "positive (> 0)"
     if unit:
         bounds += f"; a number in {unit} or a string with a unit, e.g. '{default:g} {unit}'"
-    return ParameterInfo(name=name, type="number", default=float(default), bounds=bounds)
+    return ParameterInfo(name=name, type="number", default=float(default), bounds=bounds, unit=unit)
 
 
 def _unknown_template(name: str) -> str:

@@ -3,11 +3,18 @@
 "use strict";
 
 const $ = (id) => document.getElementById(id);
+// every string from the server or a file goes through textContent or esc() before it reaches markup (plotly's
+// titles and hover templates are markup too): a scene named <img src=x onerror=...> is text, never an element
+const esc = (t) => String(t).replace(/[&<>"']/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" })[c]);
+// plotly's titles, names and hover templates: tags are its only markup and it decodes &amp; &lt; &gt; (not &quot;)
+const escPlot = (t) => String(t).replace(/[&<>]/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;" })[c]);
 const state = { scene: null, fileScene: null, curve: null, shapes: null, templates: [], diagnosis: null, job: null,
   topoJob: null, topoThumbs: {} };
 window.flexopt = state;
 
 // ------------------------------------------------------------------------------------------------- API
+// A failed request throws an Error whose .problem is the server's problem details (RFC 9457: errors[].loc names
+// the field) and .status the HTTP status.
 async function api(method, path, body) {
   const headers = { "Accept": "application/json" };
   const key = localStorage.getItem("flexopt-api-key");
@@ -19,13 +26,16 @@ async function api(method, path, body) {
   try { data = text ? JSON.parse(text) : null; } catch (e) { data = { detail: text }; }
   if (!r.ok) {
     let msg = (data && (data.detail || data.title)) || `HTTP ${r.status}`;
-    if (data && data.errors && data.errors.length)
-      msg += "\n" + data.errors.map((e) => `${(e.loc || []).join(".")}: ${e.msg}`).join("\n");
+    if (data && data.errors && data.errors.length) // one line per field (the detail repeats the first)
+      msg = data.errors.map((e) => `${(e.loc || []).filter((x) => x !== "body").join(".")}: ${e.msg}`).join("\n");
     if (r.status === 401) {
       const k = prompt("This server needs an API key:");
       if (k) { localStorage.setItem("flexopt-api-key", k); return api(method, path, body); }
     }
-    throw new Error(msg);
+    const err = new Error(msg);
+    err.problem = data;
+    err.status = r.status;
+    throw err;
   }
   return data;
 }
@@ -49,34 +59,96 @@ async function busy(label, fn) {
   }
 }
 
+// --------------------------------------------------------------------------------------------- units
+// A number shown with its unit and a readable prefix (210 GPa, 0.3 mm, 50 mm, 0.1 kg), in a form the server reads back
+// with pint (template parameters accept '0.3 mm'; the page sends what is typed and the server converts it).
+const PREFIXED = { // [unit, factor to SI, smallest |value| in SI shown in it]: lengths in mm from 10 um to 1 m
+  m: [["µm", 1e-6, 0], ["mm", 1e-3, 1e-5], ["m", 1, 1]],
+  Pa: [["Pa", 1, 0], ["kPa", 1e3, 1e3], ["MPa", 1e6, 1e5], ["GPa", 1e9, 1e9]],
+  kg: [["mg", 1e-6, 0], ["g", 1e-3, 1e-4], ["kg", 1, 0.1]], N: [["mN", 1e-3, 0], ["N", 1, 0.1], ["kN", 1e3, 1e3]],
+  "N m": [["mN m", 1e-3, 0], ["N m", 1, 0.1]], Hz: [["Hz", 1, 0], ["kHz", 1e3, 1e4]],
+};
+
+function trimmed(v, digits) { // 0.30000000000000004 -> 0.3; 6.164e-5, not 0.00006164
+  const x = parseFloat((+v).toPrecision(digits));
+  return x !== 0 && (Math.abs(x) < 1e-3 || Math.abs(x) >= 1e7) ? x.toExponential().replace("e+", "e") : String(x);
+}
+
+function quantity(v, unit, digits = 4) {
+  if (v === null || v === undefined || !Number.isFinite(+v)) return v === null || v === undefined ? "" : String(v);
+  if (!unit) return trimmed(v, digits);
+  const scales = PREFIXED[unit];
+  if (!scales || +v === 0) return `${trimmed(v, digits)} ${unit}`;
+  let pick = scales[0];
+  for (const sc of scales) if (Math.abs(v) >= sc[2] * (1 - 1e-9)) pick = sc;
+  return `${trimmed(v / pick[1], digits)} ${pick[0]}`;
+}
+
+function templateUnits(name) { // parameter -> SI unit (null for counts, words and ratios) of a template
+  const t = state.templates.find((x) => x.name === name);
+  return Object.fromEntries(t ? t.parameters.map((p) => [p.name, p.unit || null]) : []);
+}
+
+// ------------------------------------------------------------------------------------- field errors
+// A 422's problem details name the field (errors[].loc); its message goes beside that field.
+function fieldFor(loc) {
+  const l = (loc || [])[0] === "body" ? loc.slice(1) : (loc || []);
+  if (l[0] === "parameters" && l.length > 1)
+    return [...$("params").querySelectorAll("input")].find((i) => i.dataset.name === String(l[1])) || null;
+  if (l[0] === "tolerance") return $("tolerance");
+  if (l[0] === "method") return $("method");
+  return null;
+}
+
+function clearFieldErrors() {
+  for (const d of document.querySelectorAll(".field-error")) d.remove();
+  for (const i of document.querySelectorAll("[aria-invalid]")) i.removeAttribute("aria-invalid");
+}
+
+function showFieldErrors(err) {
+  let shown = 0;
+  for (const e of (err && err.problem && err.problem.errors) || []) {
+    const inp = fieldFor(e.loc);
+    if (!inp) continue;
+    inp.setAttribute("aria-invalid", "true");
+    const d = document.createElement("div");
+    d.className = "field-error";
+    d.setAttribute("data-testid", `error-${inp.dataset.name || inp.id}`);
+    d.textContent = e.msg;
+    inp.closest("label").after(d);
+    shown++;
+  }
+  return shown;
+}
+
 // -------------------------------------------------------------------------------------------- design
 function renderParams(info) {
   const box = $("params");
   box.innerHTML = "";
   for (const p of info.parameters) {
     const lab = document.createElement("label");
-    lab.title = `${p.name}: ${p.bounds} (default ${p.default})`;
+    const shown = p.type === "number" ? quantity(p.default, p.unit, 12) : String(p.default);
+    lab.title = `${p.name}: ${p.bounds} (default ${shown})` + (p.unit ? `; a plain number is in ${p.unit}` : "");
     const span = document.createElement("span");
     span.textContent = p.name;
     const inp = document.createElement("input");
     inp.dataset.name = p.name;
     inp.dataset.type = p.type;
-    inp.dataset.default = String(p.default);
-    inp.type = p.type === "string" ? "text" : "number";
-    if (p.type !== "string") inp.step = "any";
-    inp.value = p.default;
+    inp.dataset.default = shown;
+    inp.type = "text"; // a number with its unit ('0.3 mm'), converted by the server as the CLI's --set does
+    inp.spellcheck = false;
+    if (p.unit) inp.placeholder = `e.g. ${quantity(p.default, p.unit)}`;
+    inp.value = shown;
     lab.append(span, inp);
     box.append(lab);
   }
 }
 
-function parameters() {
+function parameters() { // the changed fields as typed: the server reads numbers and units and names a bad field
   const out = {};
   for (const inp of $("params").querySelectorAll("input")) {
-    if (inp.value === inp.dataset.default) continue;
-    if (inp.dataset.type === "string") out[inp.dataset.name] = inp.value;
-    else if (inp.dataset.type === "integer") out[inp.dataset.name] = parseInt(inp.value, 10);
-    else out[inp.dataset.name] = parseFloat(inp.value);
+    const v = inp.value.trim();
+    if (v !== inp.dataset.default) out[inp.dataset.name] = v;
   }
   return out;
 }
@@ -88,6 +160,11 @@ async function currentScene() {
 }
 
 function mm(v) { return `${(v * 1e3).toPrecision(3)} mm`; }
+
+function tolerance() { // a number when it reads as one; else the text, for the server to name the field
+  const v = $("tolerance").value.trim();
+  return v !== "" && Number.isFinite(Number(v)) ? Number(v) : v;
+}
 
 function designSummary(scene) {
   const pos = Object.fromEntries(scene.nodes.map((n) => [n.name, n.position]));
@@ -104,46 +181,73 @@ function designSummary(scene) {
 
 // --------------------------------------------------------------------------------------------- curve
 async function computeCurve() {
-  const scene = await currentScene();
-  state.scene = scene;
-  const body = { scene, method: $("method").value, tolerance: parseFloat($("tolerance").value) };
-  const curve = await busy(`curve of ${scene.name} (${body.method})`, () => api("POST", "/v1/frequency-curve", body));
-  state.curve = curve;
-  drawCurve(curve, scene);
-  return curve;
+  clearFieldErrors();
+  const name = state.fileScene ? (state.fileScene.name || "scene file") : $("template").value;
+  try {
+    return await busy(`curve of ${name} (${$("method").value})`, async () => {
+      const scene = await currentScene();
+      const body = { scene, method: $("method").value, tolerance: tolerance() };
+      const curve = await api("POST", "/v1/frequency-curve", body);
+      state.scene = scene;
+      state.curve = curve;
+      $("curve-note").textContent = "";
+      drawCurve(curve, scene);
+      return curve;
+    });
+  } catch (e) {
+    const marked = showFieldErrors(e);
+    clearResults(marked ? `no curve: ${marked} field(s) marked in the design panel need a change` : `no curve: ${e.message}`);
+    throw e;
+  }
+}
+
+// A failed request leaves no result of an earlier design on the page as if it were this one's.
+function clearResults(why) {
+  state.curve = null;
+  state.shapes = null;
+  state.scene = null;
+  Plotly.purge($("curve"));
+  $("curve-note").textContent = why;
+  $("warnings").innerHTML = "";
+  shapeViewer.stop();
+  Plotly.purge($("shape"));
+  $("mode-list").innerHTML = "";
+  $("shape-title").textContent = "";
+  $("scale-note").textContent = "";
 }
 
 function drawCurve(c, scene) {
   const traces = [];
+  const unit = escPlot(c.stroke_unit);
   const i0 = c.stroke.reduce((b, s, i) => (Math.abs(s) < Math.abs(c.stroke[b]) ? i : b), 0);
   const k = c.modes_hz.length ? c.modes_hz[0].length : 0;
   for (let j = 0; j < k; j++) {
     const lab = c.mode_labels.length ? c.mode_labels[i0][j] : "";
-    traces.push({ x: c.stroke, y: c.modes_hz.map((r) => r[j]), name: `mode ${j + 1} (${lab})`, mode: "lines",
+    traces.push({ x: c.stroke, y: c.modes_hz.map((r) => r[j]), name: `mode ${j + 1} (${escPlot(lab)})`, mode: "lines",
       line: { width: 1.2, dash: lab === "parasitic" ? "solid" : lab === "intended" ? "dash" : "dot" },
-      hovertemplate: `mode ${j + 1} (${lab})<br>%{x:.4g} ${c.stroke_unit}: %{y:.5g} Hz<extra></extra>` });
+      hovertemplate: `mode ${j + 1} (${escPlot(lab)})<br>%{x:.4g} ${unit}: %{y:.5g} Hz<extra></extra>` });
   }
   traces.push({ x: c.stroke, y: c.parasitic_hz, name: "first parasitic", mode: "lines+markers",
     line: { width: 4, color: "#c0392b" }, marker: { size: 5, color: "#c0392b" },
-    hovertemplate: `first parasitic<br>%{x:.4g} ${c.stroke_unit}: %{y:.5g} Hz<br>click: structure and modes<extra></extra>` });
+    hovertemplate: `first parasitic<br>%{x:.4g} ${unit}: %{y:.5g} Hz<br>click: structure and modes<extra></extra>` });
   let peak = 0;
   for (const [m, vm] of Object.entries(c.max_von_mises)) {
     const allow = c.allowable_stress[m];
     const u = vm.map((v) => (v === null ? null : v / allow));
     for (const v of u) if (v !== null && v > peak) peak = v;
-    traces.push({ x: c.stroke, y: u, name: `${m}: von Mises / allowable`, yaxis: "y2", mode: "lines", line: { width: 1.5 },
-      hovertemplate: `${m}<br>%{x:.4g} ${c.stroke_unit}: %{y:.3f} of the allowable<extra></extra>` });
+    traces.push({ x: c.stroke, y: u, name: `${escPlot(m)}: von Mises / allowable`, yaxis: "y2", mode: "lines", line: { width: 1.5 },
+      hovertemplate: `${escPlot(m)}<br>%{x:.4g} ${unit}: %{y:.3f} of the allowable (${escPlot(quantity(allow, "Pa"))})<extra></extra>` });
   }
   traces.push({ x: [c.stroke[0], c.stroke[c.stroke.length - 1]], y: [1, 1], yaxis: "y2", name: "allowable stress",
     mode: "lines", line: { color: "red", dash: "dash", width: 1.5 }, hoverinfo: "skip" });
   const par = c.parasitic_hz.filter((v) => v !== null);
   const worst = par.length ? Math.min(...par) : null;
-  const title = `${c.scene} (${c.method}${c.mesh_error != null ? `, mesh error ${(100 * c.mesh_error).toFixed(2)} %` : ""})` +
+  const title = `${escPlot(c.scene)} (${escPlot(c.method)}${c.mesh_error != null ? `, mesh error ${(100 * c.mesh_error).toFixed(2)} %` : ""})` +
     (worst !== null ? `: worst first parasitic ${worst.toPrecision(4)} Hz` : "") +
-    (scene ? `<br><span style="font-size:11px">${designSummary(scene)}</span>` : "");
+    (scene ? `<br><span style="font-size:11px">${escPlot(designSummary(scene))}</span>` : "");
   const layout = {
     title: { text: title, font: { size: 14 } }, margin: { t: 60, r: 10, l: 70, b: 45 },
-    xaxis: { title: { text: `stroke [${c.stroke_unit}]` }, anchor: "y2" },
+    xaxis: { title: { text: `stroke [${unit}]` }, anchor: "y2" },
     yaxis: { title: { text: "natural frequency [Hz]" }, domain: [0.34, 1], type: $("logf").checked ? "log" : "linear" },
     yaxis2: { title: { text: "stress / allowable [-]" }, domain: [0, 0.25], range: [0, Math.max(1.1, 1.1 * peak)] },
     legend: { font: { size: 11 } }, hovermode: "closest",
@@ -224,8 +328,8 @@ function structureTraces(geo, mode, a, style) {
         for (const s of [-1, 1]) { const q = add(pos[n], d, s); x.push(q[0] * S); y.push(q[1] * S); z.push(q[2] * S); }
         if (i > 0) { const b = 2 * (i - 1); I.push(b, b + 1); J.push(b + 2, b + 2); K.push(b + 1, b + 3); }
       });
-      const t = { type: "mesh3d", x, y, z, i: I, j: J, k: K, name, opacity: style.opacity, flatshading: true,
-        hovertemplate: `${name}<extra></extra>`, showscale: false };
+      const t = { type: "mesh3d", x, y, z, i: I, j: J, k: K, name: escPlot(name), opacity: style.opacity, flatshading: true,
+        hovertemplate: `${escPlot(name)}<extra></extra>`, showscale: false };
       if (colourValue !== undefined) {
         Object.assign(t, { intensity: x.map(() => colourValue), colorscale: "RdBu", cmin: -1, cmax: 1 });
         if (style.showscale && !style.scaleShown) {
@@ -241,9 +345,9 @@ function structureTraces(geo, mode, a, style) {
         color = v >= 0 ? `rgb(${178 + 77 * (1 - v)},${24 + 200 * (1 - v)},${43 + 190 * (1 - v)})`
                        : `rgb(${33 + 200 * (1 + v)},${102 + 120 * (1 + v)},${172 + 60 * (1 + v)})`;
       }
-      traces.push({ type: "scatter3d", mode: "lines", name, x: chain.map((n) => pos[n][0] * S),
+      traces.push({ type: "scatter3d", mode: "lines", name: escPlot(name), x: chain.map((n) => pos[n][0] * S),
         y: chain.map((n) => pos[n][1] * S), z: chain.map((n) => pos[n][2] * S),
-        line: { width: 6, color }, opacity: style.opacity, hovertemplate: `${name}<extra></extra>` });
+        line: { width: 6, color }, opacity: style.opacity, hovertemplate: `${escPlot(name)}<extra></extra>` });
     }
   }
   for (const [name, b] of Object.entries(geo.bodies || {})) {
@@ -261,9 +365,48 @@ function structureTraces(geo, mode, a, style) {
       x.push(q[0] * S); y.push(q[1] * S); z.push(q[2] * S);
     }
     traces.push({ type: "mesh3d", x, y, z, alphahull: 0, color: "#34495e", opacity: 0.18 * style.opacity / 0.9,
-      name, hovertemplate: `body ${name}<extra></extra>` });
+      name: escPlot(name), hovertemplate: `body ${escPlot(name)}<extra></extra>` });
   }
   return traces;
+}
+
+// The leaves' face normals (thickness directions) in the drawn state: a leaf seen along its own plane is a line.
+function leafNormals(geo) {
+  const out = [];
+  for (const m of Object.values(geo.members)) {
+    const chain = m.nodes.filter((n) => n in geo.nodes);
+    if (!m.width || !m.y_axis || chain.length < 2) continue;
+    const p = geo.nodes[chain[0]], q = geo.nodes[chain[chain.length - 1]];
+    const y = mul(rotmat(geo.orientations[chain[0]]), m.y_axis);
+    const n = cross(add(q, p, -1), y), len = Math.hypot(...n);
+    if (len > 0) out.push(n.map((v) => v / len));
+  }
+  return out;
+}
+
+// A camera that shows the whole structure from an oblique view: of the directions 20-40 deg above the x-y plane
+// that see every leaf's face at least 20 deg from edge-on (else the best any sees), the nearest to a standard
+// front-right view; at a distance proportional to the diagonal of the scene's aspect box (the axes' ranges span
+// the whole oscillation), its factor set on screenshots so that the box clears the view's edges with a margin
+// (tests/test_web.py checks the pivot's pixels).
+function obliqueCamera(geo, aspect) {
+  const normals = leafNormals(geo);
+  const preferred = [0.6, -0.7, 0.4], pn = Math.hypot(...preferred);
+  let best = null;
+  for (let el = 20; el <= 40; el += 10) {
+    for (let az = 0; az < 360; az += 7.5) {
+      const e = (el * Math.PI) / 180, a = (az * Math.PI) / 180;
+      const d = [Math.cos(e) * Math.cos(a), Math.cos(e) * Math.sin(a), Math.sin(e)];
+      const face = normals.length ? Math.min(...normals.map((n) => Math.abs(n[0] * d[0] + n[1] * d[1] + n[2] * d[2]))) : 1;
+      const near = (d[0] * preferred[0] + d[1] * preferred[1] + d[2] * preferred[2]) / pn;
+      const score = Math.min(face, 0.35) + 1e-3 * near; // every face at >= 20 deg from edge-on, then the preferred side
+      if (!best || score > best.score) best = { score, d, face };
+    }
+  }
+  const radius = Math.hypot(...aspect) / 2;
+  const dist = (1.1 * radius) / Math.sin(Math.PI / 8);
+  return { eye: { x: dist * best.d[0], y: dist * best.d[1], z: dist * best.d[2] }, center: { x: 0, y: 0, z: 0 },
+           up: { x: 0, y: 0, z: 1 } };
 }
 
 class Viewer {
@@ -290,6 +433,7 @@ class Viewer {
     const m = Math.max(...half);
     this.range = c.map((v, i) => [v - half[i], v + half[i]]);
     this.aspect = { x: half[0] / m, y: half[1] / m, z: half[2] / m };
+    this.camera = obliqueCamera(this.geo, [this.aspect.x, this.aspect.y, this.aspect.z]);
   }
   frame(a, fresh = false) {
     const base = structureTraces(this.geo, null, 0, { color: "#95a5a6", opacity: this.mode ? 0.3 : 0.9,
@@ -298,7 +442,7 @@ class Viewer {
     const layout = { margin: { t: 10, l: 0, r: 0, b: 0 }, showlegend: false, uirevision: "keep",
       scene: { aspectmode: "manual", aspectratio: this.aspect,
                xaxis: { title: { text: "x [mm]" }, range: this.range[0] }, yaxis: { title: { text: "y [mm]" }, range: this.range[1] },
-               zaxis: { title: { text: "z [mm]" }, range: this.range[2] }, camera: { eye: { x: 0.95, y: -1.05, z: 0.65 } } } };
+               zaxis: { title: { text: "z [mm]" }, range: this.range[2] }, camera: this.camera } };
     if (fresh || !this.div.data) Plotly.newPlot(this.div, traces, layout, { displaylogo: false, responsive: true });
     else Plotly.react(this.div, traces, layout);
   }
@@ -322,7 +466,7 @@ async function loadModes(stroke) {
   const d = await busy(`modes at stroke ${(+stroke).toPrecision(4)}`, () => api("POST", "/v1/modes", { scene, at_stroke: stroke }));
   state.shapes = d;
   $("shape-title").textContent = `${d.scene} at stroke ${d.stroke.toPrecision(4)} ${d.stroke_unit}: ` +
-    `drive reaction ${d.drive_reaction === null ? "n/a" : d.drive_reaction.toPrecision(4)} ${d.stroke_kind === "rotation" ? "N m" : "N"}`;
+    `drive reaction ${d.drive_reaction === null ? "n/a" : quantity(d.drive_reaction, d.stroke_kind === "rotation" ? "N m" : "N")}`;
   const list = $("mode-list");
   list.innerHTML = "";
   const deflected = document.createElement("button");
@@ -350,7 +494,7 @@ async function loadModes(stroke) {
   const st = document.createElement("div");
   st.className = "note";
   st.textContent = Object.entries(d.stress).map(([k, v]) => v.utilisation === null ? "" :
-    `${k}: ${(v.von_mises / 1e6).toPrecision(4)} MPa = ${(100 * v.utilisation).toFixed(1)} % of the allowable`).join("; ");
+    `${k}: ${quantity(v.von_mises, "Pa")} = ${(100 * v.utilisation).toFixed(1)} % of the allowable`).filter(Boolean).join("; ");
   list.append(st);
   for (const w of d.warnings) {
     const p = document.createElement("div");
@@ -416,16 +560,24 @@ function fmtMotion(motion) {
 }
 
 async function runDiagnosis() {
-  const scene = await currentScene();
+  clearFieldErrors();
+  let scene, d;
+  try {
+    [scene, d] = await busy(`diagnosis of ${state.fileScene ? (state.fileScene.name || "scene file") : $("template").value}`,
+      async () => { const sc = await currentScene(); return [sc, await api("POST", "/v1/diagnosis", { scene: sc })]; });
+  } catch (e) {
+    showFieldErrors(e);
+    $("diagnosis").textContent = `no diagnosis: ${e.message}`;
+    throw e;
+  }
   state.scene = scene;
-  const d = await busy(`diagnosis of ${scene.name}`, () => api("POST", "/v1/diagnosis", { scene }));
   state.diagnosis = d;
   const box = $("diagnosis");
   box.innerHTML = "";
   const h = document.createElement("p");
-  h.innerHTML = `<b>${d.classification}</b>: D<sub>cc</sub> ${d.m} x ${d.n}, rank ${d.rank}, ` +
+  h.innerHTML = `<b>${esc(d.classification)}</b>: D<sub>cc</sub> ${+d.m} x ${+d.n}, rank ${+d.rank}, ` +
     `${d.kinematic_modes.length} free motion(s), ${d.static_modes.length} self-stress(es); ` +
-    `condition number ${d.condition_number === null ? "n/a" : d.condition_number.toPrecision(3)}` +
+    `condition number ${d.condition_number === null ? "n/a" : (+d.condition_number).toPrecision(3)}` +
     (d.almost_singular ? " <span class='error'>(almost singular)</span>" : "");
   box.append(h);
   const stress = {};
@@ -498,19 +650,66 @@ async function submitOptimisation() {
   pollJob(job.id);
 }
 
+// one design parameter with its unit, and whether the optimum sits on a bound of the design box
+function designText(template, design, activeBounds, bounds) {
+  const units = templateUnits(template);
+  return Object.entries(design || {}).map(([k, v]) => {
+    const side = (activeBounds || {})[k];
+    const box = bounds && bounds[k] ? bounds[k][side === "lower" ? 0 : 1] : null;
+    return `${k} ${quantity(v, units[k])}` + (side ? ` (at its ${side} bound${box == null ? "" : " " + quantity(box, units[k])})` : "");
+  }).join(", ");
+}
+
+function cell(tr, text, cls) {
+  const td = document.createElement("td");
+  td.textContent = text;
+  if (cls) td.className = cls;
+  tr.append(td);
+  return td;
+}
+
 function renderJob(job) {
-  const done = job.progress.done || 0, total = job.progress.total || 1;
-  $("opt-progress").innerHTML = `job ${job.id}: <b>${job.status}</b>, ${done} of ${total} cases` +
-    `<div class="bar"><div style="width:${(100 * done) / total}%"></div></div>` + (job.error ? `<div class="error">${job.error}</div>` : "");
+  const p = job.progress || {}, done = p.done || 0, total = p.total || 1;
+  const box = $("opt-progress");
+  box.innerHTML = "job <span></span>: <b></b>, <span></span><div class=\"bar\"><div></div></div>";
+  const [id, st, count] = box.querySelectorAll("span, b");
+  id.textContent = job.id;
+  st.textContent = job.status;
+  count.textContent = `${done} of ${total} cases`;
+  box.querySelector(".bar > div").style.width = `${(100 * done) / total}%`;
+  if (job.error) {
+    const e = document.createElement("div");
+    e.className = "error";
+    e.textContent = job.error;
+    box.append(e);
+  }
+  const fams = (job.result && job.result.families) || []; // the box searched (a raised thickness floor included)
+  const boundsOf = (template) => ((fams.find((f) => f.template === template && f.best) || {}).best || {}).bounds;
   const rows = (job.result && job.result.ranking) ? job.result.ranking.map((r, i) => ({ rank: i + 1, family: r.template,
-    worst: r.worst_hz, zero: r.zero_stroke_hz, design: r.design }))
-    : job.partial.filter((p) => p.verified && p.verified.worst_hz != null)
+    template: r.template, worst: r.worst_hz, zero: r.zero_stroke_hz, design: r.design, active: r.active_bounds,
+    bounds: boundsOf(r.template) }))
+    : (job.partial || []).filter((q) => q.verified && q.verified.worst_hz != null)
         .sort((a, b) => b.verified.worst_hz - a.verified.worst_hz)
-        .map((p, i) => ({ rank: i + 1, family: `${p.family} (start ${p.start})`, worst: p.verified.worst_hz, zero: p.verified.zero_stroke_hz, design: p.design }));
+        .map((q, i) => ({ rank: i + 1, family: `${q.family} (start ${q.start})`, template: q.family, worst: q.verified.worst_hz,
+          zero: q.verified.zero_stroke_hz, design: q.design, active: (q.optimality || {}).active_bounds, bounds: q.bounds }));
   const t = $("ranking");
-  t.innerHTML = `<tr><th>rank</th><th class="l">family</th><th>worst first parasitic [Hz]</th><th>at stroke 0 [Hz]</th><th class="l">design</th></tr>` +
-    rows.map((r) => `<tr><td>${r.rank}</td><td class="l">${r.family}</td><td>${(+r.worst).toPrecision(5)}</td><td>${r.zero == null ? "" : (+r.zero).toPrecision(5)}</td>` +
-      `<td class="l">${Object.entries(r.design || {}).map(([k, v]) => `${k} ${(+v).toPrecision(4)}`).join(", ")}</td></tr>`).join("");
+  t.innerHTML = `<tr><th>rank</th><th class="l">family</th><th>worst first parasitic [Hz]</th><th>at stroke 0 [Hz]</th><th class="l">design</th></tr>`;
+  for (const r of rows) {
+    const tr = document.createElement("tr");
+    cell(tr, String(r.rank));
+    cell(tr, r.family, "l");
+    cell(tr, (+r.worst).toPrecision(5));
+    cell(tr, r.zero == null ? "" : (+r.zero).toPrecision(5));
+    cell(tr, designText(r.template, r.design, r.active, r.bounds), "l design");
+    t.append(tr);
+  }
+  const ul = $("opt-warnings");
+  ul.innerHTML = "";
+  for (const w of (job.result && job.result.warnings) || []) {
+    const li = document.createElement("li");
+    li.textContent = `[${w.kind}] ${w.message}`;
+    ul.append(li);
+  }
 }
 
 async function pollJob(id) {
@@ -523,7 +722,6 @@ async function pollJob(id) {
 
 // ---------------------------------------------------------------------------------- topology search
 const SVG_NS = "http://www.w3.org/2000/svg";
-const esc = (t) => String(t).replace(/[&<>"]/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;" })[c]);
 
 function thumbnail(scene, size = 96) { // a small oblique top view (x right, y up, z towards the viewer): leaves and bodies
   const pos = Object.fromEntries(scene.nodes.map((n) => [n.name, n.position]));
@@ -571,20 +769,21 @@ const fmtHz = (v) => (v == null ? "" : (+v).toPrecision(4));
 function renderTopology(job) {
   const p = job.progress || {}, done = p.done || 0, total = p.total || 0;
   const what = total ? `${done} of ${total} optimisation cases` : (job.status === "running" ? "generating and screening" : "");
-  $("topo-progress").innerHTML = `search ${job.id}: <b>${job.status}</b>${what ? ", " + what : ""}` +
-    `<div class="bar"><div style="width:${total ? (100 * done) / total : 0}%"></div></div>` + (job.error ? `<div class="error">${esc(job.error)}</div>` : "");
+  $("topo-progress").innerHTML = `search ${esc(job.id)}: <b>${esc(job.status)}</b>${what ? ", " + what : ""}` +
+    `<div class="bar"><div></div></div>` + (job.error ? `<div class="error">${esc(job.error)}</div>` : "");
+  $("topo-progress").querySelector(".bar > div").style.width = `${total ? (100 * done) / total : 0}%`;
   const t = $("topo-ranking");
   if (!job.result) { t.innerHTML = ""; return; }
   const r = job.result, n = r.counts;
-  $("topo-progress").innerHTML += `<div class="note">${n.generated} generated, ${n.rejected} rejected, ${n.untraceable} untraceable, ` +
-    `${n.optimised} optimised, ${n.failed} failed; best: ${r.best ? esc(r.best.topology) : "none"}</div>`;
+  $("topo-progress").insertAdjacentHTML("beforeend", `<div class="note">${+n.generated} generated, ${+n.rejected} rejected, ` +
+    `${+n.untraceable} untraceable, ${+n.optimised} optimised, ${+n.failed} failed; best: ${r.best ? esc(r.best.topology) : "none"}</div>`);
   const rows = topoRows(r);
   t.innerHTML = `<tr><th>rank</th><th>topology</th><th class="l">descriptor</th><th class="l">family</th><th>dof</th><th>overconstraints</th>` +
     `<th class="l">status / reason</th><th>worst-case [Hz]</th><th>at stroke 0 [Hz]</th></tr>` +
     rows.map((c, i) => { const rank = r.ranking.indexOf(c.topology);
       return `<tr data-topology="${esc(c.topology)}"><td>${rank >= 0 ? rank + 1 : ""}</td><td class="thumbcell" id="thumb-${i}"></td>` +
-        `<td class="l"><code>${esc(c.topology)}</code></td><td class="l">${esc(c.family || "-")}</td><td>${c.dof ?? ""}</td>` +
-        `<td>${c.overconstraints ?? ""}</td><td class="l reason">${esc(c.status)}${c.reason ? ": " + esc(c.reason) : ""}</td>` +
+        `<td class="l"><code>${esc(c.topology)}</code></td><td class="l">${esc(c.family || "-")}</td><td>${esc(c.dof ?? "")}</td>` +
+        `<td>${esc(c.overconstraints ?? "")}</td><td class="l reason">${esc(c.status)}${c.reason ? ": " + esc(c.reason) : ""}</td>` +
         `<td>${fmtHz(c.worst_case_hz)}</td><td>${fmtHz(c.zero_stroke_hz)}</td></tr>`; }).join("");
   drawThumbnails(rows, r.spec.motion).catch((e) => status(`thumbnails: ${e.message}`, true));
 }
@@ -621,10 +820,10 @@ async function initTopology() {
 async function init() {
   const [health, templates] = await Promise.all([api("GET", "/health"), api("GET", "/v1/templates")]);
   $("version").textContent = `v${health.version}`;
-  $("method").innerHTML = health.methods.map((m) => `<option>${m}</option>`).join("");
+  $("method").replaceChildren(...health.methods.map((m) => new Option(m, m)));
   state.templates = templates;
   const sel = $("template");
-  sel.innerHTML = templates.map((t) => `<option>${t.name}</option>`).join("");
+  sel.replaceChildren(...templates.map((t) => new Option(t.name, t.name)));
   const q = new URLSearchParams(location.search);
   const want = q.get("template") || "leaf-spring";
   if (templates.some((t) => t.name === want)) sel.value = want;
