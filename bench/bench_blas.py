@@ -40,7 +40,8 @@ ROOT = Path(__file__).resolve().parents[1]
 #: user's shell sets none
 THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
                "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS", "FLEXOPT_BLAS_THREADS")
-LAUNCH = "import sys; from flexopt.service.cli import main; sys.exit(main())"
+#: the console script's entry, for either layout (service/cli.py, or the package service/cli/ with main.py)
+LAUNCH = "import sys; from flexopt.service.cli import main; sys.exit(getattr(main, 'main', main)())"
 BUSY = ("import numpy as np\n"
         "a = np.random.default_rng(0).random((1200, 1200))\n"
         "while True:\n"

@@ -157,3 +157,49 @@ def test_a_bad_thread_setting_is_one_line_naming_the_variable() -> None:
             del os.environ["FLEXOPT_BLAS_THREADS"]
         else:
             os.environ["FLEXOPT_BLAS_THREADS"] = old
+
+
+def test_cli_limits_its_whole_process() -> None:
+    """``flexopt curve``: one thread inside the compute, and the process (and any child it starts: the
+    variables) stays limited after it, since the process is flexopt's."""
+    got = _run(_PRELUDE + textwrap.dedent("""
+        import os
+        import flexopt.model.analysis as a
+        from flexopt.service.cli.main import main
+
+        solve, inside = a.modes_at, []
+        def probe(*args, **kw):
+            inside.append(counts())
+            return solve(*args, **kw)
+        a.modes_at = probe
+        code = main(["curve", "--template", "leaf-spring", "--set", "points=5", "--set", "segments=4"])
+        print(json.dumps({"code": code, "user": user, "inside": inside, "after": counts(),
+                          "env": os.environ.get("OPENBLAS_NUM_THREADS")}))
+    """))
+    assert got["code"] == 0 and got["user"] == [2]
+    assert got["inside"] and all(c == [1] for c in got["inside"]), f"CLI computed with {got['inside']}"
+    assert got["after"] == [1] and got["env"] == "1", f"the CLI's process is not limited: {got}"
+
+
+def test_server_lifespan_limits_the_process() -> None:
+    """``flexopt serve``'s application: from its start, the server process is limited (its worker and job
+    processes too: they limit themselves, and inherit the variables); a request still answers."""
+    got = _run(_PRELUDE + textwrap.dedent("""
+        import os, tempfile
+        from fastapi.testclient import TestClient
+        from flexopt.model import template
+        from flexopt.service.api.app import create_app
+        from flexopt.service.api.settings import Settings
+
+        app = create_app(Settings(data_dir=tempfile.mkdtemp()))
+        with TestClient(app) as client:
+            during = counts()
+            env = os.environ.get("OPENBLAS_NUM_THREADS")
+            scene = template("leaf-spring", points=3, segments=2).model_dump(mode="json")
+            r = client.post("/v1/frequency-curve", json={"scene": scene})
+        print(json.dumps({"user": user, "during": during, "env": env, "status": r.status_code,
+                          "curve": r.json().get("status")}))
+    """))
+    assert got["user"] == [2]
+    assert got["during"] == [1] and got["env"] == "1", f"the server's process is not limited: {got}"
+    assert got["status"] == 200 and got["curve"] == "complete"
