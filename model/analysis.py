@@ -26,6 +26,7 @@ from .errors import EquilibriumError, SceneError
 from .statics import Equilibrium, NewtonOptions, StepFailure, WalkFailure, solve_point, walk
 from .structure import Structure, compile_scene
 from .symmetry import StrokeSymmetry, image_indices, one_side, stroke_symmetry
+from .threads import limited
 
 __all__ = ["MeshAnalysis", "von_mises", "beam_sigma", "beam_end_stresses", "DRIVE_CONVENTION", "MESH_CONVENTION"]
 
@@ -266,6 +267,7 @@ class MeshAnalysis:
         return Failure(fail.reason, s_loss, s_a,
                        f"{what}; last stable equilibrium at {s_a:+.5g} {unit}{cause}. The curve stops there")
 
+    @limited()  # one BLAS thread while it computes (model.threads)
     def frequency_curve(
         self, stroke: np.ndarray | None = None, progress: Callable[[int, int], None] | None = None,
         visit: Callable[[Equilibrium, Modes, list[str]], None] | None = None, mirror: bool = True,

@@ -16,6 +16,16 @@ Checks and their limits (each a module constant, so tests and the README quote t
   PLATE_MAX`` = 1) is a plate: plate bending stiffness ``E t^3 / (12 (1 - nu^2))`` per width is up to
   ``1 / (1 - nu^2)`` higher and clamps restrain the anticlastic curvature (Timoshenko and Woinowsky-Krieger,
   *Theory of Plates and Shells*, 1959, sec. 1-2). ``h`` is ``sqrt(12 I / A)`` (the depth of a rectangle).
+* **validity** (small strain) -- a member whose equivalent strain ``sigma_vM / E`` (its largest von Mises
+  stress over its material's E: the strain of a uniaxial test at that stress) exceeds ``STRAIN_MAX`` (1 %),
+  one warning per contiguous stroke range, ``value`` = peak strain. The beam's constitutive law is linear in
+  its strain measures, which agree only to first order (Green-Lagrange ``eps + eps^2 / 2`` against the
+  engineering ``eps``: ``eps / 2`` relative, 0.5 % at 1 % strain, the ``MESH_RTOL`` to which curves are
+  meshed); and 1 % is about the yield strain of the strongest spring steels (sigma_y ~ 2 GPa at E ~ 200 GPa;
+  beryllium copper and titanium alloys 0.6-1 %), so beyond it every metal has left its elastic range. The
+  material's own elastic limit is not in the scene (only an allowable stress, a design limit that the
+  **stress** check applies); a polymer stays elastic further, but the model's small-strain error is the
+  same. A 0.1 m leaf pulled 0.2 m along its axis (300 %) used to pass silently.
 * **notice** (stiff direction) -- shear in the stiff (width) direction adds more than ``SHEAR_NOTICE``
   (10 %) to that compliance: support stiffness across the width is overestimated, and parasitic modes that
   bend the member about its stiff axis read high by up to ``sqrt(1 + share) - 1``.
@@ -46,9 +56,9 @@ from .scene import Beam, RectangularSection, Scene
 
 __all__ = [
     "SLENDER_MIN", "PLATE_MAX", "SHEAR_NOTICE", "KAPPA", "MESH_RTOL", "ALLOWABLE_OVER_E_MAX", "WAVE_SPEED",
-    "G_OVER_E", "EXTENT_MAX", "RADIAN_RTOL", "STRICT_KINDS", "SI_UNITS",
-    "stress_warnings", "slenderness_warnings", "mesh_warnings", "units_warnings", "scene_warnings",
-    "curve_warnings", "scene_hash", "provenance", "annotate_curve", "annotate_diagnosis",
+    "G_OVER_E", "EXTENT_MAX", "RADIAN_RTOL", "STRAIN_MAX", "STRICT_KINDS", "SI_UNITS",
+    "stress_warnings", "strain_warnings", "slenderness_warnings", "mesh_warnings", "units_warnings", "scene_warnings",
+    "curve_warnings", "scene_hash", "input_units", "provenance", "annotate_curve", "annotate_diagnosis",
 ]
 
 SLENDER_MIN = 10.0  # L / h below this: outside Euler-Bernoulli theory (shear deformation)
@@ -61,8 +71,10 @@ WAVE_SPEED = (30.0, 2.0e4)  # m/s, plausible sqrt(E / rho) of solids
 G_OVER_E = (0.01, 1.0)
 EXTENT_MAX = 10.0  # m
 RADIAN_RTOL = 0.005
-#: Warning kinds that make ``flexopt curve --strict`` exit 3.
-STRICT_KINDS = ("stress", "validity")
+STRAIN_MAX = 0.01  # equivalent strain sigma_vM / E beyond which the small-strain beam is out of its range
+#: Warning kinds that make ``flexopt curve --strict`` exit 3: an implausible unit is as wrong an answer as an
+#: overstressed member (a scene in mm without a units block gave 0.146 Hz and exit 0)
+STRICT_KINDS = ("stress", "validity", "units")
 SI_UNITS = "SI: lengths m, masses kg, forces N, stresses Pa, moments N m, frequencies Hz"
 
 
@@ -136,6 +148,52 @@ def stress_warnings(curve: FrequencyCurve) -> list[ResultWarning]:
 
 
 # ------------------------------------------------------------------------------------------- slenderness
+def strain_warnings(curve: FrequencyCurve, scene: Scene) -> list[ResultWarning]:
+    """One ``validity`` warning per member and contiguous stroke range where its equivalent strain
+    ``sigma_vM / E`` exceeds :data:`STRAIN_MAX` (reasons in the module docstring).
+
+    Parameters
+    ----------
+    curve
+        A frequency curve with ``max_von_mises`` per member [Pa] (methods without stresses are not checked:
+        :func:`stress_warnings` says so).
+    scene
+        Its scene (each member's material gives E).
+
+    Returns
+    -------
+    list of ResultWarning
+        ``validity`` warnings with ``stroke_range`` (inner ends interpolated linearly) and ``value`` = the peak
+        strain in the range.
+    """
+    out: list[ResultWarning] = []
+    if not curve.max_von_mises:
+        return out
+    E = {m.name: m.E for m in scene.materials}
+    modulus = {e.name: E.get(e.material) for e in scene.elements}
+    s = np.asarray(curve.stroke, dtype=float)
+    unit = curve.stroke_unit
+    for member, vm in curve.max_von_mises.items():
+        Em = modulus.get(member)
+        vm = np.asarray(vm, dtype=float)
+        if Em is None or not len(vm) or len(vm) != len(s):
+            continue
+        eps = vm / Em
+        over = np.nan_to_num(eps, nan=-np.inf) > STRAIN_MAX
+        for i, j in _runs(over):
+            a = float(s[i]) if i == 0 else _crossing(s, eps, i - 1, i, STRAIN_MAX)
+            b = float(s[j]) if j == len(s) - 1 else _crossing(s, eps, j, j + 1, STRAIN_MAX)
+            peak = float(np.nanmax(eps[i:j + 1]))
+            out.append(ResultWarning(
+                "validity",
+                f"{member}: strain reaches {100 * peak:.3g} % (von Mises stress / E) for stroke {a:.4g} to {b:.4g} "
+                f"{unit}, beyond the {100 * STRAIN_MAX:g} % to which this small-strain beam holds (and beyond the "
+                "elastic range of metals): the frequencies there are outside the model; reduce the stroke or "
+                "lengthen the member",
+                element=member, stroke_range=(a, b), value=peak))
+    return out
+
+
 def _member_length(scene: Scene, nodes: tuple[str, str]) -> float:
     pos = {n.name: np.asarray(n.position, dtype=float) for n in scene.nodes}
     return float(np.linalg.norm(pos[nodes[1]] - pos[nodes[0]]))
@@ -252,10 +310,13 @@ def units_warnings(scene: Scene) -> list[ResultWarning]:
                 value=m.allowable_stress / m.E))
         c = math.sqrt(m.E / m.density)
         if not WAVE_SPEED[0] <= c <= WAVE_SPEED[1]:
+            read = input_units(scene)
+            how = ("E [Pa] and density [kg/m^3] look as if given in other units; fix them or add a units block"
+                   if read is None else f"the scene's E was read in {read['stress']} and its density in "
+                   f"{read['density']}; give them in those units or name theirs in the units block")
             out.append(ResultWarning(
                 "units", f"material '{m.name}': sqrt(E / density) = {c:.4g} m/s is outside the {WAVE_SPEED[0]:g} "
-                f"to {WAVE_SPEED[1]:g} m/s of solids; E [Pa] and density [kg/m^3] look as if given in other units; "
-                "fix them or add a units block", value=c))
+                f"to {WAVE_SPEED[1]:g} m/s of solids; {how}", value=c))
         if not G_OVER_E[0] <= m.G / m.E <= G_OVER_E[1]:
             out.append(ResultWarning(
                 "units", f"material '{m.name}': G / E = {m.G / m.E:.3g} (isotropic solids: 1/3 to 1/2); E and G "
@@ -296,7 +357,7 @@ def scene_warnings(scene: Scene) -> list[ResultWarning]:
 
 def curve_warnings(curve: FrequencyCurve, scene: Scene) -> list[ResultWarning]:
     """Every check on a frequency curve: stress, mesh, validity and units."""
-    return stress_warnings(curve) + mesh_warnings(curve) + scene_warnings(scene)
+    return stress_warnings(curve) + strain_warnings(curve, scene) + mesh_warnings(curve) + scene_warnings(scene)
 
 
 # ------------------------------------------------------------------------------------------- provenance
@@ -329,10 +390,29 @@ def _version() -> str:
     return str(__version__)
 
 
+def input_units(scene: Scene) -> dict[str, str] | None:
+    """The unit each kind of number of the scene file was read in, when it has a ``units`` block: the given
+    ones, and the defaults the block implies named with their rule (``{"length": "mm", "mass": "g"}`` reads
+    densities in g/mm^3, which a reader expecting kg/m^3 must see). None without a block (SI)."""
+    u = scene.units
+    if u is None:
+        return None
+    length, mass, force = u.length or "m", u.mass or "kg", u.force or "N"
+    out = {"length": length, "mass": mass, "force": force if u.force else "N (default)"}
+    out["stress"] = u.stress or f"{force}/{length}^2 (default: force / length^2)"
+    out["density"] = u.density or f"{mass}/{length}^3 (default: mass / length^3)"
+    return out
+
+
 def provenance(scene: Scene, method: str, settings: dict[str, Any]) -> dict[str, Any]:
-    """What produced a result: flexopt version, scene hash (:func:`scene_hash`), method, solver settings."""
-    return {"flexopt_version": _version(), "scene_sha256": scene_hash(scene), "method": method,
-            "settings": settings, "units": SI_UNITS}
+    """What produced a result: flexopt version, scene hash (:func:`scene_hash`), method, solver settings,
+    and the units the scene file was written in (:func:`input_units`) when it had a units block."""
+    out = {"flexopt_version": _version(), "scene_sha256": scene_hash(scene), "method": method,
+           "settings": settings, "units": SI_UNITS}
+    read = input_units(scene)
+    if read is not None:
+        out["input_units"] = read
+    return out
 
 
 def _merge(old: tuple[ResultWarning, ...], new: list[ResultWarning]) -> tuple[ResultWarning, ...]:

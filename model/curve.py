@@ -25,6 +25,7 @@ from .modal import Modes
 from .results import FrequencyCurve
 from .scene import Scene
 from .statics import Equilibrium, NewtonOptions
+from .threads import limited
 
 __all__ = ["Analysis", "frequency_curve", "curve_with_method", "MESH_ESTIMATE"]
 
@@ -38,6 +39,7 @@ class Analysis(MeshAnalysis):
     resolved (:attr:`auto_note` says to what), the analysis of the resulting mesh (:class:`MeshAnalysis`,
     whose members it has) and the mesh estimate of every curve (:meth:`frequency_curve`)."""
 
+    @limited()  # one BLAS thread while it computes (model.threads): 'auto' segments solve curves
     def __init__(self, scene: Scene, options: NewtonOptions | None = None) -> None:
         #: What segments 'auto' resolved to (model.mesh); None when no beam had 'auto'.
         self.auto_note: str | None = None
@@ -59,6 +61,7 @@ class Analysis(MeshAnalysis):
         self.coarse = MeshAnalysis(half, self.options)
         return self.coarse
 
+    @limited()  # one BLAS thread while it computes (model.threads)
     def frequency_curve(
         self, stroke: np.ndarray | None = None, progress: Callable[[int, int], None] | None = None,
         visit: Callable[[Equilibrium, Modes, list[str]], None] | None = None,
@@ -87,12 +90,14 @@ class Analysis(MeshAnalysis):
         return annotate_curve(curve, self.scene, self.options)  # warnings and provenance (model.checks)
 
 
+@limited()
 def frequency_curve(scene: Scene, stroke: np.ndarray | None = None,
                     progress: Callable[[int, int], None] | None = None) -> FrequencyCurve:
     """Exact stroke-dependent natural frequencies of ``scene`` (see :class:`Analysis`)."""
     return Analysis(scene).frequency_curve(stroke, progress)
 
 
+@limited()
 def curve_with_method(analysis: Analysis | Scene, method: str, tolerance: float = 0.01,
                       stroke: np.ndarray | None = None) -> FrequencyCurve:
     """The curve of ``analysis`` (or of a scene, through :class:`Analysis`) by ``method`` (one of

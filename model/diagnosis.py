@@ -23,6 +23,7 @@ from .errors import EquilibriumError, SceneError
 from .scene import Beam, Scene
 from .statics import walk
 from .structure import Structure, compile_scene
+from .threads import limited
 
 __all__ = ["diagnose"]
 
@@ -112,6 +113,7 @@ def _static_modes(U: np.ndarray, rank: int, row_parts: list[tuple[str, str]], ro
     return stat_modes, releases
 
 
+@limited()  # one BLAS thread while it computes (model.threads)
 def diagnose(scene: Scene, at_stroke: float | None = None, kinematic: bool | None = None) -> ConstraintDiagnosis:
     """Exact-constraint diagnosis of a scene (seed 002, section 3).
 

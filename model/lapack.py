@@ -28,10 +28,18 @@ _BLAS = {"dtrsm", "dgemv"}
 class Routines:
     """Addresses of :data:`NAMES` in one library and the C type of its integers."""
 
-    def __init__(self, source: str, int_type: str, addresses: list[int]) -> None:
+    def __init__(self, source: str, int_type: str, addresses: list[int], lookup=None) -> None:
         self.source = source  # where the routines come from (said in provenance and tests)
         self.int_type = int_type  # "long long" (ILP64) or "int" (LP64)
         self.table = (ctypes.c_void_p * len(addresses))(*addresses)
+        self._lookup = lookup  # name -> address in the same library (routines outside the table)
+
+    def address(self, name: str) -> int | None:
+        """The address of another LAPACK routine of the same library (e.g. ``"dpbsv"``), or None."""
+        try:
+            return None if self._lookup is None else self._lookup(name)
+        except (AttributeError, KeyError, ValueError):
+            return None
 
 
 def _works(dgesv: int, int_c: type) -> bool:
@@ -62,7 +70,9 @@ def _from_numpy() -> Routines | None:
             except AttributeError:
                 continue
             if _works(gesv, ctypes.c_longlong):
-                return Routines(f"numpy's OpenBLAS ({os.path.basename(path)})", "long long", addr)
+                return Routines(f"numpy's OpenBLAS ({os.path.basename(path)})", "long long", addr,
+                                lambda nm, lib=lib, pattern=pattern:
+                                ctypes.cast(getattr(lib, pattern.format(nm)), ctypes.c_void_p).value)
     return None
 
 
@@ -87,7 +97,7 @@ def _from_scipy() -> Routines | None:
         return None
     if not _works(gesv, ctypes.c_int):
         return None
-    return Routines("scipy.linalg.cython_lapack", "int", addr)
+    return Routines("scipy.linalg.cython_lapack", "int", addr, address)
 
 
 _FOUND: list = []

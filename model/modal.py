@@ -14,6 +14,7 @@ linear assignment, so curves follow modes through crossings.
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -202,18 +203,127 @@ def track(prev: Modes, cur: Modes) -> np.ndarray:
     return assign(mac_matrix(prev, cur))
 
 
+#: The margin by which a certified assignment beats every other one (in total MAC, which lies in [0, n]). Far
+#: above the rounding of any exact solver on these sizes (potentials summed from n^2 steps: ~1e-13), so every
+#: exact solver, scipy's included, returns the certified permutation; a closer call (a tie, or modes matched
+#: equally well two ways) goes to scipy's solver, whose choice is then the one returned.
+_MARGIN = 1e-9
+_TIGHT = 1e-12  # rounding allowed in a certificate's reduced costs (which are 0 on the permutation, >= 0 off it)
+
+
 def assign(mac: np.ndarray) -> np.ndarray:
-    """The permutation of largest total MAC: ``p[i]`` is the column matched to row ``i`` (see :func:`track`)."""
+    """The permutation of largest total MAC: ``p[i]`` is the column matched to row ``i`` (see :func:`track`).
+
+    When each row's best column is a different column, that permutation (optimal: every term is at its
+    row's maximum). Otherwise the same permutation as ``scipy.optimize.linear_sum_assignment(-mac)``,
+    without importing ``scipy.optimize`` (0.15-0.8 s, a cold command-line curve's largest single cost; issue
+    26 item 2) when a certificate proves it the unique optimum by :data:`_MARGIN`: potentials ``u``, ``v``
+    from the shortest-augmenting-path (Hungarian) method (:func:`_hungarian`) whose reduced costs
+    ``r = u_i + v_j - mac_ij`` are >= 0, 0 on the permutation, and admit no cycle of swaps among the edges
+    off it with ``r < _MARGIN`` (:func:`_certified`). Every other permutation then has a total MAC lower by
+    at least the margin, far above any exact solver's rounding, so scipy's solver returns the same one.
+    Only when no certificate holds (a tie: modes matched equally well two ways), or when scipy.optimize
+    is loaded already (its solver is faster than the Python loop), does scipy decide."""
     if mac.size == 0:
         return np.arange(mac.shape[0])
-    best = np.argmax(mac, axis=1)
-    if mac.shape[0] == mac.shape[1] and np.bincount(best, minlength=len(best)).max() == 1:
-        # every mode's best match is a different mode: that permutation is the assignment of largest total
-        # MAC (each term is at its row's maximum), so the assignment solver is not needed
-        return best
-    from scipy.optimize import linear_sum_assignment  # lazily: scipy.optimize costs 0.1-0.3 s to import
+    perm = _assign_certified(mac, hungarian="scipy.optimize" not in sys.modules)
+    if perm is not None:
+        return perm
+    from scipy.optimize import linear_sum_assignment  # lazily: scipy.optimize costs 0.15-0.8 s to import
 
     rows, cols = linear_sum_assignment(-mac)
     perm = np.empty(len(rows), dtype=int)
     perm[rows] = cols
     return perm
+
+
+def _assign_certified(mac: np.ndarray, hungarian: bool = True) -> np.ndarray | None:
+    """The largest-MAC permutation of a square ``mac`` when a certificate proves it unique by :data:`_MARGIN`
+    (:func:`_certified`), else None: each row's best column when those differ, then (``hungarian``) the
+    potentials of :func:`_hungarian`. The name says the second case; the first is :func:`assign`'s own rule."""
+    n = mac.shape[0]
+    if n != mac.shape[1]:
+        return None
+    best = np.argmax(mac, axis=1)
+    if n == 1:
+        return best
+    if np.bincount(best, minlength=n).max() == 1:
+        # every mode's best match is a different mode: that permutation is an assignment of largest total
+        # MAC (each term is at its row's maximum); the one returned here since before the certificates (a
+        # row whose maximum is tied picks its first column, as np.argmax does), so curves are unchanged
+        return best
+    return _certified(mac, *_hungarian(-mac)) if hungarian else None
+
+
+def _certified(mac: np.ndarray, perm: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray | None:
+    """``perm`` if the potentials ``u`` (rows), ``v`` (columns) prove it the unique largest-MAC permutation by
+    :data:`_MARGIN` (see :func:`assign`), else None.
+
+    The reduced costs ``r = u_i + v_j - mac_ij`` must be >= 0 everywhere and 0 on ``perm`` (then ``perm`` is
+    optimal). Another permutation ``q`` loses ``sum_i r[i, q(i)]``; it loses less than the margin only if every
+    edge it moves to is nearly tight (``r < _MARGIN``). Its moves form cycles of columns (row ``i`` leaves
+    ``perm[i]`` for ``q[i]``, whose row leaves it for the next, ...), so such a ``q`` exists exactly when the
+    graph with an arc ``perm[i] -> j`` for every nearly tight ``(i, j)`` off ``perm`` has a cycle: the
+    certificate is that this graph has none (peeled to nothing by removing columns without incoming arcs)."""
+    n = len(perm)
+    if np.bincount(perm, minlength=n).max() != 1:
+        return None
+    rows = np.arange(n)
+    r = u[:, None] + v[None, :] - mac
+    if not (np.all(np.abs(r[rows, perm]) <= _TIGHT) and r.min() >= -_TIGHT):
+        return None
+    near = r < _MARGIN
+    near[rows, perm] = False
+    arcs = np.zeros((n, n), dtype=bool)  # arcs[a, b]: column a -> column b
+    arcs[perm] = near
+    alive = np.ones(n, dtype=bool)
+    while alive.any():
+        sources = alive & ~arcs[alive].any(axis=0)
+        if not sources.any():
+            return None  # a cycle of nearly tight swaps: a second assignment within the margin
+        alive &= ~sources
+    return perm
+
+
+def _hungarian(cost: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Minimum-cost permutation of a square ``cost`` matrix with its dual potentials, by shortest augmenting
+    paths (Kuhn-Munkres with potentials: rows added one at a time, a Dijkstra search over reduced costs
+    per row; Burkard, Dell'Amico and Martello, Assignment Problems, 2009, sec. 4.4). Returns ``perm`` (row
+    to column) and potentials of the *maximisation* of ``-cost`` (``u = -u_min``, ``v = -v_min``), the form
+    :func:`_certified` checks. Every result is checked there, so this only has to be good, not trusted."""
+    n = cost.shape[0]
+    u = np.zeros(n + 1)
+    v = np.zeros(n + 1)
+    row_of = np.zeros(n + 1, dtype=int)  # row_of[j]: row (1-based) matched to column j (1-based); 0: free
+    way = np.zeros(n + 1, dtype=int)
+    for i in range(1, n + 1):
+        row_of[0] = i
+        j0 = 0
+        minv = np.full(n + 1, np.inf)
+        used = np.zeros(n + 1, dtype=bool)
+        while True:
+            used[j0] = True
+            i0 = row_of[j0]
+            cur = cost[i0 - 1] - u[i0] - v[1:]
+            free = ~used[1:]
+            better = free & (cur < minv[1:])
+            minv[1:][better] = cur[better]
+            way[1:][better] = j0
+            cand = np.where(free, minv[1:], np.inf)
+            j1 = int(np.argmin(cand)) + 1
+            delta = cand[j1 - 1]
+            if not np.isfinite(delta):  # non-finite costs: no certificate (scipy reports them)
+                return np.zeros(n, dtype=int), np.zeros(n), np.zeros(n)
+            u[row_of[used]] += delta
+            v[used] -= delta
+            minv[1:][free] -= delta
+            j0 = j1
+            if row_of[j0] == 0:
+                break
+        while j0:
+            j1 = way[j0]
+            row_of[j0] = row_of[j1]
+            j0 = j1
+    perm = np.empty(n, dtype=int)
+    perm[row_of[1:] - 1] = np.arange(n)
+    return perm, -u[1:], -v[1:]

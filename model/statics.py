@@ -20,12 +20,14 @@ value, with a tangent (and, when available, second-order) predictor and step hal
 
 from __future__ import annotations
 
+import ctypes
 from dataclasses import dataclass, field
 
 import numpy as np
 from . import linalg
 from .assembly import Assembled, State, System
 from .kernels import c_enum
+from .lapack import routines
 
 __all__ = ["NewtonOptions", "Equilibrium", "solve_point", "StepFailure", "path_curvature"]
 
@@ -397,6 +399,32 @@ def solve_point(
     raise StepFailure(f"no convergence in {opts.max_iter} iterations (increment {inc:.3g}, residual {res:.3g})")
 
 
+def _pbsv(ab: np.ndarray, b: np.ndarray) -> np.ndarray | None:
+    """``A x = b`` for a symmetric positive definite band ``A`` in upper band storage ``ab`` ((kd + 1, n),
+    ``ab[kd + i - j, j] = A[i, j]``, as ``scipy.linalg.solveh_banded`` takes it) by LAPACK's dpbsv (banded
+    Cholesky); None when ``A`` is not positive definite. Through the LAPACK that model.lapack found (numpy's
+    OpenBLAS), else scipy.linalg.solveh_banded, which calls the same routine."""
+    table = routines()
+    addr = None if table is None else table.address("dpbsv")
+    if addr is None:
+        from scipy.linalg import solveh_banded
+
+        try:
+            return solveh_banded(ab, b, check_finite=False)
+        except np.linalg.LinAlgError:
+            return None
+    I = ctypes.c_longlong if table.int_type == "long long" else ctypes.c_int
+    P = ctypes.c_void_p
+    fn = ctypes.CFUNCTYPE(None, ctypes.c_char_p, P, P, P, P, P, P, P, P)(addr)
+    A = np.asfortranarray(ab, dtype=np.float64).copy(order="F")  # dpbsv overwrites it with the factor
+    x = np.array(b, dtype=np.float64, order="F")
+    kd1, n = A.shape
+    n_, kd_, one, ldab, info = I(n), I(kd1 - 1), I(1), I(kd1), I(0)
+    fn(b"U", ctypes.byref(n_), ctypes.byref(kd_), ctypes.byref(one), A.ctypes.data, ctypes.byref(ldab),
+       x.ctypes.data, ctypes.byref(n_), ctypes.byref(info))
+    return x if info.value == 0 else None
+
+
 def path_curvature(sys: System, eq: Equilibrium) -> np.ndarray:
     """``d^2 xi / ds^2`` of the equilibrium path at the stress-free reference ``eq`` (stroke 0).
 
@@ -419,9 +447,8 @@ def path_curvature(sys: System, eq: Equilibrium) -> np.ndarray:
     if band is not None:
         # the reference stiffness is symmetric positive definite (a stable reference): banded Cholesky (dpbsv)
         # in the eigen problem's band order, O(n kd^2) where the dense LU below is O(n^3) (double cross hinge,
-        # order 179: the whole curvature 400 -> 265 us)
-        from scipy.linalg import solveh_banded
-
+        # order 179: the whole curvature 400 -> 265 us); LAPACK's dpbsv called directly (_pbsv: importing
+        # scipy.linalg for solveh_banded cost a cold process 0.2-1 s, issue 26 item 2)
         perm, kd = band
         m = len(perm)
         got = sys.curvature_band
@@ -432,11 +459,11 @@ def path_curvature(sys: System, eq: Equilibrium) -> np.ndarray:
             got = sys.curvature_band = (band, src, ((kd - u) * m + j)[ok])
         ab = np.zeros((kd + 1, m))
         ab.flat[got[2]] = K.flat[got[1]]
-        try:
-            out[f[perm]] = solveh_banded(ab, rhs[perm], check_finite=False)
+        x = _pbsv(ab, rhs[perm])
+        if x is not None:
+            out[f[perm]] = x
             return out
-        except np.linalg.LinAlgError:
-            pass  # not positive definite: the LU below says whether it is singular
+        # not positive definite: the LU below says whether it is singular
     sol, info = _solve(K, np.asfortranarray(rhs[:, None]))
     if info > 0:
         raise np.linalg.LinAlgError(f"singular tangent stiffness (LAPACK dgesv info {info})")

@@ -129,7 +129,10 @@ def _call(fn: str, case_json: str) -> str:
     except (ImportError, AttributeError) as exc:
         return json.dumps({"ok": False, "setup": True, "error": _message(exc), "kind": type(exc).__name__})
     try:
-        out = func(json.loads(case_json))
+        from ..model.threads import limited  # lazily: flexopt.model loads CasADi
+
+        with limited():  # one BLAS thread (model.threads); a no-op in a pool worker limited at its start
+            out = func(json.loads(case_json))
         if not isinstance(out, dict):
             raise TypeError(f"{fn} returned a {type(out).__name__}: a case function must return a dict")
         try:
@@ -154,14 +157,14 @@ def _default_executor(workers: int) -> cf.Executor:
     # lock held by one of them at fork time stays locked forever in the child. A forkserver child is
     # forked from a separate single-threaded server process that was itself started fresh, so that hazard
     # is gone, and starting a child costs a fork instead of a new interpreter (spawn).
-    # One BLAS thread per worker: the workers already use every core, and nested BLAS threads on top of
-    # them oversubscribe the machine (measured: a 2-worker topology search ran several times slower). The
-    # variables are inherited by the forkserver when it first starts; a value set by the user is kept.
-    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ.setdefault(var, "1")
+    # One BLAS thread per worker (model.threads, FLEXOPT_BLAS_THREADS): the workers already use every core,
+    # and nested BLAS threads on top of them oversubscribe the machine (measured: a 2-worker topology search
+    # ran several times slower). Each worker limits itself at its start; the caller's process is untouched.
+    from ..model.threads import limit_process
+
     methods = multiprocessing.get_all_start_methods()
     ctx = multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
-    return cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
+    return cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=limit_process)
 
 
 def dask_executor(address: str, **client_kwargs: object) -> cf.Executor:

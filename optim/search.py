@@ -64,6 +64,7 @@ from ..model.design import point_sensitivity, structure_derivative, trace_templa
 from ..model.errors import FlexoptError
 from ..model.results import ResultWarning
 from ..model.templates import TEMPLATES
+from ..model.threads import limited
 
 from .problem import Envelope, Family, Problem
 
@@ -795,6 +796,7 @@ def summarise(prob: Problem, results: list[dict]) -> dict:
             "warnings": notes, "provenance": _provenance(prob)}
 
 
+@limited()  # one BLAS thread while it computes (model.threads)
 def optimise(problem: Problem | dict, *, executor: Any = None, workers: int | None = None, store: Any = None,
              progress: Any = None, cancel: Any = None, no_worker_timeout: float | None = None) -> dict:
     """Optimise every family of ``problem`` (multi-start), in parallel, resumable through ``store``.

@@ -3,6 +3,7 @@ and the command line's --strict and --set: the cases of issue 11, items 1, 2, 4 
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 import math
@@ -16,6 +17,8 @@ import flexopt
 from flexopt.model import Analysis, FrequencyCurve, diagnose, scene_from_dict, template
 from flexopt.model.checks import (
     MESH_RTOL,
+    STRAIN_MAX,
+    STRICT_KINDS,
     annotate_curve,
     mesh_warnings,
     scene_hash,
@@ -263,3 +266,64 @@ def test_load_scene_reads_units_block(tmp_path: Path) -> None:
     path = tmp_path / "leaf_mm.json"
     path.write_text(json.dumps(data))
     assert load_scene(path).elements[0].section.thickness == pytest.approx(0.5e-3, rel=1e-14)
+
+
+# --- small strain, --strict on units, the units a scene was read in (issue 26 item 3) ---------------------
+
+def test_axial_pull_beyond_small_strain_is_a_validity_warning() -> None:
+    """A 0.1 m leaf whose tip is pulled 0.2 m along its axis: engineering strain 0.2 / 0.1 = 2 (closed form;
+    a straight member in pure tension has von Mises stress E eps, so the check's sigma_vM / E is eps to
+    Newton's rounding, 1e-9). It used to come back complete with no validity warning. The range starts where
+    the strain passes STRAIN_MAX, at a pull of STRAIN_MAX * L = 1 mm (exact: the strain is linear in the pull,
+    so the linear interpolation between stroke points is too)."""
+    data = scene_dict("leaf-spring", segments=2)
+    data["stroke"] = {"kind": "translation", "node": "tip", "axis": [1.0, 0.0, 0.0], "start": 0.0, "stop": 0.2,
+                      "points": 5}
+    curve = Analysis(scene_from_dict(data)).frequency_curve()
+    assert curve.status == "complete"
+    ws = [w for w in _kinds(curve, "validity") if "strain" in w.message]
+    assert len(ws) == 1, f"expected one small-strain validity warning, got {curve.warnings}"
+    w = ws[0]
+    assert w.element == "leaf" and w.value == pytest.approx(2.0, rel=1e-9), "peak strain: 0.2 m / 0.1 m (closed form)"
+    assert w.stroke_range == pytest.approx((STRAIN_MAX * 0.1, 0.2), rel=1e-9)
+
+
+def test_seed_leaf_bent_45_degrees_is_within_small_strain() -> None:
+    """The default leaf at +-45 deg: bending strain t / 2 * kappa = (0.5 mm / 2) * (pi / 4) / 0.1 m = 0.20 %
+    (closed form for a tip rotation of a uniform curvature), under STRAIN_MAX: no strain warning."""
+    curve = Analysis(template("leaf-spring", segments=4, points=3)).frequency_curve()
+    assert not [w for w in _kinds(curve, "validity") if "strain" in w.message]
+    peak = max(float(np.nanmax(v)) for v in curve.max_von_mises.values()) / 210e9
+    assert peak < STRAIN_MAX
+
+
+def test_strict_fails_on_units_warnings(capsys, tmp_path: Path) -> None:
+    """A scene written in mm (and tonne, MPa) without a units block: a units warning, and --strict exits 3
+    (it exited 0 and printed the wrong frequencies as an answer)."""
+    data = scale_units(scene_dict("leaf-spring", segments=2, points=3), 1e-3, 1e3)
+    path = tmp_path / "mm.json"
+    path.write_text(json.dumps(data))
+    assert "units" in STRICT_KINDS
+    assert main(["curve", str(path), "--strict"]) == 3
+    out = capsys.readouterr().out
+    assert "# warning [units]" in out
+
+
+def test_density_unit_read_is_named_in_the_result() -> None:
+    """``length: mm, mass: g`` reads densities in g/mm^3 (mass / length^3): the result names it, the scene
+    gives the SI scene's frequencies, and a density written as if in kg/m^3 gets a units warning that says
+    which unit it was read in."""
+    si = scene_dict("leaf-spring", segments=2, points=3)
+    mm = scale_units(si, 1e-3, 1e-3)  # mm and g (tests.helpers): stresses in g / (mm s^2) = Pa, densities g/mm^3
+    mm["units"] = {"length": "mm", "mass": "g", "stress": "Pa"}
+    curve = Analysis(scene_from_dict(mm)).frequency_curve()
+    read = curve.provenance["input_units"]
+    assert read["length"] == "mm" and read["mass"] == "g"
+    assert read["density"].startswith("g/mm^3")
+    assert not units_warnings(scene_from_dict(mm))
+    ref = Analysis(scene_from_dict(si)).frequency_curve()
+    assert np.allclose(curve.modes_hz, ref.modes_hz, rtol=1e-12, atol=0)  # unit conversion: exact to rounding
+    wrong = copy.deepcopy(mm)
+    wrong["materials"][0]["density"] = 7800.0  # kg/m^3 written into a g/mm^3 scene
+    ws = [w for w in units_warnings(scene_from_dict(wrong)) if "m/s" in w.message]
+    assert ws and "g/mm^3" in ws[0].message

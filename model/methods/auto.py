@@ -18,6 +18,7 @@ from ..checks import annotate_curve
 from ..errors import FlexoptError
 from ..results import FrequencyCurve
 from ..scene import Scene
+from ..threads import limited
 from .accuracy import check_strokes, estimates, limit
 from .common import _curve_from
 from .hermite import hermite_frequency_curve
@@ -30,6 +31,7 @@ __all__ = ["METHODS", "AUTO_ORDER", "frequency_curve", "estimate_error", "curve_
 AUTO_ORDER = ("fd1", "fd2", "reduced", "manifold", "exact")  # candidates of estimate_error (auto: _auto)
 
 
+@limited()  # one BLAS thread while it computes (model.threads)
 def frequency_curve(obj: Scene | MeshAnalysis, method: str = "auto", tolerance: float = 0.01,
                     stroke: np.ndarray | None = None) -> FrequencyCurve:
     """Stroke-dependent frequencies by ``method`` (one of :data:`METHODS`).

@@ -9,7 +9,6 @@ their modal derivatives and the driving mode (Wu and Tiso 2015). Accuracy limits
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg as sla
 
 from ..assembly import State, System
 from ..modal import Modes, modes_at
@@ -25,6 +24,8 @@ def _manifold_state(sys: System, md: ModalDerivatives, st0: State, eta: float) -
 
 def _reduced_basis(sys: System, md: ModalDerivatives, k: int) -> np.ndarray:
     """M-orthonormal basis (free DOFs, drive entry 0) of the first k modes, their theta_ij and theta_jj."""
+    import scipy.linalg as sla  # lazily: 0.2-1 s to import, which the hermite path (and auto) never needs
+
     cols = [md.phi[:, :k], md.theta[:, :k], md.dphi[:, :k], md.theta_jj[:, None]]
     pj = md.phi_j.copy()
     pj[sys.drive] = 0.0
@@ -46,6 +47,8 @@ def _reduced_basis(sys: System, md: ModalDerivatives, k: int) -> np.ndarray:
 
 def eigen_curve(prep: _Prepared, eta: np.ndarray, reduced: bool, n_rep: int) -> tuple:
     """Frequencies at ``eta`` on the quadratic manifold: full (``reduced`` False) or reduced eigen solves."""
+    import scipy.linalg as sla  # lazily, as in _reduced_basis
+
     an, md = prep.an, prep.md
     sys = an.system
     k = n_rep + 2

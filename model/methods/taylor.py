@@ -62,7 +62,6 @@ from dataclasses import dataclass, field
 from types import SimpleNamespace
 
 import numpy as np
-import scipy.linalg as sla
 
 from .. import elements as _el
 from ..analysis import MeshAnalysis
@@ -414,6 +413,8 @@ def modal_derivatives(an: MeshAnalysis, eq0: Equilibrium | None = None, n_theta:
     the second numerator term vanishes for exact eigenpairs) and ``d2 lambda_i/deta^2 = phi_i^T K2 phi_i +
     2 sum_{k != i} (phi_k^T K1 phi_i)^2 / (lambda_i - lambda_k)`` (the mode-shape sensitivity term).
     """
+    import scipy.linalg as sla  # lazily: 0.2-1 s to import, which the hermite path (and auto) never needs
+
     t0 = time.perf_counter()
     sys = an.system
     if eq0 is None:

@@ -25,6 +25,7 @@ from typing import Any
 from ..problem import Family, Problem
 from .grammar import Topology, canonical, design_parameters, enumerate_topologies, family_of, parse
 from .spec import TopologySpec, example_spec
+from ...model.threads import limited
 
 __all__ = ["TopologySpec", "example_spec", "run_topology_search", "design_space", "candidate_problem",
            "family_problem"]
@@ -104,6 +105,7 @@ def _candidates(spec: TopologySpec) -> list[Topology]:
                                 spec.reinforcement)
 
 
+@limited()  # one BLAS thread while it computes (model.threads)
 def run_topology_search(spec: TopologySpec | dict, *, executor: Any = None, workers: int | None = None,
                         store: Any = None, progress: Callable[[dict], None] | None = None, cancel: Any = None) -> dict:
     """Generate, screen, optimise and rank hinge topologies (the unit of work a service job calls).

@@ -45,6 +45,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        from ...model.threads import limit_process
+
+        limit_process()  # one BLAS thread in the server and the worker and job processes it starts (model.threads)
         rt = Runtime(settings)
         rt.start()
         app.state.runtime = rt

@@ -32,7 +32,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     c.add_argument("--tolerance", type=float, default=0.01,
                    help="relative error allowed on the first parasitic frequency (for --method hermite and auto)")
     c.add_argument("--strict", action="store_true",
-                   help="exit 3 when the result has a warning of kind stress or validity")
+                   help="exit 3 when the result has a warning of kind stress, validity or units")
     c.set_defaults(func=_cmd_curve)
     return c
 

@@ -3,7 +3,7 @@ itself with ``add_parser(subparsers)`` and importing the model, optim or the web
 ``flexopt curve`` never loads FastAPI.
 
 Exit codes: 0 success, 1 the analysis ran but could not finish the stroke (truncated curve), 2 bad input,
-3 (``curve --strict``) the result carries a warning of kind stress or validity (takes precedence over 1),
+3 (``curve --strict``) the result carries a warning of kind stress, validity or units (takes precedence over 1),
 4 (``optimise --scheduler``) the cluster has no workers.
 """
 
@@ -35,8 +35,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = _parser()
     args = parser.parse_args(argv)
     from ...model.errors import FlexoptError
+    from ...model.threads import limit_process
 
     try:
+        limit_process()  # one BLAS thread for this whole command and its children (model.threads)
         return int(args.func(args))
     except BrokenPipeError:  # the reader went away (e.g. `| head`): no traceback
         import os

@@ -198,6 +198,9 @@ def main(argv: list[str]) -> int:
         from ..logs import log_config
 
         logging.config.dictConfig(log_config(os.environ.get("FLEXOPT_LOG_LEVEL", "info")))
+        from ...model.threads import limit_process
+
+        limit_process()  # one BLAS thread in the job process and its pool (model.threads)
         return run_job(argv[1], int(argv[2]))
     print("usage: python -m flexopt.service.jobs run JOB_ID ATTEMPT", file=sys.stderr)
     return 2

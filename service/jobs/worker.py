@@ -219,5 +219,8 @@ def diagnosis(spec: str) -> Outcome:
 
 
 def warm_up() -> None:
-    """Import the model in a fresh worker process (so the first request does not pay for it)."""
-    from ... import model  # noqa: F401
+    """Import the model in a fresh worker process (so the first request does not pay for it) and limit the
+    process to one BLAS thread (model.threads)."""
+    from ...model.threads import limit_process
+
+    limit_process()
