@@ -59,8 +59,8 @@ def _run(pythonpath: str, inner: int) -> dict[str, float]:
 def _systems(an) -> list:
     """The analysis's System and that of its mesh estimate's coarse model (both solve every curve)."""
     subs = [an.system]
-    if an.coarse is not None:
-        subs.append(an.coarse.system)
+    if an.second is not None:
+        subs.append(an.second.analysis.system)
     return subs
 
 

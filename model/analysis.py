@@ -115,6 +115,7 @@ class MeshAnalysis:
         self.structure = compile_scene(scene)
         self.system = System(self.structure)
         self.options = options or NewtonOptions()
+        self._checked = False  # check() has run (once per analysis)
 
     def label_modes(self, modes: Modes, tangent: np.ndarray | None = None) -> tuple[list[str], float]:
         """Labels of the modes (``drive``, ``parasitic``, ``intended``) and the first parasitic frequency.
@@ -150,7 +151,7 @@ class MeshAnalysis:
     def check(self) -> None:
         """The checks run before continuation (:mod:`model.causes`): mass underflow, parts not connected
         to anything and mechanisms raise an error that names them. Run once per analysis."""
-        if getattr(self, "_checked", False):
+        if self._checked:
             return
         check_mass(self.structure)
         check_free_motions(self.structure)

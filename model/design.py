@@ -329,6 +329,34 @@ def _stiffness(k: np.ndarray) -> np.ndarray:
     return S
 
 
+def _bordered_lu(sys: System, eq: Equilibrium, A: np.ndarray) -> tuple:
+    """LU factors of the locked tangent stiffness bordered by the drive's gradient (rows: the free DOFs'
+    rows of ``A``, then the drive constraint); :class:`FlexoptError` at a limit point (singular)."""
+    f = sys.free
+    Jb = np.zeros((len(f) + 1, sys.n))
+    Jb[: len(f)] = A[f]
+    Jb[len(f)] = sys.drive_gradient(eq.state)
+    try:
+        lu = sla.lu_factor(Jb, check_finite=False)
+        if not np.all(np.isfinite(lu[0])) or np.min(np.abs(np.diag(lu[0]))) == 0.0:
+            raise np.linalg.LinAlgError("singular")
+    except np.linalg.LinAlgError as exc:
+        raise FlexoptError(f"the tangent stiffness is singular at stroke {eq.stroke:.6g}: the equilibrium is at "
+                           "a limit point, where design derivatives do not exist; shorten the stroke") from exc
+    return lu
+
+
+def _eigen_clusters(lam: np.ndarray, cluster_gap: float) -> list[list[int]]:
+    """Indices of ``lam`` grouped into clusters of (nearly) repeated eigenvalues, in ascending order."""
+    groups: list[list[int]] = []
+    for i in np.argsort(lam):
+        if groups and abs(lam[i] - lam[groups[-1][-1]]) <= cluster_gap * max(abs(lam[i]), 1e-300):
+            groups[-1].append(int(i))
+        else:
+            groups.append([int(i)])
+    return groups
+
+
 def point_sensitivity(sys: System, eq: Equilibrium, modes: Modes, which: Sequence[int],
                       dstructs: Sequence[StructureDerivative], cluster_gap: float = 1e-6) -> PointSensitivity:
     """Exact derivatives of the eigenvalues ``modes.omega2[which]`` (drive locked or free, as the scene says) and of the segment-end
@@ -345,30 +373,13 @@ def point_sensitivity(sys: System, eq: Equilibrium, modes: Modes, which: Sequenc
     n, f = sys.n, sys.free
     nm = len(s.master_names)
     A = ev.H if ev.chart is None else ev.H + ev.chart
-    dd = sys.drive_gradient(st)
-    Jb = np.zeros((len(f) + 1, n))
-    Jb[: len(f)] = A[f]
-    Jb[len(f)] = dd
-    try:
-        lu = sla.lu_factor(Jb, check_finite=False)
-        if not np.all(np.isfinite(lu[0])) or np.min(np.abs(np.diag(lu[0]))) == 0.0:
-            raise np.linalg.LinAlgError("singular")
-    except np.linalg.LinAlgError as exc:
-        raise FlexoptError(f"the tangent stiffness is singular at stroke {eq.stroke:.6g}: the equilibrium is at "
-                           "a limit point, where design derivatives do not exist; shorten the stroke") from exc
+    lu = _bordered_lu(sys, eq, A)
     which = np.asarray(which, dtype=int)
     locked = s.scene.stroke.drive == "locked"  # the eigenproblem of model.modal.modes_at
     dofs = f if locked else np.arange(n)
     lam = modes.omega2[which]
     phi = modes.phi[:, which]
-    # clusters of (nearly) repeated eigenvalues among ``which``
-    order = np.argsort(lam)
-    groups: list[list[int]] = []
-    for i in order:
-        if groups and abs(lam[i] - lam[groups[-1][-1]]) <= cluster_gap * max(abs(lam[i]), 1e-300):
-            groups[-1].append(int(i))
-        else:
-            groups.append([int(i)])
+    groups = _eigen_clusters(lam, cluster_gap)
     act = np.zeros((nm, 6), dtype=bool)
     act.reshape(-1)[sys.act_full] = True
     sig = beam_sigma(s, sys, eq)

@@ -168,7 +168,7 @@ class Beam(_Strict):
         (),
         description="deformation modes taken as generalised (independent) coordinates e(m) in the "
         "exact-constraint diagnosis (seed 002, eq. 4), e.g. ['eps5'] for one sheet of a folded sheet "
-        "flexure (section 4.2); needs segments = 1",
+        "flexure (section 4.2); a beam of several segments is diagnosed as one flexure",
     )
     kinematic_rigid: tuple[DeformationName, ...] | None = Field(
         None,
@@ -480,11 +480,6 @@ class _ReferenceCheck:
             errors.append(
                 f"{where}.generalised: deformations {sorted(both)} (0-based) of '{e.name}' are both rigid "
                 "and generalised; remove them from one of 'rigid' and 'generalised'"
-            )
-        if isinstance(e, Beam) and e.generalised and e.segments != 1:
-            errors.append(
-                f"{where}.generalised: beam '{e.name}' has {e.segments} segments; generalised "
-                "deformations need segments = 1 (split the member into separate elements instead)"
             )
         if isinstance(e, Beam) and len(set(i for r in e.rigid for i in MODE_NAMES[r])) == 6:
             errors.append(

@@ -428,7 +428,7 @@ def _folded_sheet_guide(p: dict, count: int, variant: str = "") -> dict:
         supports.append({"node": f"{tag}_ground"})
         elements.append({"kind": "beam", "name": f"{tag}B", "nodes": [f"{tag}_body", f"{tag}_fold"],
                          "material": "steel", "section": sec, "y_axis": list(f), "segments": int(p["segments"]),
-                         "generalised": ["eps4"] if int(p["segments"]) == 1 else []})
+                         "generalised": ["eps4"]})
         elements.append({"kind": "beam", "name": f"{tag}A", "nodes": [f"{tag}_fold", f"{tag}_ground"],
                          "material": "steel", "section": sec, "y_axis": list(f), "segments": int(p["segments"])})
     m = p["body_mass"]

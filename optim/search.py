@@ -477,7 +477,7 @@ def _preview(fam: _Family, x: np.ndarray, points: int, tolerance: float) -> dict
     'auto' at the search's ``tolerance`` (hermite where its estimate meets it: a quarter to a fifth of the
     exact curve's time on the hinge templates) and says so (``method``, ``estimated_error``); stresses are
     not computed. The optimum's curve (``verified``) stays exact."""
-    from ..model.curve import curve_with_method as fast_curve
+    from ..model.methods import frequency_curve as fast_curve
     from ..model.templates import template
 
     grid = np.linspace(-fam.stroke, fam.stroke, points)
@@ -491,11 +491,11 @@ def _preview(fam: _Family, x: np.ndarray, points: int, tolerance: float) -> dict
 
 def _screen(fam: _Family, prob: Problem, family_index: int, start: int, x0: np.ndarray) -> tuple[np.ndarray, dict]:
     """Fast first rung of the ladder: rank ``prob.screen`` candidates (the start point and its own slice of a
-    seeded Latin hypercube) by their worst-case first parasitic frequency from ``model.curve`` with
+    seeded Latin hypercube) by their worst-case first parasitic frequency from ``model.methods`` with
     method 'auto' (each candidate's error estimate decides whether a Taylor estimate is good enough or the
     exact curve is needed). Candidates whose curve cannot be computed are skipped. Returns the best point
     and a record of the screening."""
-    from ..model.curve import curve_with_method as fast_curve
+    from ..model.methods import frequency_curve as fast_curve
     from ..model.templates import template
 
     sampler = qmc.LatinHypercube(d=len(fam.names), seed=np.random.default_rng([prob.seed, family_index, start, 1]))

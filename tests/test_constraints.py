@@ -182,6 +182,17 @@ def test_folded_sheet_guides() -> None:
     assert len(stressed) == 12
 
 
+def test_a_generalised_beam_of_several_segments_is_diagnosed_as_one_flexure() -> None:
+    # issue 26 item 3: a scene file declaring `generalised` on a beam of 4 segments was refused ("needs
+    # segments = 1"); the diagnosis condenses each meshed beam to one flexure, so it is the 1-segment one
+    one = scene_dict("folded-sheet-guide-5", segments=1)
+    four = edit(one, {f"elements.{i}.segments": 4 for i in range(len(one["elements"]))})
+    assert any(e["generalised"] for e in four["elements"])
+    d1, d4 = _diag(one), _diag(four)
+    assert (d4.m, d4.n, d4.rank) == (d1.m, d1.n, d1.rank) == (35, 35, 35) and d4.exact_constraint
+    np.testing.assert_allclose(d4.singular_values, d1.singular_values, rtol=1e-12)
+
+
 # ------------------------------------------------------------------------------ invariance (property)
 @settings(max_examples=15)
 @given(
