@@ -355,6 +355,8 @@ def _perturbation(sys: System, M: np.ndarray, Kff: np.ndarray, K1: np.ndarray, K
     the path (module docstring): ``w``, ``phi``, the clusters, their ``A1``, ``A2``, ``gamma``, ``gamma2`` and
     the outside-cluster mode-shape derivatives, from the stiffness and mass derivatives in the exact method's
     chart (:func:`_to_reference_chart`)."""
+    import scipy.linalg as sla  # lazily: 0.2-1 s to import, which the hermite path (and auto) never needs
+
     f = sys.free
     # all locked modes (resolvent of the mode-shape term); small models: a dense solve
     # eigen solve on the DOF-scaled matrices D K D, D M D (D = the DOFs' length scales): the same
