@@ -11,10 +11,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from flexopt.model import Analysis, scene_from_dict, template
-from flexopt.model.methods import estimate_error, frequency_curve
+from flexopt.model.methods import estimate_error, expansion_curve, frequency_curve
 from flexopt.model.methods.taylor import _eq_at, _prepare, modal_derivatives
 from flexopt.model.errors import FlexoptError
-from flexopt.model.methods import expansion_curve
 from flexopt.model.modal import modes_at
 from flexopt.model.rotations import skew
 from flexopt.model.statics import solve_point

@@ -120,7 +120,8 @@ def limit(curve: FrequencyCurve, est: np.ndarray, tolerance: float) -> Frequency
         e = est[first]
         why = ("a negative or non-finite frequency" if not np.isfinite(curve.parasitic_hz[first])
                or curve.parasitic_hz[first] <= 0 else f"an estimated error of {e:.3g}" if np.isfinite(e)
-               else "no exact check point there")
+               else "no bound on its error (at a check stroke beyond it the method's frequency is negative or "
+                    "not finite, or the exact curve has no point)")
         failures.append(Failure(
             reason="accuracy", stroke=float(s[first]), last_converged=last,
             message=f"method '{curve.method}' is an expansion about stroke 0 and holds to the tolerance "
