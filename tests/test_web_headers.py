@@ -96,3 +96,14 @@ def test_host_name() -> None:
 
     assert host_name("[::1]:8000") == "[::1]" and host_name("[::1]") == "[::1]"
     assert host_name("Example.COM:443") == "example.com" and host_name("example.com") == "example.com"
+
+
+@pytest.mark.parametrize("path", ["/docs", "/redoc", "/health", "/openapi.json", "/v1/templates"])
+def test_every_answer_forbids_framing(app: object, path: str) -> None:
+    """The API docs pages run inline scripts (no strict policy there) but are not framed either."""
+    r = _get(app, path)
+    assert r.status_code == 200
+    assert r.headers["x-frame-options"] == "DENY"
+    assert _directives(r.headers["content-security-policy"])["frame-ancestors"] == ["'none'"]
+    assert r.headers["x-content-type-options"] == "nosniff"
+    assert _get(app, path, "attacker.example").headers["x-frame-options"] == "DENY"

@@ -25,7 +25,7 @@ from starlette.exceptions import HTTPException
 from .. import web
 from ..schemas import METHODS, Health, Problem
 from . import errors, routes
-from .middleware import AllowedHosts, BodyLimit, JsonOnly, RequestLog
+from .middleware import AllowedHosts, BodyLimit, FrameBlock, JsonOnly, RequestLog
 from .runtime import Runtime, runtime
 from .settings import Settings
 
@@ -92,6 +92,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(JsonOnly)  # inside BodyLimit: a body too large is 413 whatever its type
     app.add_middleware(BodyLimit, limit=settings.max_body_bytes)
     app.add_middleware(AllowedHosts, hosts=settings.hosts())  # before anything reads the body (DNS rebinding)
+    app.add_middleware(FrameBlock)  # every answer, a 400 for a foreign Host included
     app.add_middleware(RequestLog)  # added last: the outermost layer, sees every request and exception
     app.openapi = lambda: _openapi(app)  # type: ignore[method-assign]
     return app

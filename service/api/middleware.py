@@ -12,6 +12,10 @@ client's next request on that connection fails too).
 a page from another origin whose name an attacker re-points at 127.0.0.1 (DNS rebinding) sends its own
 name as Host, so it cannot reach a local server, keyless or not.
 
+``FrameBlock`` forbids framing every response (``X-Frame-Options: DENY`` and, where the response sets no
+policy of its own, ``Content-Security-Policy: frame-ancestors 'none'``), the API docs pages included; the web
+page sets its full policy itself (:mod:`service.web`).
+
 ``BodyLimit`` answers 413 for a body larger than the limit, declared or streamed. The JSON log lines
 themselves are written by :mod:`service.logs`.
 """
@@ -27,7 +31,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from . import errors
 
-__all__ = ["AllowedHosts", "BodyLimit", "JsonOnly", "RequestLog", "host_name"]
+__all__ = ["AllowedHosts", "BodyLimit", "FrameBlock", "JsonOnly", "RequestLog", "host_name"]
 
 log = logging.getLogger("flexopt.service.access")
 _TOKEN = re.compile(r"^[A-Za-z0-9._:-]{1,100}$")
@@ -106,6 +110,31 @@ class AllowedHosts:
         what = f"host '{shown}' is not served here" if raw else "the request has no Host header"
         await errors.problem(400, f"{what}: this server answers to {self.shown}; add the name clients use to "
                                   "FLEXOPT_ALLOWED_HOSTS (comma-separated) to serve it")(scope, receive, send)
+
+
+class FrameBlock:
+    """No page of this server in a frame (clickjacking); ``nosniff`` so no response is read as another type."""
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+
+        async def send_blocked(msg: Message) -> None:
+            if msg["type"] == "http.response.start":
+                headers = list(msg.get("headers", []))
+                names = {k.lower() for k, _ in headers}
+                for name, value in ((b"x-frame-options", b"DENY"), (b"x-content-type-options", b"nosniff"),
+                                    (b"content-security-policy", b"frame-ancestors 'none'")):
+                    if name not in names:
+                        headers.append((name, value))
+                msg = {**msg, "headers": headers}
+            await send(msg)
+
+        await self.app(scope, receive, send_blocked)
 
 
 class JsonOnly:
