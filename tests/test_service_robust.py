@@ -170,6 +170,13 @@ def test_request_id_and_structured_log(url: str, caplog: pytest.LogCaptureFixtur
     with caplog.at_level(logging.INFO, logger="flexopt.service.access"):
         r = httpx.get(f"{url}/v1/templates/leaf-spring", headers={"X-Request-ID": "abc-123"})
         other = httpx.get(f"{url}/v1/templates/nope")
+        # the server writes a request's log line after it has sent the response: wait for both lines
+        # (bounded) instead of reading the capture the moment the second response arrives
+        deadline = time.monotonic() + 10.0
+        want = {"abc-123", other.headers["x-request-id"]}
+        while time.monotonic() < deadline and not want <= {
+                getattr(rec, "request_id", None) for rec in caplog.records if getattr(rec, "event", None) == "request"}:
+            time.sleep(0.05)
     assert r.headers["x-request-id"] == "abc-123" and len(other.headers["x-request-id"]) == 32
     recs = {rec.request_id: rec for rec in caplog.records if getattr(rec, "event", None) == "request"}
     rec = recs["abc-123"]
