@@ -131,7 +131,7 @@ TEMPLATES: dict[str, tuple[Callable[[dict], dict], dict[str, Any]]] = {
                                                          spacing=0.06, segments=10, body_mass=0.1,
                                                          body_depth=0.01, stroke=0.01)),
     "cross-spring-pivot": (_cross_spring_pivot, dict(_COMMON, length=0.05, width=0.02, thickness=0.3e-3,
-                                                     angle=90.0, crossing=0.5, gap=0.002, segments=8, body_mass=0.1,
+                                                     angle=90.0, crossing=0.5, gap=0.002, segments=12, body_mass=0.1,
                                                      body_radius=0.02, body_offset=0.01, stroke=45.0)),
 }
 
@@ -446,10 +446,15 @@ def _folded_sheet_guide(p: dict, count: int, variant: str = "") -> dict:
     }
 
 
+# Default meshes (issue 26 item 4): every template's default curve is within 0.5 % of the converged one over
+# its default stroke and its mesh estimate stays below the mesh warning (tests/test_mesh.py, measured with
+# python bench/bench_mesh_estimate.py): hinges 12 segments per leaf (8 read 0.6-0.8 % off at +-45 deg), the
+# cartwheel 40 (20 per half leaf; 4 read 8.8 % off), wire guides 8 per wire (1 read 3.4 %; at 4 the estimate
+# from 2 still reads 0.58 %), folded sheets 24 per sheet (1 read 56 %; 16 read 0.52 %).
 _WIRE = dict(_COMMON, body_length=0.1, body_width=0.04, body_height=0.03, body_mass=0.3, wire_length=0.05,
-             wire_diameter=1e-3, segments=1, stroke=0.002, points=11)
+             wire_diameter=1e-3, segments=8, stroke=0.002, points=11)
 _FOLDED = dict(_COMMON, body_radius=0.02, body_length=0.1, body_mass=0.312, sheet_length=0.05,
-               sheet_width=0.02, sheet_thickness=0.2e-3, segments=1, stroke=0.002, points=11)
+               sheet_width=0.02, sheet_thickness=0.2e-3, segments=24, stroke=0.002, points=11)
 TEMPLATES.update({
     "truss12": (_truss12, dict(_COMMON, half_width=1.0, height=1.0, area=1e-4)),
     "wire-guide-5": (lambda p: _wire_guide(p, False), dict(_WIRE)),
@@ -551,10 +556,10 @@ def _double_cross_hinge(p: dict) -> dict:
     return _hinge(p, "double-cross-hinge", nodes, [mid, body], elements, ["a0", "b0"])
 
 
-_HINGE = dict(_COMMON, length=0.05, width=0.02, thickness=0.3e-3, angle=90.0, gap=0.002, segments=8, body_mass=0.1,
+_HINGE = dict(_COMMON, length=0.05, width=0.02, thickness=0.3e-3, angle=90.0, gap=0.002, segments=12, body_mass=0.1,
               body_radius=0.02, body_offset=0.01, stroke=45.0)
 TEMPLATES.update({
-    "cartwheel-hinge": (_cartwheel_hinge, dict(_HINGE)),
+    "cartwheel-hinge": (_cartwheel_hinge, dict(_HINGE, segments=40)),  # 20 per half leaf
     "three-fold-cross-hinge": (_three_fold_cross_hinge, dict(_HINGE, width=0.01, crossing=0.5)),
     "double-cross-hinge": (_double_cross_hinge, dict(_HINGE, mid_mass=0.02)),
 })

@@ -16,6 +16,8 @@ import numpy as np
 from flexopt.model import template
 
 __all__ = [
+    "COARSE_MESH",
+    "coarse",
     "DELETE",
     "scene_dict",
     "edit",
@@ -23,6 +25,21 @@ __all__ = [
     "rigid_motion",
     "scale_units",
 ]
+
+
+#: The meshes of the templates' defaults before issue 26 item 4 made them finer (segments per leaf, wire or
+#: sheet). Tests whose check does not depend on the mesh (a method against another on one mesh, symmetry,
+#: convergence of the continuation, finite gradients, ...) pass them through :func:`coarse`: the finer
+#: defaults cost up to 7x (the cartwheel's 40 segments) to 10x (the folded sheets' 24), and figures quoted in
+#: those tests were measured on these meshes. Never where the mesh matters to the check.
+COARSE_MESH = {"cross-spring-pivot": 8, "cartwheel-hinge": 8, "three-fold-cross-hinge": 8, "double-cross-hinge": 8,
+               "topology-hinge": 8, "wire-guide-5": 1, "wire-guide-parallel": 1, "folded-sheet-guide-5": 1,
+               "folded-sheet-guide-6": 1, "folded-sheet-guide-5a": 1}
+
+
+def coarse(name: str) -> dict[str, int]:
+    """``{"segments": n}``: template ``name``'s former default mesh (:data:`COARSE_MESH`), or {} if unchanged."""
+    return {"segments": COARSE_MESH[name]} if name in COARSE_MESH else {}
 
 
 class _Delete:

@@ -15,6 +15,8 @@ from flexopt.model.methods import frequency_curve
 from flexopt.model.methods.hermite import stroke_slopes
 from flexopt.model.methods.taylor import mass_derivatives, mass_slope, projected_mass_slope
 
+from .helpers import coarse  # the former default meshes: hermite against exact on one mesh
+
 SIX = ["leaf-spring", "parallel-leaf-spring", "cross-spring-pivot", "cartwheel-hinge", "three-fold-cross-hinge",
        "double-cross-hinge"]
 
@@ -23,7 +25,7 @@ SIX = ["leaf-spring", "parallel-leaf-spring", "cross-spring-pivot", "cartwheel-h
 def exact() -> dict:
     out = {}
     for name in SIX:
-        an = Analysis(template(name))
+        an = Analysis(template(name, **coarse(name)))
         out[name] = (an, an.frequency_curve())
     return out
 
@@ -33,7 +35,7 @@ def exact() -> dict:
 def test_stroke_slopes_match_central_differences_of_exact_eigenvalues(name: str, stroke: float) -> None:
     """d lambda/ds from Nelson's formula with exact dK/ds and dM/ds against a central difference of the exact
     eigenvalues (step 1e-3 rad or 1e-5 m; its truncation error measured below 1e-4 relative)."""
-    an = Analysis(template(name))
+    an = Analysis(template(name, **coarse(name)))
     rot = an.scene.stroke.kind == "rotation"
     h_user = float(np.degrees(1e-3)) if rot else 1e-5
     seen: dict = {}
@@ -56,7 +58,7 @@ def test_mass_slope_matches_the_five_point_quartic_and_central_differences(name:
     from flexopt.model.rotations import skew
     from scipy.linalg import expm
 
-    an = Analysis(template(name))
+    an = Analysis(template(name, **coarse(name)))
     sys = an.system
     seen: dict = {}
     an.frequency_curve(np.array([30.0]), visit=lambda eq, m, lab: seen.setdefault("eq", eq))
@@ -124,7 +126,7 @@ def test_drive_free_wire_guides_refuse_locked_methods_and_auto_and_hermite_work(
     """Service audit: these scenes with method reduced/manifold/auto crashed with a (5,) to (6,) broadcast.
     Their eigen analysis keeps the drive free, which the Taylor/manifold methods (drive locked) cannot
     answer: they now refuse in one line naming the field; auto and hermite match exact."""
-    an = Analysis(template(name))
+    an = Analysis(template(name, **coarse(name)))
     ex = an.frequency_curve()
     for m in ("reduced", "manifold", "fd2"):
         with pytest.raises(FlexoptError, match="stroke.drive"):
@@ -336,7 +338,7 @@ def test_path_curvature_matches_second_differences_and_brings_the_long_first_ste
     predictor cannot start converges from the parabola."""
     from flexopt.model.statics import StepFailure, path_curvature, solve_point
 
-    an = Analysis(template(name))
+    an = Analysis(template(name, **coarse(name)))
     sys = an.system
     eq0 = solve_point(sys, sys.reference_state(), 0.0, an.options, 0.0)
     curv = path_curvature(sys, eq0)
@@ -402,7 +404,7 @@ def test_slopes_at_stroke_zero_of_a_stroke_symmetric_design_vanish(exact: dict, 
     assert not _multiple(np.sort(m0.omega2), SLOPE_CLUSTER_GAP)
     rel = np.abs(stroke_slopes(an, eq0, m0)) / m0.omega2
     assert rel.max() < 1e-7, rel
-    three = Analysis(template("three-fold-cross-hinge"))
+    three = Analysis(template("three-fold-cross-hinge", **coarse("three-fold-cross-hinge")))
     assert three.symmetry is None
 
 

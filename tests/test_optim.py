@@ -87,7 +87,8 @@ def test_two_parameter_pivot_optimum_beats_a_grid_search():
     """Two parameters (length and thickness of the cross-spring pivot) with the stress constraint active:
     the optimiser's verified worst case is at least that of a 7 x 7 grid of feasible designs (exact
     31-point curves, stress checked), within 0.5 %."""
-    spec = {"families": [{"template": "cross-spring-pivot",
+    # optimum against a grid on one mesh, the pivot's former default (tests.helpers.COARSE_MESH): any mesh
+    spec = {"families": [{"template": "cross-spring-pivot", "fixed": {"segments": 8},
                           "design": {"length": [0.03, 0.07], "thickness": [1.5e-4, 4e-4]}}], "starts": 2}
     prob = Problem.model_validate(spec)
     best = max((run_case(c) for c in cases(prob)), key=lambda r: r["verified"].get("worst_hz", -1))
@@ -96,8 +97,8 @@ def test_two_parameter_pivot_optimum_beats_a_grid_search():
     grid_best = 0.0
     for L in np.linspace(0.03, 0.07, 7):
         for t in np.linspace(1.5e-4, 4e-4, 7):
-            c = Analysis(template("cross-spring-pivot", length=float(L), thickness=float(t), points=31)
-                         ).frequency_curve()
+            c = Analysis(template("cross-spring-pivot", length=float(L), thickness=float(t), points=31,
+                                  segments=8)).frequency_curve()
             stress = max(float(np.max(v)) for v in c.max_von_mises.values())
             if c.status == "complete" and stress <= allow:
                 grid_best = max(grid_best, float(np.min(c.parasitic_hz)))
@@ -107,7 +108,7 @@ def test_two_parameter_pivot_optimum_beats_a_grid_search():
     # so; against its exact curve on the same 181 points
     ini = best["initial"]
     assert ini["method"] == "hermite" and ini["estimated_error"] <= prob.tolerance
-    ex = Analysis(template("cross-spring-pivot", **best["x0"])).frequency_curve(stroke=np.array(ini["stroke"]))
+    ex = Analysis(template("cross-spring-pivot", segments=8, **best["x0"])).frequency_curve(stroke=np.array(ini["stroke"]))
     np.testing.assert_allclose(ini["parasitic_hz"], ex.parasitic_hz, rtol=prob.tolerance)
     assert ini["worst_hz"] == pytest.approx(float(np.min(ex.parasitic_hz)), rel=prob.tolerance)
 
@@ -177,7 +178,9 @@ def test_fast_screening_picks_the_best_estimated_start():
 # ---------------------------------------------------------------------------------------------------------------
 # The audit's eight points (issue 16), one test each
 
-CARTWHEEL = {"families": [{"template": "cartwheel-hinge", "design": {"thickness": [1e-4, 4e-4], "angle": [60, 120]}}],
+# the cartwheel at its former default mesh (tests.helpers.COARSE_MESH): these tests check gradients and starts
+CARTWHEEL = {"families": [{"template": "cartwheel-hinge", "design": {"thickness": [1e-4, 4e-4], "angle": [60, 120]},
+                           "fixed": {"segments": 8}}],
              "stroke": 10, "samples": 3, "starts": 1, "verify_points": 31}
 
 
@@ -197,7 +200,7 @@ def test_1_every_constraint_gradient_is_finite_at_zero_stress():
             assert np.all(np.isfinite(ev.jac)) and np.all(np.isfinite(ev.con)), fam.fam.template
             fam.select(ev)
             assert len(fam.keep) > 1
-    ds = trace_template("cartwheel-hinge", {"stroke": 10.0}, ["thickness"])
+    ds = trace_template("cartwheel-hinge", {"stroke": 10.0, "segments": 8}, ["thickness"])
     an = Analysis(ds.scene)
     d = [structure_derivative(an.structure, ds.scene_dict, ds.dscene[0])]
     seen = []
