@@ -6,6 +6,11 @@ Richardson's extrapolation of two fine meshes) over 13 stroke points spanning th
 included). Issue 26, item 3 (bullets 2-3) and item 4.
 
     OPENBLAS_NUM_THREADS=1 python bench/bench_mesh_estimate.py [case-name ...]
+    OPENBLAS_NUM_THREADS=1 python bench/bench_mesh_estimate.py --cost [template ...]
+
+``--cost``: what the exact mesh's estimate adds to a fast method's curve (``auto`` at 1 %, the templates'
+default meshes and 91 points): the method alone (``model.methods.frequency_curve``) against the curve with
+its estimate (``model.curve.curve_with_method``), interleaved, medians of 5 runs on one warm analysis each.
 """
 
 from __future__ import annotations
@@ -80,5 +85,29 @@ def main(names: list[str]) -> None:
               f"{100 * true:7.3g} % {sec:6.1f}", flush=True)
 
 
+def cost(names: list[str]) -> None:
+    from flexopt.model.methods import frequency_curve as by_method
+
+    names = names or ["cross-spring-pivot", "cartwheel-hinge", "three-fold-cross-hinge", "double-cross-hinge"]
+    print(f"load: {os.getloadavg()}")
+    print(f"{'template':26s} {'auto alone':>11s} {'with estimate':>14s} {'ratio':>6s}")
+    for name in names:
+        a, b = Analysis(template(name)), Analysis(template(name))
+        by_method(a, "auto", 0.01), curve_with_method(b, "auto", 0.01)  # warm: kernels, second mesh
+        ta, tb = [], []
+        for _ in range(5):
+            t0 = time.perf_counter()
+            by_method(a, "auto", 0.01)
+            ta.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            curve_with_method(b, "auto", 0.01)
+            tb.append(time.perf_counter() - t0)
+        ma, mb = float(np.median(ta)), float(np.median(tb))
+        print(f"{name:26s} {ma:10.2f}s {mb:13.2f}s {mb / ma:6.2f}", flush=True)
+
+
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    if sys.argv[1:2] == ["--cost"]:
+        cost(sys.argv[2:])
+    else:
+        main(sys.argv[1:])
