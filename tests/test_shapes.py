@@ -19,6 +19,7 @@ from flexopt.model.shapes import shapes_at
 from flexopt.service import plots
 from flexopt.service.cli.main import main
 from tests import references as ref
+from tests.helpers import coarse
 
 
 @pytest.fixture(scope="module")
@@ -293,7 +294,7 @@ def test_modes_at_a_stroke_are_the_curves_modes_there_with_its_labels(name: str,
     """Issue 26 item 3: ``modes --at-stroke`` showed other modes than the curve at that stroke (the cartwheel
     at 45 deg: the curve's sixth branch, 352 Hz, left out and a 2,116 Hz mode shown). The modes at a stroke
     are the curve's row there, in its branch order and with its labels (same solves: equal to rounding)."""
-    an = Analysis(template(name))
+    an = Analysis(template(name, **coarse(name)))  # the meshes of the figures above (the former defaults)
     curve = an.frequency_curve()
     i = int(np.argmin(np.abs(curve.stroke - stroke)))
     assert curve.stroke[i] == pytest.approx(stroke)
