@@ -153,6 +153,22 @@ def test_segments_auto_refines_to_the_mesh_tolerance():
         scene_from_dict(d)
 
 
+@pytest.mark.parametrize("method", ["exact", "auto"])
+def test_the_python_api_curve_carries_the_mesh_estimate(method):
+    # flexopt.curve went through model.methods on a bare scene: one given mesh, no mesh_error and no mesh
+    # warning for any method (the cartwheel at 4 segments per half leaf is 8.8 % off), and segments 'auto'
+    # refused; it is the curve pipeline's (model.curve)
+    import flexopt
+
+    c = flexopt.curve("cartwheel-hinge", method=method, segments=8)
+    exact = Analysis(template("cartwheel-hinge", segments=8)).frequency_curve()
+    assert c.mesh_error == pytest.approx(exact.mesh_error, rel=1e-6) and exact.mesh_error > 0.05
+    assert any(w.kind == "mesh" for w in c.warnings)
+    d = template("leaf-spring", points=5).model_dump(mode="json")
+    d["elements"][0]["segments"] = "auto"
+    assert "per beam" in flexopt.curve(d, method=method).conventions["mesh"]
+
+
 #: Converged references of the default-mesh test: Richardson's extrapolation (order 2) of two fine meshes
 #: (segments per member, the cartwheel's halved per half leaf), whose own error is O(h^2) of theirs.
 REFERENCE_MESHES = {"folded-sheet-guide-5": (16, 32), "folded-sheet-guide-6": (16, 32), "wire-guide-5": (16, 32),

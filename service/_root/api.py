@@ -61,12 +61,12 @@ def curve(scene: Scene | dict | str | Path, method: str = "exact", tolerance: fl
 
     ``stroke``: stroke values in the scene's stroke unit (default: the scene's own range and points).
     """
-    from .model.methods import frequency_curve
+    from .model.curve import curve_with_method  # the curve pipeline: segments 'auto', mesh_error, warnings
 
     import numpy as np
 
     values = None if stroke is None else np.asarray(stroke, dtype=float)
-    return frequency_curve(load(scene, **params), method=method, tolerance=tolerance, stroke=values)
+    return curve_with_method(load(scene, **params), method, tolerance, values)
 
 
 def modes(scene: Scene | dict | str | Path, at_stroke: float = 0.0, **params: Any) -> Shapes:
