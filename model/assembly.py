@@ -95,6 +95,8 @@ class Assembled:
     e_beam: np.ndarray  # (nb, 6) beam deformations
     e_truss: np.ndarray  # (nt,) truss elongations
     _chart: np.ndarray | Callable[[], np.ndarray] | None = None  # the matrix, or what makes it on first use
+    dg_ds: np.ndarray | None = None  # (n,) d g / d stroke of loads given per stroke point (model.loads), or None
+    g_load: np.ndarray | None = None  # (n,) the loads' part of g (model.loads), or None without loads
 
     @property
     def chart(self) -> np.ndarray | None:
@@ -205,6 +207,13 @@ class System:
         self.beam_in[:, 30 : 30 + s.beam_const.shape[1]] = s.beam_const
         self.truss_in = np.zeros((nt, 12 + 3 + 1))
         self.truss_in[:, 12:15] = s.truss_const
+        # external loads and gravity (model.loads): evaluated at load_stroke (internal units, set by the
+        # statics before each solve), each multiplied by load_scale (raised from 0 to 1 at stroke 0)
+        from .loads import LoadSet, has_loads
+
+        self.loads = LoadSet(s, self.pos, self.beam_dofs, self.beam_flat, N) if has_loads(s.scene) else None
+        self.load_stroke = 0.0
+        self.load_scale = 1.0
 
     def _index_constraints(self, s: Structure) -> None:
         """Constraint bookkeeping: multiplier k belongs to (kind, element, mode)."""
@@ -471,9 +480,16 @@ class System:
             if len(k):
                 c[k] = e_truss[el]
                 np.add.at(G, (k[:, None], self.truss_dofs[el]), out[el, 157:169])
+        dg_ds = g_load = None
+        if self.loads is not None:
+            g_el = g.copy()
+            self.loads.add(st.R, self.beam_in, self.load_stroke, self.load_scale, g, g_full, Hflat)
+            g_load = self.reduce_vector(g - g_el)
+            rate = self.loads.gradient_rate(st.R, self.load_stroke, self.load_scale)
+            dg_ds = None if rate is None else self.reduce_vector(rate)
         H = self.reduce_matrix(Hflat.reshape(N, N))
         return Assembled(self.reduce_vector(g), H, c, self.reduce_matrix(G, rows=False), e_beam, e_truss,
-                         self.chart_correction(g_full))
+                         self.chart_correction(g_full), dg_ds, g_load)
 
     def chart_correction(self, g_full: np.ndarray) -> np.ndarray:
         """``-1/2 skew(g_m)`` on each master's rotation block, in active numbering.
@@ -511,7 +527,8 @@ class System:
         return self.reduce_matrix(dH.reshape(N, N))
 
     def energy(self, st: State) -> float:
-        """The Lagrangian at ``st`` from the kernels' deformations (for checks; not used by solvers)."""
+        """The Lagrangian at ``st`` from the kernels' deformations, plus the loads' potential (model.loads) at
+        :attr:`load_stroke` (for checks; not used by solvers)."""
         ev = self.evaluate(st)
         s = self.s
         U = 0.0
@@ -525,6 +542,9 @@ class System:
             U += 0.5 * float(np.sum(s.truss_const[:, 1] * (mask * ev.e_truss) ** 2))
             k, el = self.con_truss
             U += float(st.lam[k] @ ev.e_truss[el])
+        if self.loads is not None:
+            U += self.loads.potential(self.node_states(st)[0], st.X, st.R, self.beam_in, self.load_stroke,
+                                      self.load_scale)
         return U
 
     # --------------------------------------------------------------- drive
@@ -638,7 +658,7 @@ class NativeRoute:
         self.mass_in: np.ndarray | None = None  # the mass kernel's input buffer (state, constants, mass)
         self.beam_in_at = self.mass_in_at = 0  # addresses of System.beam_in and mass_in
         self.mass_size = 0  # doubles of the compiled mass's output (kernel outputs, g, g_full, M)
-        asm = _assembler() if (s.n_beams and not len(s.truss_nodes) and not sys.n_con
+        asm = _assembler() if (s.n_beams and not len(s.truss_nodes) and not sys.n_con and sys.loads is None
                                and sys.beam_kernel.address is not None) else None
         if asm is not None:
             ends = s.beam_nodes.ravel()
