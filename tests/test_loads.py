@@ -243,3 +243,11 @@ def test_fast_methods_refuse_a_loaded_scene_and_auto_runs_exact():
         curve_with_method(an, "fd2", stroke=np.array([0.0, 0.5]))
     c = curve_with_method(an, "auto", stroke=np.array([0.0, 0.5]))
     assert c.solver["auto_method"] == "exact"
+
+
+def test_design_sensitivities_refuse_loads():
+    from flexopt.model.design import _check_scope
+
+    an = Analysis(scene_from_dict(_pendulum(9.81)))
+    with pytest.raises(FlexoptError, match="do not include loads or gravity"):
+        _check_scope(an.structure)
