@@ -76,7 +76,8 @@ def von_mises(structure: Structure, sys: System, eq: Equilibrium) -> np.ndarray:
     st = eq.state
     if s.n_beams:
         vm = beam_end_stresses(s, sys, eq).max(axis=1)
-        np.maximum.at(out, s.beam_member, vm)
+        with np.errstate(invalid="ignore"):  # NaN (no fibre distances) is set below, not compared
+            np.maximum.at(out, s.beam_member, vm)
         out[np.unique(s.beam_member[np.isnan(vm)])] = np.nan
     if len(s.truss_nodes):
         S11 = s.truss_const[:, 1]
