@@ -77,12 +77,16 @@ def scene_from_dict(data: Any) -> Scene:
 
 
 def load_scene(path: str | Path) -> Scene:
-    """Read and validate a scene JSON file."""
+    """Read and validate a scene JSON file, or a SPACAR ``.dat`` model (:mod:`model.spacar`)."""
     p = Path(path)
     try:
         text = p.read_text()
     except OSError as exc:
         raise SceneError("scene", f"cannot read scene file '{p}': {exc.strerror}") from None
+    if p.suffix.lower() == ".dat":
+        from .spacar import read_dat
+
+        return scene_from_dict(read_dat(text, p.stem).scene)
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:

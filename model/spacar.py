@@ -43,8 +43,9 @@ __all__ = ["NOMINAL_E", "NOMINAL_G", "SpacarImport", "load_dat", "read_dat", "wr
 
 #: Nominal material constants of an imported element (the products EA, GJ, EIy, EIz are SPACAR's exactly).
 NOMINAL_E, NOMINAL_G = 210e9, 80e9
-#: Allowable stress of an imported material: SPACAR files carry none.
-NO_LIMIT = 1e15
+#: Allowable stress of an imported material as a fraction of its E: SPACAR files carry none (E / 200 is
+#: 1.05 GPa for steel); the report says so, and the scene is where to set the real one.
+ALLOWABLE_PER_E = 1 / 200
 
 _MODE = {1: "eps1", 2: "eps2", 3: "eps3", 4: "eps4", 5: "eps5", 6: "eps6"}
 
@@ -332,7 +333,7 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
             extra = {}
         section = {"kind": "general", "A": A, "Iy": EIy / E, "Iz": EIz / E, "J": GJ / G, **extra}
         mat = f"m{ne}"
-        materials.append({"name": mat, "E": E, "G": G, "density": rhoA / A, "allowable_stress": NO_LIMIT})
+        materials.append({"name": mat, "E": E, "G": G, "density": rhoA / A, "allowable_stress": E * ALLOWABLE_PER_E})
         rigid = [_MODE[i] for i in range(1, 7) if i not in flex]
         elements.append({"kind": "beam", "name": f"b{ne}", "nodes": [nname(xp), nname(xq)], "material": mat,
                          "section": section, "y_axis": list(oy), "segments": 1, "rigid": rigid})
@@ -345,9 +346,9 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
         if not flex and (ne not in estiff or ne not in em):
             # a rigid truss needs no stiffness; flexopt's trusses carry a section and mass: nominal ones
             estiff.setdefault(ne, ([NOMINAL_E * 1e-6], ln))
-            em.setdefault(ne, ([1e-6], ln))
-            notes.append(f"element {ne}: rigid truss without ESTIFF/EM: nominal EA {NOMINAL_E * 1e-6:g} N (unused: "
-                         "rigid) and mass 1e-6 kg/m (for a dynamic analysis give its EM)")
+            em.setdefault(ne, ([7800 * 1e-6], ln))
+            notes.append(f"element {ne}: rigid truss without ESTIFF/EM: a nominal steel section of 1 mm^2 (EA "
+                         f"{NOMINAL_E * 1e-6:g} N, unused: rigid; mass 7.8e-3 kg/m: for a dynamic analysis give its EM)")
         if ne not in estiff or ne not in em:
             err.add(ln, "TRUSS", f"element {ne} needs 'ESTIFF {ne} EA' and 'EM {ne} rhoA'")
             continue
@@ -357,7 +358,7 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
             continue
         mat = f"m{ne}"
         materials.append({"name": mat, "E": NOMINAL_E, "G": NOMINAL_G, "density": rhoA * NOMINAL_E / EA,
-                          "allowable_stress": NO_LIMIT})
+                          "allowable_stress": NOMINAL_E * ALLOWABLE_PER_E})
         elements.append({"kind": "truss", "name": f"t{ne}", "nodes": [nname(xp), nname(xq)], "material": mat,
                          "area": EA / NOMINAL_E, "rigid": [] if flex else ["elongation"]})
 
@@ -520,6 +521,13 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
             order = ("x", "y", "z", "rx", "ry", "rz")
             supports.append({"node": nname(xn), "dofs": [d for d in order if d in dofs]})
 
+    # --- chains of equal collinear beams through free interior nodes: one member with that many segments
+    special = set(fixed) | set(carrier) | set(xf) | set(delxf) | {n for n, _, _ in inputs} | \
+        {x_of.get(n, n) for n, _, _ in inputs} | {x_of.get(n, n) for n, _, _ in fixes}
+    elements, merged = _merge_chains(elements, materials, X, special)
+    if merged:
+        notes.append(f"{merged} chains of equal collinear beams read as members with segments (one member each)")
+
     # --- loads and gravity
     loads: list[dict] = []
     for n, (vals, ln) in xf.items():
@@ -563,10 +571,13 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
     for xn in X:
         if xn not in node_list:
             notes.append(f"node {xn} is declared but used by no element: left out")
+    kept = {n for e in elements for n in e["nodes"]} | {n for b in bodies for n in b["nodes"]}
+    node_list = [xn for xn in node_list if nname(xn) in kept]
+    materials = [m for m in materials if m["name"] in {e["material"] for e in elements}]
     scene = {
         "name": name,
-        "materials": materials or [{"name": "none", "E": NOMINAL_E, "G": NOMINAL_G, "density": 1.0,
-                                    "allowable_stress": NO_LIMIT}],
+        "materials": materials or [{"name": "none", "E": NOMINAL_E, "G": NOMINAL_G, "density": 7800.0,
+                                    "allowable_stress": NOMINAL_E * ALLOWABLE_PER_E}],
         "nodes": [{"name": nname(xn), "position": list(X[xn][0])} for xn in node_list if xn in X],
         "bodies": bodies,
         "elements": elements,
@@ -580,10 +591,65 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
         raise SceneError("spacar", "; ".join(err.items))
     if not any(e for e in elements):
         raise SceneError("spacar", "the file has no flexible element (every beam is rigid); nothing to analyse")
+    if materials:
+        notes.append(f"allowable stress: not in SPACAR files; set to E/{round(1 / ALLOWABLE_PER_E)} per element "
+                     "material (edit 'allowable_stress' in the scene)")
     if not any(c for c in crossdim) and elements:
         notes.append("no CROSSDIM: the file gives stiffness only, so stresses are not available (NaN)")
     spacar_dof += len({(n, k) for n, ks, _ in inputs for k in ks if not (role(n) == "R" and k == 1)})
     return SpacarImport(scene=scene, mapped=mapped, notes=notes, numbering=numbering, spacar_dof=spacar_dof)
+
+
+def _merge_chains(elements: list[dict], materials: list[dict], X: dict, special: set[int]
+                  ) -> tuple[list[dict], int]:
+    """Beams that continue each other (same section, material, flexible set and Oy, collinear, equal lengths)
+    through an interior X node that nothing else uses become one member with ``segments``: flexopt meshes a
+    member into equal segments at the same positions, so the model is the same, read as the user drew it."""
+    mats = {m["name"]: {k: v for k, v in m.items() if k != "name"} for m in materials}
+    use: dict[str, list[int]] = {}
+    for i, e in enumerate(elements):
+        for n in e["nodes"]:
+            use.setdefault(n, []).append(i)
+
+    def key(e: dict) -> tuple:
+        return (e["kind"], repr(sorted(e.get("section", {}).items())), repr(sorted(mats[e["material"]].items())),
+                tuple(e.get("rigid", ())), tuple(np.round(np.array(e.get("y_axis", (0, 0, 0))) /
+                                                          max(np.linalg.norm(e.get("y_axis", (1, 0, 0))), 1e-300), 15)))
+
+    def pos(name: str) -> np.ndarray:
+        return np.array(X[int(name[1:])][0], dtype=float)
+
+    nxt: dict[int, int] = {}  # element i continues into element j through node q of i == node p of j
+    for name, idx in use.items():
+        if len(idx) != 2 or int(name[1:]) in special:
+            continue
+        i, j = idx
+        a, b = elements[i], elements[j]
+        if a["kind"] != "beam" or key(a) != key(b):
+            continue
+        if a["nodes"][1] == name and b["nodes"][0] == name:
+            first, second = i, j
+        elif b["nodes"][1] == name and a["nodes"][0] == name:
+            first, second = j, i
+        else:
+            continue
+        p, m, q = pos(elements[first]["nodes"][0]), pos(name), pos(elements[second]["nodes"][1])
+        d1, d2 = m - p, q - m
+        if np.linalg.norm(d1 - d2) <= 1e-12 * np.linalg.norm(d1):
+            nxt[first] = second
+    starts = [i for i in nxt if i not in set(nxt.values())]
+    out, gone, merged = [], set(), 0
+    for i in starts:
+        chain = [i]
+        while chain[-1] in nxt:
+            chain.append(nxt[chain[-1]])
+        e = dict(elements[i])
+        e["nodes"] = [elements[i]["nodes"][0], elements[chain[-1]]["nodes"][1]]
+        e["segments"] = len(chain)
+        gone.update(chain)
+        out.append(e)
+        merged += 1
+    return [e for k, e in enumerate(elements) if k not in gone] + out, merged
 
 
 def load_dat(path: str, name: str | None = None):

@@ -31,6 +31,7 @@ def test_hand_written_seed_leaf_is_the_native_leaf(fixture, numbering):
     scene, imp = load_dat(str(DATA / fixture))
     assert imp.numbering == numbering
     assert imp.spacar_dof == 24 + 1  # four beams' six dynamic deformations and the input
+    assert len(scene.elements) == 1 and scene.elements[0].segments == 4  # the chain read as one meshed member
     native = template("leaf-spring", segments=4)
     got, ref = _curve(scene, [0.0, 22.5, 45.0]), _curve(native, [0.0, 22.5, 45.0])
     np.testing.assert_allclose(got.modes_hz, ref.modes_hz, rtol=1e-9)
