@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from flexopt.model.analysis import Analysis
+from flexopt.model.curve import Analysis
 from flexopt.model.errors import FlexoptError, SceneError
 from flexopt.model.io import scene_from_dict
 from flexopt.model.methods import curve_with_method

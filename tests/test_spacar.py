@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from flexopt.model.analysis import Analysis
-from flexopt.model.constraints import diagnose
+from flexopt.model.curve import Analysis
+from flexopt.model.diagnosis import diagnose
 from flexopt.model.errors import SceneError
 from flexopt.model.io import scene_from_dict
 from flexopt.model.spacar import load_dat, read_dat, write_dat
