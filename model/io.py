@@ -11,7 +11,7 @@ from pydantic import ValidationError
 from .errors import SceneError
 from .scene import Scene, did_you_mean
 
-__all__ = ["scene_from_dict", "load_scene", "format_validation_error", "clean_errors"]
+__all__ = ["scene_from_dict", "load_scene", "load_dat", "format_validation_error", "clean_errors"]
 
 
 #: Tags of the scene's discriminated unions: pydantic puts the chosen tag into an error's location
@@ -76,6 +76,20 @@ def scene_from_dict(data: Any) -> Scene:
         raise SceneError("", format_validation_error(exc)) from None
 
 
+def load_dat(path: str | Path, name: str | None = None) -> tuple[Scene, Any]:
+    """Read a SPACAR ``.dat`` model (:func:`model.spacar.read_dat`) into a validated Scene and the import report
+    (:class:`model.spacar.SpacarImport`: what was mapped, notes, the node numbering, SPACAR's DOF count)."""
+    from .spacar import read_dat
+
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except OSError as exc:
+        raise SceneError("scene", f"cannot read SPACAR file '{p}': {exc.strerror}") from None
+    imp = read_dat(text, name or p.stem)
+    return scene_from_dict(imp.scene), imp
+
+
 def load_scene(path: str | Path) -> Scene:
     """Read and validate a scene JSON file, or a SPACAR ``.dat`` model (:mod:`model.spacar`)."""
     p = Path(path)
@@ -84,9 +98,7 @@ def load_scene(path: str | Path) -> Scene:
     except OSError as exc:
         raise SceneError("scene", f"cannot read scene file '{p}': {exc.strerror}") from None
     if p.suffix.lower() == ".dat":
-        from .spacar import read_dat
-
-        return scene_from_dict(read_dat(text, p.stem).scene)
+        return load_dat(p)[0]
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:

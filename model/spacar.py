@@ -39,7 +39,7 @@ import numpy as np
 
 from .errors import SceneError
 
-__all__ = ["NOMINAL_E", "NOMINAL_G", "SpacarImport", "load_dat", "read_dat", "write_dat"]
+__all__ = ["NOMINAL_E", "NOMINAL_G", "SpacarImport", "read_dat", "write_dat"]
 
 #: Nominal material constants of an imported element (the products EA, GJ, EIy, EIz are SPACAR's exactly).
 NOMINAL_E, NOMINAL_G = 210e9, 80e9
@@ -650,17 +650,6 @@ def _merge_chains(elements: list[dict], materials: list[dict], X: dict, special:
         out.append(e)
         merged += 1
     return [e for k, e in enumerate(elements) if k not in gone] + out, merged
-
-
-def load_dat(path: str, name: str | None = None):
-    """Read a ``.dat`` file into a validated :class:`model.scene.Scene` (and its :class:`SpacarImport`)."""
-    from pathlib import Path
-
-    from .io import scene_from_dict
-
-    p = Path(path)
-    imp = read_dat(p.read_text(), name or p.stem)
-    return scene_from_dict(imp.scene), imp
 
 
 def _fmt(x: float) -> str:

@@ -10,7 +10,8 @@ from flexopt.model.curve import Analysis
 from flexopt.model.diagnosis import diagnose
 from flexopt.model.errors import SceneError
 from flexopt.model.io import scene_from_dict
-from flexopt.model.spacar import load_dat, read_dat, write_dat
+from flexopt.model.io import load_dat
+from flexopt.model.spacar import read_dat, write_dat
 from flexopt.model.templates import template
 
 DATA = Path(__file__).parent / "data" / "spacar"
