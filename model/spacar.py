@@ -39,7 +39,7 @@ import numpy as np
 
 from .errors import SceneError
 
-__all__ = ["NOMINAL_E", "NOMINAL_G", "SpacarImport", "read_dat", "write_dat"]
+__all__ = ["NOMINAL_E", "NOMINAL_G", "SpacarError", "SpacarImport", "read_dat", "write_dat"]
 
 #: Nominal material constants of an imported element (the products EA, GJ, EIy, EIz are SPACAR's exactly).
 NOMINAL_E, NOMINAL_G = 210e9, 80e9
@@ -60,6 +60,14 @@ class SpacarImport:
     numbering: str = ""  # how X and R node numbers pair up
     #: SPACAR's count of degrees of freedom: inputs plus flexible (dynamic) deformations
     spacar_dof: int = 0
+
+
+class SpacarError(SceneError):
+    """Lines of a ``.dat`` file that cannot be mapped: ``lines``, each "line N: KEYWORD: why"."""
+
+    def __init__(self, lines: list[str]) -> None:
+        super().__init__("spacar", "; ".join(lines))
+        self.lines = list(lines)
 
 
 class _Errors:
@@ -588,7 +596,7 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
     if gravity is not None and any(gravity):
         scene["gravity"] = gravity
     if err.items:
-        raise SceneError("spacar", "; ".join(err.items))
+        raise SpacarError(err.items)
     if not any(e for e in elements):
         raise SceneError("spacar", "the file has no flexible element (every beam is rigid); nothing to analyse")
     if materials:

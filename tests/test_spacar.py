@@ -112,3 +112,48 @@ def test_every_unmappable_line_is_reported_at_once():
         load_dat(str(DATA / "four_bar_hinge.dat"))
     msg = str(info.value)
     assert "line 7: HINGE: ideal joints (HINGE) are not supported yet" in msg
+
+
+def test_cli_import_export_and_a_dat_scene_path(tmp_path, capsys):
+    """``flexopt import`` prints the scene and reports on stderr; ``flexopt export`` writes a .dat that reads back;
+    a command taking a scene path takes the .dat directly."""
+    from flexopt.service.cli.main import main
+
+    assert main(["import", str(DATA / "seed_leaf_3node.dat")]) == 0
+    out, err = capsys.readouterr()
+    scene = scene_from_dict(__import__("json").loads(out))
+    assert "SPACAR degrees of freedom (inputs and dynamic deformations): 25" in err
+    path = tmp_path / "leaf.json"
+    path.write_text(out)
+    assert main(["export", str(path), "--numbering", "3"]) == 0
+    text = capsys.readouterr().out
+    assert "BEAM 1 1 2 7 8" in text
+    back = scene_from_dict(read_dat(text).scene)
+    np.testing.assert_allclose(_curve(back, [45.0]).modes_hz, _curve(scene, [45.0]).modes_hz, rtol=1e-9)
+    assert main(["curve", str(DATA / "seed_leaf_2node.dat"), "--method", "exact"]) == 0
+    assert "45.0000" in capsys.readouterr().out
+    assert main(["import", str(DATA / "four_bar_hinge.dat")]) == 2
+    assert "line 7: HINGE" in capsys.readouterr().err
+
+
+def test_http_import_and_export():
+    """``POST /v1/scenes/import``: the scene and the report, or a 422 with one error per unmappable line;
+    ``POST /v1/scenes/export``: the .dat text."""
+    import asyncio
+
+    import httpx
+
+    from flexopt.service.api.app import create_app
+
+    async def run():
+        async with httpx.AsyncClient(transport=httpx.ASGITransport(app=create_app()), base_url="http://t") as c:
+            ok = await c.post("/v1/scenes/import", json={"text": (DATA / "truss12.dat").read_text(), "name": "t"})
+            bad = await c.post("/v1/scenes/import", json={"text": (DATA / "four_bar_hinge.dat").read_text()})
+            dat = await c.post("/v1/scenes/export", json={"scene": ok.json()["scene"], "numbering": 3})
+            return ok, bad, dat
+
+    ok, bad, dat = asyncio.run(run())
+    assert ok.status_code == 200 and ok.json()["spacar_dof"] == 0 and len(ok.json()["scene"]["elements"]) == 12
+    assert bad.status_code == 422
+    assert [e["msg"][:15] for e in bad.json()["errors"]] == ["line 7: HINGE: "]
+    assert dat.status_code == 200 and dat.text.count("TRUSS") == 12
