@@ -24,7 +24,7 @@ def _field_names() -> list[str]:
     from . import scene as sc
 
     models = (sc.Material, sc.Node, sc.RectangularSection, sc.GeneralSection, sc.Beam, sc.Truss, sc.RigidBody,
-              sc.Support, sc.Stroke, sc.SupportDirections, sc.Units, sc.Load, sc.LoadRamp, sc.LoadTable, sc.Scene)
+              sc.Support, sc.Stroke, sc.SupportDirections, sc.Units, sc.Load, sc.LoadRamp, sc.LoadTable, sc.Joint, sc.Scene)
     return sorted({f for m in models for f in m.model_fields})
 
 

@@ -48,6 +48,7 @@ __all__ = [
     "Load",
     "LoadRamp",
     "LoadTable",
+    "Joint",
     "Scene",
     "expand_modes",
     "did_you_mean",
@@ -323,6 +324,28 @@ class Stroke(_Strict):
         return np.radians(s) if self.resolved_unit == "deg" else np.asarray(s, dtype=float)
 
 
+class Joint(_Strict):
+    """An ideal joint between two nodes (a kinematic pair, SPACAR's HINGE): ``hinge`` (revolute) leaves only the
+    rotation of ``nodes[1]`` relative to ``nodes[0]`` about ``axis`` free, ``slider`` (prismatic) only their
+    relative translation along ``axis``; the other five relative coordinates are exact constraints (rigid, with
+    multipliers; model.elements.joint_spec). The nodes usually coincide (a hinge's two sides); they must not
+    be carried by the same body. Joints have no mass and no stiffness."""
+
+    kind: Literal["hinge", "slider"] = "hinge"
+    name: Name
+    nodes: tuple[Name, Name] = Field(description="the two nodes the joint connects (p, q)")
+    axis: Vec3 = Field(description="joint axis in global axes at the reference (normalised internally)")
+
+    @model_validator(mode="after")
+    def _axis(self) -> "Joint":
+        if not np.linalg.norm(self.axis) > 0:
+            raise ValueError("axis is the zero vector; give the joint's axis, e.g. [0, 0, 1]")
+        if self.nodes[0] == self.nodes[1]:
+            raise ValueError(f"joint '{self.name}' connects node '{self.nodes[0]}' to itself; give two nodes "
+                             "(they may share a position)")
+        return self
+
+
 class LoadRamp(_Strict):
     """A force varying linearly with the stroke: ``start`` at the stroke's first value, ``stop`` at its last
     (extrapolated linearly beyond them, e.g. to stroke 0, where continuation starts)."""
@@ -477,6 +500,7 @@ class Scene(_Strict):
         None, description="gravitational acceleration [m/s^2] acting on the mass of every element and body, "
         "e.g. [0, 0, -9.81]; default none")
     loads: tuple[Load, ...] = Field((), description="external forces on nodes or bodies (model.loads)")
+    joints: tuple[Joint, ...] = Field((), description="ideal joints (hinges, sliders) between nodes")
     units: Units | None = Field(
         None, exclude=True,
         description="units the numbers above are written in (default SI); converted to SI on reading, so the "
@@ -491,8 +515,9 @@ class Scene(_Strict):
         if isinstance(out, dict):
             if out.get("gravity", 0) is None:
                 out.pop("gravity")
-            if "loads" in out and not out["loads"]:
-                out.pop("loads")
+            for key in ("loads", "joints"):
+                if key in out and not out[key]:
+                    out.pop(key)
         return out
 
     @model_validator(mode="before")
@@ -555,6 +580,7 @@ class _ReferenceCheck:
         self.check_supports()
         self.check_stroke()
         self.check_loads()
+        self.check_joints()
         return self.out
 
     def check_bodies(self) -> None:
@@ -659,6 +685,20 @@ class _ReferenceCheck:
                 errors.append(
                     f"stroke.body: body '{st.body}' is grounded by a support; drive a moving body instead"
                 )
+
+    def check_joints(self) -> None:
+        names = {e.name for e in self.scene.elements}
+        for i, j in enumerate(self.scene.joints):
+            for n in j.nodes:
+                if n not in self.nodes:
+                    self.out.append(f"joints[{i}].nodes: {self.unknown('node', n)}")
+            if j.name in names:
+                self.out.append(f"joints[{i}].name: '{j.name}' is also an element's name; names must be unique")
+            names.add(j.name)
+            a, b = (self.carrier.get(n) for n in j.nodes)
+            if a is not None and a == b:
+                self.out.append(f"joints[{i}].nodes: both nodes of joint '{j.name}' are carried by body '{a}', "
+                                "which holds them rigidly; join nodes of different parts")
 
     def check_loads(self) -> None:
         st = self.scene.stroke
