@@ -22,11 +22,16 @@ Mapped keywords (reader and writer):
   inputs without an increment are held, i.e. supported);
 - ``XF n fx fy fz`` / ``DELXF``: a force on an X node, constant or ramped over the stroke; ``XM n m`` (X node)
   and ``XM n Ixx Ixy Ixz Iyy Iyz Izz`` (R node): lumped mass, as a rigid body; ``GRAVITY gx gy gz``;
-- ``ITERSTEP s ...``: ``s`` load steps, ``s + 1`` stroke points (its other numbers: flexopt's own Newton).
+- ``ITERSTEP s ...``: ``s`` load steps, ``s + 1`` stroke points (its other numbers: flexopt's own Newton);
+- ``HINGE Ne Rp Rq ax ay az`` with ``RLSE Ne 1`` (or ``DYNE Ne 1``, no stiffness): an ideal revolute joint
+  (``Scene.joints``) between the two rotational nodes, which share one translational node (where a second R
+  node sits at an X node, it becomes a flexopt node of its own at that point);
+- ``DYNX n k`` on the input coordinate: the drive free in the eigen analysis.
 
-Not mapped (each an error naming the line, the keyword and why): ``HINGE`` (flexopt has no ideal joint yet),
-``BEAMW`` and warping stiffness, shear flexibilities, ``RLSE`` (released deformations), moments (``XF`` on an R
-node, 3 or 4 values), ``ESIG``, several inputs with increments, and any keyword not listed. Lines of the
+Not mapped (each an error naming the line, the keyword and why): ``BEAMW`` and warping stiffness, shear
+flexibilities, ``RLSE`` of beams and trusses (released deformations), a locked or stiff ``HINGE``, two R nodes at
+an X node without a HINGE (a spherical joint), moments (``XF`` on an R node, 3 or 4 values), ``ESIG``, several
+inputs with increments, and any keyword not listed. Lines of the
 VISUALIZATION block other than ``CROSSDIM`` change nothing in the model and are listed in the report.
 """
 
@@ -105,6 +110,8 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
     inputs: list[tuple[int, list[int], int]] = []
     delinp: list[tuple[int, int, float, int]] = []
     dynx: list[tuple[int, list[int], int]] = []
+    rlse: dict[int, list[tuple[list[int], int]]] = {}
+    hinges: list[tuple[int, int, int, list[float], int]] = []
     xf: dict[int, tuple[list[float], int]] = {}
     delxf: dict[int, tuple[list[float], int]] = {}
     xm: dict[int, tuple[list[float], int]] = {}
@@ -170,9 +177,8 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
                 else:
                     dyne.setdefault(ints[0], set()).update(ints[1:])
         elif kw == "RLSE":
-            err.add(ln, kw, "released deformations (no stiffness, no constraint) are not supported: flexopt "
-                    "keeps every deformation flexible or rigid; list it in DYNE with a small stiffness")
-            continue
+            if need(2, "RLSE Ne k...", True) and ints is not None:
+                rlse.setdefault(ints[0], []).append((ints[1:], ln))
         elif kw == "ESTIFF":
             if need(2, "ESTIFF Ne EA [GJ EIy EIz [Sy Sz [EIw]]]", True):
                 estiff[int(v[0])] = (v[1:], ln)
@@ -206,9 +212,8 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
                 if steps < 1:
                     err.add(ln, kw, f"{steps} load steps; give at least 1")
         elif kw == "HINGE":
-            err.add(ln, kw, "ideal joints (HINGE) are not supported yet: model the joint as a short flexible beam "
-                    "or a rigid body")
-            continue
+            if need(6, "HINGE Ne Rp Rq ax ay az"):
+                hinges.append((int(v[0]), int(v[1]), int(v[2]), v[3:6], ln))
         elif kw == "BEAMW":
             err.add(ln, kw, "beams with warping nodes are not supported: flexopt takes warping per member "
                     "(section 'warping' of a rectangular section); use BEAM")
@@ -217,14 +222,15 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
             err.add(ln, kw, "initial stresses are not supported; remove the line (or model the preload as a load)")
             continue
         else:
-            err.add(ln, kw, "unknown keyword (mapped: X BEAM TRUSS DYNE ESTIFF EM FIX INPUTX DELINPX XF DELXF XM "
-                    "GRAVITY ITERSTEP END HALT VISUALIZATION/CROSSDIM)")
+            err.add(ln, kw, "unknown keyword (mapped: X BEAM TRUSS HINGE DYNE RLSE (hinges) ESTIFF EM FIX INPUTX "
+                    "DELINPX DYNX XF DELXF XM GRAVITY ITERSTEP END HALT VISUALIZATION/CROSSDIM)")
             continue
         mapped[kw] = mapped.get(kw, 0) + 1
 
     # --- roles of node numbers: X declared, R from the beams; a flexopt node per X node
-    r_of: dict[int, int] = {}  # X -> R
+    r_of: dict[int, int] = {}  # X -> its first R
     x_of: dict[int, int] = {}  # R -> X
+    extra: dict[int, tuple[int, int, int]] = {}  # a second R at an X (R -> (X, element, line)): a HINGE must join it
     for ne, xp, rp, xq, rq, oy, ln in beams:
         for xn, rn in ((xp, rp), (xq, rq)):
             if xn not in X:
@@ -234,9 +240,7 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
                 err.add(ln, "BEAM", f"element {ne}: node {rn} is used as a rotational node but is declared as a "
                         "translational node (X); check the node order Xp Rp Xq Rq")
             if r_of.setdefault(xn, rn) != rn:
-                err.add(ln, "BEAM", f"element {ne}: translational node {xn} carries two rotational nodes "
-                        f"({r_of[xn]} and {rn}): a joint between beams, which flexopt does not model; use one "
-                        "rotational node per point")
+                extra.setdefault(rn, (xn, ne, ln))
             if x_of.setdefault(rn, xn) != xn:
                 err.add(ln, "BEAM", f"element {ne}: rotational node {rn} belongs to two translational nodes "
                         f"({x_of[rn]} and {xn}); give each point its own rotational node")
@@ -257,6 +261,51 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
 
     def nname(xn: int) -> str:
         return f"n{xn}"
+
+    def rname(rn: int) -> str:
+        """The flexopt node of R node ``rn``: its X node's, or a node of its own where a HINGE joins a second
+        rotational node to the same point."""
+        return f"n{x_of[rn]}r{rn}" if rn in extra else nname(x_of[rn])
+
+    joints: list[dict] = []
+    hinged: set[int] = set()
+    for ne, rp, rq, axis, ln in hinges:
+        if rp not in x_of or rq not in x_of:
+            bad = [n for n in (rp, rq) if n not in x_of]
+            err.add(ln, "HINGE", f"element {ne}: nodes {bad} are not rotational nodes of any beam")
+            continue
+        pa, pb = np.array(X[x_of[rp]][0]), np.array(X[x_of[rq]][0])
+        if np.linalg.norm(pa - pb) > 1e-12 * max(1.0, float(np.abs(pa).max())):
+            err.add(ln, "HINGE", f"element {ne}: rotational nodes {rp} and {rq} sit at different points; a hinge "
+                    "joins two rotations at one point (one X node)")
+            continue
+        flex = set(dyne.get(ne, set())) | {k for ks, _ in rlse.get(ne, []) for k in ks}
+        if flex != {1}:
+            err.add(ln, "HINGE", f"element {ne}: free deformations {sorted(flex) or 'none'}; flexopt maps a hinge "
+                    f"whose rotation (deformation 1) is free: 'RLSE {ne} 1' or 'DYNE {ne} 1' (a locked hinge welds the "
+                    "rotations: use one R node)")
+            continue
+        if ne in estiff:
+            err.add(estiff[ne][1], "ESTIFF", f"element {ne}: a hinge's rotational stiffness is not mapped (flexopt's "
+                    "joints are ideal); model it as a short flexible beam")
+            continue
+        if not np.linalg.norm(axis) > 0:
+            err.add(ln, "HINGE", f"element {ne}: the axis is the zero vector")
+            continue
+        joints.append({"kind": "hinge", "name": f"h{ne}", "nodes": [rname(rp), rname(rq)], "axis": list(axis)})
+        hinged.update((rp, rq))
+        if ne in dyne:
+            notes.append(f"element {ne}: HINGE with DYNE 1: its rotation is free (a dynamic coordinate, no stiffness)")
+    for rn, (xn, ne, ln) in extra.items():
+        if rn not in hinged:
+            err.add(ln, "BEAM", f"element {ne}: translational node {xn} carries two rotational nodes ({r_of[xn]} and "
+                    f"{rn}) that no HINGE joins: a joint between beams (spherical) that flexopt does not model; join "
+                    "them with a HINGE or use one rotational node")
+    for ne, items in rlse.items():
+        if ne not in {h[0] for h in hinges}:
+            for _, ln in items:
+                err.add(ln, "RLSE", "released deformations (no stiffness, no constraint) of beams and trusses are not "
+                        "supported: flexopt keeps every deformation flexible or rigid; list it in DYNE")
 
     def role(n: int) -> str:
         return "X" if n in X else ("R" if n in x_of else "?")
@@ -334,16 +383,16 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
             E = EA / A
             Jg = w * t**3 / 3 * (1 - 0.63 * min(w, t) / max(w, t)) if w >= t else t * w**3 / 3 * (1 - 0.63 * w / t)
             G = GJ / Jg
-            extra = {"cy": w / 2, "cz": t / 2, "torsion_stress_factor": min(w, t) / Jg}
+            fibres = {"cy": w / 2, "cz": t / 2, "torsion_stress_factor": min(w, t) / Jg}
         else:
             E, G = NOMINAL_E, NOMINAL_G
             A = EA / E
-            extra = {}
-        section = {"kind": "general", "A": A, "Iy": EIy / E, "Iz": EIz / E, "J": GJ / G, **extra}
+            fibres = {}
+        section = {"kind": "general", "A": A, "Iy": EIy / E, "Iz": EIz / E, "J": GJ / G, **fibres}
         mat = f"m{ne}"
         materials.append({"name": mat, "E": E, "G": G, "density": rhoA / A, "allowable_stress": E * ALLOWABLE_PER_E})
         rigid = [_MODE[i] for i in range(1, 7) if i not in flex]
-        elements.append({"kind": "beam", "name": f"b{ne}", "nodes": [nname(xp), nname(xq)], "material": mat,
+        elements.append({"kind": "beam", "name": f"b{ne}", "nodes": [rname(rp), rname(rq)], "material": mat,
                          "section": section, "y_axis": list(oy), "segments": 1, "rigid": rigid})
     for ne, xp, xq, ln in trusses:
         flex = sorted(dyne.get(ne, set()))
@@ -431,8 +480,14 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
         for n in members:
             carrier[n] = bname
 
+    for rn in extra:
+        if x_of[rn] in carrier:
+            err.add(extra[rn][2], "BEAM", f"node {x_of[rn]} is part of a rigid body and carries a hinge: not mapped; "
+                    "hinge a flexible element's node instead")
+
     # --- supports, inputs and the stroke
     fixed: dict[int, set[str]] = {}
+    fixed_extra: dict[str, set[str]] = {}  # rotation fixes of the second rotational node at a hinged point
     fix_line: dict[int, int] = {}
     for n, ks, ln in fixes:
         r = role(n)
@@ -453,6 +508,9 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
         if bad:
             err.add(ln, "FIX", f"node {n} ({r}): coordinates {bad} do not exist")
             continue
+        if r == "R" and n in extra:
+            fixed_extra.setdefault(rname(n), set()).update(dofs)
+            continue
         fixed.setdefault(xn, set()).update(dofs)
         fix_line.setdefault(xn, ln)
     stroke = None
@@ -469,7 +527,7 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
         r = role(n)
         xn = n if r == "X" else x_of.get(n)
         pts = (steps or 10) + 1
-        target = {"body": carrier[xn]} if xn in carrier else {"node": nname(xn)}
+        target = {"body": carrier[xn]} if xn in carrier else {"node": rname(n) if r == "R" else nname(xn)}
         if r == "X" and k in (1, 2, 3):
             lo, hi = sorted((0.0, val))
             stroke = {"kind": "translation", **target, "axis": list(np.eye(3)[k - 1]), "start": lo, "stop": hi,
@@ -528,10 +586,16 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
         if dofs:
             order = ("x", "y", "z", "rx", "ry", "rz")
             supports.append({"node": nname(xn), "dofs": [d for d in order if d in dofs]})
+    for name, dofs in sorted(fixed_extra.items()):
+        if stroke is not None and stroke.get("node") == name:
+            dofs = dofs - {("rx", "ry", "rz")[int(np.argmax(np.abs(stroke["axis"])))]}
+        if dofs:
+            supports.append({"node": name, "dofs": [d for d in ("rx", "ry", "rz") if d in dofs]})
 
     # --- chains of equal collinear beams through free interior nodes: one member with that many segments
     special = set(fixed) | set(carrier) | set(xf) | set(delxf) | {n for n, _, _ in inputs} | \
-        {x_of.get(n, n) for n, _, _ in inputs} | {x_of.get(n, n) for n, _, _ in fixes}
+        {x_of.get(n, n) for n, _, _ in inputs} | {x_of.get(n, n) for n, _, _ in fixes} | \
+        {x_of[r] for r in hinged}
     elements, merged = _merge_chains(elements, materials, X, special)
     if merged:
         notes.append(f"{merged} chains of equal collinear beams read as members with segments (one member each)")
@@ -579,24 +643,27 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
     for xn in X:
         if xn not in node_list:
             notes.append(f"node {xn} is declared but used by no element: left out")
-    kept = {n for e in elements for n in e["nodes"]} | {n for b in bodies for n in b["nodes"]}
+    kept = {n for e in elements for n in e["nodes"]} | {n for b in bodies for n in b["nodes"]} | \
+        {n for j in joints for n in j["nodes"]}
     node_list = [xn for xn in node_list if nname(xn) in kept]
     materials = [m for m in materials if m["name"] in {e["material"] for e in elements}]
     scene = {
         "name": name,
         "materials": materials or [{"name": "none", "E": NOMINAL_E, "G": NOMINAL_G, "density": 7800.0,
                                     "allowable_stress": NOMINAL_E * ALLOWABLE_PER_E}],
-        "nodes": [{"name": nname(xn), "position": list(X[xn][0])} for xn in node_list if xn in X],
+        "nodes": [{"name": nname(xn), "position": list(X[xn][0])} for xn in node_list if xn in X]
+        + [{"name": rname(rn), "position": list(X[x_of[rn]][0])} for rn in sorted(extra) if rn in hinged],
         "bodies": bodies,
         "elements": elements,
         "supports": supports,
         "stroke": stroke,
         "loads": load_dicts,
+        "joints": joints,
     }
     if gravity is not None and any(gravity):
         scene["gravity"] = gravity
     if err.items:
-        raise SpacarError(err.items)
+        raise SpacarError(sorted(err.items, key=lambda m: int(m.split(":", 1)[0].split()[1])))
     if not any(e for e in elements):
         raise SceneError("spacar", "the file has no flexible element (every beam is rigid); nothing to analyse")
     if materials:
@@ -605,6 +672,7 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
     if not any(c for c in crossdim) and elements:
         notes.append("no CROSSDIM: the file gives stiffness only, so stresses are not available (NaN)")
     spacar_dof += len({(n, k) for n, ks, _ in inputs for k in ks if not (role(n) == "R" and k == 1)})
+    spacar_dof += sum(1 for h in hinges if h[0] in dyne)
     return SpacarImport(scene=scene, mapped=mapped, notes=notes, numbering=numbering, spacar_dof=spacar_dof)
 
 
@@ -715,14 +783,29 @@ def write_dat(scene, numbering: int = 2) -> str:
         if not at:
             add_point(center[b.name], com)
     idx = {name: i + 1 for i, name in enumerate(order)}
+    # a hinge's two nodes share SPACAR's translational node (HINGE joins rotations at one point)
+    share: dict[str, str] = {}
+    for j in scene.joints:
+        if j.kind != "hinge":
+            raise SceneError(f"joints.{j.name}", f"a {j.kind} has no SPACAR element mapped here; export hinges only")
+        p_, q_ = j.nodes
+        if float(np.linalg.norm(pos[p_] - pos[q_])) > 1e-12 * max(1.0, float(np.abs(pos[p_]).max())):
+            raise SceneError(f"joints.{j.name}", "a SPACAR HINGE joins two rotations at one point: its nodes must "
+                             "coincide to export")
+        if p_ in carrier or q_ in carrier:
+            raise SceneError(f"joints.{j.name}", "a hinge at a body's node is not exported; hinge flexible "
+                             "elements' nodes")
+        share[q_] = share.get(p_, p_)
 
     def X(name: str) -> int:
-        return xnum(idx[name])
+        return xnum(idx[share.get(name, name)])
 
     def R(name: str) -> int:
         return xnum(idx[name]) + 1
 
     for name in order:
+        if name in share:
+            continue  # its hinge partner's X
         p = pos[name]
         lines.append(f"X {X(name)} {_fmt(p[0])} {_fmt(p[1])} {_fmt(p[2])}  # {name}")
     lines.append("")
@@ -777,6 +860,11 @@ def write_dat(scene, numbering: int = 2) -> str:
         J = np.array(b.inertia, dtype=float)
         props_lines.append(f"XM {R(c)} " + " ".join(_fmt(v) for v in (J[0, 0], J[0, 1], J[0, 2], J[1, 1], J[1, 2],
                                                                      J[2, 2])))
+    for j in scene.joints:
+        ne += 1
+        a = np.array(j.axis, dtype=float)
+        lines.append(f"HINGE {ne} {R(j.nodes[0])} {R(j.nodes[1])} {_fmt(a[0])} {_fmt(a[1])} {_fmt(a[2])}  # {j.name}")
+        props_lines.append(f"RLSE {ne} 1")
     lines += [""] + props_lines + [""]
     comps = {"x": ("X", 1), "y": ("X", 2), "z": ("X", 3), "rx": ("R", 2), "ry": ("R", 3), "rz": ("R", 4)}
     for s in scene.supports:
