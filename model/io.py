@@ -77,8 +77,10 @@ def scene_from_dict(data: Any) -> Scene:
 
 
 def load_dat(path: str | Path, name: str | None = None) -> tuple[Scene, Any]:
-    """Read a SPACAR ``.dat`` model (:func:`model.spacar.read_dat`) into a validated Scene and the import report
-    (:class:`model.spacar.SpacarImport`: what was mapped, notes, the node numbering, SPACAR's DOF count)."""
+    """Read a SPACAR ``.dat`` model (:func:`model.spacar.read_dat`), or SPACAR Light's four tables in a JSON or
+    YAML file (``nodes``, ``elements``, ``nprops``, ``eprops``, optional ``opt``; :func:`model.spacar.spacar_light`),
+    into a validated Scene and the import report (:class:`model.spacar.SpacarImport`: what was mapped, notes,
+    the node numbering, SPACAR's DOF count)."""
     from .spacar import read_dat
 
     p = Path(path)
@@ -86,8 +88,50 @@ def load_dat(path: str | Path, name: str | None = None) -> tuple[Scene, Any]:
         text = p.read_text()
     except OSError as exc:
         raise SceneError("scene", f"cannot read SPACAR file '{p}': {exc.strerror}") from None
-    imp = read_dat(text, name or p.stem)
+    if p.suffix.lower() == ".dat":
+        imp = read_dat(text, name or p.stem)
+    else:
+        imp = _spacar_light(_tables(p, text), name or p.stem)
     return scene_from_dict(imp.scene), imp
+
+
+def _tables(p: Path, text: str) -> Any:
+    """The parsed JSON or YAML (``.yaml``/``.yml``, with PyYAML) of a tables file."""
+    if p.suffix.lower() in (".yaml", ".yml"):
+        try:
+            import yaml
+        except ImportError:
+            raise SceneError("scene", f"'{p}' is YAML, which needs PyYAML (pip install pyyaml); or write it as "
+                             "JSON") from None
+        try:
+            return yaml.safe_load(text)
+        except yaml.YAMLError as exc:
+            raise SceneError("scene", f"'{p}' is not valid YAML: {exc}") from None
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise SceneError("scene", f"'{p}' is not valid JSON (line {exc.lineno}, column {exc.colno}: "
+                         f"{exc.msg})") from None
+
+
+def _spacar_light(data: Any, name: str) -> Any:
+    from .spacar import spacar_light
+
+    if not isinstance(data, dict) or not {"nodes", "elements", "eprops"} <= set(data):
+        raise SceneError("scene", "a SPACAR Light tables file has 'nodes', 'elements', 'nprops' and 'eprops' "
+                         "(and optionally 'opt')")
+    bad = sorted(set(data) - {"nodes", "elements", "nprops", "eprops", "opt", "name"})
+    if bad:
+        raise SceneError("scene", f"unknown SPACAR Light tables {bad}; the tables are nodes, elements, nprops, "
+                         "eprops, opt")
+    try:
+        return spacar_light(data["nodes"], data["elements"], data.get("nprops") or [], data["eprops"],
+                            data.get("opt"), data.get("name", name))
+    except (TypeError, ValueError) as exc:
+        if isinstance(exc, SceneError):
+            raise
+        raise SceneError("scene", f"malformed SPACAR Light tables: {exc}; nodes is n x 3 numbers, elements "
+                         "n x 2 node numbers, nprops and eprops lists of objects") from None
 
 
 def load_scene(path: str | Path) -> Scene:
@@ -97,11 +141,13 @@ def load_scene(path: str | Path) -> Scene:
         text = p.read_text()
     except OSError as exc:
         raise SceneError("scene", f"cannot read scene file '{p}': {exc.strerror}") from None
-    if p.suffix.lower() == ".dat":
+    if p.suffix.lower() in (".dat", ".yaml", ".yml"):
         return load_dat(p)[0]
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise SceneError("scene", f"'{p}' is not valid JSON (line {exc.lineno}, column {exc.colno}: "
                          f"{exc.msg})") from None
+    if isinstance(data, dict) and "eprops" in data:  # SPACAR Light's tables (model.spacar.spacar_light)
+        return scene_from_dict(_spacar_light(data, p.stem).scene)
     return scene_from_dict(data)

@@ -44,7 +44,7 @@ import numpy as np
 
 from .errors import SceneError
 
-__all__ = ["NOMINAL_E", "NOMINAL_G", "SpacarError", "SpacarImport", "read_dat", "write_dat"]
+__all__ = ["NOMINAL_E", "NOMINAL_G", "SpacarError", "SpacarImport", "read_dat", "spacar_light", "write_dat"]
 
 #: Nominal material constants of an imported element (the products EA, GJ, EIy, EIz are SPACAR's exactly).
 NOMINAL_E, NOMINAL_G = 210e9, 80e9
@@ -924,3 +924,130 @@ def write_dat(scene, numbering: int = 2) -> str:
         lines += ["VISUALIZATION"] + vis + ["END", ""]
     lines.append("HALT")
     return "\n".join(lines) + "\n"
+
+
+# ------------------------------------------------------------------------------- SPACAR Light tables (item 4)
+#: nprops fields mapped by :func:`spacar_light` (SPACAR Light's names; supports, inputs, loads, masses).
+NPROPS_FIELDS = ("fix", "fix_pos", "fix_orien", "fix_x", "fix_y", "fix_z", "displ_x", "displ_y", "displ_z",
+                 "rot_x", "rot_y", "rot_z", "force", "mass", "mominertia")
+#: eprops fields mapped by :func:`spacar_light`.
+EPROPS_FIELDS = ("elems", "emod", "smod", "dens", "cshape", "dim", "orien", "nbeams", "flex", "color", "name",
+                 "hide", "opacity")
+
+
+def spacar_light(nodes, elements, nprops, eprops, opt: dict | None = None, name: str = "spacar-light") -> SpacarImport:
+    """A scene from SPACAR Light's four tables, so a script ports line by line: ``nodes`` (n x 3 positions),
+    ``elements`` (ne x 2 node numbers, 1-based), ``nprops`` (a list, one dict per node, or a dict {node: dict})
+    and ``eprops`` (a list of element sets), and ``opt`` (``gravity``, ``loadsteps``).
+
+    The tables are written as the equivalent ``.dat`` model (user node i as X 2i-1, R 2i; each element as
+    ``nbeams`` beams with ESTIFF/EM from a rectangle ``dim = [w, t]`` with ``w`` along ``orien``, J by Roark's
+    series as flexopt's rectangles, not SPACAR Light's own torsion formula) and read by :func:`read_dat`, so both
+    routes map alike. nprops: ``fix``, ``fix_pos``, ``fix_orien``, ``fix_x/y/z`` supports; ``displ_x/y/z`` [m]
+    and ``rot_x/y/z`` [rad] the input (one, with its final value); ``force`` [N]; ``mass`` [kg] and
+    ``mominertia`` (Ixx Ixy Ixz Iyy Iyz Izz) [kg m^2]. eprops: ``elems``, ``emod``, ``smod``, ``dens``,
+    ``cshape`` ('rect'), ``dim``, ``orien``, ``nbeams``, ``flex`` (flexible deformations; none: rigid).
+    Anything else (moments, circular sections, releases, ...) is an error naming the table, entry and field.
+    """
+    errors: list[str] = []
+    P = np.asarray(nodes, dtype=float).reshape(-1, 3)
+    E_ = np.asarray(elements, dtype=int).reshape(-1, 2)
+    if isinstance(nprops, dict):
+        nprops = [nprops.get(i + 1, nprops.get(str(i + 1), {})) or {} for i in range(len(P))]
+    nprops = list(nprops or [])
+    opt = dict(opt or {})
+    lines = [f"# {name}: SPACAR Light tables written as a .dat model by flexopt"]
+    xn = (lambda i: 2 * i - 1)
+    count = len(P)
+
+    def new_point(p: np.ndarray) -> int:
+        nonlocal count
+        count += 1
+        lines.append(f"X {xn(count)} {_fmt(p[0])} {_fmt(p[1])} {_fmt(p[2])}")
+        return count
+
+    for i, p in enumerate(P, start=1):
+        lines.append(f"X {xn(i)} {_fmt(p[0])} {_fmt(p[1])} {_fmt(p[2])}")
+    props: list[str] = []
+    vis: list[str] = ["VISUALIZATION"]
+    set_of: dict[int, dict] = {}
+    for k, es in enumerate(eprops or [], start=1):
+        bad = sorted(set(es) - set(EPROPS_FIELDS))
+        if bad:
+            errors.append(f"eprops({k}): fields {bad} are not mapped (mapped: {', '.join(EPROPS_FIELDS)})")
+        for e in np.atleast_1d(es.get("elems", [])):
+            set_of[int(e)] = es
+    ne = 0
+    for e, (a, b) in enumerate(E_, start=1):
+        es = set_of.get(e)
+        if es is None:
+            errors.append(f"elements({e}): no eprops set lists it in 'elems'; every element needs properties")
+            continue
+        if es.get("cshape", "rect") != "rect":
+            errors.append(f"eprops: cshape '{es.get('cshape')}' of element {e} is not mapped; use 'rect'")
+            continue
+        try:
+            w, t = (float(v) for v in es["dim"])
+            Em, G, rho = float(es["emod"]), float(es["smod"]), float(es["dens"])
+        except (KeyError, TypeError, ValueError):
+            errors.append(f"eprops: element {e} needs emod, smod, dens and dim = [width, thickness]")
+            continue
+        orien = [float(v) for v in es.get("orien", (0.0, 0.0, 1.0))]
+        n = int(es.get("nbeams", 1))
+        flex = [int(v) for v in np.atleast_1d(es.get("flex", []))]
+        A, Iy, Iz = w * t, w * t**3 / 12, t * w**3 / 12
+        lo, hi = min(w, t), max(w, t)
+        J = hi * lo**3 * (1 / 3 - 0.21 * (lo / hi) * (1 - lo**4 / (12 * hi**4)))
+        chain = [a] + [new_point(P[a - 1] + (P[b - 1] - P[a - 1]) * k / n) for k in range(1, n)] + [b]
+        for p_, q_ in zip(chain[:-1], chain[1:]):
+            ne += 1
+            lines.append(f"BEAM {ne} {xn(p_)} {xn(p_) + 1} {xn(q_)} {xn(q_) + 1} {_fmt(orien[0])} {_fmt(orien[1])} "
+                         f"{_fmt(orien[2])}")
+            props += [f"ESTIFF {ne} {_fmt(Em * A)} {_fmt(G * J)} {_fmt(Em * Iy)} {_fmt(Em * Iz)} 0 0",
+                      f"EM {ne} {_fmt(rho * A)} {_fmt(rho * (Iy + Iz))} {_fmt(rho * Iy)} {_fmt(rho * Iz)} 0"]
+            if flex:
+                props.append(f"DYNE {ne} " + " ".join(map(str, flex)))
+            vis.append(f"CROSSDIM {ne} {_fmt(w)} {_fmt(t)}")
+    inputs = 0
+    for i, npr in enumerate(nprops, start=1):
+        if not npr:
+            continue
+        bad = sorted(set(npr) - set(NPROPS_FIELDS))
+        if bad:
+            errors.append(f"nprops({i}): fields {bad} are not mapped (mapped: {', '.join(NPROPS_FIELDS)})")
+        X_, R_ = xn(i), xn(i) + 1
+        if npr.get("fix"):
+            props += [f"FIX {X_}", f"FIX {R_}"]
+        if npr.get("fix_pos"):
+            props.append(f"FIX {X_}")
+        if npr.get("fix_orien"):
+            props.append(f"FIX {R_}")
+        for k, ax in enumerate("xyz"):
+            if npr.get(f"fix_{ax}"):
+                props.append(f"FIX {X_} {k + 1}")
+            if f"displ_{ax}" in npr:
+                inputs += 1
+                props += [f"INPUTX {X_} {k + 1}", f"DELINPX {X_} {k + 1} {_fmt(float(npr[f'displ_{ax}']))}"]
+            if f"rot_{ax}" in npr:
+                inputs += 1
+                props += [f"INPUTX {R_} {k + 2}", f"DELINPX {R_} {k + 2} {_fmt(math.sin(float(npr[f'rot_{ax}']) / 2))}"]
+        if "force" in npr:
+            props.append(f"XF {X_} " + " ".join(_fmt(float(v)) for v in npr["force"]))
+        if "mass" in npr:
+            props.append(f"XM {X_} {_fmt(float(npr['mass']))}")
+        if "mominertia" in npr:
+            props.append(f"XM {R_} " + " ".join(_fmt(float(v)) for v in npr["mominertia"]))
+    if inputs > 1:
+        errors.append(f"nprops: {inputs} inputs (displ_*/rot_*); flexopt drives one coordinate")
+    if "gravity" in opt:
+        props.append("GRAVITY " + " ".join(_fmt(float(v)) for v in opt["gravity"]))
+    if "loadsteps" in opt:
+        props.append(f"ITERSTEP {int(opt['loadsteps'])}")
+    bad = sorted(set(opt) - {"gravity", "loadsteps", "filename", "silent", "showinputonly"})
+    if bad:
+        errors.append(f"opt: fields {bad} are not mapped (mapped: gravity, loadsteps; filename, silent, "
+                      "showinputonly are ignored)")
+    if errors:
+        raise SpacarError(errors)
+    text = "\n".join(lines + props + ["END"] + vis + ["END", "HALT"]) + "\n"
+    return read_dat(text, name)
