@@ -175,6 +175,21 @@ class SpacarExportRequest(_Wire):
     numbering: Literal[2, 3] = Field(2, description="SPACAR nodes per point: 2 (X 2i-1, R 2i) or 3 (X 3i-2, R 3i-1)")
 
 
+class StateSpaceRequest(_Wire):
+    """A scene, a stroke point, inputs and outputs for the linearised model (model.linear)."""
+
+    scene: SceneDocument
+    at_stroke: FiniteFloat = Field(0.0, description="stroke value (stroke unit)")
+    inputs: list[str] = Field(min_length=1, max_length=50, description="forces or moments on nodes or bodies, "
+                              "e.g. ['tip.fz', 'stage.my'] (fx fy fz mx my mz, global axes)")
+    outputs: list[str] = Field(min_length=1, max_length=50, description="positions, rotations or rates, e.g. "
+                               "['tip.z', 'tip.ry', 'tip.vz'] (x y z rx ry rz vx vy vz wx wy wz)")
+    damping: float = Field(0.01, ge=0, lt=1, description="modal damping ratio of every mode")
+    modes: int | None = Field(None, ge=1, le=3000, description="keep the lowest N modes (default all)")
+    frequencies_hz: list[FiniteFloat] | None = Field(None, max_length=2000,
+                                                    description="frequencies of a frequency response (Bode) table")
+
+
 class DiagnosisRequest(_Wire):
     """A scene to diagnose, at the reference or at a stroke value."""
 
