@@ -105,7 +105,7 @@ def test_cli_and_http(capsys):
     async def run():
         app = create_app()
         async with app.router.lifespan_context(app):  # the runtime (worker pool) the route runs the model in
-            async with httpx.AsyncClient(transport=httpx.ASGITransport(app=app), base_url="http://t") as c:
+            async with httpx.AsyncClient(transport=httpx.ASGITransport(app=app), base_url="http://127.0.0.1") as c:
                 return await c.post("/v1/state-space", json={"scene": scene, "inputs": ["tip.fz"],
                                                               "outputs": ["tip.z"]})
 

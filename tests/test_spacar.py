@@ -189,7 +189,7 @@ def test_http_import_and_export():
     from flexopt.service.api.app import create_app
 
     async def run():
-        async with httpx.AsyncClient(transport=httpx.ASGITransport(app=create_app()), base_url="http://t") as c:
+        async with httpx.AsyncClient(transport=httpx.ASGITransport(app=create_app()), base_url="http://127.0.0.1") as c:
             ok = await c.post("/v1/scenes/import", json={"text": (DATA / "truss12.dat").read_text(), "name": "t"})
             bad = await c.post("/v1/scenes/import", json={"text": BAD})
             dat = await c.post("/v1/scenes/export", json={"scene": ok.json()["scene"], "numbering": 3})
