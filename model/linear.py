@@ -25,7 +25,7 @@ import numpy as np
 from .errors import EquilibriumError, SceneError
 from .scene import Scene
 
-__all__ = ["StateSpace", "state_space", "frequency_response"]
+__all__ = ["StateSpace", "frequency_response", "state_space"]
 
 _FORCE = {"fx": (0, 0), "fy": (0, 1), "fz": (0, 2), "mx": (1, 0), "my": (1, 1), "mz": (1, 2)}
 _OUTPUT = {"x": (0, 0, 0), "y": (0, 0, 1), "z": (0, 0, 2), "rx": (0, 1, 0), "ry": (0, 1, 1), "rz": (0, 1, 2),
@@ -59,7 +59,7 @@ class StateSpace:
         return self.D - self.C @ np.linalg.solve(self.A, self.B)
 
 
-def _point(s, name: str, what: str) -> tuple[int, np.ndarray]:  # noqa: ANN001 - a Structure
+def _point(s, name: str, what: str) -> tuple[int, np.ndarray]:
     """(master index, reference offset of the point from it) of a node or body name."""
     if name in s.node_names:
         i = s.node_names.index(name)

@@ -37,6 +37,7 @@ VISUALIZATION block other than ``CROSSDIM`` change nothing in the model and are 
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 
@@ -586,11 +587,11 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
         if dofs:
             order = ("x", "y", "z", "rx", "ry", "rz")
             supports.append({"node": nname(xn), "dofs": [d for d in order if d in dofs]})
-    for name, dofs in sorted(fixed_extra.items()):
-        if stroke is not None and stroke.get("node") == name:
+    for nd, dofs in sorted(fixed_extra.items()):
+        if stroke is not None and stroke.get("node") == nd:
             dofs = dofs - {("rx", "ry", "rz")[int(np.argmax(np.abs(stroke["axis"])))]}
         if dofs:
-            supports.append({"node": name, "dofs": [d for d in ("rx", "ry", "rz") if d in dofs]})
+            supports.append({"node": nd, "dofs": [d for d in ("rx", "ry", "rz") if d in dofs]})
 
     # --- chains of equal collinear beams through free interior nodes: one member with that many segments
     special = set(fixed) | set(carrier) | set(xf) | set(delxf) | {n for n, _, _ in inputs} | \
@@ -829,7 +830,7 @@ def write_dat(scene, numbering: int = 2) -> str:
         pr = section_properties(e.section)
         L = float(np.linalg.norm(pos[e.nodes[1]] - pos[e.nodes[0]]))
         GJ = float(mat.G * pr.J * warping_factor(mat.E, mat.G, pr, L, pr.warping))
-        for a, b in zip(chain[:-1], chain[1:]):
+        for a, b in itertools.pairwise(chain):
             ne += 1
             y = e.y_axis
             lines.append(f"BEAM {ne} {X(a)} {R(a)} {X(b)} {R(b)} {_fmt(y[0])} {_fmt(y[1])} {_fmt(y[2])}  # {e.name}")
@@ -999,7 +1000,7 @@ def spacar_light(nodes, elements, nprops, eprops, opt: dict | None = None, name:
         lo, hi = min(w, t), max(w, t)
         J = hi * lo**3 * (1 / 3 - 0.21 * (lo / hi) * (1 - lo**4 / (12 * hi**4)))
         chain = [a] + [new_point(P[a - 1] + (P[b - 1] - P[a - 1]) * k / n) for k in range(1, n)] + [b]
-        for p_, q_ in zip(chain[:-1], chain[1:]):
+        for p_, q_ in itertools.pairwise(chain):
             ne += 1
             lines.append(f"BEAM {ne} {xn(p_)} {xn(p_) + 1} {xn(q_)} {xn(q_) + 1} {_fmt(orien[0])} {_fmt(orien[1])} "
                          f"{_fmt(orien[2])}")

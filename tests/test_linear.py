@@ -6,7 +6,6 @@ import json
 
 import numpy as np
 import pytest
-
 from flexopt.model.curve import Analysis
 from flexopt.model.errors import SceneError
 from flexopt.model.io import scene_from_dict
@@ -91,7 +90,6 @@ def test_cli_and_http(capsys):
     import asyncio
 
     import httpx
-
     from flexopt.service.api.app import create_app
     from flexopt.service.cli.main import main
 
@@ -104,10 +102,10 @@ def test_cli_and_http(capsys):
 
     async def run():
         app = create_app()
-        async with app.router.lifespan_context(app):  # the runtime (worker pool) the route runs the model in
-            async with httpx.AsyncClient(transport=httpx.ASGITransport(app=app), base_url="http://127.0.0.1") as c:
-                return await c.post("/v1/state-space", json={"scene": scene, "inputs": ["tip.fz"],
-                                                              "outputs": ["tip.z"]})
+        # the lifespan starts the runtime (worker pool) the route runs the model in
+        async with app.router.lifespan_context(app), httpx.AsyncClient(
+                transport=httpx.ASGITransport(app=app), base_url="http://127.0.0.1") as c:
+            return await c.post("/v1/state-space", json={"scene": scene, "inputs": ["tip.fz"], "outputs": ["tip.z"]})
 
     r = asyncio.run(run())
     assert r.status_code == 200, r.text

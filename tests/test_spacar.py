@@ -9,8 +9,7 @@ import pytest
 from flexopt.model.curve import Analysis
 from flexopt.model.diagnosis import diagnose
 from flexopt.model.errors import SceneError
-from flexopt.model.io import scene_from_dict
-from flexopt.model.io import load_dat
+from flexopt.model.io import load_dat, scene_from_dict
 from flexopt.model.spacar import read_dat, write_dat
 from flexopt.model.templates import template
 
@@ -89,11 +88,11 @@ def test_truss_of_seed_002_is_diagnosed_as_the_paper_says():
 
 @pytest.mark.parametrize("text, words", [
     ("X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nFOO 1 2\n", "line 4: FOO: unknown keyword"),
-    ("X 1 0 0 0\nBEAM 1 1 2 3 4 0 1 0\n", "line 2: BEAM: element 1: node 3 is used as a translational node but never "
-                                          "declared"),
+    ("X 1 0 0 0\nBEAM 1 1 2 3 4 0 1 0\n",
+     "line 2: BEAM: element 1: node 3 is used as a translational node but never declared"),
     ("X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 1 0 0\n", "line 3: BEAM: element 1: Oy = (1.0, 0.0, 0.0) is parallel"),
-    ("X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nXF 4 1 2 3 4 5\n", "line 4: XF: node 4 is rotational: a moment "
-                                                                      "(5 values read)"),
+    ("X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nXF 4 1 2 3 4 5\n",
+     "line 4: XF: node 4 is rotational: a moment (5 values read)"),
     ("X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nXF 4 0 1 0 0\n", "4 Euler-parameter values (before 2017)"),
     ("X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nRLSE 1 3\n", "line 4: RLSE: released deformations"),
     ("X 1 0 0 0\nX 3 1 0 0\nX 5 2 0 0\nBEAM 1 1 2 3 4 0 1 0\nBEAM 2 3 6 5 7 0 1 0\n",
@@ -185,7 +184,6 @@ def test_http_import_and_export():
     import asyncio
 
     import httpx
-
     from flexopt.service.api.app import create_app
 
     async def run():
