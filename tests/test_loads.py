@@ -251,3 +251,13 @@ def test_design_sensitivities_refuse_loads():
     an = Analysis(scene_from_dict(_pendulum(9.81)))
     with pytest.raises(FlexoptError, match="do not include loads or gravity"):
         _check_scope(an.structure)
+
+
+def test_stress_includes_the_load():
+    """A small tip force (alpha^2 = 1e-4): the root's von Mises bound is the bending stress P L (t/2) / Iy
+    (Euler-Bernoulli; the cubic elements carry the linear moment exactly); tolerance 1e-3 for the geometric
+    nonlinearity (relative effect of order alpha^2) and the axial term's share (N/A, about 1e-4 here)."""
+    P = 1e-4 * EI_E / L_E**2
+    c = Analysis(scene_from_dict(_elastica(P, 4))).frequency_curve(np.array([0.0]), mesh_error=False)
+    Iy = W_E * T_E**3 / 12
+    assert c.max_von_mises["leaf"][0] == pytest.approx(P * L_E * (T_E / 2) / Iy, rel=1e-3)
