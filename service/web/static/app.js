@@ -834,6 +834,15 @@ async function init() {
   $("scene-file").onchange = async (ev) => {
     const f = ev.target.files[0];
     if (!f) return;
+    if (/\.dat$/i.test(f.name)) { // a SPACAR model: the server maps it (every unmappable line is an error with its number)
+      try {
+        const imp = await api("POST", "/v1/scenes/import", { text: await f.text(), name: f.name.replace(/\.dat$/i, "") });
+        state.fileScene = imp.scene;
+        $("scene-note").textContent = `using SPACAR model ${f.name} (node numbering ${imp.numbering}; SPACAR degrees of ` +
+          `freedom ${imp.spacar_dof}${imp.notes.length ? "; " + imp.notes.join("; ") : ""})`;
+      } catch (e) { status(`${f.name}: ${e.message}`, true); }
+      return;
+    }
     try { state.fileScene = JSON.parse(await f.text()); $("scene-note").textContent = `using scene file ${f.name} (${state.fileScene.name || "unnamed"})`; }
     catch (e) { status(`${f.name} is not valid JSON: ${e.message}`, true); }
   };
