@@ -172,6 +172,9 @@ def test_cli_import_export_and_a_dat_scene_path(tmp_path, capsys):
     np.testing.assert_allclose(_curve(back, [45.0]).modes_hz, _curve(scene, [45.0]).modes_hz, rtol=1e-9)
     assert main(["curve", str(DATA / "seed_leaf_2node.dat"), "--method", "exact"]) == 0
     assert "45.0000" in capsys.readouterr().out
+    assert main(["diagnose", str(DATA / "truss12.dat"), "--json"]) == 0
+    d = __import__("json").loads(capsys.readouterr().out)
+    assert d["spacar_dof"] == 0 and d["rank"] == 11
     bad = tmp_path / "bad.dat"
     bad.write_text(BAD)
     assert main(["import", str(bad)]) == 2
