@@ -4,9 +4,11 @@ from .constraints import ConstraintDiagnosis
 from .curve import Analysis, frequency_curve
 from .diagnosis import diagnose
 from .errors import EquilibriumError, FlexoptError, KernelBuildError, ModelSizeError, SceneError
-from .io import load_scene, scene_from_dict
+from .io import load_dat, load_scene, scene_from_dict
+from .linear import StateSpace, frequency_response, state_space
 from .results import Failure, FrequencyCurve
 from .scene import Scene
+from .spacar import SpacarImport, read_dat, spacar_light, write_dat
 from .structure import MAX_DOFS, compile_scene
 from .templates import DESIGN_SPACES, TEMPLATES, design_space, template, template_parameters
 
@@ -21,7 +23,15 @@ __all__ = [
     "EquilibriumError",
     "KernelBuildError",
     "load_scene",
+    "load_dat",
     "scene_from_dict",
+    "read_dat",
+    "write_dat",
+    "spacar_light",
+    "SpacarImport",
+    "state_space",
+    "frequency_response",
+    "StateSpace",
     "Failure",
     "FrequencyCurve",
     "Scene",

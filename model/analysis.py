@@ -23,7 +23,7 @@ from .modal import Modes, modes_at, participation, track
 from .results import Failure, FrequencyCurve
 from .scene import Scene
 from .errors import EquilibriumError, SceneError
-from .statics import Equilibrium, NewtonOptions, StepFailure, WalkFailure, solve_point, walk
+from .statics import Equilibrium, NewtonOptions, StepFailure, WalkFailure, reference_equilibrium, walk
 from .structure import Structure, compile_scene
 from .symmetry import StrokeSymmetry, image_indices, one_side, stroke_symmetry
 from .threads import limited
@@ -76,7 +76,8 @@ def von_mises(structure: Structure, sys: System, eq: Equilibrium) -> np.ndarray:
     st = eq.state
     if s.n_beams:
         vm = beam_end_stresses(s, sys, eq).max(axis=1)
-        np.maximum.at(out, s.beam_member, vm)
+        with np.errstate(invalid="ignore"):  # NaN (no fibre distances) is set below, not compared
+            np.maximum.at(out, s.beam_member, vm)
         out[np.unique(s.beam_member[np.isnan(vm)])] = np.nan
     if len(s.truss_nodes):
         S11 = s.truss_const[:, 1]
@@ -220,7 +221,10 @@ class MeshAnalysis:
 
     @functools.cached_property
     def symmetry(self) -> StrokeSymmetry | None:
-        """The design's symmetry that reverses the stroke (:func:`model.symmetry.stroke_symmetry`), or None."""
+        """The design's symmetry that reverses the stroke (:func:`model.symmetry.stroke_symmetry`), or None
+        (always None with loads or gravity, which the symmetry search does not map)."""
+        if self.system.loads is not None:
+            return None
         return stroke_symmetry(self.scene)
 
     def _mirrored(self, sym: StrokeSymmetry, internal: np.ndarray, points: dict, failures: list
@@ -327,8 +331,12 @@ class MeshAnalysis:
         modes, where continuation and mode tracking start on both sides."""
         self.check()
         try:
-            eq0 = solve_point(self.system, self.system.reference_state(), 0.0, self.options, 0.0)
+            eq0 = reference_equilibrium(self.system, self.options)
         except StepFailure as exc:  # past the checks: e.g. a mechanism in a model too large to search
+            if self.system.loads is not None:
+                raise EquilibriumError(
+                    f"no equilibrium under the scene's loads at stroke 0: {exc}; reduce the loads or gravity, or "
+                    "stiffen the structure", stroke=0.0, last_converged=float("nan"), reason="divergence") from exc
             raise EquilibriumError(
                 f"no equilibrium at the stress-free reference (stroke 0): {exc}; the tangent stiffness is "
                 "singular, so some part moves without deforming anything (a mechanism or an unconnected part); "

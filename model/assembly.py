@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import linalg
-from .elements import beam_mass_spec, beam_spec, rotation_log_spec, rotation_update_spec, truss_spec
+from .elements import beam_mass_spec, beam_spec, joint_spec, rotation_log_spec, rotation_update_spec, truss_spec
 from .kernels import c_enum, compiled
 from .rotations import log_so3, skew, twist_angle, twist_gradient
 from .structure import Structure
@@ -95,6 +95,8 @@ class Assembled:
     e_beam: np.ndarray  # (nb, 6) beam deformations
     e_truss: np.ndarray  # (nt,) truss elongations
     _chart: np.ndarray | Callable[[], np.ndarray] | None = None  # the matrix, or what makes it on first use
+    dg_ds: np.ndarray | None = None  # (n,) d g / d stroke of loads given per stroke point (model.loads), or None
+    g_load: np.ndarray | None = None  # (n,) the loads' part of g (model.loads), or None without loads
 
     @property
     def chart(self) -> np.ndarray | None:
@@ -130,6 +132,7 @@ class System:
         self.n_full = s.n_dof
         self.beam_kernel = compiled(beam_spec()[0]) if s.n_beams else None
         self.truss_kernel = compiled(truss_spec()[0]) if len(s.truss_nodes) else None
+        self.joint_kernel = compiled(joint_spec()[0]) if len(s.joint_nodes) else None
         self._number_dofs(s)
         self._index_elements(s)
         self._index_constraints(s)
@@ -205,6 +208,20 @@ class System:
         self.beam_in[:, 30 : 30 + s.beam_const.shape[1]] = s.beam_const
         self.truss_in = np.zeros((nt, 12 + 3 + 1))
         self.truss_in[:, 12:15] = s.truss_const
+        # ideal joints (model.elements.joint_spec): the beam's state layout, so the same gather and scatter
+        self.joint_dofs_full = dofs(s.joint_nodes)
+        self.joint_dofs = pos[self.joint_dofs_full]
+        self.joint_flat = (self.joint_dofs[:, :, None] * N + self.joint_dofs[:, None, :]).ravel()
+        nc = s.joint_const.shape[1]
+        self.joint_in = np.zeros((len(s.joint_nodes), 30 + nc + 6))
+        self.joint_in[:, 30 : 30 + nc] = s.joint_const
+        # external loads and gravity (model.loads): evaluated at load_stroke (internal units, set by the
+        # statics before each solve), each multiplied by load_scale (raised from 0 to 1 at stroke 0)
+        from .loads import LoadSet, has_loads
+
+        self.loads = LoadSet(s, self.pos, self.beam_dofs, self.beam_flat, N) if has_loads(s.scene) else None
+        self.load_stroke = 0.0
+        self.load_scale = 1.0
 
     def _index_constraints(self, s: Structure) -> None:
         """Constraint bookkeeping: multiplier k belongs to (kind, element, mode)."""
@@ -213,6 +230,8 @@ class System:
         ct = s.constraints[s.constraints[:, 0] == 1]
         self.con_beam = (np.flatnonzero(s.constraints[:, 0] == 0), cb[:, 1], cb[:, 2])
         self.con_truss = (np.flatnonzero(s.constraints[:, 0] == 1), ct[:, 1])
+        cj = s.constraints[s.constraints[:, 0] == 2]
+        self.con_joint = (np.flatnonzero(s.constraints[:, 0] == 2), cj[:, 1], cj[:, 2])
 
     def _prepare_mass(self, s: Structure) -> None:
         """The mass matrix's constant part and the indices of its state-dependent parts. The translational mass of
@@ -436,6 +455,16 @@ class System:
             ti[:, 15] = 0.0
             k, el = self.con_truss
             ti[el, 15] = st.lam[k]
+        if len(s.joint_nodes):
+            p, q = s.joint_nodes[:, 0], s.joint_nodes[:, 1]
+            ji = self.joint_in
+            ji[:, 0:3], ji[:, 12:15], ji[:, 15:18], ji[:, 27:30] = xn[p], rn[p], xn[q], rn[q]
+            ji[:, 3:12] = Rn[p].transpose(0, 2, 1).reshape(-1, 9)
+            ji[:, 18:27] = Rn[q].transpose(0, 2, 1).reshape(-1, 9)
+            lam = np.zeros((len(p), 6))
+            k, el, mode = self.con_joint
+            lam[el, mode] = st.lam[k]
+            ji[:, 30 + s.joint_const.shape[1] :] = lam
 
     def evaluate(self, st: State) -> Assembled:
         """Gradient, Hessian and constraint rows at ``st`` (one kernel call per element type)."""
@@ -471,9 +500,25 @@ class System:
             if len(k):
                 c[k] = e_truss[el]
                 np.add.at(G, (k[:, None], self.truss_dofs[el]), out[el, 157:169])
+        if len(s.joint_nodes):
+            out = self.joint_kernel(self.joint_in)
+            g += np.bincount(self.joint_dofs.ravel(), out[:, :12].ravel(), minlength=N)
+            g_full += np.bincount(self.joint_dofs_full.ravel(), out[:, :12].ravel(), minlength=self.n_full)
+            Hflat += np.bincount(self.joint_flat, out[:, 12:156].ravel(), minlength=N * N)
+            k, el, mode = self.con_joint
+            De = out[:, 162:234].reshape(-1, 12, 6)
+            c[k] = out[el, 156 + mode]
+            np.add.at(G, (k[:, None], self.joint_dofs[el]), De[el, :, mode])
+        dg_ds = g_load = None
+        if self.loads is not None:
+            g_el = g.copy()
+            self.loads.add(st.R, self.beam_in, self.load_stroke, self.load_scale, g, g_full, Hflat)
+            g_load = self.reduce_vector(g - g_el)
+            rate = self.loads.gradient_rate(st.R, self.load_stroke, self.load_scale)
+            dg_ds = None if rate is None else self.reduce_vector(rate)
         H = self.reduce_matrix(Hflat.reshape(N, N))
         return Assembled(self.reduce_vector(g), H, c, self.reduce_matrix(G, rows=False), e_beam, e_truss,
-                         self.chart_correction(g_full))
+                         self.chart_correction(g_full), dg_ds, g_load)
 
     def chart_correction(self, g_full: np.ndarray) -> np.ndarray:
         """``-1/2 skew(g_m)`` on each master's rotation block, in active numbering.
@@ -503,6 +548,7 @@ class System:
         for kernel_spec, inputs, dofs, flat in (
             (beam_spec()[1], self.beam_in, self.beam_dofs_full, self.beam_flat),
             (truss_spec()[1], self.truss_in, self.truss_dofs_full, self.truss_flat),
+            (joint_spec()[1], self.joint_in, self.joint_dofs_full, self.joint_flat),
         ):
             if not len(inputs):
                 continue
@@ -511,7 +557,8 @@ class System:
         return self.reduce_matrix(dH.reshape(N, N))
 
     def energy(self, st: State) -> float:
-        """The Lagrangian at ``st`` from the kernels' deformations (for checks; not used by solvers)."""
+        """The Lagrangian at ``st`` from the kernels' deformations, plus the loads' potential (model.loads) at
+        :attr:`load_stroke` (for checks; not used by solvers)."""
         ev = self.evaluate(st)
         s = self.s
         U = 0.0
@@ -525,6 +572,14 @@ class System:
             U += 0.5 * float(np.sum(s.truss_const[:, 1] * (mask * ev.e_truss) ** 2))
             k, el = self.con_truss
             U += float(st.lam[k] @ ev.e_truss[el])
+        if len(s.joint_nodes):
+            self.fill_inputs(st)
+            e_joint = self.joint_kernel(self.joint_in)[:, 156:162]
+            k, el, mode = self.con_joint
+            U += float(st.lam[k] @ e_joint[el, mode])
+        if self.loads is not None:
+            U += self.loads.potential(self.node_states(st)[0], st.X, st.R, self.beam_in, self.load_stroke,
+                                      self.load_scale)
         return U
 
     # --------------------------------------------------------------- drive
@@ -638,7 +693,7 @@ class NativeRoute:
         self.mass_in: np.ndarray | None = None  # the mass kernel's input buffer (state, constants, mass)
         self.beam_in_at = self.mass_in_at = 0  # addresses of System.beam_in and mass_in
         self.mass_size = 0  # doubles of the compiled mass's output (kernel outputs, g, g_full, M)
-        asm = _assembler() if (s.n_beams and not len(s.truss_nodes) and not sys.n_con
+        asm = _assembler() if (s.n_beams and not len(s.truss_nodes) and not sys.n_con and sys.loads is None
                                and sys.beam_kernel.address is not None) else None
         if asm is not None:
             ends = s.beam_nodes.ravel()

@@ -128,7 +128,7 @@ class FreeMotion:
 
 
 def _components(s: Structure) -> list[set[int]]:
-    """Connected components of masters joined by elements (sets of master indices)."""
+    """Connected components of masters joined by elements or joints (sets of master indices)."""
     nm = len(s.master_names)
     parent = list(range(nm))
 
@@ -138,7 +138,7 @@ def _components(s: Structure) -> list[set[int]]:
             i = parent[i]
         return i
 
-    for nodes in (s.beam_nodes, s.truss_nodes):
+    for nodes in (s.beam_nodes, s.truss_nodes, s.joint_nodes):
         for a, b in s.node_master[nodes] if len(nodes) else []:
             parent[find(int(a))] = find(int(b))
     groups: dict[int, set[int]] = {}
@@ -178,6 +178,7 @@ def free_motions(structure: Structure) -> list[FreeMotion]:
         names = sorted({member_of_master(s, s.master_names[i]) for i in comp if "#" not in s.master_names[i]})
         out.append(FreeMotion("unconnected", tuple(els), tuple(names), 6))
     rows = [(0, i, k) for i in range(s.n_beams) for k in range(6)] + [(1, i, 0) for i in range(len(s.truss_nodes))]
+    rows += [(2, int(i), int(k)) for kind, i, k in s.constraints if kind == 2]  # joints: their constraints
     T, _, col_masters, trans = columns(s)
     if not rows or T.shape[1] == 0 or T.shape[1] > MECHANISM_MAX_COLUMNS:
         return out

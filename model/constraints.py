@@ -49,7 +49,7 @@ from typing import Any
 
 import numpy as np
 
-from .elements import beam_spec, truss_spec
+from .elements import beam_spec, joint_spec, truss_spec
 from .errors import SceneError
 from .kernels import compiled
 from .results import ResultWarning
@@ -248,6 +248,11 @@ class ConstraintDiagnosis:
 DEFORMATION_NAMES = ("elongation", "torsion", "bending_y", "bending_y", "bending_z", "bending_z")
 
 
+#: Names of a joint's six coordinates (model.elements.joint_spec): relative translation along and rotation
+#: about the joint basis a (the axis), b1, b2.
+JOINT_COORDINATES = ("along_axis", "along_b1", "along_b2", "about_axis", "about_b1", "about_b2")
+
+
 def deformation_label(k: int, p: str, q: str) -> str:
     """Readable name of deformation ``k`` (0-based) of an element from node ``p`` to ``q``: ``elongation``,
     ``torsion``, or ``bending_y@p`` / ``bending_z@q`` (the bending deformations are the end rotations
@@ -270,7 +275,8 @@ def sign_fix(v: np.ndarray) -> np.ndarray:
 
 
 def partition(s: Structure, kinematic: bool) -> tuple[list[tuple[int, int, int]], list[str], list[str], int]:
-    """Rows [e(o); e(m)] as (kind 0 beam / 1 truss, element, deformation), their labels and kinds."""
+    """Rows [e(o); e(m)] as (kind 0 beam / 1 truss / 2 joint, element, deformation), their labels and kinds;
+    a joint's constrained coordinates are rigid rows in either partition (kinematic pairs)."""
     scene = s.scene
     rigid_rows: list[tuple[int, int, int]] = []
     gen_rows: list[tuple[int, int, int]] = []
@@ -289,6 +295,8 @@ def partition(s: Structure, kinematic: bool) -> tuple[list[tuple[int, int, int]]
                 )
             rigid_rows += [(kind, i, k) for k in sorted(rig)]
             gen_rows += [(kind, i, k) for k in sorted(gen)]
+    # ideal joints: kinematic pairs, rigid in both partitions (their five constrained coordinates)
+    rigid_rows += [(2, int(i), int(k)) for kind_, i, k in s.constraints if kind_ == 2]
     labels: list[str] = []
     index: dict[tuple[int, int], str] = {}
     ends: dict[tuple[int, int], tuple[str, str]] = {}
@@ -303,6 +311,9 @@ def partition(s: Structure, kinematic: bool) -> tuple[list[tuple[int, int, int]]
             nodes = s.beam_nodes[i] if kind == 0 else s.truss_nodes[i]
             ends[(kind, i)] = (s.node_names[nodes[0]], s.node_names[nodes[1]])
     for kind, i, k in rigid_rows + gen_rows:
+        if kind == 2:
+            labels.append(f"{s.joint_names[i]}.{JOINT_COORDINATES[k]}")
+            continue
         labels.append(f"{index[(kind, i)]}.{deformation_label(k, *ends[(kind, i)])}")
     kinds = ["rigid"] * len(rigid_rows) + ["generalised"] * len(gen_rows)
     return rigid_rows + gen_rows, labels, kinds, len(rigid_rows)
@@ -311,6 +322,8 @@ def partition(s: Structure, kinematic: bool) -> tuple[list[tuple[int, int, int]]
 def split_label(s: Structure, row: tuple[int, int, int], label: str) -> tuple[str, str]:
     """(element label, deformation name) of a row label built by :func:`partition`."""
     kind, i, k = row
+    if kind == 2:
+        return s.joint_names[i], JOINT_COORDINATES[k]
     nodes = s.beam_nodes[i] if kind == 0 else s.truss_nodes[i]
     d = deformation_label(k, s.node_names[nodes[0]], s.node_names[nodes[1]])
     return label[: -len(d) - 1], d
@@ -372,9 +385,15 @@ def jacobian_rows(s: Structure, X: np.ndarray, R: np.ndarray, rows: list[tuple[i
         a = np.hstack([xn[p], r[p], xn[q], r[q], s.truss_const, np.zeros((len(p), 1))])
         out = np.asarray(compiled(truss_spec()[0])(a))
         De_t = out[:, 157:169]
+    De_j = None
+    if len(s.joint_nodes):
+        p, q = s.joint_nodes[:, 0], s.joint_nodes[:, 1]
+        a = np.hstack([xn[p], Rn[p].transpose(0, 2, 1).reshape(-1, 9), r[p], xn[q],
+                       Rn[q].transpose(0, 2, 1).reshape(-1, 9), r[q], s.joint_const, np.zeros((len(p), 6))])
+        De_j = np.asarray(compiled(joint_spec()[0])(a))[:, 162:234].reshape(-1, 12, 6)
     for i, (kind, el, k) in enumerate(rows):
-        nodes = s.beam_nodes[el] if kind == 0 else s.truss_nodes[el]
+        nodes = (s.beam_nodes, s.truss_nodes, s.joint_nodes)[kind][el]
         dofs = (6 * m[nodes][:, None] + blocks).ravel()
-        vals = De_b[el, :, k] if kind == 0 else De_t[el]
+        vals = De_b[el, :, k] if kind == 0 else (De_t[el] if kind == 1 else De_j[el, :, k])
         np.add.at(D[i], dofs, vals)
     return D

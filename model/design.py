@@ -148,6 +148,13 @@ def _check_scope(s: Structure) -> None:
         raise FlexoptError(f"design sensitivities cover beams with rectangular sections and rigid bodies "
                            f"without rigid deformations; in scene '{s.scene.name}' {what}: optimise a "
                            "family built from rectangular leaves and bodies")
+    from .loads import has_loads
+
+    if has_loads(s.scene):
+        # the loads' gradient changes with the design (gravity with each segment's mass, a force with its
+        # point's offset), which the implicit-function step below does not include yet
+        raise FlexoptError(f"design sensitivities do not include loads or gravity yet; scene '{s.scene.name}' has "
+                           "them: optimise without 'loads' and 'gravity', or check the design by frequency curves")
 
 
 def _segment_input(scene_dict: dict, ie: int, pos: dict, mats: dict) -> tuple[np.ndarray, float, str]:

@@ -40,7 +40,8 @@ import casadi as ca
 
 __all__ = ["KernelSpec", "beam_spec", "truss_spec", "BEAM_CONST", "TRUSS_CONST", "beam_input_jvp",
            "beam_segment_design", "beam_von_mises", "beam_von_mises_squared", "rotation_update_spec",
-           "rotation_log_spec", "beam_mass_spec", "beam_mass_jvp_spec", "HERMITE_MASS"]
+           "rotation_log_spec", "beam_mass_spec", "beam_mass_jvp_spec", "HERMITE_MASS", "point_load_spec",
+           "beam_gravity_spec", "POINT_LOAD_IN", "BEAM_GRAVITY_IN", "joint_spec", "JOINT_CONST"]
 
 # Layout of a beam's packed input vector.
 BEAM_STATE = 30  # xp(3) Rp(9, column-major) rp(3) xq(3) Rq(9) rq(3)
@@ -130,13 +131,15 @@ def _beam_energy(e: ca.SX, k: ca.SX, mask: ca.SX, lam: ca.SX) -> ca.SX:
 
 
 def _finish(name: str, a: ca.SX, d: ca.SX, v: ca.SX, L: ca.SX, e: ca.SX, n_def: int, n_state: int,
-            n_const: int) -> tuple[KernelSpec, KernelSpec]:
+            n_const: int, dense: bool = False) -> tuple[KernelSpec, KernelSpec]:
     g = ca.gradient(L, d)
     H = ca.jacobian(g, d)
     De = ca.jacobian(e, d)
     zero = ca.DM.zeros(12)
     out = ca.substitute(ca.vertcat(g, ca.vec(H), e, ca.vec(De)), d, zero)  # needed at d = 0 only
     dH = ca.substitute(ca.vec(ca.hessian(ca.jtimes(L, d, v), d)[0]), d, zero)
+    if dense:  # the batch wrapper writes nonzeros only: a kernel with structural zeros must be densified
+        out, dH = ca.densify(out), ca.densify(dH)
     f = ca.Function(name, [a], [out], ["a"], ["out"])
     av = ca.vertcat(a, v)
     f3 = ca.Function(name + "_d3", [av], [dH], ["a"], ["out"])
@@ -496,3 +499,93 @@ def beam_mass_jvp_spec() -> KernelSpec:
     da = ca.SX.sym("da", a.numel())
     f = ca.Function("flexopt_beam_mass_jvp", [ca.vertcat(a, da)], [ca.jtimes(ca.vec(M), a, da)])
     return KernelSpec("flexopt_beam_mass_jvp", f, 2 * BEAM_MASS_IN, 144, 6, BEAM_STATE, BEAM_CONST)
+
+
+# ----------------------------------------------------------------- external loads and gravity
+#: Input of :func:`point_load_spec`: the point's current offset from its master ``r`` (3) and the force (3).
+POINT_LOAD_IN = 6
+#: Input of :func:`beam_gravity_spec`: the beam's state (30) and constants (21), its mass and the gravity (3).
+BEAM_GRAVITY_IN = BEAM_STATE + BEAM_CONST + 4
+
+
+def _load_finish(name: str, a: ca.SX, d: ca.SX, V: ca.SX, n_in: int) -> KernelSpec:
+    """A load potential's gradient and Hessian at ``d = 0`` (``[g, H column-major]``) as a kernel."""
+    g = ca.gradient(V, d)
+    H = ca.jacobian(g, d)
+    out = ca.densify(ca.substitute(ca.vertcat(g, ca.vec(H)), d, ca.DM.zeros(d.numel())))  # dense: the batch wrapper writes every entry
+    f = ca.Function(name, [a], [out], ["a"], ["out"])
+    return KernelSpec(name, f, n_in, out.numel(), 0, n_in, 0)
+
+
+@lru_cache(maxsize=None)
+def point_load_spec() -> KernelSpec:
+    """A dead force ``F`` on a point carried by a master at offset ``r``: the potential ``V = -F . x(d)``
+    with ``x(d) = x* + u + (exp(psi) - I) r`` (the element chart, module docstring), so ``g = -[F, r x F]``
+    and the Hessian's rotation block is the load stiffness of the offset. Input ``[r (3), F (3)]``; output
+    ``[g (6), H (36, column-major)]`` over the master's ``(u, psi)``."""
+    a = ca.SX.sym("a", POINT_LOAD_IN)
+    d = ca.SX.sym("d", 6)
+    x, _ = _end(ca.SX.zeros(3), None, a[0:3], d[0:3], d[3:6])
+    return _load_finish("flexopt_point_load", a, d, -ca.dot(a[3:6], x), POINT_LOAD_IN)
+
+
+@lru_cache(maxsize=None)
+def beam_gravity_spec() -> KernelSpec:
+    """Gravity on a beam segment, consistent with its mass (:func:`beam_mass_spec`): the potential of the
+    weight of the cubic (Hermite) centre line, ``V = -m g . int_0^1 x(xi) dxi = -m g . (x_p / 2 + l0 t_p / 12
+    + x_q / 2 - l0 t_q / 12)`` (``int H1 = int H3 = 1/2``, ``int H2 = -int H4 = 1/12``; ``t`` the end tangents
+    ``R E0 e_x``), so a rotating end feels the moment ``m g l0 / 12`` of the clamped-beam load vector
+    (Przemieniecki 1968, ch. 5: ``w l^2 / 12``) and its stiffness. Input ``[state (30), const (21), m,
+    g (3)]``; output ``[g (12), H (144, column-major)]``."""
+    a = ca.SX.sym("a", BEAM_GRAVITY_IN)
+    d = ca.SX.sym("d", 12)
+    s, c = a[:BEAM_STATE], a[BEAM_STATE: BEAM_STATE + BEAM_CONST]
+    m, grav = a[BEAM_STATE + BEAM_CONST], a[BEAM_STATE + BEAM_CONST + 1:]
+    xp, Rp = _end(s[0:3], ca.reshape(s[3:12], 3, 3), s[12:15], d[0:3], d[3:6])
+    xq, Rq = _end(s[15:18], ca.reshape(s[18:27], 3, 3), s[27:30], d[6:9], d[9:12])
+    l0, E0 = c[0], ca.reshape(c[1:10], 3, 3)
+    tp, tq = Rp @ E0[:, 0], Rq @ E0[:, 0]
+    V = -m * ca.dot(grav, (xp + xq) / 2 + l0 * (tp - tq) / 12)
+    return _load_finish("flexopt_beam_gravity", a, d, V, BEAM_GRAVITY_IN)
+
+
+# ----------------------------------------------------------------- ideal joints (hinge, slider)
+#: Layout of a joint's constants: d0 (3, q's offset from p in p's node axes at the reference), B (9, column-major:
+#: the joint basis a, b1, b2 in node axes, a the joint axis), mask (6: 1 = free joint coordinate, 0 = rigid).
+JOINT_CONST = 18
+
+
+def _joint_coordinates(xp, Rp, xq, Rq, d0, B) -> ca.SX:
+    """Six joint coordinates, zero at the reference and invariant under rigid motions of the pair: the relative
+    position in p's joint basis ``B^T (Rp^T (xq - xp) - d0)`` (along a, b1, b2) and the relative rotation's
+    sines about a, b1, b2, e.g. ``((Rp b1).(Rq b2) - (Rp b2).(Rq b1)) / 2`` about a (the skew part of
+    ``(Rp B)^T Rq B``: exactly ``sin`` of a rotation of q relative to p about a; to first order the relative
+    rotation vector)."""
+    a, b1, b2 = B[:, 0], B[:, 1], B[:, 2]
+    d = B.T @ (Rp.T @ (xq - xp) - d0)
+    pa, p1, p2 = Rp @ a, Rp @ b1, Rp @ b2
+    qa, q1, q2 = Rq @ a, Rq @ b1, Rq @ b2
+    s_a = (ca.dot(p1, q2) - ca.dot(p2, q1)) / 2
+    s_1 = (ca.dot(p2, qa) - ca.dot(pa, q2)) / 2
+    s_2 = (ca.dot(pa, q1) - ca.dot(p1, qa)) / 2
+    return -ca.vertcat(-d, s_a, s_1, s_2)  # rotations of q relative to p: positive about a, b1, b2
+
+
+@lru_cache(maxsize=None)
+def joint_spec() -> tuple[KernelSpec, KernelSpec]:
+    """An ideal joint between two nodes: its rigid joint coordinates are exact constraints (multipliers), its
+    free ones carry no energy. A hinge (revolute) leaves the rotation about its axis free (mask ``[0, 0, 0, 1,
+    0, 0]``), a slider (prismatic) the translation along it (``[1, 0, 0, 0, 0, 0]``). Input ``[state (30, the
+    beam's layout), const (JOINT_CONST), lam (6)]``; output the beam kernel's layout ``[g (12), H (144), e (6),
+    De (72)]``, so assembly treats it as a beam whose deformations are the joint coordinates."""
+    a = ca.SX.sym("a", BEAM_STATE + JOINT_CONST + 6)
+    d = ca.SX.sym("d", 12)
+    v = ca.SX.sym("v", 12)
+    s, c = a[:BEAM_STATE], a[BEAM_STATE: BEAM_STATE + JOINT_CONST]
+    lam = a[BEAM_STATE + JOINT_CONST:]
+    xp, Rp = _end(s[0:3], ca.reshape(s[3:12], 3, 3), s[12:15], d[0:3], d[3:6])
+    xq, Rq = _end(s[15:18], ca.reshape(s[18:27], 3, 3), s[27:30], d[6:9], d[9:12])
+    e = _joint_coordinates(xp, Rp, xq, Rq, c[0:3], ca.reshape(c[3:12], 3, 3))
+    mask = c[12:18]
+    L = ca.dot(lam, (1 - mask) * e)
+    return _finish("flexopt_joint", a, d, v, L, e, 6, BEAM_STATE, JOINT_CONST, dense=True)

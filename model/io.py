@@ -11,7 +11,7 @@ from pydantic import ValidationError
 from .errors import SceneError
 from .scene import Scene, did_you_mean
 
-__all__ = ["scene_from_dict", "load_scene", "format_validation_error", "clean_errors"]
+__all__ = ["scene_from_dict", "load_scene", "load_dat", "format_validation_error", "clean_errors"]
 
 
 #: Tags of the scene's discriminated unions: pydantic puts the chosen tag into an error's location
@@ -24,7 +24,7 @@ def _field_names() -> list[str]:
     from . import scene as sc
 
     models = (sc.Material, sc.Node, sc.RectangularSection, sc.GeneralSection, sc.Beam, sc.Truss, sc.RigidBody,
-              sc.Support, sc.Stroke, sc.SupportDirections, sc.Units, sc.Scene)
+              sc.Support, sc.Stroke, sc.SupportDirections, sc.Units, sc.Load, sc.LoadRamp, sc.LoadTable, sc.Joint, sc.Scene)
     return sorted({f for m in models for f in m.model_fields})
 
 
@@ -76,16 +76,78 @@ def scene_from_dict(data: Any) -> Scene:
         raise SceneError("", format_validation_error(exc)) from None
 
 
+def load_dat(path: str | Path, name: str | None = None) -> tuple[Scene, Any]:
+    """Read a SPACAR ``.dat`` model (:func:`model.spacar.read_dat`), or SPACAR Light's four tables in a JSON or
+    YAML file (``nodes``, ``elements``, ``nprops``, ``eprops``, optional ``opt``; :func:`model.spacar.spacar_light`),
+    into a validated Scene and the import report (:class:`model.spacar.SpacarImport`: what was mapped, notes,
+    the node numbering, SPACAR's DOF count)."""
+    from .spacar import read_dat
+
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except OSError as exc:
+        raise SceneError("scene", f"cannot read SPACAR file '{p}': {exc.strerror}") from None
+    if p.suffix.lower() == ".dat":
+        imp = read_dat(text, name or p.stem)
+    else:
+        imp = _spacar_light(_tables(p, text), name or p.stem)
+    return scene_from_dict(imp.scene), imp
+
+
+def _tables(p: Path, text: str) -> Any:
+    """The parsed JSON or YAML (``.yaml``/``.yml``, with PyYAML) of a tables file."""
+    if p.suffix.lower() in (".yaml", ".yml"):
+        try:
+            import yaml
+        except ImportError:
+            raise SceneError("scene", f"'{p}' is YAML, which needs PyYAML (pip install pyyaml); or write it as "
+                             "JSON") from None
+        try:
+            return yaml.safe_load(text)
+        except yaml.YAMLError as exc:
+            raise SceneError("scene", f"'{p}' is not valid YAML: {exc}") from None
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise SceneError("scene", f"'{p}' is not valid JSON (line {exc.lineno}, column {exc.colno}: "
+                         f"{exc.msg})") from None
+
+
+def _spacar_light(data: Any, name: str) -> Any:
+    from .spacar import spacar_light
+
+    if not isinstance(data, dict) or not {"nodes", "elements", "eprops"} <= set(data):
+        raise SceneError("scene", "a SPACAR Light tables file has 'nodes', 'elements', 'nprops' and 'eprops' "
+                         "(and optionally 'opt')")
+    bad = sorted(set(data) - {"nodes", "elements", "nprops", "eprops", "opt", "name"})
+    if bad:
+        raise SceneError("scene", f"unknown SPACAR Light tables {bad}; the tables are nodes, elements, nprops, "
+                         "eprops, opt")
+    try:
+        return spacar_light(data["nodes"], data["elements"], data.get("nprops") or [], data["eprops"],
+                            data.get("opt"), data.get("name", name))
+    except (TypeError, ValueError) as exc:
+        if isinstance(exc, SceneError):
+            raise
+        raise SceneError("scene", f"malformed SPACAR Light tables: {exc}; nodes is n x 3 numbers, elements "
+                         "n x 2 node numbers, nprops and eprops lists of objects") from None
+
+
 def load_scene(path: str | Path) -> Scene:
-    """Read and validate a scene JSON file."""
+    """Read and validate a scene JSON file, or a SPACAR ``.dat`` model (:mod:`model.spacar`)."""
     p = Path(path)
     try:
         text = p.read_text()
     except OSError as exc:
         raise SceneError("scene", f"cannot read scene file '{p}': {exc.strerror}") from None
+    if p.suffix.lower() in (".dat", ".yaml", ".yml"):
+        return load_dat(p)[0]
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise SceneError("scene", f"'{p}' is not valid JSON (line {exc.lineno}, column {exc.colno}: "
                          f"{exc.msg})") from None
+    if isinstance(data, dict) and "eprops" in data:  # SPACAR Light's tables (model.spacar.spacar_light)
+        return scene_from_dict(_spacar_light(data, p.stem).scene)
     return scene_from_dict(data)

@@ -18,7 +18,14 @@ import math
 from typing import Annotated, Any, Literal, Union
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    field_validator,
+    model_serializer,
+    model_validator,
+)
 
 __all__ = [
     "SCENE_FORMAT",
@@ -38,6 +45,10 @@ __all__ = [
     "Stroke",
     "SupportDirections",
     "Units",
+    "Load",
+    "LoadRamp",
+    "LoadTable",
+    "Joint",
     "Scene",
     "expand_modes",
     "did_you_mean",
@@ -313,6 +324,106 @@ class Stroke(_Strict):
         return np.radians(s) if self.resolved_unit == "deg" else np.asarray(s, dtype=float)
 
 
+class Joint(_Strict):
+    """An ideal joint between two nodes (a kinematic pair, SPACAR's HINGE): ``hinge`` (revolute) leaves only the
+    rotation of ``nodes[1]`` relative to ``nodes[0]`` about ``axis`` free, ``slider`` (prismatic) only their
+    relative translation along ``axis``; the other five relative coordinates are exact constraints (rigid, with
+    multipliers; model.elements.joint_spec). The nodes usually coincide (a hinge's two sides); they must not
+    be carried by the same body. Joints have no mass and no stiffness."""
+
+    kind: Literal["hinge", "slider"] = "hinge"
+    name: Name
+    nodes: tuple[Name, Name] = Field(description="the two nodes the joint connects (p, q)")
+    axis: Vec3 = Field(description="joint axis in global axes at the reference (normalised internally)")
+
+    @model_validator(mode="after")
+    def _axis(self) -> "Joint":
+        if not np.linalg.norm(self.axis) > 0:
+            raise ValueError("axis is the zero vector; give the joint's axis, e.g. [0, 0, 1]")
+        if self.nodes[0] == self.nodes[1]:
+            raise ValueError(f"joint '{self.name}' connects node '{self.nodes[0]}' to itself; give two nodes "
+                             "(they may share a position)")
+        return self
+
+
+class LoadRamp(_Strict):
+    """A force varying linearly with the stroke: ``start`` at the stroke's first value, ``stop`` at its last
+    (extrapolated linearly beyond them, e.g. to stroke 0, where continuation starts)."""
+
+    start: Vec3 = Field(description="force at the stroke's first value [N]")
+    stop: Vec3 = Field(description="force at the stroke's last value [N]")
+
+
+class LoadTable(_Strict):
+    """A force given at stroke values (the stroke's unit), linear between them; the table must cover the
+    stroke range and stroke 0 (where continuation starts)."""
+
+    stroke: tuple[Real, ...] = Field(min_length=2, description="stroke values, increasing (stroke unit)")
+    force: tuple[Vec3, ...] = Field(min_length=2, description="force at each stroke value [N]")
+
+    @model_validator(mode="after")
+    def _consistent(self) -> LoadTable:
+        if len(self.stroke) != len(self.force):
+            raise ValueError(f"the table has {len(self.stroke)} stroke values and {len(self.force)} forces; "
+                             "give one force per stroke value")
+        if not all(b > a for a, b in zip(self.stroke[:-1], self.stroke[1:])):
+            raise ValueError("table stroke values must increase strictly; sort them")
+        return self
+
+
+class Load(_Strict):
+    """An external force on a node or a body (SPACAR's XF/DELXF), dead: its direction is fixed in space.
+
+    The force is either constant (``force``), a linear ramp over the stroke (``ramp``) or a table over the
+    stroke (``table``). It enters the total energy as the potential ``-F . x`` of its point of application
+    (for a body, ``point``; default its centre of mass), so statics, continuation and the eigen analysis
+    include its stiffness (model.loads).
+    """
+
+    name: Name | None = Field(None, description="optional label")
+    node: Name | None = Field(None, description="loaded node")
+    body: Name | None = Field(None, description="loaded body")
+    point: Vec3 | None = Field(None, description="point of application on the body at the reference "
+                               "configuration [m] (default: its centre of mass); body loads only")
+    force: Vec3 | None = Field(None, description="constant (dead) force [N], global axes")
+    ramp: LoadRamp | None = Field(None, description="force varying linearly with the stroke")
+    table: LoadTable | None = Field(None, description="force given per stroke value")
+
+    @model_validator(mode="after")
+    def _one(self) -> Load:
+        if (self.node is None) == (self.body is None):
+            raise ValueError("give exactly one of 'node' or 'body' as the loaded target")
+        if self.point is not None and self.body is None:
+            raise ValueError("'point' is for body loads; a node load acts at the node (remove 'point')")
+        given = [k for k in ("force", "ramp", "table") if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise ValueError(f"give exactly one of 'force', 'ramp' or 'table' (got {given or 'none'})")
+        return self
+
+    def value(self, stroke: float, first: float, last: float) -> np.ndarray:
+        """The force [N] at ``stroke`` (stroke unit) of a stroke running from ``first`` to ``last``."""
+        if self.force is not None:
+            return np.array(self.force, dtype=float)
+        if self.ramp is not None:
+            t = (stroke - first) / (last - first)
+            return (1.0 - t) * np.array(self.ramp.start) + t * np.array(self.ramp.stop)
+        assert self.table is not None
+        F = np.array(self.table.force, dtype=float)
+        return np.array([np.interp(stroke, self.table.stroke, F[:, k]) for k in range(3)])
+
+    def rate(self, stroke: float, first: float, last: float) -> np.ndarray:
+        """d force / d stroke [N per stroke unit] at ``stroke`` (the table's slope on the segment holding it)."""
+        if self.force is not None:
+            return np.zeros(3)
+        if self.ramp is not None:
+            return (np.array(self.ramp.stop) - np.array(self.ramp.start)) / (last - first)
+        assert self.table is not None
+        s = np.array(self.table.stroke)
+        F = np.array(self.table.force, dtype=float)
+        i = int(np.clip(np.searchsorted(s, stroke, side="right") - 1, 0, len(s) - 2))
+        return (F[i + 1] - F[i]) / (s[i + 1] - s[i])
+
+
 class SupportDirections(_Strict):
     """Directions that count as *support* (parasitic) motion, for labelling modes by participation.
 
@@ -385,11 +496,29 @@ class Scene(_Strict):
         "segments 'auto' (model.mesh)")
     support_directions: SupportDirections | None = None
     modes: int = Field(6, ge=1, le=50, description="number of modes reported per stroke point")
+    gravity: Vec3 | None = Field(
+        None, description="gravitational acceleration [m/s^2] acting on the mass of every element and body, "
+        "e.g. [0, 0, -9.81]; default none")
+    loads: tuple[Load, ...] = Field((), description="external forces on nodes or bodies (model.loads)")
+    joints: tuple[Joint, ...] = Field((), description="ideal joints (hinges, sliders) between nodes")
     units: Units | None = Field(
         None, exclude=True,
         description="units the numbers above are written in (default SI); converted to SI on reading, so the "
         "validated scene, its dumps and every result are SI",
     )
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler: Any) -> Any:
+        # gravity and loads are left out of a dump when absent, so a scene without them dumps (and hashes,
+        # model.checks.scene_hash) exactly as before they existed
+        out = handler(self)
+        if isinstance(out, dict):
+            if out.get("gravity", 0) is None:
+                out.pop("gravity")
+            for key in ("loads", "joints"):
+                if key in out and not out[key]:
+                    out.pop(key)
+        return out
 
     @model_validator(mode="before")
     @classmethod
@@ -450,6 +579,8 @@ class _ReferenceCheck:
             self.check_element(i, e)
         self.check_supports()
         self.check_stroke()
+        self.check_loads()
+        self.check_joints()
         return self.out
 
     def check_bodies(self) -> None:
@@ -554,6 +685,37 @@ class _ReferenceCheck:
                 errors.append(
                     f"stroke.body: body '{st.body}' is grounded by a support; drive a moving body instead"
                 )
+
+    def check_joints(self) -> None:
+        names = {e.name for e in self.scene.elements}
+        for i, j in enumerate(self.scene.joints):
+            for n in j.nodes:
+                if n not in self.nodes:
+                    self.out.append(f"joints[{i}].nodes: {self.unknown('node', n)}")
+            if j.name in names:
+                self.out.append(f"joints[{i}].name: '{j.name}' is also an element's name; names must be unique")
+            names.add(j.name)
+            a, b = (self.carrier.get(n) for n in j.nodes)
+            if a is not None and a == b:
+                self.out.append(f"joints[{i}].nodes: both nodes of joint '{j.name}' are carried by body '{a}', "
+                                "which holds them rigidly; join nodes of different parts")
+
+    def check_loads(self) -> None:
+        st = self.scene.stroke
+        for i, ld in enumerate(self.scene.loads):
+            if ld.node is not None and ld.node not in self.nodes:
+                self.out.append(f"loads[{i}].node: {self.unknown('node', ld.node)}")
+            if ld.body is not None and ld.body not in self.bodies:
+                self.out.append(f"loads[{i}].body: {self.unknown('body', ld.body)}")
+            if ld.table is not None and st is not None:
+                lo, hi = sorted((0.0, *(float(v) for v in st.values()[[0, -1]])))[::2]
+                if ld.table.stroke[0] > lo or ld.table.stroke[-1] < hi:
+                    self.out.append(
+                        f"loads[{i}].table.stroke: the table covers {ld.table.stroke[0]:g} to "
+                        f"{ld.table.stroke[-1]:g} but the analysis visits {lo:g} to {hi:g} (the stroke range "
+                        "and 0, where continuation starts); extend the table")
+            if (ld.ramp is not None or ld.table is not None) and st is None:
+                self.out.append(f"loads[{i}]: a ramp or table load needs a stroke; give a constant 'force'")
 
 
 def did_you_mean(name: str, choices: list[str] | tuple[str, ...]) -> str:

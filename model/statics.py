@@ -29,7 +29,7 @@ from .assembly import Assembled, State, System
 from .kernels import c_enum
 from .lapack import routines
 
-__all__ = ["NewtonOptions", "Equilibrium", "solve_point", "StepFailure", "path_curvature"]
+__all__ = ["NewtonOptions", "Equilibrium", "solve_point", "StepFailure", "path_curvature", "reference_equilibrium"]
 
 
 @dataclass(frozen=True)
@@ -76,12 +76,23 @@ class StepFailure(Exception):
     """Newton did not converge from a predictor (internal; continuation halves the step)."""
 
 
-def _scaled_residual(sys: System, ev: Assembled, dval: float, s_target: float) -> float:
-    """Largest Jacobi-scaled residual: |g_i| / (|H_ii| l_i), the drive mismatch and rigid deformations."""
+def _scaled_residual(sys: System, ev: Assembled, dval: float, s_target: float, lam: np.ndarray | None = None
+                     ) -> float:
+    """Largest Jacobi-scaled residual: |g_i| / (|H_ii| l_i), the drive mismatch and rigid deformations.
+
+    With loads (model.loads) the denominator is ``|H_ii| l_i + |p_i| + sum_k |G_ki lam_k|``, ``p`` the loads'
+    part of ``g`` and ``lam`` the multipliers: a load carried by rigid deformations (a column whose
+    elongation is rigid: ``H_ii`` along its axis only geometric) balances to the rounding of the forces that
+    meet at the DOF, not of ``|H_ii| l_i``."""
     free = sys.free
     diag = np.abs(ev.H.diagonal()[free])
     dscale = np.maximum(diag, 1e-12 * max(diag.max(initial=0.0), 1e-300))
-    res = float(np.max(np.abs(ev.g[free]) / (dscale * sys.scale_free), initial=0.0))
+    den = dscale * sys.scale_free
+    if ev.g_load is not None:
+        den = den + np.abs(ev.g_load[free])
+        if lam is not None and len(lam):
+            den = den + (np.abs(lam) @ np.abs(ev.G))[free]
+    res = float(np.max(np.abs(ev.g[free]) / den, initial=0.0))
     res = max(res, abs(dval - s_target) / sys.scale[sys.drive])
     if sys.n_con:
         res = max(res, float(np.max(np.abs(ev.c))) / sys.s.length_scale)
@@ -119,6 +130,8 @@ def _newton_step(sys: System, ev: Assembled, dd: np.ndarray, rhs_drive: float) -
         rhs = np.empty((len(f), 2), order="F")
         rhs[:, 0] = -ev.g[f] - Afd * dxd
         rhs[:, 1] = -Afd / dd_d
+        if ev.dg_ds is not None:  # loads given per stroke point (model.loads): H t = -dg/ds
+            rhs[:, 1] -= ev.dg_ds[f]
         if len(f) == 0:
             sol = rhs
         else:  # LAPACK directly (model.linalg): scipy's wrappers cost more than a 60-DOF factorisation
@@ -141,6 +154,8 @@ def _newton_step(sys: System, ev: Assembled, dd: np.ndarray, rhs_drive: float) -
     b[len(f), 0] = -rhs_drive
     b[len(f) + 1 :, 0] = -ev.c
     b[len(f), 1] = 1.0
+    if ev.dg_ds is not None:
+        b[: len(f), 1] = -ev.dg_ds[f]
     sol, info = _solve(J, b)
     if info > 0:
         raise np.linalg.LinAlgError(f"singular Newton matrix (LAPACK dgesv info {info})")
@@ -353,6 +368,8 @@ def solve_point(
     StepFailure
         If the iteration diverges, produces non-finite numbers or exceeds ``max_iter``.
     """
+    if sys.loads is not None:
+        sys.load_stroke = s_target  # loads given per stroke point take their value there (model.loads)
     pl = _point_loop(sys, opts)
     if pl is not None:  # the whole loop below in one C call (model/native/newton_point.c), the same numbers
         X = np.ascontiguousarray(start.X, dtype=np.float64)
@@ -378,7 +395,7 @@ def solve_point(
             except np.linalg.LinAlgError as exc:
                 raise StepFailure(f"singular tangent ({exc})") from exc
             inc = float(np.max(np.abs(dxi / sys.scale))) if sys.n else 0.0
-            res = _scaled_residual(sys, ev, dval, s_target)
+            res = _scaled_residual(sys, ev, dval, s_target, st.lam)
         if not np.isfinite(inc):
             raise StepFailure("non-finite increment")
         stalled = bool(incs) and inc > 0.25 * incs[-1]
@@ -423,6 +440,57 @@ def _pbsv(ab: np.ndarray, b: np.ndarray) -> np.ndarray | None:
     fn(b"U", ctypes.byref(n_), ctypes.byref(kd_), ctypes.byref(one), A.ctypes.data, ctypes.byref(ldab),
        x.ctypes.data, ctypes.byref(n_), ctypes.byref(info))
     return x if info.value == 0 else None
+
+
+def reference_equilibrium(sys: System, opts: NewtonOptions) -> Equilibrium:
+    """The equilibrium at stroke 0 from the reference configuration.
+
+    Without loads the reference is stress-free and this is one Newton solve. With loads or gravity
+    (model.loads) the loads are raised from 0 to their value at stroke 0 (``System.load_scale`` 0 -> 1),
+    each step from the last converged state with its tangent ``d xi / d scale = -H_ff^-1 g_load`` as
+    predictor (the derivative of ``g_f = 0`` in the load scale, the drive held), halving a step that Newton
+    cannot finish (SPACAR's ITERSTEP load steps, with step control). Raises :class:`StepFailure` when a
+    step falls below ``2^-max_halvings`` of the range: a limit load (e.g. the loads exceed a buckling or
+    snap-through load).
+    """
+    if sys.loads is None:
+        return solve_point(sys, sys.reference_state(), 0.0, opts, 0.0)
+    sys.load_scale = 1.0
+    try:  # most loads need no steps: Newton straight from the reference
+        return solve_point(sys, sys.reference_state(), 0.0, opts, 0.0)
+    except StepFailure:
+        pass
+    lam, h, halvings = 0.0, 0.25, 0
+    sys.load_scale = 0.0
+    cur = solve_point(sys, sys.reference_state(), 0.0, opts, 0.0)
+    try:
+        while lam < 1.0:
+            step = min(h, 1.0 - lam)
+            f = sys.free
+            sys.load_scale = 1.0  # the loads' gradient at scale 1 minus the elastic part: g_load
+            g1 = sys.evaluate(cur.state).g
+            sys.load_scale = lam
+            g0 = sys.evaluate(cur.state).g
+            dg = (g1 - g0) / (1.0 - lam)  # g is affine in the scale: exact
+            xi = np.zeros(sys.n)
+            try:
+                xi[f] = np.linalg.solve(sys.free_block(cur.ev.H), -dg[f]) * step
+            except np.linalg.LinAlgError:
+                xi[:] = 0.0
+            sys.load_scale = lam + step
+            try:
+                cur = solve_point(sys, sys.update(cur.state, xi), 0.0, opts, 0.0)
+                lam += step
+                h = min(2 * h, 0.25)
+            except StepFailure as exc:
+                halvings += 1
+                h /= 2
+                if halvings > opts.max_halvings:
+                    raise StepFailure(f"the loads could not be applied beyond {lam:.4g} of their value at stroke "
+                                      f"0 ({exc}): a limit load (buckling or snap-through under the loads)") from exc
+    finally:
+        sys.load_scale = 1.0
+    return cur
 
 
 def path_curvature(sys: System, eq: Equilibrium) -> np.ndarray:
@@ -516,7 +584,7 @@ def walk(sys: System, targets: np.ndarray, opts: NewtonOptions, accept,
     ``accept(eq)`` is called at each target and returns ``None`` to go on, or a :class:`WalkFailure` to
     stop (e.g. the equilibrium became unstable). Returns the failure, or ``None`` when all converged.
     """
-    cur = start if start is not None else solve_point(sys, sys.reference_state(), 0.0, opts, 0.0)
+    cur = start if start is not None else reference_equilibrium(sys, opts)
     prev: Equilibrium | None = None
     for s_t in targets:
         h = s_t - cur.stroke

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .elements import BEAM_CONST, TRUSS_CONST
+from .elements import BEAM_CONST, JOINT_CONST, TRUSS_CONST
 from .errors import ModelSizeError, SceneError
 from .scene import AUTO_START, Beam, Scene, Truss, expand_modes
 from .sections import beam_segment, section_properties
@@ -58,7 +58,7 @@ class Structure:
     node_rot_inertia: np.ndarray  # (nn, 3, 3) rotary inertia lumped at nodes, global axes at reference
     master_mass: np.ndarray  # (nm,) rigid-body mass at the master (bodies only)
     master_inertia: np.ndarray  # (nm, 3, 3) rigid-body inertia about the master (bodies), reference axes
-    # rigid deformations (constraints): (kind 0 beam / 1 truss, element index, deformation index)
+    # rigid deformations (constraints): (kind 0 beam / 1 truss / 2 joint, element index, deformation index)
     constraints: np.ndarray  # (nr, 3) int
     # drive
     drive_master: int
@@ -69,6 +69,10 @@ class Structure:
     support_projector: np.ndarray | None  # (6, 6) projector on support directions of a master block
     member_names: tuple[str, ...] = field(default=())
     warping: tuple[str, ...] = field(default=())  # per member: the torsion assumption used
+    # ideal joints (scene.joints): kernel constants (model.elements.joint_spec) and their rigid coordinates
+    joint_nodes: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=int))  # (nj, 2)
+    joint_const: np.ndarray = field(default_factory=lambda: np.zeros((0, JOINT_CONST)))  # (nj, JOINT_CONST)
+    joint_names: tuple[str, ...] = field(default=())
 
     @property
     def n_dof(self) -> int:
@@ -193,6 +197,8 @@ def _elements(scene: Scene, mesh: _Mesh, pos0: dict[str, np.ndarray], carrier: d
     truss_rows: list[dict] = []
     used = set(carrier)
     warping: list[str] = []
+    for j in scene.joints:
+        used.update(j.nodes)
     for ie, el in enumerate(scene.elements):
         used.update(el.nodes)
         if isinstance(el, Truss):
@@ -275,15 +281,34 @@ def _support_projector(scene: Scene) -> np.ndarray | None:
     return projector
 
 
-def _constraints(beam_rows: list[dict], truss_rows: list[dict]) -> np.ndarray:
-    """(nr, 3) rigid deformations: (kind 0 beam / 1 truss, element index, deformation index)."""
+def _constraints(beam_rows: list[dict], truss_rows: list[dict], joint_const: np.ndarray) -> np.ndarray:
+    """(nr, 3) rigid deformations: (kind 0 beam / 1 truss / 2 joint, element index, deformation index)."""
     cons: list[tuple[int, int, int]] = []
     for i, r in enumerate(beam_rows):
         cons += [(0, i, k) for k in range(6) if r["mask"][k] == 0.0]
     for i, r in enumerate(truss_rows):
         if r["mask"] == 0.0:
             cons.append((1, i, 0))
+    for i, c in enumerate(joint_const):
+        cons += [(2, i, k) for k in range(6) if c[12 + k] == 0.0]
     return np.array(cons, dtype=int).reshape(-1, 3)
+
+
+def _joints(scene: Scene, node_index: dict[str, int], pos0: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Joint node pairs (nj, 2) and kernel constants (nj, JOINT_CONST): ``d0`` (q's offset from p; node axes are
+    the global ones at the reference), the joint basis ``[a, b1, b2]`` (column-major) and the mask of free
+    coordinates (hinge: the rotation about a; slider: the translation along a)."""
+    nodes, const = [], []
+    for j in scene.joints:
+        p, q = j.nodes
+        a = _unit(j.axis)
+        B = _basis(a)
+        mask = np.zeros(6)
+        mask[3 if j.kind == "hinge" else 0] = 1.0
+        nodes.append((node_index[p], node_index[q]))
+        const.append(np.concatenate([pos0[q] - pos0[p], B.ravel(order="F"), mask]))
+    nj = len(nodes)
+    return np.array(nodes, dtype=int).reshape(nj, 2), np.array(const, dtype=float).reshape(nj, JOINT_CONST)
 
 
 def _element_tables(beam_rows: list[dict], truss_rows: list[dict]) -> dict[str, np.ndarray]:
@@ -338,6 +363,8 @@ def compile_scene(scene: Scene) -> Structure:
         for a_ in r["nodes"]:
             node_rot[a_] += r["rot"]
             rot_used[node_master_a[a_]] = True
+    joint_nodes, joint_const = _joints(scene, {n: i for i, n in enumerate(mesh.node_names)}, pos0)
+    rot_used[node_master_a[joint_nodes.ravel()]] = True  # a joint's coordinates involve both nodes' rotations
     master_mass = np.zeros(nm)
     master_inertia = np.zeros((nm, 3, 3))
     for i, b in enumerate(scene.bodies):
@@ -366,7 +393,7 @@ def compile_scene(scene: Scene) -> Structure:
         node_rot_inertia=node_rot,
         master_mass=master_mass,
         master_inertia=master_inertia,
-        constraints=_constraints(beam_rows, truss_rows),
+        constraints=_constraints(beam_rows, truss_rows, joint_const),
         drive_master=drive_master,
         drive_kind=drive_kind,
         drive_axis=axis,
@@ -375,4 +402,7 @@ def compile_scene(scene: Scene) -> Structure:
         support_projector=_support_projector(scene),
         member_names=tuple(e.name for e in scene.elements),
         warping=tuple(warping),
+        joint_nodes=joint_nodes,
+        joint_const=joint_const,
+        joint_names=tuple(j.name for j in scene.joints),
     )

@@ -115,8 +115,9 @@ def scene_to_si(data: dict[str, Any]) -> dict[str, Any]:
     Converted: materials (E, G, allowable_stress: stress; density), node positions, bodies (mass,
     center_of_mass, inertia = mass length^2), beam sections (rectangle width and thickness; general A
     [length^2], Iy, Iz, J [length^4], cy, cz [length], torsion_stress_factor [1/length^3]), truss areas and
-    the start and stop of a translation stroke. Angles, counts and directions are unit-free. Malformed parts
-    are copied unchanged for the schema to report. The block itself is kept (the Scene excludes it from
+    the start and stop of a translation stroke, gravity (length / s^2) and loads (forces: force; points:
+    length; a table's stroke values with a translation stroke: length). Angles, counts and directions are
+    unit-free. Malformed parts are copied unchanged for the schema to report. The block itself is kept (the Scene excludes it from
     dumps, so a dumped scene is plain SI). Raises :class:`UnitsError` for a bad unit string.
     """
     units = data.get("units")
@@ -158,9 +159,23 @@ def scene_to_si(data: dict[str, Any]) -> dict[str, Any]:
             _scale(sec, "cz", L)
             _scale(sec, "torsion_stress_factor", L**-3)
     st = out.get("stroke")
-    if isinstance(st, dict) and st.get("kind") == "translation":
+    translation = isinstance(st, dict) and st.get("kind") == "translation"
+    if translation:
         _scale(st, "start", L)
         _scale(st, "stop", L)
+    if isinstance(out.get("gravity"), (list, tuple)):
+        _scale(out, "gravity", L)  # length / s^2
+    F = f["force"]
+    for load in each("loads"):
+        _scale(load, "force", F)
+        _scale(load, "point", L)
+        if isinstance(load.get("ramp"), dict):
+            _scale(load["ramp"], "start", F)
+            _scale(load["ramp"], "stop", F)
+        if isinstance(load.get("table"), dict):
+            _scale(load["table"], "force", F)
+            if translation:
+                _scale(load["table"], "stroke", L)
     return out
 
 

@@ -151,6 +151,45 @@ class FrequencyCurveOut(_Wire):
                                           "deflected configuration per stroke point}")
 
 
+class SpacarImportRequest(_Wire):
+    """A SPACAR ``.dat`` model as text (model.spacar: what is mapped, and every line that is not, is an error)."""
+
+    text: str = Field(max_length=2_000_000, description="the .dat file's contents")
+    name: str = Field("spacar", max_length=100, description="name of the scene made from it")
+
+
+class SpacarImportResult(_Wire):
+    """The scene made from a ``.dat`` model and what the importer did."""
+
+    scene: dict[str, Any] = Field(description="the scene (SI), ready for /v1/frequency-curve or /v1/diagnosis")
+    mapped: dict[str, int] = Field(description="lines mapped, per keyword")
+    notes: list[str] = Field(description="what was read in a way worth knowing (conversions, defaults, left-outs)")
+    numbering: str = Field(description="how the file's X and R node numbers pair up")
+    spacar_dof: int = Field(description="SPACAR's degrees of freedom: inputs and dynamic (DYNE) deformations")
+
+
+class SpacarExportRequest(_Wire):
+    """A scene to write as a SPACAR ``.dat`` model."""
+
+    scene: SceneDocument
+    numbering: Literal[2, 3] = Field(2, description="SPACAR nodes per point: 2 (X 2i-1, R 2i) or 3 (X 3i-2, R 3i-1)")
+
+
+class StateSpaceRequest(_Wire):
+    """A scene, a stroke point, inputs and outputs for the linearised model (model.linear)."""
+
+    scene: SceneDocument
+    at_stroke: FiniteFloat = Field(0.0, description="stroke value (stroke unit)")
+    inputs: list[str] = Field(min_length=1, max_length=50, description="forces or moments on nodes or bodies, "
+                              "e.g. ['tip.fz', 'stage.my'] (fx fy fz mx my mz, global axes)")
+    outputs: list[str] = Field(min_length=1, max_length=50, description="positions, rotations or rates, e.g. "
+                               "['tip.z', 'tip.ry', 'tip.vz'] (x y z rx ry rz vx vy vz wx wy wz)")
+    damping: float = Field(0.01, ge=0, lt=1, description="modal damping ratio of every mode")
+    modes: int | None = Field(None, ge=1, le=3000, description="keep the lowest N modes (default all)")
+    frequencies_hz: list[FiniteFloat] | None = Field(None, max_length=2000,
+                                                    description="frequencies of a frequency response (Bode) table")
+
+
 class DiagnosisRequest(_Wire):
     """A scene to diagnose, at the reference or at a stroke value."""
 

@@ -187,3 +187,39 @@ CONSTRAINT_COUNTS: dict[str, tuple[int, int, str]] = {
     "R:+-|-+": (0, 2, "hand count: each pivot stage fixes 5 of its body's 6 motions with 1 self-stress; the "
                 "intermediate body's rotation about the axis is the series arrangement's intended motion"),
 }
+
+
+# ----------------------------------------------------------------- loads and gravity (issue 28, item 1)
+def elastica_tip(alpha2: float) -> tuple[float, float, float]:
+    """Tip of a cantilever under a dead end force perpendicular to its undeformed axis (Bisshopp and Drucker,
+    Quart. Appl. Math. 3 (1945) 272-275): ``(x/L, delta/L, tip angle [rad])`` for ``alpha^2 = P L^2 / EI``.
+
+    With ``2 k^2 = 1 + sin(theta_L)`` and ``sin(phi1) = 1 / (k sqrt 2)``: ``alpha = K(k) - F(phi1, k)``,
+    ``delta / L = 1 - (2 / alpha) (E(k) - E(phi1, k))``, ``x / L = sqrt(2 sin theta_L) / alpha`` (the first
+    integral ``EI theta'^2 / 2 = P (sin theta_L - sin theta)``). Elliptic integrals from scipy.special."""
+    import numpy as np
+    from scipy.optimize import brentq
+    from scipy.special import ellipe, ellipeinc, ellipk, ellipkinc
+
+    alpha = math.sqrt(alpha2)
+
+    def phi1(k: float) -> float:
+        return math.asin(1.0 / (k * math.sqrt(2.0)))
+
+    k = brentq(lambda k: ellipk(k * k) - ellipkinc(phi1(k), k * k) - alpha, 1 / math.sqrt(2) + 1e-14, 1 - 1e-14,
+               xtol=1e-15, rtol=4 * np.finfo(float).eps)
+    sin_tip = 2 * k * k - 1
+    x = math.sqrt(2 * sin_tip) / alpha
+    delta = 1 - 2 / alpha * (ellipe(k * k) - ellipeinc(phi1(k), k * k))
+    return x, delta, math.asin(sin_tip)
+
+
+def tensioned_cantilever_stiffness(T: float, EI: float, L: float) -> float:
+    """Lateral tip stiffness of a cantilever under axial tension ``T`` with a free tip rotation: from ``EI w''''
+    - T w'' = 0`` with ``w(0) = w'(0) = 0``, ``w''(L) = 0``, ``EI w''' - T w' = -F`` at the tip,
+    ``k = T / (L - tanh(lam L) / lam)``, ``lam = sqrt(T / EI)`` (Timoshenko and Gere, Theory of Elastic
+    Stability, sec. 1.11, beam-column with tension); ``3 EI / L^3`` at ``T = 0``."""
+    if T == 0.0:
+        return 3 * EI / L**3
+    lam = math.sqrt(T / EI)
+    return T / (L - math.tanh(lam * L) / lam)

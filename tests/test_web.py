@@ -375,3 +375,35 @@ def test_topology_search_from_the_page_shows_ranking_with_thumbnails(url: str, b
     page.locator("section", has=table).screenshot(path=str(shots / "web_topology.png"))
     assert page.evaluate("() => window.__csp") == [], "the page's Content-Security-Policy blocked something"
     page.close()
+
+
+def test_spacar_model_loads_from_the_page(url: str, browser: object) -> None:
+    """A SPACAR .dat model chosen as the scene file is imported by the server (/v1/scenes/import) and
+    diagnosed: the twelve-truss structure of seed 002 has one free motion and one self-stress."""
+    page = browser.new_page(viewport={"width": 1400, "height": 1200})
+    page.goto(f"{url}/")
+    page.wait_for_function("() => document.querySelectorAll('#template option').length > 0")
+    page.set_input_files("#scene-file", str(Path(__file__).parent / "data" / "spacar" / "truss12.dat"))
+    page.wait_for_function("() => window.flexopt.fileScene && window.flexopt.fileScene.name === 'truss12'")
+    assert "using SPACAR model truss12.dat" in page.locator("#scene-note").inner_text()
+    page.get_by_test_id("diagnose").click()
+    page.get_by_test_id("diagnosis-3d").wait_for(timeout=30_000)
+    text = page.get_by_test_id("diagnosis").inner_text()
+    assert "1 free motion(s), 1 self-stress(es)" in text, text[:300]
+    page.close()
+
+
+def test_state_space_panel_draws_a_bode_plot(url: str, browser: object) -> None:
+    """The linearised-model panel posts to /v1/state-space and draws the frequency response; its static gain
+    is the seed leaf's clamped-guided tip compliance L^3 / (12 EI) (tests/test_linear.py checks the number)."""
+    page = browser.new_page(viewport={"width": 1400, "height": 1200})
+    page.goto(f"{url}/")
+    page.wait_for_function("() => document.querySelectorAll('#template option').length > 0")
+    page.get_by_test_id("statespace").click()
+    page.wait_for_function("() => window.flexopt.stateSpace !== undefined", timeout=60_000)
+    gain = page.evaluate("() => window.flexopt.stateSpace.static_gain[0][0]")
+    L, EI = 0.1, 210e9 * 0.04 * 0.0005**3 / 12
+    assert gain == pytest.approx(L**3 / (12 * EI), rel=1e-9)
+    assert "static gain" in page.get_by_test_id("ss-note").inner_text()
+    assert page.locator("#bode .main-svg").count() > 0
+    page.close()

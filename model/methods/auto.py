@@ -62,6 +62,16 @@ def _frequency_curve(an: MeshAnalysis, method: str, tolerance: float, stroke: np
     values = np.asarray(spec.values() if stroke is None else stroke, dtype=float)
     if method == "exact":
         return an.frequency_curve(values)
+    if an.system.loads is not None:
+        # the fast methods expand about a stress-free reference at stroke 0 (model.methods.taylor, hermite's
+        # first step); under loads or gravity it is not stress-free, so only the exact curve applies
+        if method == "auto":
+            curve = an.frequency_curve(values)
+            return replace(curve, solver={**curve.solver, "auto_method": "exact", "auto_estimate": 0.0,
+                                          "auto_tolerance": tolerance,
+                                          "auto_rejected": "fast methods (the scene has loads or gravity)"})
+        raise FlexoptError(f"method '{method}' expands about a stress-free reference, but scene '{an.scene.name}' "
+                           "has loads or gravity: use method 'exact' or 'auto'")
     if method == "hermite":
         return hermite_frequency_curve(an, values, tolerance)[0]
     if method == "auto":

@@ -36,12 +36,24 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     from ...model.diagnosis import diagnose
     from .scene_args import scene_from_args
 
-    scene = scene_from_args(args)
+    imported = None
+    if args.scene is not None and str(args.scene).lower().endswith(".dat"):  # a SPACAR model: its own counts too
+        from ...model.io import load_dat
+
+        scene, imported = load_dat(args.scene)
+    else:
+        scene = scene_from_args(args)
     diag = diagnose(scene, at_stroke=args.at_stroke, kinematic=args.kinematic)
     if args.json:
-        print(json.dumps(diag.to_dict(), indent=2))
+        out = diag.to_dict()
+        if imported is not None:
+            out["spacar_dof"] = imported.spacar_dof
+        print(json.dumps(out, indent=2))
     else:
         print(diag.report())
+        if imported is not None:
+            print(f"SPACAR degrees of freedom (inputs and dynamic deformations, as its log counts them): "
+                  f"{imported.spacar_dof}")
     if args.plot:
         plot_diagnosis(scene, diag, args.plot)
         print(f"plot written to {args.plot}", file=sys.stderr)

@@ -218,6 +218,29 @@ def diagnosis(spec: str) -> Outcome:
         return broken(exc, s["scene"])
 
 
+def state_space(spec: str) -> Outcome:
+    """The linearised model (model.linear) of ``{"scene", "at_stroke", "inputs", "outputs", "damping", "modes",
+    "frequencies_hz"}`` as JSON bytes: the matrices, the static gain and, if asked, the frequency response."""
+    from ...model.errors import FlexoptError
+    from ...model.linear import frequency_response
+    from ...model.linear import state_space as linearise
+    from ...model.scene import Scene
+
+    s = json.loads(spec)
+    try:
+        ss = linearise(Scene.model_validate(s["scene"]), s["at_stroke"], s["inputs"], s["outputs"], s["damping"],
+                       s["modes"])
+        out = {**ss.to_dict(), "static_gain": ss.static_gain().tolist()}
+        if s.get("frequencies_hz"):
+            mag, ph = frequency_response(ss, s["frequencies_hz"])
+            out["bode"] = {"frequency_hz": s["frequencies_hz"], "magnitude": mag.tolist(), "phase_deg": ph.tolist()}
+        return True, json.dumps(finite(out), allow_nan=False).encode()
+    except FlexoptError as exc:
+        return _model_error(exc, s["scene"])
+    except Exception as exc:  # noqa: BLE001 - overflow, zero division, a failed solve: named, never a 500
+        return broken(exc, s["scene"])
+
+
 def warm_up() -> None:
     """Import the model in a fresh worker process (so the first request does not pay for it) and limit the
     process to one BLAS thread (model.threads)."""

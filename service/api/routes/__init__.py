@@ -7,6 +7,7 @@
 ``optimisations``   ``/optimisations`` (jobs)
 ``topology``        ``/topology-searches`` (jobs)
 ``modes``           ``/modes``
+``scenes``          ``/scenes/import``, ``/scenes/export`` (SPACAR .dat)
 ==================  =====================================================================
 
 Adding a resource: a module with a ``router(prefix)`` returning an ``APIRouter`` under that prefix (the
@@ -21,13 +22,13 @@ from fastapi import APIRouter, Depends
 from ..errors import ERRORS
 from ..guards import key_checker
 from ..settings import Settings
-from . import curves, diagnosis, modes, optimisations, templates, topology
+from . import curves, diagnosis, modes, optimisations, scenes, templates, topology
 
 __all__ = ["PREFIX", "RESOURCES", "router"]
 
 PREFIX = "/v1"
 #: the resource modules, in the order their routes are matched
-RESOURCES = (templates, curves, diagnosis, optimisations, topology, modes)
+RESOURCES = (templates, curves, diagnosis, optimisations, topology, modes, scenes)
 
 
 def router(settings: Settings) -> APIRouter:

@@ -834,10 +834,20 @@ async function init() {
   $("scene-file").onchange = async (ev) => {
     const f = ev.target.files[0];
     if (!f) return;
+    if (/\.dat$/i.test(f.name)) { // a SPACAR model: the server maps it (every unmappable line is an error with its number)
+      try {
+        const imp = await api("POST", "/v1/scenes/import", { text: await f.text(), name: f.name.replace(/\.dat$/i, "") });
+        state.fileScene = imp.scene;
+        $("scene-note").textContent = `using SPACAR model ${f.name} (node numbering ${imp.numbering}; SPACAR degrees of ` +
+          `freedom ${imp.spacar_dof}${imp.notes.length ? "; " + imp.notes.join("; ") : ""})`;
+      } catch (e) { status(`${f.name}: ${e.message}`, true); }
+      return;
+    }
     try { state.fileScene = JSON.parse(await f.text()); $("scene-note").textContent = `using scene file ${f.name} (${state.fileScene.name || "unnamed"})`; }
     catch (e) { status(`${f.name} is not valid JSON: ${e.message}`, true); }
   };
   $("compute").onclick = () => computeCurve().catch(() => {});
+  $("statespace").onclick = () => runStateSpace().catch(() => {});
   $("diagnose").onclick = () => runDiagnosis().catch(() => {});
   $("logf").onchange = () => { if (state.curve) drawCurve(state.curve, state.scene); };
   $("amp").oninput = () => {};
@@ -847,6 +857,36 @@ async function init() {
   $("cancel-opt").onclick = async () => { if (state.job) renderJob(await api("DELETE", `/v1/optimisations/${state.job.id}`)); };
   await initTopology();
   if (q.get("template")) await computeCurve();
+}
+
+// ------------------------------------------------------------------------------------- state space
+async function runStateSpace() {
+  const f = [];
+  for (let k = 0; k <= 120; ++k) f.push(10 ** (-1 + k * 5 / 120)); // 0.1 Hz .. 10 kHz, log spaced
+  const num = (id) => { const v = $(id).value.trim(); return v !== "" && Number.isFinite(Number(v)) ? Number(v) : v; };
+  let ss;
+  try {
+    ss = await busy("state-space model", async () => {
+      const scene = await currentScene();
+      return api("POST", "/v1/state-space", { scene, at_stroke: num("ss-stroke"), inputs: [$("ss-input").value.trim()],
+        outputs: [$("ss-output").value.trim()], damping: num("ss-damping"), frequencies_hz: f });
+    });
+  } catch (e) {
+    $("ss-note").textContent = `no model: ${e.message}`;
+    throw e;
+  }
+  state.stateSpace = ss;
+  const mag = ss.bode.magnitude.map((m) => m[0][0]);
+  const phase = ss.bode.phase_deg.map((p) => p[0][0]);
+  $("ss-note").textContent = `${ss.A.length} states (${ss.frequencies_hz.length} modes, damping ${ss.damping}); ` +
+    `static gain ${(+ss.static_gain[0][0]).toPrecision(4)}; lowest modes ` +
+    ss.frequencies_hz.slice(0, 4).map((h) => `${(+h).toPrecision(4)} Hz`).join(", ");
+  Plotly.newPlot("bode", [
+    { x: ss.bode.frequency_hz, y: mag, name: "magnitude", type: "scatter", mode: "lines" },
+    { x: ss.bode.frequency_hz, y: phase, name: "phase [deg]", type: "scatter", mode: "lines", yaxis: "y2" },
+  ], { margin: { t: 10 }, xaxis: { type: "log", title: "frequency [Hz]" }, yaxis: { type: "log", title: `|${ss.outputs[0]} / ${ss.inputs[0]}|` },
+    yaxis2: { overlaying: "y", side: "right", title: "phase [deg]" } }, { responsive: true, displaylogo: false });
+  return ss;
 }
 
 init().catch((e) => status(`could not start: ${e.message}`, true));

@@ -1,0 +1,263 @@
+"""Loads and gravity (issue 28, item 1): statics, continuation and eigen analysis against closed forms."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from flexopt.model.curve import Analysis
+from flexopt.model.errors import FlexoptError, SceneError
+from flexopt.model.io import scene_from_dict
+from flexopt.model.methods import curve_with_method
+from flexopt.model.statics import reference_equilibrium
+
+from .references import elastica_tip, tensioned_cantilever_stiffness
+
+E, G = 210e9, 79e9
+
+
+def _beam_scene(L: float, w: float, t: float, n: int, *, axis=(1, 0, 0), supports, stroke, density=7800.0,
+                bodies=(), loads=(), gravity=None, rigid=(), modes=2) -> dict:
+    return {
+        "name": "loaded",
+        "materials": [{"name": "steel", "E": E, "G": G, "density": density, "allowable_stress": 1e9}],
+        "nodes": [{"name": "A", "position": [0, 0, 0]}, {"name": "B", "position": list(L * np.array(axis))}],
+        "bodies": list(bodies),
+        "elements": [{"kind": "beam", "name": "leaf", "nodes": ["A", "B"], "material": "steel",
+                      "section": {"kind": "rectangular", "width": w, "thickness": t}, "y_axis": [0, 1, 0],
+                      "segments": n, "rigid": list(rigid)}],
+        "supports": supports, "stroke": stroke, "loads": list(loads), "gravity": gravity, "modes": modes,
+    }
+
+
+# --------------------------------------------------------------------------------- elastica
+L_E, W_E, T_E = 0.1, 0.01, 0.0005
+EI_E = E * W_E * T_E**3 / 12
+
+
+def _elastica(P: float, n: int, **extra) -> dict:
+    # clamped at A: x, y, z, rx, rz supported and ry held by the drive (rotation about y at stroke 0), so the
+    # drive reaction is the root's bending moment
+    return _beam_scene(L_E, W_E, T_E, n, supports=[{"node": "A", "dofs": ["x", "y", "z", "rx", "rz"]}],
+                       stroke={"kind": "rotation", "node": "A", "axis": [0, 1, 0], "start": -1, "stop": 1,
+                               "points": 3}, **extra, loads=[{"node": "B", "force": [0, 0, -P]}])
+
+
+def _tip(P: float, n: int):
+    an = Analysis(scene_from_dict(_elastica(P, n)))
+    eq = reference_equilibrium(an.system, an.options)
+    return eq.state.X[an.structure.master_names.index("B")], eq.drive_reaction
+
+
+def test_elastica_tip_force_large_deflection():
+    """A cantilever under a dead tip force at alpha^2 = P L^2 / EI = 3 (tip angle 56.5 deg) against Bisshopp
+    and Drucker's elliptic-integral solution (tests/references.py: elastica_tip). Meshes of 10 and 20
+    elements and their Richardson extrapolation (the beam converges at O(h^2), PHYSICS.md): the 20-element
+    tip is within 1e-3 of the closed form (measured 3.7e-4 in x, 5.4e-4 in delta), the extrapolation within
+    1e-4 (measured 1e-5; the test fails unless the error falls at second order towards the closed form). The drive reaction (the root moment)
+    with the load applied is the load's moment about the root, -P x_tip (statics of the whole leaf), to the
+    Newton tolerance."""
+    P = 3.0 * EI_E / L_E**2
+    x_ref, d_ref, _ = elastica_tip(3.0)
+    (x10, _, z10), _ = _tip(P, 10)
+    (x20, _, z20), m20 = _tip(P, 20)
+    for got, ref, what in ((x20 / L_E, x_ref, "x/L"), (-z20 / L_E, d_ref, "delta/L")):
+        assert abs(got - ref) <= 1e-3 * ref, f"20 elements: {what} {got:.7f}, Bisshopp-Drucker {ref:.7f}"
+    xr, dr = (4 * x20 - x10) / 3 / L_E, -(4 * z20 - z10) / 3 / L_E
+    assert abs(xr - x_ref) <= 1e-4 * x_ref, f"Richardson x/L {xr:.7f}, Bisshopp-Drucker {x_ref:.7f}"
+    assert abs(dr - d_ref) <= 1e-4 * d_ref, f"Richardson delta/L {dr:.7f}, Bisshopp-Drucker {d_ref:.7f}"
+    assert m20 == pytest.approx(-P * x20, rel=1e-8), "root moment with the load applied: -P x_tip"
+
+
+def test_gravity_on_a_cantilever_is_the_uniform_load_deflection():
+    """A cantilever under its own weight, small deflection: tip deflection q L^4 / (8 EI), q = rho A g
+    (Euler-Bernoulli, Roark Table 8.1 case 2a). Cubic elements with the consistent load vector
+    (model.elements.beam_gravity_spec) give the exact nodal deflection of the linear problem; the tolerance
+    1e-5 is the geometric nonlinearity at delta/L ~ 1e-3 (relative effect of order (delta/L)^2) plus margin."""
+    g = 9.81
+    scene = _beam_scene(L_E, W_E, T_E, 4, supports=[{"node": "A", "dofs": ["x", "y", "z", "rx", "rz"]}],
+                        stroke={"kind": "rotation", "node": "A", "axis": [0, 1, 0], "start": -1, "stop": 1,
+                                "points": 3}, gravity=[0, 0, -g])
+    an = Analysis(scene_from_dict(scene))
+    eq = reference_equilibrium(an.system, an.options)
+    z = eq.state.X[an.structure.master_names.index("B")][2]
+    q = 7800.0 * W_E * T_E * g
+    ref = q * L_E**4 / (8 * EI_E)
+    assert -z == pytest.approx(ref, rel=1e-5), f"tip deflection {-z:.6g}, q L^4 / 8EI = {ref:.6g}"
+    # the root moment is the weight's moment about the root, -q L^2 / 2 (to the deflection's share)
+    assert eq.drive_reaction == pytest.approx(-q * L_E**2 / 2, rel=1e-5)
+
+
+# ------------------------------------------------------------------------------------- Euler column
+L_C, W_C, T_C = 0.2, 0.01, 0.002
+P_CR = math.pi**2 * E * (W_C * T_C**3 / 12) / L_C**2  # Euler load of a pinned-pinned column
+
+
+def _column(P: float) -> dict:
+    # pinned-pinned along x: A holds x, y, z (twist held by the drive about x), B holds y, z; inextensible
+    # (rigid elongation), as the closed form assumes
+    return _beam_scene(L_C, W_C, T_C, 10, rigid=["elongation"],
+                       supports=[{"node": "A", "dofs": ["x", "y", "z"]}, {"node": "B", "dofs": ["y", "z"]}],
+                       stroke={"kind": "rotation", "node": "A", "axis": [1, 0, 0], "start": -1, "stop": 1,
+                               "points": 3}, loads=[{"node": "B", "force": [-P, 0, 0]}])
+
+
+def test_column_frequency_falls_to_zero_at_the_euler_load():
+    """A pinned-pinned column under a dead axial load: omega^2(P) / omega^2(0) = 1 - P / P_cr with P_cr =
+    pi^2 EI / L^2 (the buckling and vibration modes are the same sine; exact also with rotary inertia:
+    omega^2 = (EI k^4 - P k^2) / (rho A (1 + r^2 k^2))). 10 elements: the ratio's discretisation error is
+    1.3e-5 at 0.95 P_cr and falls at fourth order (8e-7 with 20), hence 2e-5. Past P_cr the straight column
+    is unstable: the curve stops at stroke 0."""
+    f0 = Analysis(scene_from_dict(_column(0.0))).frequency_curve(np.array([0.0]), mesh_error=False).modes_hz[0, 0]
+    for frac in (0.25, 0.5, 0.75, 0.95):
+        c = Analysis(scene_from_dict(_column(frac * P_CR))).frequency_curve(np.array([0.0]), mesh_error=False)
+        ratio = (c.modes_hz[0, 0] / f0) ** 2
+        assert abs(ratio - (1 - frac)) <= 2e-5, f"P = {frac} P_cr: omega^2 ratio {ratio:.7f}, 1 - P/P_cr {1 - frac}"
+    c = Analysis(scene_from_dict(_column(1.05 * P_CR))).frequency_curve(np.array([0.0, 0.5]), mesh_error=False)
+    assert c.status == "truncated" and c.failures[0].reason == "unstable"
+
+
+# ---------------------------------------------------------------------------------------- pendulum
+L_P, W_P, T_P, M_P = 0.05, 0.01, 0.0002, 0.05
+
+
+def _pendulum(g: float) -> dict:
+    # a leaf hanging from A along -z with a bob of mass M_P (no rotary inertia) at its tip; the leaf's
+    # density 1 kg/m^3 makes its mass 1e-5 of the bob's (the closed form has a massless leaf)
+    return _beam_scene(L_P, W_P, T_P, 10, axis=(0, 0, -1), density=1.0,
+                       bodies=[{"name": "bob", "mass": M_P, "center_of_mass": [0, 0, -L_P], "nodes": ["B"]}],
+                       supports=[{"node": "A", "dofs": ["x", "y", "z", "rx", "ry"]}],
+                       stroke={"kind": "rotation", "node": "A", "axis": [0, 0, 1], "start": -1, "stop": 1,
+                               "points": 3}, gravity=[0, 0, -g])
+
+
+@pytest.mark.parametrize("g", [0.0, 9.81, 100.0])
+def test_hanging_flexure_frequency_rises_with_gravity(g):
+    """A bob hanging on a leaf: omega^2 = k / m with k the lateral stiffness of a cantilever under the
+    bob's weight as tension (tests/references.py: tensioned_cantilever_stiffness; 4.13 Hz at g = 0, 4.79 Hz
+    at 9.81, 8.71 Hz at 100 m/s^2). Tolerance 2e-5: the closed form neglects the leaf's stretch under the
+    tension (T / EA = 1.2e-5 at 100 m/s^2) and its mass (1e-5 of the bob's); measured 2e-7 to 7e-6."""
+    ref = math.sqrt(tensioned_cantilever_stiffness(M_P * g, E * W_P * T_P**3 / 12, L_P) / M_P) / (2 * math.pi)
+    c = Analysis(scene_from_dict(_pendulum(g))).frequency_curve(np.array([0.0]), mesh_error=False)
+    assert c.modes_hz[0, 0] == pytest.approx(ref, rel=2e-5)
+
+
+# ----------------------------------------------------------------------------- loads along the stroke
+def _driven(load: dict, points=5) -> dict:
+    # the seed-like leaf driven by an end rotation about y at B (A clamped), with a load on B
+    return _beam_scene(L_E, 0.01, 0.0005, 6, supports=[{"node": "A"}],
+                       stroke={"kind": "rotation", "node": "B", "axis": [0, 1, 0], "start": 0, "stop": 20,
+                               "points": points}, loads=[{"node": "B", **load}], modes=3)
+
+
+def test_a_ramp_is_the_constant_load_at_each_stroke_point():
+    """A force ramped along the stroke gives, at the last stroke point, the frequencies and drive reaction
+    of the same scene with that force constant (an independent solve: different continuation history).
+    Tolerance 1e-8: both are converged equilibria of the same equations (Newton tolerance 1e-9)."""
+    ramp = Analysis(scene_from_dict(_driven({"ramp": {"start": [0, 0, -0.5], "stop": [3.0, 0, -2.0]}})))
+    c_ramp = ramp.frequency_curve(mesh_error=False)
+    const = Analysis(scene_from_dict(_driven({"force": [3.0, 0, -2.0]}, points=3)))
+    c_const = const.frequency_curve(np.array([0.0, 10.0, 20.0]), mesh_error=False)
+    np.testing.assert_allclose(c_ramp.modes_hz[-1], c_const.modes_hz[-1], rtol=1e-8)
+    assert c_ramp.drive_reaction[-1] == pytest.approx(c_const.drive_reaction[-1], rel=1e-8)
+    # and the table form of the same ramp gives the same curve
+    table = {"stroke": [0.0, 20.0], "force": [[0, 0, -0.5], [3.0, 0, -2.0]]}
+    c_table = Analysis(scene_from_dict(_driven({"table": table}))).frequency_curve(mesh_error=False)
+    np.testing.assert_allclose(c_table.modes_hz, c_ramp.modes_hz, rtol=1e-8)
+
+
+def test_path_tangent_includes_the_load_rate():
+    """The continuation tangent d xi / d s with a ramped load equals the central difference of the
+    equilibria at s +- h (finite differences in tests only; h = 1e-4 rad: truncation ~h^2 ~ 1e-8, rounding
+    1e-9 / h ~ 1e-5 of a tangent of order 1, hence 1e-4 relative to the tangent's largest entry)."""
+    an = Analysis(scene_from_dict(_driven({"ramp": {"start": [0, 0, -0.5], "stop": [3.0, 0, -2.0]}})))
+    sys, opts = an.system, an.options
+    from flexopt.model.statics import solve_point
+
+    eq0 = reference_equilibrium(sys, opts)
+    s, h = 0.1, 1e-4
+    eq = solve_point(sys, eq0.state, s, opts, 0.0)
+    plus = solve_point(sys, eq.state, s + h, opts, s)
+    minus = solve_point(sys, eq.state, s - h, opts, s)
+    fd = (sys.difference(plus.state, eq.state) - sys.difference(minus.state, eq.state)) / (2 * h)
+    scale = np.abs(eq.tangent).max()
+    assert np.abs(eq.tangent - fd).max() <= 1e-4 * scale
+
+
+def test_load_gradient_is_the_energy_gradient():
+    """The loads' gradient (point load on a body's offset point, gravity on beams and bodies) is the gradient
+    of the total energy including their potential (central differences along each DOF's chart direction,
+    h = 1e-6 of its scale: agreement to 1e-6 of the largest entry)."""
+    scene = _pendulum(9.81)
+    scene["loads"] = [{"body": "bob", "point": [0.01, 0.0, -L_P], "force": [0.3, -0.2, 0.1]}]
+    scene["gravity"] = [0.5, 0.2, -9.81]
+    an = Analysis(scene_from_dict(scene))
+    sys = an.system
+    rng = np.random.default_rng(0)
+    st = sys.update(sys.reference_state(), 1e-3 * rng.standard_normal(sys.n) * sys.scale)
+    g = sys.evaluate(st).g
+    fd = np.zeros(sys.n)
+    for i in range(sys.n):
+        e = np.zeros(sys.n)
+        e[i] = 1e-6 * sys.scale[i]
+        fd[i] = (sys.energy(sys.update(st, e)) - sys.energy(sys.update(st, -e))) / (2 * e[i])
+    assert np.abs(g - fd).max() <= 1e-6 * np.abs(g).max()
+
+
+# ------------------------------------------------------------------------------------ input and methods
+@pytest.mark.parametrize("load, words", [
+    ({"node": "Q", "force": [1, 0, 0]}, "loads[0].node: unknown node 'Q'"),
+    ({"node": "B", "force": [1, 0, 0], "ramp": {"start": [0, 0, 0], "stop": [1, 0, 0]}}, "exactly one of 'force'"),
+    ({"node": "B", "point": [0, 0, 0], "force": [1, 0, 0]}, "'point' is for body loads"),
+    ({"node": "B", "table": {"stroke": [5, 20], "force": [[0, 0, 0], [1, 0, 0]]}}, "extend the table"),
+    ({"node": "B", "table": {"stroke": [0, 10, 20], "force": [[0, 0, 0], [1, 0, 0]]}}, "one force per stroke value"),
+])
+def test_bad_loads_are_one_line_naming_the_field(load, words):
+    scene = _driven({"force": [0, 0, 0]})
+    scene["loads"] = [load]
+    with pytest.raises(SceneError) as info:
+        scene_from_dict(scene)
+    assert words in str(info.value)
+
+
+def test_units_block_converts_loads_and_gravity():
+    """A scene in mm with a force unit of kN: forces x 1000, gravity in mm/s^2 x 1e-3, points x 1e-3."""
+    scene = _pendulum(9.81)
+    scene["loads"] = [{"body": "bob", "point": [10.0, 0.0, -50.0], "force": [0.001, 0, 0]}]
+    scene["gravity"] = [0, 0, -9810.0]
+    scene["units"] = {"length": "mm", "force": "kN"}
+    for n in scene["nodes"]:
+        n["position"] = [1000 * v for v in n["position"]]
+    scene["bodies"][0]["center_of_mass"] = [0, 0, -50.0]
+    scene["elements"][0]["section"] = {"kind": "rectangular", "width": 10.0, "thickness": 0.2}
+    scene["materials"][0].update(E=210e3 * 1e-3, G=79e3 * 1e-3, allowable_stress=1.0, density=1e-9)
+    s = scene_from_dict(scene)
+    assert s.gravity == pytest.approx((0, 0, -9.81))
+    assert s.loads[0].force == pytest.approx((1.0, 0, 0)) and s.loads[0].point == pytest.approx((0.01, 0, -0.05))
+
+
+def test_fast_methods_refuse_a_loaded_scene_and_auto_runs_exact():
+    an = Analysis(scene_from_dict(_pendulum(9.81)))
+    with pytest.raises(FlexoptError, match="loads or gravity"):
+        curve_with_method(an, "fd2", stroke=np.array([0.0, 0.5]))
+    c = curve_with_method(an, "auto", stroke=np.array([0.0, 0.5]))
+    assert c.solver["auto_method"] == "exact"
+
+
+def test_design_sensitivities_refuse_loads():
+    from flexopt.model.design import _check_scope
+
+    an = Analysis(scene_from_dict(_pendulum(9.81)))
+    with pytest.raises(FlexoptError, match="do not include loads or gravity"):
+        _check_scope(an.structure)
+
+
+def test_stress_includes_the_load():
+    """A small tip force (alpha^2 = 1e-4): the root's von Mises bound is the bending stress P L (t/2) / Iy
+    (Euler-Bernoulli; the cubic elements carry the linear moment exactly); tolerance 1e-3 for the geometric
+    nonlinearity (relative effect of order alpha^2) and the axial term's share (N/A, about 1e-4 here)."""
+    P = 1e-4 * EI_E / L_E**2
+    c = Analysis(scene_from_dict(_elastica(P, 4))).frequency_curve(np.array([0.0]), mesh_error=False)
+    Iy = W_E * T_E**3 / 12
+    assert c.max_von_mises["leaf"][0] == pytest.approx(P * L_E * (T_E / 2) / Iy, rel=1e-3)
