@@ -192,7 +192,7 @@ def test_server_lifespan_limits_the_process() -> None:
         from flexopt.service.api.settings import Settings
 
         app = create_app(Settings(data_dir=tempfile.mkdtemp()))
-        with TestClient(app) as client:
+        with TestClient(app, base_url="http://localhost") as client:  # a Host the allow-list accepts
             during = counts()
             env = os.environ.get("OPENBLAS_NUM_THREADS")
             scene = template("leaf-spring", points=3, segments=2).model_dump(mode="json")

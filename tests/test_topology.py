@@ -4,6 +4,7 @@ filter and the search restricted to one family against that family's own optimum
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -124,7 +125,8 @@ def test_filter_on_seed_002_guides(name: str) -> None:
     assert r["status"] == ("rejected" if free else "accepted")
     if name == "folded-sheet-guide-5a":
         # the free motion: the cylinder turns about the axis normal to the two parallel fold lines' plane
-        assert r["free_motions"][0].startswith("cylinder rotates about (+0, +1, +0)"), r["free_motions"]
+        # an axis has no sign: the mode's sign is fixed by its largest entry, which the mesh decides
+        assert re.match(r"cylinder rotates about \(\+0, [+-]1, \+0\)", r["free_motions"][0]), r["free_motions"]
         assert r["reason"].startswith("underconstrained: 1 free motion: cylinder")
 
 
