@@ -139,6 +139,12 @@ class Runtime:
         from ..jobs.store import JobStore
 
         s = self.settings
+        # The server validates scenes, checks costs and checks optimisation problems itself: load the model and
+        # the optimiser's search (scipy.optimize) before the first request does, so that a first request does
+        # not pay seconds of imports (the model used to load at the first /health, which read the method names
+        # from it).
+        worker.warm_up()
+        from ...optim import search  # noqa: F401 - guards.check_problem's import
         self.jobs = JobStore(s.job_store_url(), s.data_dir, s.lease_seconds)
         if s.executor == "process":
             self._new_pool()
