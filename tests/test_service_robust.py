@@ -204,3 +204,16 @@ def test_openapi_describes_the_service() -> None:
     refs = set(re.findall(r'"#/components/schemas/([^"]+)"', json.dumps(doc)))
     assert refs <= set(doc["components"]["schemas"]), f"unresolvable: {refs - set(doc['components']['schemas'])}"
     assert set(doc["components"]["schemas"]["ProblemDetails"]["properties"]) >= {"detail", "errors", "status"}
+
+
+def test_a_scene_without_stroke_is_422_naming_the_stroke(url: str) -> None:
+    """Issue 29, item 1: truss12 (stroke: null, a scene for the diagnosis) gave a 500 on /frequency-curve and
+    /modes (the cost check read the scene's stroke points)."""
+    scene = _scene(url, "truss12")
+    assert scene["stroke"] is None
+    for path, body in (("/v1/frequency-curve", {"scene": scene}), ("/v1/modes", {"scene": scene})):
+        r = httpx.post(f"{url}{path}", json=body)
+        assert r.status_code == 422, (path, r.text)
+        assert "has no stroke" in r.json()["detail"], (path, r.json())
+        assert ["body", "scene", "stroke"] in [e["loc"] for e in r.json()["errors"]], (path, r.json())
+    assert httpx.post(f"{url}/v1/diagnosis", json={"scene": scene}).status_code == 200  # what it is for

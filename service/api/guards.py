@@ -104,8 +104,12 @@ class TooCostly(Exception):
 def check_cost(scene: Any, stroke: list[float] | None, settings: Settings) -> None:
     """422 for more stroke points than allowed, :class:`TooCostly` for a computation estimated to exceed
     ``max_cost``."""
-    points, loc = (len(stroke), ("body", "stroke")) if stroke is not None else (
-        scene.stroke.points, ("body", "scene", "stroke", "points"))
+    if stroke is not None:
+        points, loc = len(stroke), ("body", "stroke")
+    elif scene.stroke is not None:
+        points, loc = scene.stroke.points, ("body", "scene", "stroke", "points")
+    else:  # no stroke (a scene for the diagnosis only): the model names the field (422), costed as one point
+        points, loc = 1, ("body", "scene", "stroke")
     if not 1 <= points <= settings.max_stroke_points:
         raise RequestValidationError([{"loc": loc, "type": "value_error",
                                        "msg": f"{points} stroke points; give 1 to {settings.max_stroke_points}"}])
