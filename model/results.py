@@ -69,7 +69,7 @@ class FrequencyCurve:
     status: str  # "complete" | "truncated"
     failures: tuple[Failure, ...] = ()
     conventions: dict[str, str] = field(default_factory=dict)
-    solver: dict[str, float] = field(default_factory=dict)
+    solver: dict[str, float | str] = field(default_factory=dict)  # numbers, and notes (auto_method, mirrored)
     warnings: tuple[ResultWarning, ...] = ()
     mesh_error: float | None = None  # estimated relative discretisation error of parasitic_hz, if estimated
     provenance: dict = field(default_factory=dict)  # flexopt version, scene hash, method, solver settings

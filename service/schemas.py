@@ -142,7 +142,10 @@ class FrequencyCurveOut(_Wire):
     status: Literal["complete", "truncated"]
     failures: list[FailureOut]
     conventions: dict[str, str]
-    solver: dict[str, float]
+    solver: dict[str, float | int | str | bool | None] = Field(
+        description="how the curve was computed: numbers (seconds, tolerances, exact points, estimates; null for "
+                    "NaN) and notes (auto_method: the method auto chose; auto_rejected; mirrored: which half of the "
+                    "stroke was mirrored by symmetry)")
     warnings: list[WarningOut] = Field(default_factory=list, description="limits broken, validity, mesh, units")
     mesh_error: float | None = Field(None, description="estimated relative discretisation error of parasitic_hz")
     provenance: dict[str, Any] = Field(default_factory=dict, description="flexopt version, scene hash, method, "

@@ -115,6 +115,7 @@ def curve(spec: str) -> Outcome:
     from ...model import Analysis
     from ...model.errors import FlexoptError
     from ...model.scene import Scene
+    from ..schemas import FrequencyCurveOut
 
     s = json.loads(spec)
     shapes = None
@@ -136,11 +137,14 @@ def curve(spec: str) -> Outcome:
         out = result.to_dict()
         if shapes is not None:
             out["shapes"] = shapes
-        return True, json.dumps(finite(out), allow_nan=False).encode()
     except FlexoptError as exc:
         return _model_error(exc, s["scene"])
     except Exception as exc:  # noqa: BLE001 - overflow, zero division, a failed solve: named, never a 500
         return broken(exc, s["scene"])
+    # through the wire model the client validates with (schemas.FrequencyCurveOut), so that server and client
+    # cannot disagree on the shape of a curve (a mismatch is the server's bug: raised, never blamed on the scene)
+    wire = FrequencyCurveOut.model_validate(finite(out)).model_dump(mode="json", exclude_unset=True)
+    return True, json.dumps(wire, allow_nan=False).encode()
 
 
 def _configurations(an: Any, stroke: Any) -> dict:
