@@ -140,11 +140,10 @@ class Runtime:
 
         s = self.settings
         # The server validates scenes, checks costs and checks optimisation problems itself: load the model and
-        # the optimiser's search (scipy.optimize) before the first request does, so that a first request does
-        # not pay seconds of imports (the model used to load at the first /health, which read the method names
-        # from it).
-        worker.warm_up()
-        from ...optim import search  # noqa: F401 - guards.check_problem's import
+        # the optimiser's search (scipy.optimize) in the background from the start, so that the first request
+        # does not pay all of those seconds of imports (the model used to load at the first /health, which read
+        # the method names from it), while the server starts answering at once.
+        threading.Thread(target=_warm_up, daemon=True, name="flexopt-warm-up").start()
         self.jobs = JobStore(s.job_store_url(), s.data_dir, s.lease_seconds)
         if s.executor == "process":
             self._new_pool()
@@ -186,6 +185,15 @@ class Runtime:
             self.pool.shutdown(wait=True)  # the pool's manager sees its workers gone and frees its queues
             self.pool = None
         self.cache.clear()
+
+
+def _warm_up() -> None:
+    """Import what the routes' guards use (the model, optim.search); a failure here is the request's to report."""
+    try:
+        worker.warm_up()
+        from ...optim import search  # noqa: F401 - guards.check_problem's import
+    except Exception:  # noqa: BLE001 - the request that needs the import raises it again, with its context
+        log.warning("warm-up import failed", exc_info=True)
 
 
 def runtime(request: Request) -> Runtime:
