@@ -323,7 +323,7 @@ class MeshAnalysis:
         if sym is not None:
             points, failures = self._mirrored(sym, internal, points, failures)
         curve = self._curve_record(points, failures, iters, sym if np.any(internal < 0) else None,
-                                   time.perf_counter() - t0)
+                                   time.perf_counter() - t0, dict(zip(internal.tolist(), values.tolist())))
         return curve, {k: p.parasitic for k, p in solved.items()}
 
     def _reference(self) -> tuple[Equilibrium, Modes]:
@@ -404,9 +404,13 @@ class MeshAnalysis:
         return []
 
     def _curve_record(self, points: dict[float, "_Point"], failures: list[Failure], iters: list[int],
-                      sym: StrokeSymmetry | None, seconds: float) -> FrequencyCurve:
+                      sym: StrokeSymmetry | None, seconds: float,
+                      asked: dict[float, float] | None = None) -> FrequencyCurve:
         """The :class:`FrequencyCurve` of the solved ``points`` (internal strokes, both sides), before its
-        checks; ``sym`` the symmetry that mirrored negative strokes, if it did."""
+        checks; ``sym`` the symmetry that mirrored negative strokes, if it did. ``asked``: internal stroke ->
+        the value requested in the stroke unit; a requested point is reported as requested (-30.0, not
+        -29.999999999999996 from deg -> rad -> deg), a point the walk added (where equilibrium was lost) is
+        converted."""
         s = self.structure
         spec = s.scene.stroke
         keys = sorted(points)
@@ -418,7 +422,7 @@ class MeshAnalysis:
         return FrequencyCurve(
             scene=s.scene.name,
             method="exact",
-            stroke=np.asarray(to_unit(np.array(keys)), dtype=float),
+            stroke=np.array([asked[k] if asked and k in asked else float(to_unit(k)) for k in keys], dtype=float),
             stroke_unit=spec.resolved_unit,
             stroke_kind=spec.kind,
             modes_hz=np.array([p.hz[:k] for p in pts]).reshape(len(pts), k),

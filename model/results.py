@@ -122,17 +122,21 @@ class FrequencyCurve:
         return buf.getvalue()
 
     def table(self) -> str:
-        """A readable fixed-width table (SI; stroke in its unit), then failures and warnings as ``#`` lines."""
+        """A readable fixed-width table (SI; stroke in its unit), after a ``#`` line naming the scene and the
+        method that ran, then failures and warnings as ``#`` lines."""
         k = self.modes_hz.shape[1]
+        ran = self.solver.get("auto_method")
+        method = f"method '{ran}' (chosen by auto)" if ran else f"method '{self.method}'"
+        reaction = f"reaction [{self.drive_reaction_unit}]"
         head = f"{'stroke [' + self.stroke_unit + ']':>14} {'parasitic Hz':>13} " + " ".join(
-            f"{'mode ' + str(i + 1):>10}" for i in range(k)) + f" {'reaction':>11} {'max VM [MPa]':>13}"
-        lines = [head]
+            f"{'mode ' + str(i + 1):>10}" for i in range(k)) + f" {reaction:>14} {'max VM [MPa]':>13}"
+        lines = [f"# scene '{self.scene}', {method}; modes by frequency at stroke 0, tracked along the stroke", head]
         for i in range(len(self.stroke)):
             vm = max((v[i] for v in self.max_von_mises.values()), default=float("nan"))
             lines.append(
                 f"{self.stroke[i]:14.4f} {self.parasitic_hz[i]:13.4f} "
                 + " ".join(f"{v:10.3f}" for v in self.modes_hz[i])
-                + f" {self.drive_reaction[i]:11.4g} {vm / 1e6:13.3f}"
+                + f" {self.drive_reaction[i]:14.4g} {vm / 1e6:13.3f}"
             )
         for f in self.failures:
             lines.append(f"# truncated: {f.message}")

@@ -21,9 +21,24 @@ __all__ = ["main"]
 COMMANDS = (template, curve, diagnose, modes, statespace, serve, optimise, topology, spacar)
 
 
+class _Version(argparse.Action):
+    """``--version``: the installed package's version, looked up only when asked (importlib.metadata costs
+    about 35 ms)."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, **kw: object) -> None:
+        super().__init__(option_strings, dest, nargs=0, help="print flexopt's version and exit")
+
+    def __call__(self, parser: argparse.ArgumentParser, *_: object) -> None:
+        import flexopt
+
+        print(f"flexopt {flexopt.__version__}")
+        parser.exit()
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="flexopt", description="Large-stroke flexure design: frequency curves "
                                 "over the stroke of SPACAR-style flexure models.")
+    p.add_argument("--version", action=_Version)
     sub = p.add_subparsers(dest="command", required=True)
     for command in COMMANDS:
         command.add_parser(sub)

@@ -43,13 +43,17 @@ def _scene(args: argparse.Namespace) -> Any:
 def _table(d: dict) -> str:
     import numpy as np
 
-    lines = [f"scene '{d['scene']}' at stroke {d['stroke']:.6g} {d['stroke_unit']} "
-             f"(drive reaction {d['drive_reaction']:.4g})",
+    unit = "N m" if d["stroke_kind"] == "rotation" else "N"
+    reaction = "not computed" if d["drive_reaction"] is None else f"{d['drive_reaction']:.4g} {unit}"
+    lines = [f"scene '{d['scene']}' at stroke {d['stroke']:.6g} {d['stroke_unit']} (drive reaction {reaction}); "
+             "modes by frequency, numbered as --mode takes them",
              f"{'mode':>4} {'Hz':>11} {'label':>10}  dominant motion (share of the squared nodal "
              "rotations/translations)"]
     pts = np.array(list(d["nodes"].values()))
     size = float(np.ptp(pts, axis=0).max())
-    for i, m in enumerate(d["modes"]):
+    by_frequency = sorted(range(len(d["modes"])), key=lambda i: (d["modes"][i]["hz"] is None, d["modes"][i]["hz"]))
+    for i in by_frequency:
+        m = d["modes"][i]
         rot = np.array(list(m["rotation"].values()))
         tra = np.array(list(m["translation"].values()))
         r2, t2 = (rot**2).sum(axis=0), (tra**2).sum(axis=0)
@@ -62,7 +66,8 @@ def _table(d: dict) -> str:
             parts.append(f"translation along {'xyz'[j]} {t2[j] / t2.sum():.0%}")
         else:
             parts.append("nodes do not translate")
-        lines.append(f"{i + 1:>4} {m['hz']:11.4f} {m['label']:>10}  " + ", ".join(parts))
+        hz = "-" if m["hz"] is None else f"{m['hz']:.4f}"
+        lines.append(f"{i + 1:>4} {hz:>11} {m['label']:>10}  " + ", ".join(parts))
     for name, s in d["stress"].items():
         if s["von_mises"] is not None:
             lines.append(f"stress {name}: {s['von_mises'] / 1e6:.4g} MPa = {s['utilisation']:.3g} of the allowable")

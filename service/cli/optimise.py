@@ -55,6 +55,18 @@ def read_spec(path: str, model: Any) -> Any:
         raise ValueError(f"spec.{_first_error(exc)}") from None
 
 
+def case_lines(command: str) -> Any:
+    """A batch progress callback writing one line per finished case on stderr when stderr is not a terminal
+    (redirected to a log: the batch's own bar is drawn on terminals only); None on a terminal."""
+    if sys.stderr.isatty():
+        return None
+
+    def line(event: dict) -> None:
+        print(f"{command}: case {event['done']}/{event['total']} {event['status']}", file=sys.stderr, flush=True)
+
+    return line
+
+
 def executor_for(scheduler: str | None) -> Any:
     """A Dask client's executor for ``scheduler`` (an address), or None for the local process pool."""
     if not scheduler:
@@ -72,7 +84,7 @@ def _cmd_optimise(args: argparse.Namespace) -> int:
     executor = executor_for(args.scheduler)
     try:
         result = optimise(prob, executor=executor, workers=args.workers, store=args.store,
-                          no_worker_timeout=args.no_worker_timeout)
+                          no_worker_timeout=args.no_worker_timeout, progress=case_lines("optimise"))
     except NoWorkers as exc:  # exit code 4: the cluster, not the input (2) nor a warning (3, curve --strict)
         print(f"error: {exc}", file=sys.stderr)
         return 4
@@ -94,9 +106,38 @@ def _cmd_optimise(args: argparse.Namespace) -> int:
     return 0 if result["ranking"] else 1
 
 
+def quantity(value: float, unit: str | None) -> str:
+    """A design value with its unit, in the unit a flexure engineer reads: lengths in mm, stresses and moduli
+    in MPa or GPa, masses in g below 1 kg (``0.0004, "m"`` -> ``"0.4 mm"``)."""
+    if unit == "m":
+        return f"{value * 1e3:.4g} mm"
+    if unit == "Pa":
+        return f"{value / 1e9:.4g} GPa" if abs(value) >= 1e9 else f"{value / 1e6:.4g} MPa"
+    if unit == "kg" and abs(value) < 1:
+        return f"{value * 1e3:.4g} g"
+    return f"{value:.4g}" + (f" {unit}" if unit else "")
+
+
+def design_text(design: dict[str, float], template: str, box: dict[str, list[float]] | None = None) -> str:
+    """``thickness=0.4 mm (upper bound), length=52.1 mm``: each value with its unit, and the bound of the design
+    box it sits on (within 1e-6 of the box's width), if any."""
+    from ...model.templates import parameter_unit
+
+    parts = []
+    for k, v in design.items():
+        text = f"{k}={quantity(v, parameter_unit(template, k))}"
+        if box and k in box:
+            lo, hi = box[k]
+            tol = 1e-6 * abs(hi - lo)
+            text += " (lower bound)" if abs(v - lo) <= tol else " (upper bound)" if abs(v - hi) <= tol else ""
+        parts.append(text)
+    return ", ".join(parts)
+
+
 def _table(result: dict) -> str:
     lines = ["rank  family                    worst [Hz]  zero [Hz]  worst/zero  stress/limit  status      design"]
     ranked = {r["template"]: i + 1 for i, r in enumerate(result["ranking"])}
+    boxes = {f["template"]: f.get("design", {}) for f in result["problem"].get("families", [])}
     for fam in sorted(result["families"], key=lambda f: ranked.get(f["template"], 99)):
         b = fam["best"]
         if b is None:
@@ -104,7 +145,7 @@ def _table(result: dict) -> str:
             lines.append(f"  -   {fam['template']:<25} no verified design ({why})")
             continue
         v = b["verified"]
-        design = ", ".join(f"{k}={val:.4g}" for k, val in b["design"].items())
+        design = design_text(b["design"], fam["template"], boxes.get(fam["template"]))
         lines.append(f"{ranked[fam['template']]:>4}  {fam['template']:<25} {v['worst_hz']:>10.2f} {v['zero_stroke_hz']:>10.2f}"
                      f"  {v['ratio']:>10.3f}  {v['stress_ratio']:>12.3f}  {b['status']:<10}  {design}")
     lines.append(f"verified on {result['problem']['verify_points']} exact stroke points per family; stress limit = "
@@ -115,10 +156,22 @@ def _table(result: dict) -> str:
 
 def plot_result(result: dict, path: str) -> None:
     """Frequency against stroke of each family's best start: the starting design and the optimum."""
+    import matplotlib.pyplot as plt
+
+    fig = result_figure(result)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    print(f"plot written to {path}", file=sys.stderr)
+
+
+def result_figure(result: dict) -> Any:
+    """The figure of :func:`plot_result` (a matplotlib Figure)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from ...model.templates import parameter_unit
 
     fams = [f for f in result["families"] if f["best"] is not None]
     tol = result["problem"].get("tolerance", 1e-3)
@@ -137,11 +190,9 @@ def plot_result(result: dict, path: str) -> None:
             ax.plot(c["stroke"], c["parasitic_hz"], style, label=label)
         ax.set_ylim(0, 1.4 * ax.get_ylim()[1])  # room above the curves for the legend's long labels
         ax.set_title(fam["template"], fontsize=9)
-        ax.set_xlabel("stroke")
+        ax.set_xlabel(f"stroke [{parameter_unit(fam['template'], 'stroke')}]")
         ax.set_ylabel("first parasitic frequency [Hz]")
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    print(f"plot written to {path}", file=sys.stderr)
+    return fig

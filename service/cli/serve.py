@@ -27,6 +27,10 @@ def _cmd_serve(args: argparse.Namespace) -> int:
         return 2
     # JSON log lines (request id, route, status, duration; job events). A stopping server gives requests
     # 3 s to end; job processes get settings.job_stop_timeout more (see Dockerfile's stop grace).
+    shown = "127.0.0.1" if args.host in ("0.0.0.0", "::") else args.host
+    shown = f"[{shown}]" if ":" in shown else shown
+    print(f"flexopt serve: the page at http://{shown}:{args.port}/ (API documentation at /docs); Ctrl+C stops",
+          file=sys.stderr, flush=True)
     uvicorn.run(create_app(settings), host=args.host, port=args.port, log_level=args.log_level,
                 log_config=log_config(args.log_level), access_log=False, timeout_graceful_shutdown=3)
     return 0

@@ -11,6 +11,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from .optimise import design_text
+
 __all__ = ["add_parser", "plot_ranking"]
 
 
@@ -37,7 +39,7 @@ def _file_name(descriptor: str) -> str:
 
 def _cmd_topology(args: argparse.Namespace) -> int:
     from ...optim.topology.spec import TopologySpec, example_spec
-    from .optimise import executor_for, read_spec
+    from .optimise import case_lines, executor_for, read_spec
 
     if args.example:
         print(json.dumps(example_spec(), indent=2))
@@ -50,7 +52,8 @@ def _cmd_topology(args: argparse.Namespace) -> int:
 
     executor = executor_for(args.scheduler)
     try:
-        result = run_topology_search(spec, executor=executor, workers=args.workers, store=args.store)
+        result = run_topology_search(spec, executor=executor, workers=args.workers, store=args.store,
+                                     progress=case_lines("topology"))
     except NoWorkers as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 3
@@ -97,11 +100,21 @@ def table(result: dict) -> str:
             if len(rej) > 50:
                 lines.append(f"      ... {len(rej) - 50} more (--json lists every candidate)")
         return "\n".join(lines)
-    for i, name in enumerate(result["ranking"], start=1):
+    # a designed crossing ('@') whose optimum crosses at the midpoint is the design of the topology without '@':
+    # shown once, on that topology's row, with its '@' variants named
+    variants: dict[str, list[str]] = {}
+    for name in result["ranking"]:
+        base = by_name[name].get("same_design_as")
+        if base and base in result["ranking"]:
+            variants.setdefault(base, []).append(name)
+    shown = [n for n in result["ranking"] if not any(n in v for v in variants.values())]
+    for i, name in enumerate(shown, start=1):
         r = by_name[name]
-        design = ", ".join(f"{k}={v:.4g}" for k, v in r["design"].items())
+        design = design_text(r["design"], r["family"] or "topology-hinge")
         if r.get("same_design_as"):
             design += f" (crossing at the midpoint: the design of {r['same_design_as']})"
+        if name in variants:
+            design += f"; also {', '.join(variants[name])} (their optimum crosses at the midpoint: this design)"
         lines.append(f"{i:>4}  {name:<17} {r['family'] or '-':<24} {r['dof']:>3}  {r['overconstraints']:>11}  "
                      f"{r['worst_case_hz']:>10.2f} {r['zero_stroke_hz']:>10.2f}  {r['ratio']:>10.3f}  {design}")
     for r in result["candidates"]:
