@@ -25,6 +25,7 @@ from starlette.exceptions import HTTPException
 from .. import web
 from ..schemas import METHODS, Health, Problem
 from . import errors, routes
+from .examples import add_examples
 from .middleware import AllowedHosts, BodyLimit, FrameBlock, JsonOnly, RequestLog
 from .runtime import Runtime, runtime
 from .settings import Settings
@@ -156,6 +157,7 @@ def _openapi(app: FastAPI) -> dict[str, Any]:
         submit["responses"]["202"]["links"] = {
             op_id.split("_v1_")[0]: {"operationId": op_id, "parameters": {"job_id": "$response.body#/id"}}
             for op_id in sorted(by_id)}
+    add_examples(doc)
     app.openapi_schema = doc
     return doc
 
