@@ -217,3 +217,29 @@ def test_a_scene_without_stroke_is_422_naming_the_stroke(url: str) -> None:
         assert "has no stroke" in r.json()["detail"], (path, r.json())
         assert ["body", "scene", "stroke"] in [e["loc"] for e in r.json()["errors"]], (path, r.json())
     assert httpx.post(f"{url}/v1/diagnosis", json={"scene": scene}).status_code == 200  # what it is for
+
+
+def test_a_broken_computation_is_described_in_words_not_by_exception_names(url: str) -> None:
+    """Issue 29, item 1: OverflowError, ZeroDivisionError and the like reached the 422 text as raw exception
+    names ("(OverflowError: (34, 'Numerical result out of range'))")."""
+    base = _scene(url, "leaf-spring", points=5)
+    for method in ("exact", "reduced"):
+        for path, value in EXTREME:
+            r = httpx.post(f"{url}/v1/frequency-curve", json={"scene": _with(base, path, value), "method": method})
+            assert r.status_code == 422, r.text
+            detail = r.json()["detail"]
+            assert not re.search(r"[A-Z][a-z]+(Error|Exception|Failure)\b", detail), (path, value, method, detail)
+            assert "(34," not in detail and str(path[-1]) in detail, detail
+
+
+@pytest.mark.parametrize("depth", [300, 3000])
+def test_deeply_nested_json_in_a_scene_is_422_on_every_route(url: str, depth: int) -> None:
+    """Issue 29, item 1: a scene with JSON nested 255 levels or deeper answered 500 on /v1/frequency-curve
+    (the cache key's serialisation hit pydantic's depth limit) while /v1/modes and /v1/diagnosis said 422."""
+    scene = _scene(url, "leaf-spring", points=5)
+    scene["name"] = "NESTED"
+    body = json.dumps({"scene": scene}).replace('"NESTED"', "[" * depth + "1.0" + "]" * depth)
+    for path in ("/v1/frequency-curve", "/v1/modes", "/v1/diagnosis"):
+        r = httpx.post(f"{url}{path}", content=body, headers={"content-type": "application/json"})
+        assert r.status_code in (400, 422), (path, depth, r.status_code, r.text[:300])
+        assert r.headers["content-type"] == "application/problem+json"

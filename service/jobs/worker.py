@@ -88,9 +88,26 @@ def broken(exc: Exception, scene: dict) -> Outcome:
     fields = _extreme_fields(scene)
     where = (f"; check {', '.join(fields[:5])}: outside the range [{TINY:g}, {HUGE:g}] in SI units"
              if fields else "; check that the scene's sizes, materials and stroke are physically plausible")
-    first = (str(exc).strip().splitlines() or [""])[-1][:200]
     return False, {"kind": "ComputationError", "field": fields[:5],
-                   "message": f"the scene could not be computed ({type(exc).__name__}: {first}){where}"}
+                   "message": f"the scene could not be computed ({_in_words(exc)}){where}"}
+
+
+#: what Python's arithmetic errors mean for a scene, in words (their own texts, e.g. "(34, 'Numerical result out
+#: of range')", and their class names say nothing to a user)
+_ARITHMETIC = ((OverflowError, "a number grew beyond double precision"),
+               (ZeroDivisionError, "a division by zero"),
+               (FloatingPointError, "a floating-point operation failed"),
+               (RecursionError, "the input is nested too deeply"))
+
+
+def _in_words(exc: Exception) -> str:
+    """Why a computation broke, without exception class names: Python's arithmetic errors by what they mean,
+    anything else by the first line of its own message (the model's messages are written for users)."""
+    for kind, words in _ARITHMETIC:
+        if isinstance(exc, kind):
+            return words
+    first = (str(exc).strip().splitlines() or [""])[0][:200]
+    return first or "the computation failed"
 
 
 def raise_error(err: dict[str, Any]) -> None:

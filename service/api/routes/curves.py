@@ -53,7 +53,12 @@ def router(prefix: str) -> APIRouter:
             raise RequestValidationError([{"loc": ("body", "stroke"), "type": "value_error",
                                            "msg": f"give 1 to {rt.settings.max_stroke_points} stroke values"}])
         media = _accepted(request)
-        key = hashlib.sha256(json.dumps([req.model_dump(mode="json"), media], sort_keys=True).encode()).hexdigest()
+        try:
+            key = hashlib.sha256(json.dumps([req.model_dump(mode="json"), media], sort_keys=True).encode()).hexdigest()
+        except (ValueError, RecursionError):  # nested too deeply to serialise: the scene's validation says where
+            scene_from(req.scene)
+            raise RequestValidationError([{"loc": ("body", "scene"), "type": "value_error",
+                                           "msg": "nested too deeply; a scene is a few levels deep"}]) from None
         hit = rt.cached(key)  # only validated scenes are ever stored, so a hit needs no re-validation
         if hit is None:
             scene = scene_from(req.scene)
