@@ -434,6 +434,16 @@ class SupportDirections(_Strict):
     translations: tuple[Vec3, ...] = ()
     rotations: tuple[Vec3, ...] = ()
 
+    @field_validator("translations", "rotations")
+    @classmethod
+    def _not_zero(cls, dirs: tuple[Vec3, ...]) -> tuple[Vec3, ...]:
+        """A zero vector names no direction (it was accepted, and every mode then read as non-parasitic)."""
+        for i, d in enumerate(dirs):
+            if not math.hypot(*d) > 0:
+                raise ValueError(f"direction {i} is the zero vector, which names no direction: give a direction "
+                                 "such as [0, 1, 0], or remove it")
+        return dirs
+
 
 class Units(_Strict):
     """The units a scene's numbers are written in (each a pint unit string; omitted kinds are SI).

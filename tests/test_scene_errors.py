@@ -70,6 +70,12 @@ BAD: list[Bad] = [
         ("elements[0].y_axis", "parallel", "across the beam")),
     Bad("y_axis zero vector", "leaf", {"elements.0.y_axis": [0.0, 0.0, 0.0]}, "scene", SceneError,
         ("elements[0].y_axis", "parallel")),
+    # --- a zero vector names no direction (issue 29 item 7: accepted, and every parasitic value came back null)
+    Bad("support direction zero vector", "stage",
+        {"support_directions": {"translations": [[0.0, 1.0, 0.0], [0.0, 0.0, 0.0]]}}, "scene", SceneError,
+        ("support_directions.translations", "direction 1", "zero vector", "[0, 1, 0]")),
+    Bad("support rotation axis zero vector", "leaf", {"support_directions": {"rotations": [[0.0, 0.0, 0.0]]}},
+        "scene", SceneError, ("support_directions.rotations", "direction 0", "zero vector")),
     # --- non-positive and non-finite numbers
     Bad("width 0", "leaf", {"elements.0.section.width": 0.0}, "scene", SceneError,
         ("elements[0]", "section", "width", "greater than 0")),
