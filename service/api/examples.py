@@ -15,9 +15,21 @@ def _bodies() -> dict[str, dict[str, dict[str, Any]]]:
     """Path -> OpenAPI ``examples`` (name -> {summary, value}) of its POST body."""
     from ...model import template
 
+    from ...model.scene import Scene
+    from ...model.spacar import write_dat
+
     leaf = template("leaf-spring", points=5, segments=4).model_dump(mode="json")
     guide = template("wire-guide-parallel").model_dump(mode="json")
+    half = {**leaf, "stroke": {**leaf["stroke"], "start": 0.0}}  # SPACAR inputs run from the reference
     return {
+        "/v1/scenes/export": {"leaf": {
+            "summary": "the leaf spring as a SPACAR .dat model (stroke 0 to 45 deg)", "value": {"scene": half}}},
+        "/v1/scenes/import": {"leaf": {
+            "summary": "the leaf spring's SPACAR .dat model", "value": {"text": write_dat(Scene.model_validate(half)),
+                                                                       "name": "leaf"}}},
+        "/v1/state-space": {"leaf": {
+            "summary": "the leaf spring at 30 deg: the tip's vertical force to its vertical position",
+            "value": {"scene": leaf, "at_stroke": 30.0, "inputs": ["tip.fz"], "outputs": ["tip.z"]}}},
         "/v1/templates/{name}/scene": {"thickness": {
             "summary": "a thinner leaf, with a unit", "value": {"parameters": {"thickness": "0.3 mm"}}}},
         "/v1/frequency-curve": {"leaf": {
