@@ -160,10 +160,11 @@ def main() -> int:
         load0 = os.getloadavg()
         cli_a, cli_b, codes = [], [], set()
         for _ in range(args.pairs):
-            for path, out in ((before, cli_b), (after, cli_a)):
+            for path, out, name in ((before, cli_b, "before"), (after, cli_a, "after")):
                 dt, code = cli_once(path)
                 out.append(dt)
                 codes.add(code)
+                print(f"cli {name} {dt:.2f} s (load {os.getloadavg()[0]:.1f})", file=sys.stderr, flush=True)
         servers = [Server(before, tmp / "data_before"), Server(after, tmp / "data_after")]
         for s in servers:
             s.curve(scene, -1)  # warm-up: imports and kernels
@@ -171,6 +172,7 @@ def main() -> int:
         for i in range(args.requests):
             req_b.append(servers[0].curve(scene, i))
             req_a.append(servers[1].curve(scene, i))
+            print(f"server before {req_b[-1]:.2f} s, after {req_a[-1]:.2f} s", file=sys.stderr, flush=True)
         load1 = os.getloadavg()
     finally:
         for s in servers:
