@@ -24,6 +24,7 @@ import numpy as np
 
 from .errors import EquilibriumError, SceneError
 from .scene import Scene
+from .threads import limited
 
 __all__ = ["StateSpace", "frequency_response", "state_space"]
 
@@ -79,6 +80,7 @@ def _split(spec: str, table: dict, what: str) -> tuple[str, tuple]:
     return name, table[comp]
 
 
+@limited()  # one BLAS thread while it computes (model.threads)
 def state_space(scene: Scene, at_stroke: float, inputs: list[str], outputs: list[str], damping: float = 0.01,
                 modes: int | None = None) -> StateSpace:
     """The linearised model of ``scene`` at ``at_stroke`` (stroke unit; see the module docstring).
@@ -146,6 +148,7 @@ def state_space(scene: Scene, at_stroke: float, inputs: list[str], outputs: list
                       w / (2 * np.pi), float(damping), units)
 
 
+@limited()  # one BLAS thread while it computes (model.threads)
 def frequency_response(ss: StateSpace, frequencies_hz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Magnitude and phase [deg] of ``C (j w I - A)^-1 B + D`` at ``frequencies_hz``: (nf, no, ni) each."""
     f = np.asarray(frequencies_hz, dtype=float)
