@@ -2,8 +2,9 @@
 
 A fenced block in ``docs/pages/*.md`` is run unless the line before it is ``<!-- not run: REASON -->`` (a block that
 starts a server, installs the package or runs the whole test suite); the reason is required, so a skipped block
-says why. ``python`` blocks run in a fresh interpreter, ``sh`` blocks in bash, each in a temporary directory with
-the repository's ``examples/`` beside it; other languages (json, text) are data, not run.
+says why. ``python`` blocks run in a fresh interpreter, ``sh`` blocks in bash (``-euo pipefail``), a page's blocks
+in order in one temporary directory (with the repository's ``examples/`` beside them), so a tutorial's later steps
+see the files its earlier ones wrote; other languages (json, text) are data, not run.
 """
 
 from __future__ import annotations
@@ -35,13 +36,13 @@ def blocks(path: Path) -> list[tuple[str, str, str | None, int]]:
     return out
 
 
-def _cases() -> list:
+def _pages() -> list:
+    """One case per page that has blocks to run: a page's blocks run in order, in one directory, so a
+    tutorial's later steps see the files its earlier steps wrote."""
     cases = []
     for page in sorted(DOCS.glob("*.md")):
-        for lang, body, why, line in blocks(page):
-            if lang in RUN:
-                marks = [pytest.mark.skip(reason=f"not run: {why}")] if why else []
-                cases.append(pytest.param(lang, body, id=f"{page.name}:{line}", marks=marks))
+        if any(lang in RUN and not why for lang, _, why, _ in blocks(page)):
+            cases.append(pytest.param(page, id=page.name))
     return cases
 
 
@@ -65,13 +66,16 @@ def test_site_builds_with_warnings_as_errors(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("lang", "body"), _cases())
-def test_code_block_runs(lang: str, body: str, tmp_path: Path) -> None:
+@pytest.mark.parametrize("page", _pages())
+def test_code_blocks_run(page: Path, tmp_path: Path) -> None:
     shutil.copytree(ROOT / "examples", tmp_path / "examples")
-    cmd = [sys.executable, "-c", body] if lang == "python" else ["bash", "-euo", "pipefail", "-c", body]
-    run = subprocess.run(cmd, capture_output=True, text=True, cwd=tmp_path, env=_env(), timeout=600)
-    assert run.returncode == 0, f"exit {run.returncode}\n--- block ---\n{body}\n--- stdout ---\n" \
-        f"{run.stdout[-2000:]}\n--- stderr ---\n{run.stderr[-2000:]}"
+    for lang, body, why, line in blocks(page):
+        if lang not in RUN or why:
+            continue
+        cmd = [sys.executable, "-c", body] if lang == "python" else ["bash", "-euo", "pipefail", "-c", body]
+        run = subprocess.run(cmd, capture_output=True, text=True, cwd=tmp_path, env=_env(), timeout=900)
+        assert run.returncode == 0, f"{page.name}:{line}: exit {run.returncode}\n--- block ---\n{body}\n" \
+            f"--- stdout ---\n{run.stdout[-2000:]}\n--- stderr ---\n{run.stderr[-2000:]}"
 
 
 def test_every_skipped_block_says_why() -> None:
