@@ -44,7 +44,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from .problem import Problem
 
-__all__ = ["ParetoCheck", "ParetoSpec", "pareto", "run_point", "evaluate_design", "dominates"]
+__all__ = ["ParetoCheck", "ParetoSpec", "dominates", "evaluate_design", "pareto", "run_point"]
 
 
 class ParetoCheck(BaseModel):
@@ -75,7 +75,7 @@ class ParetoSpec(BaseModel):
                                       "optional)")
 
     @model_validator(mode="after")
-    def _one_family(self) -> "ParetoSpec":
+    def _one_family(self) -> ParetoSpec:
         if len(self.problem.families) != 1:
             raise ValueError(f"problem.families: a front is drawn for one family, got {len(self.problem.families)};"
                              " keep one")
@@ -315,7 +315,7 @@ def _nsga(spec: ParetoSpec, run: Any, lo: np.ndarray, hi: np.ndarray) -> dict:
         def __init__(self) -> None:
             super().__init__(n_var=len(lo), n_obj=2, n_ieq_constr=2, xl=0.0, xu=1.0)
 
-        def _evaluate(self, X, out, *args, **kwargs):  # noqa: ANN001 - pymoo's signature
+        def _evaluate(self, X, out, *args, **kwargs):
             recs = run([{"problem": pj, "x": [float(v) for v in x], "points": points} for x in X],
                        "flexopt.optim.pareto:evaluate_design")
             F, G = [], []
