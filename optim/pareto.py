@@ -44,7 +44,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from .problem import Problem
 
-__all__ = ["ParetoCheck", "ParetoSpec", "dominates", "evaluate_design", "pareto", "run_point"]
+__all__ = ["ParetoCheck", "ParetoSpec", "dominates", "drive_stiffness", "evaluate_design", "pareto", "run_point"]
 
 
 class ParetoCheck(BaseModel):
@@ -97,6 +97,29 @@ def _stroke_si(prob: Problem) -> tuple[float, str, str]:
     if kind == "rotation":
         return math.radians(stroke), "N m/rad", "N m"
     return stroke, "N/m", "N"
+
+
+def drive_stiffness(problem: Problem | dict, design: dict[str, float]) -> tuple[float, dict[str, float]]:
+    """The drive stiffness ``K = max_j |R(s_j)| / S`` of ``design`` over the problem's stroke samples and its
+    exact gradient ``dK/dp`` per design parameter [K's unit per parameter unit]: ``dR/dp`` of the sample of the
+    peak from :func:`model.design.point_sensitivity` (the implicit-function derivative of the reaction along the
+    equilibrium's move), through the search's drive rows. One-sided where two samples tie for the peak."""
+    from .search import _Family
+
+    prob = Problem.model_validate(problem).model_copy(update={"max_drive": 1.0})
+    fam = _Family(prob, prob.families[0])
+    x = np.array([(float(design[k]) - lo) / (hi - lo) for k, lo, hi in zip(fam.names, fam.lo, fam.hi)])
+    ev = fam.evaluate(x)
+    if not ev.ok:
+        raise ValueError(f"design: the curve of {design} fails: {ev.message}")
+    assert ev.kinds is not None
+    rows = np.flatnonzero(ev.kinds == "drive")
+    r2 = 1.0 - ev.con[rows]  # rows 1 - (R / 1)^2
+    j = rows[int(np.argmax(r2))]
+    r = math.sqrt(max(float(r2.max()), 0.0))
+    s_si = _stroke_si(prob)[0]
+    dr2 = -ev.jac[j, : len(x)] / (fam.hi - fam.lo)  # d(R^2)/dp, per parameter unit
+    return r / s_si, {k: float(v) / (2.0 * r * s_si) for k, v in zip(fam.names, dr2)}
 
 
 # ---------------------------------------------------------------------------------- one front point
@@ -335,13 +358,24 @@ def _nsga(spec: ParetoSpec, run: Any, lo: np.ndarray, hi: np.ndarray) -> dict:
     return {"front_x": X.tolist(), "evaluated": len(seen)}
 
 
+def example_spec() -> dict:
+    """A small front (cross-spring pivot, length and thickness, +-30 deg): what ``flexopt pareto --example``
+    prints."""
+    return {"format": "flexopt-pareto", "version": 1, "points": 5,
+            "problem": {"families": [{"template": "cross-spring-pivot",
+                                      "design": {"length": [0.03, 0.07], "thickness": [2e-4, 4e-4]}}],
+                        "stroke": 30, "samples": 5, "starts": 1, "verify_points": 61},
+            "check": {"population": 12, "generations": 6, "tolerance": 0.02, "seed": 0}}
+
+
 # ---------------------------------------------------------------------------------------- driver
 def pareto(spec: ParetoSpec | dict, *, executor: cf.Executor | None = None, workers: int | None = None,
-           progress: Any = None) -> dict:
+           store: Any = None, progress: Any = None) -> dict:
     """The front of ``spec`` (module docstring): JSON with its points (design, verified worst case [Hz],
     drive stiffness with its unit, stress ratio, status), the single-objective optima, the NSGA-II check
     and warnings. ``executor``: any ``concurrent.futures.Executor`` (default: a local process pool of
-    ``workers``, shared by every phase)."""
+    ``workers``, shared by every phase); ``store``: a directory of finished cases, as
+    :func:`optim.batch.run_cases`'s (a rerun resumes)."""
     from ..model.threads import limited
     from .batch import run_cases
     from .search import _Family
@@ -356,7 +390,7 @@ def pareto(spec: ParetoSpec | dict, *, executor: cf.Executor | None = None, work
     ex = cf.ProcessPoolExecutor(max_workers=workers) if own else executor
 
     def run(cs: list[dict], fn: str = "flexopt.optim.pareto:run_point") -> list[dict]:
-        return run_cases(cs, fn, executor=ex, progress=progress)
+        return run_cases(cs, fn, executor=ex, store=store, progress=progress)
 
     def level_cases(kind: str, level: float | None = None) -> list[dict]:
         return [{"problem": pj, "kind": kind, "start": s, **({} if level is None else {"level": level})}

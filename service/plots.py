@@ -10,6 +10,8 @@ the server) and accepts either the dicts of ``to_dict()`` / the HTTP API or obje
   stress utilisation (von Mises / allowable) with the limit marked; warnings and truncation in a text box.
 - :func:`shapes_figure`: the deflected structure in 3D (leaves as plates of their real width, bodies as
   boxes) with a mode shape overlaid at a stated scale; :func:`animate_mode` writes it as an animated GIF.
+- :func:`pareto_figure`: a Pareto front of worst-case parasitic frequency against drive stiffness
+  (optim/pareto.py), its single-objective optima marked, with the NSGA-II check's points if it ran.
 - :func:`diagnosis_figure`: the exact-constraint diagnosis: self-stress as member colours with a colour bar,
   each free motion drawn as the structure moved along it (translation and rotation) with its rotation axis.
 """
@@ -25,7 +27,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 __all__ = ["curve_figure", "curve_png", "shapes_figure", "animate_mode", "diagnosis_figure", "figure_bytes",
-           "save", "mode_scale", "design_summary"]
+           "save", "mode_scale", "design_summary", "pareto_figure"]
 
 PARASITIC_COLOR = "#c0392b"
 MODE_COLOR = "#e67e22"
@@ -505,4 +507,42 @@ def diagnosis_figure(scene: Any, diagnosis: Any, max_motions: int = 4) -> Figure
     fig.text(0.02, 0.9, "supports: green triangles; lengths in mm; free-motion translations in L_c = "
              f"{Lc * 1e3:.3g} mm per unit, rotations in rad per unit", fontsize=7, va="top")
     fig.subplots_adjust(left=0.0, right=0.95, bottom=min(0.05 + y, 0.4), top=0.88)
+    return fig
+
+
+def pareto_figure(result: Any) -> Figure:
+    """The front of a ``flexopt-pareto-result`` (optim/pareto.py): verified worst-case first parasitic frequency
+    against drive stiffness, a stiffer drive to the right; the two single-objective optima marked, each point
+    labelled with its design, the NSGA-II check's verified points (if it ran) as grey crosses."""
+    d = _data(result)
+    fig = Figure(figsize=(6.4, 4.4))
+    ax = fig.add_subplot(1, 1, 1)
+    pts = sorted(d.get("points", []), key=lambda p: p["drive_stiffness"])
+    unit = d.get("drive_stiffness_unit", "")
+    chk = d.get("check") or {}
+    if chk.get("points"):
+        ax.plot([q["drive_stiffness"] for q in chk["points"]], [q["worst_hz"] for q in chk["points"]], "x",
+                color="0.6", label=f"NSGA-II check ({chk.get('evaluations', 0)} curves): "
+                f"{'passed' if chk.get('passed') else 'FAILED'}")
+    if pts:
+        ax.plot([p["drive_stiffness"] for p in pts], [p["worst_hz"] for p in pts], "o-", color=PARASITIC_COLOR,
+                label="epsilon-constraint front (verified)")
+        for p in pts:
+            text = ", ".join(f"{k}={v:.4g}" for k, v in (p.get("design") or {}).items())  # SI, as the spec
+            ax.annotate(text, (p["drive_stiffness"], p["worst_hz"]), fontsize=6, xytext=(4, -10),
+                        textcoords="offset points")
+        for key, label in (("max_frequency", "max frequency"), ("min_drive_stiffness", "min drive stiffness")):
+            e = d.get(key) or {}
+            if e.get("status") == "optimal":
+                ax.plot([e["drive_stiffness"]], [e["worst_hz"]], "s", mfc="none", mec="k", ms=10, label=label)
+    ax.set_xlabel(f"drive stiffness (peak drive / stroke) [{unit}]")
+    ax.set_ylabel("worst-case first parasitic frequency [Hz]")
+    ax.set_title(f"{d.get('template', '')}: Pareto front", fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="lower right")
+    lines = [f"{w['kind']}: {w['message']}" for w in d.get("warnings", [])]
+    if lines:
+        ax.text(0.01, 0.99, "\n".join(textwrap.shorten(x, 110) for x in lines[:4]), transform=ax.transAxes,
+                fontsize=6, va="top", bbox={"fc": "#fff3cd", "ec": "#c9a227"})
+    fig.tight_layout()
     return fig

@@ -13,12 +13,12 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from . import curve, diagnose, modes, optimise, serve, spacar, statespace, template, topology
+from . import curve, diagnose, modes, optimise, pareto, serve, spacar, statespace, template, topology
 
 __all__ = ["main"]
 
 #: the subcommands, in the order ``flexopt --help`` lists them
-COMMANDS = (template, curve, diagnose, modes, statespace, serve, optimise, topology, spacar)
+COMMANDS = (template, curve, diagnose, modes, statespace, serve, optimise, topology, pareto, spacar)
 
 
 class _Version(argparse.Action):
