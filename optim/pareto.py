@@ -387,7 +387,7 @@ def pareto(spec: ParetoSpec | dict, *, executor: cf.Executor | None = None, work
     pj = prob.model_dump(mode="json")
     t0 = time.perf_counter()
     own = executor is None
-    ex = cf.ProcessPoolExecutor(max_workers=workers) if own else executor
+    ex: cf.Executor = cf.ProcessPoolExecutor(max_workers=workers) if executor is None else executor
 
     def run(cs: list[dict], fn: str = "flexopt.optim.pareto:run_point") -> list[dict]:
         return run_cases(cs, fn, executor=ex, store=store, progress=progress)
