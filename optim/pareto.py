@@ -370,12 +370,13 @@ def example_spec() -> dict:
 
 # ---------------------------------------------------------------------------------------- driver
 def pareto(spec: ParetoSpec | dict, *, executor: cf.Executor | None = None, workers: int | None = None,
-           store: Any = None, progress: Any = None) -> dict:
+           store: Any = None, progress: Any = None, cancel: Any = None) -> dict:
     """The front of ``spec`` (module docstring): JSON with its points (design, verified worst case [Hz],
     drive stiffness with its unit, stress ratio, status), the single-objective optima, the NSGA-II check
     and warnings. ``executor``: any ``concurrent.futures.Executor`` (default: a local process pool of
     ``workers``, shared by every phase); ``store``: a directory of finished cases, as
-    :func:`optim.batch.run_cases`'s (a rerun resumes)."""
+    :func:`optim.batch.run_cases`'s (a rerun resumes); ``progress`` and ``cancel`` (a ``threading.Event``) as
+    there, per phase (the two optima, the levels, the check's generations)."""
     from ..model.threads import limited
     from .batch import run_cases
     from .search import _Family
@@ -390,7 +391,7 @@ def pareto(spec: ParetoSpec | dict, *, executor: cf.Executor | None = None, work
     ex: cf.Executor = cf.ProcessPoolExecutor(max_workers=workers) if executor is None else executor
 
     def run(cs: list[dict], fn: str = "flexopt.optim.pareto:run_point") -> list[dict]:
-        return run_cases(cs, fn, executor=ex, store=store, progress=progress)
+        return run_cases(cs, fn, executor=ex, store=store, progress=progress, cancel=cancel)
 
     def level_cases(kind: str, level: float | None = None) -> list[dict]:
         return [{"problem": pj, "kind": kind, "start": s, **({} if level is None else {"level": level})}

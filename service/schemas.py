@@ -264,9 +264,9 @@ class Job(_Wire):
     """An optimisation job: status, progress, finished cases so far and the final result."""
 
     id: str
-    kind: Literal["optimisation", "frequency-curve", "topology-search"] = Field(
-        "optimisation", description="an optimisation, a frequency curve too costly for a request, or a topology "
-                                    "search")
+    kind: Literal["optimisation", "frequency-curve", "topology-search", "pareto-front"] = Field(
+        "optimisation", description="an optimisation, a frequency curve too costly for a request, a topology "
+                                    "search or a Pareto front")
     status: Literal["queued", "running", "cancelling", "succeeded", "failed", "cancelled"]
     progress: dict[str, Any] = Field(description="{'done': cases finished, 'total': cases}")
     partial: list[dict[str, Any]] = Field(description="summary of every finished case (family, start, verified "
@@ -274,7 +274,7 @@ class Job(_Wire):
     result: dict[str, Any] | None = Field(description="optim.optimise's result once succeeded: per family the best "
                                                       "verified design, curves before and after, the ranking (a "
                                                       "topology search: run_topology_search's candidates, ranking "
-                                                      "and best)")
+                                                      "and best; a Pareto front: optim.pareto.pareto's points)")
     error: str | None = None
     attempts: int = Field(description="runs started (a server restart resumes a running job)")
     created: str

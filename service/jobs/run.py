@@ -46,7 +46,7 @@ def _summary(case: dict) -> dict:
     v = case.get("verified", {})
     return {"id": case.get("id"), "family": case.get("family"), "start": case.get("start"),
             "status": case.get("status", "failed" if "error" in case else None),
-            "worst_hz": v.get("worst_hz"), "ratio": v.get("ratio"), "design": case.get("design"),
+            "worst_hz": v.get("worst_hz", case.get("worst_hz")), "ratio": v.get("ratio"), "design": case.get("design"),
             "error": case.get("error")}
 
 
@@ -129,6 +129,11 @@ def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
 
             search = {k: v for k, v in spec.items() if k != "kind"}
             result = run_topology_search(search, workers=workers, store=cases, progress=progress, cancel=cancel)
+        elif spec.get("kind") == "pareto-front":  # its phases run on the same batch machinery and case store
+            from ...optim.pareto import pareto
+
+            front = {k: v for k, v in spec.items() if k != "kind"}
+            result = pareto(front, workers=workers, store=cases, progress=progress, cancel=cancel)
         else:
             result = optimise(spec, workers=workers, store=cases, progress=progress, cancel=cancel)
         blob = json.dumps(finite(result), allow_nan=False)
@@ -153,6 +158,8 @@ def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
         cancel.set()
     # a topology search whose candidates were all rejected or failed is still an answer: each says why
     reasons = None if spec.get("kind") == "topology-search" else _all_failed(result)
+    if spec.get("kind") == "pareto-front" and not result.get("points"):  # no verified point: say why
+        reasons = "no verified point: " + "; ".join(w["message"] for w in result.get("warnings", []))[:2000]
     verdict = {"status": "failed", "error": reasons} if reasons is not None else {"status": "succeeded"}
     for wait in (0.5, 1, 2, 4, 8, 16, 30):  # the verdict outlasts a busy or briefly unreachable database
         try:

@@ -125,7 +125,7 @@ class Job(_Base):
 
 
 #: kinds of job besides an optimisation, marked by a ``"kind"`` key in the stored spec
-KINDS = ("frequency-curve", "topology-search")
+KINDS = ("frequency-curve", "topology-search", "pareto-front")
 
 # columns added after the first release: added to an older database at start (all nullable or defaulted)
 _ADDED = {"owner": "VARCHAR(64) NOT NULL DEFAULT ''", "lease_holder": "VARCHAR(300)", "lease_until": "FLOAT"}
@@ -313,7 +313,7 @@ class JobStore:
             shared = s.scalar(select(func.count()).select_from(Job).where(Job.spec == spec)) if spec else 0
             s.commit()
         shutil.rmtree(self.job_dir(job_id), ignore_errors=True)
-        if spec and not shared and job["kind"] == "topology-search":
+        if spec and not shared and job["kind"] in ("topology-search", "pareto-front"):
             # its cases are those its progress recorded; two searches can share a candidate's case, so a case
             # another job recorded stays
             with Session(self.engine) as s:

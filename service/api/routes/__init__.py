@@ -6,6 +6,7 @@
 ``diagnosis``       ``/diagnosis``
 ``optimisations``   ``/optimisations`` (jobs)
 ``topology``        ``/topology-searches`` (jobs)
+``pareto``          ``/pareto-fronts`` (jobs)
 ``modes``           ``/modes``
 ``scenes``          ``/scenes/import``, ``/scenes/export`` (SPACAR .dat)
 ==================  =====================================================================
@@ -22,13 +23,13 @@ from fastapi import APIRouter, Depends
 from ..errors import ERRORS
 from ..guards import key_checker
 from ..settings import Settings
-from . import curves, diagnosis, modes, optimisations, scenes, templates, topology
+from . import curves, diagnosis, modes, optimisations, pareto, scenes, templates, topology
 
 __all__ = ["PREFIX", "RESOURCES", "router"]
 
 PREFIX = "/v1"
 #: the resource modules, in the order their routes are matched
-RESOURCES = (templates, curves, diagnosis, optimisations, topology, modes, scenes)
+RESOURCES = (templates, curves, diagnosis, optimisations, topology, pareto, modes, scenes)
 
 
 def router(settings: Settings) -> APIRouter:
