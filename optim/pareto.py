@@ -71,6 +71,12 @@ class ParetoSpec(BaseModel):
                              "max_drive, if any, is replaced by each level's limit")
     points: int = Field(default=5, ge=2, le=25, description="front points, the two single-objective optima "
                         "included")
+    against: Literal["drive_stiffness", "stroke"] = Field(
+        default="drive_stiffness", description="the second objective: 'drive_stiffness' (minimised) or 'stroke' "
+        "(maximised: the frequency optimum at each of ``points`` strokes evenly spaced over ``strokes``)")
+    strokes: tuple[float, float] | None = Field(
+        default=None, description="with against 'stroke': the smallest and largest half range of the stroke, in the "
+        "template's stroke unit (deg for rotations, m for translations)")
     check: ParetoCheck | None = Field(default=None, description="gradient-free check by NSGA-II (pymoo; "
                                       "optional)")
 
@@ -79,6 +85,15 @@ class ParetoSpec(BaseModel):
         if len(self.problem.families) != 1:
             raise ValueError(f"problem.families: a front is drawn for one family, got {len(self.problem.families)};"
                              " keep one")
+        if self.against == "stroke":
+            if self.strokes is None or not 0 < self.strokes[0] < self.strokes[1] < math.inf:
+                raise ValueError("strokes: with against 'stroke' give [smallest, largest] half ranges, "
+                                 "0 < smallest < largest")
+            if self.check is not None:
+                raise ValueError("check: the NSGA-II check covers the drive-stiffness front; remove it or set "
+                                 "against 'drive_stiffness'")
+        elif self.strokes is not None:
+            raise ValueError("strokes: only with against 'stroke'; remove it")
         return self
 
 
@@ -149,6 +164,10 @@ def run_point(case: dict) -> dict:
     kind, start = case["kind"], int(case["start"])
     if kind == "min_drive":
         return {"kind": kind, **_point(_min_drive(prob, start), None, s_si, prob.tolerance)}
+    if kind == "stroke":  # the frequency optimum over +-level (its own drive stiffness over that stroke)
+        prob = prob.model_copy(update={"stroke": float(case["level"])})
+        r = run_case({"problem": prob.model_dump(mode="json"), "family": 0, "start": start})
+        return {"kind": kind, **_point(r, None, _stroke_si(prob)[0], prob.tolerance), "stroke": prob.stroke}
     level = None
     if kind == "epsilon":
         level = float(case["level"])
@@ -252,11 +271,12 @@ def _min_drive(prob: Problem, start: int) -> dict:
 
 
 # ------------------------------------------------------------------------------------- dominance
-def dominates(a: dict, b: dict, tol: float = 0.0) -> bool:
+def dominates(a: dict, b: dict, tol: float = 0.0, against: str = "drive_stiffness") -> bool:
     """Whether point ``a`` dominates ``b`` by more than ``tol``: better by more than that fraction in one
-    objective (higher ``worst_hz`` or lower ``drive_stiffness``) and no worse in the other."""
-    fa, fb, ka, kb = a["worst_hz"], b["worst_hz"], a["drive_stiffness"], b["drive_stiffness"]
-    return bool((fa > fb * (1 + tol) and ka <= kb) or (ka < kb * (1 - tol) and fa >= fb))
+    objective (higher ``worst_hz``; lower ``drive_stiffness``, or higher ``stroke``) and no worse in the other."""
+    fa, fb = a["worst_hz"], b["worst_hz"]
+    ka, kb = (a[against], b[against]) if against == "drive_stiffness" else (-a[against], -b[against])
+    return bool((fa > fb * (1 + tol) and ka <= kb) or (ka < kb - tol * abs(kb) and fa >= fb))
 
 
 def _best(records: list[dict], by_drive: bool = False) -> dict:
@@ -397,6 +417,13 @@ def pareto(spec: ParetoSpec | dict, *, executor: cf.Executor | None = None, work
         return [{"problem": pj, "kind": kind, "start": s, **({} if level is None else {"level": level})}
                 for s in range(prob.starts)]
 
+    if spec.against == "stroke":
+        try:
+            with limited():
+                return _stroke_front(spec, prob, run, level_cases, k_unit, t0)
+        finally:
+            if own:
+                ex.shutdown()
     try:
         with limited():
             ends = run(level_cases("max_frequency") + level_cases("min_drive"))
@@ -434,11 +461,36 @@ def pareto(spec: ParetoSpec | dict, *, executor: cf.Executor | None = None, work
     finally:
         if own:
             ex.shutdown()
-    return {"format": "flexopt-pareto-result", "template": prob.families[0].template,
+    return {"format": "flexopt-pareto-result", "template": prob.families[0].template, "against": "drive_stiffness",
             "objectives": {"worst_hz": "maximised, Hz", "drive_stiffness": f"minimised, {k_unit}"},
             "drive_stiffness_unit": k_unit, "stroke_si": s_si, "points": front, "rejected": [p for p in points
                                                                                              if p not in front],
             "max_frequency": top, "min_drive_stiffness": bottom, "check": check,
+            "seconds": time.perf_counter() - t0, "warnings": notes, "spec": spec.model_dump(mode="json")}
+
+
+def _stroke_front(spec: ParetoSpec, prob: Problem, run: Any, level_cases: Any, k_unit: str, t0: float) -> dict:
+    """Worst case against stroke: the frequency optimum at each stroke (the search with ``stroke`` set)."""
+    assert spec.strokes is not None
+    lo, hi = spec.strokes
+    levels = [lo + (hi - lo) * i / (spec.points - 1) for i in range(spec.points)]
+    recs = run([c for lv in levels for c in level_cases("stroke", lv)])
+    points = [_best(recs[i * prob.starts:(i + 1) * prob.starts]) for i in range(len(levels))]
+    for p, lv in zip(points, levels):
+        p["stroke"] = lv
+    front = [p for p in points if p["status"] == "optimal"]
+    notes = [{"kind": "notice", "message": f"the point at stroke {p['stroke']:.6g} is not on the front: {p['status']} "
+              f"({p['message']})"} for p in points if p["status"] != "optimal"]
+    for p in front:
+        p["dominated_by"] = [j for j, q in enumerate(front) if q is not p and dominates(q, p, against="stroke")]
+        if p["dominated_by"]:
+            notes.append({"kind": "notice", "message": f"the point at stroke {p['stroke']:.6g} is dominated by another "
+                          "point of the front (a longer stroke reaches at least its worst case)"})
+    unit = "deg" if k_unit == "N m/rad" else "m"
+    return {"format": "flexopt-pareto-result", "template": prob.families[0].template, "against": "stroke",
+            "objectives": {"worst_hz": "maximised, Hz", "stroke": f"maximised, {unit}"}, "stroke_unit": unit,
+            "drive_stiffness_unit": k_unit, "points": front, "rejected": [p for p in points if p not in front],
+            "max_frequency": None, "min_drive_stiffness": None, "check": None,
             "seconds": time.perf_counter() - t0, "warnings": notes, "spec": spec.model_dump(mode="json")}
 
 

@@ -517,25 +517,27 @@ def pareto_figure(result: Any) -> Figure:
     d = _data(result)
     fig = Figure(figsize=(6.4, 4.4))
     ax = fig.add_subplot(1, 1, 1)
-    pts = sorted(d.get("points", []), key=lambda p: p["drive_stiffness"])
-    unit = d.get("drive_stiffness_unit", "")
+    key = d.get("against", "drive_stiffness")  # the second objective: drive stiffness or stroke
+    pts = sorted(d.get("points", []), key=lambda p: p[key])
+    unit = d.get("drive_stiffness_unit", "") if key == "drive_stiffness" else d.get("stroke_unit", "")
     chk = d.get("check") or {}
     if chk.get("points"):
         ax.plot([q["drive_stiffness"] for q in chk["points"]], [q["worst_hz"] for q in chk["points"]], "x",
                 color="0.6", label=f"NSGA-II check ({chk.get('evaluations', 0)} curves): "
                 f"{'passed' if chk.get('passed') else 'FAILED'}")
     if pts:
-        ax.plot([p["drive_stiffness"] for p in pts], [p["worst_hz"] for p in pts], "o-", color=PARASITIC_COLOR,
+        ax.plot([p[key] for p in pts], [p["worst_hz"] for p in pts], "o-", color=PARASITIC_COLOR,
                 label="epsilon-constraint front (verified)")
         for p in pts:
             text = ", ".join(f"{k}={v:.4g}" for k, v in (p.get("design") or {}).items())  # SI, as the spec
-            ax.annotate(text, (p["drive_stiffness"], p["worst_hz"]), fontsize=6, xytext=(4, -10),
+            ax.annotate(text, (p[key], p["worst_hz"]), fontsize=6, xytext=(4, -10),
                         textcoords="offset points")
         for key, label in (("max_frequency", "max frequency"), ("min_drive_stiffness", "min drive stiffness")):
             e = d.get(key) or {}
-            if e.get("status") == "optimal":
+            if e.get("status") == "optimal" and key == "drive_stiffness":
                 ax.plot([e["drive_stiffness"]], [e["worst_hz"]], "s", mfc="none", mec="k", ms=10, label=label)
-    ax.set_xlabel(f"drive stiffness (peak drive / stroke) [{unit}]")
+    ax.set_xlabel(f"drive stiffness (peak drive / stroke) [{unit}]" if key == "drive_stiffness"
+                  else f"stroke (half range) [{unit}]")
     ax.set_ylabel("worst-case first parasitic frequency [Hz]")
     ax.set_title(f"{d.get('template', '')}: Pareto front", fontsize=10)
     ax.grid(alpha=0.3)

@@ -60,16 +60,20 @@ def _cmd_pareto(args: argparse.Namespace) -> int:
 
 def _table(result: dict) -> str:
     unit = result["drive_stiffness_unit"]
-    lines = [f"{'drive stiffness [' + unit + ']':>26}  worst [Hz]  zero [Hz]  stress/limit  point              design"]
+    stroke = result.get("against") == "stroke"
+    first = f"stroke [{result.get('stroke_unit')}]" if stroke else f"drive stiffness [{unit}]"
+    lines = [f"{first:>26}  worst [Hz]  zero [Hz]  stress/limit  point              design"]
     ends = {id(result["max_frequency"]): "max frequency", id(result["min_drive_stiffness"]): "min drive stiffness"}
-    for p in sorted(result["points"], key=lambda p: p["drive_stiffness"]):
+    for p in sorted(result["points"], key=lambda p: p["stroke" if stroke else "drive_stiffness"]):
         design = ", ".join(f"{k}={v:.4g}" for k, v in p["design"].items())
         what = ends.get(id(p), f"level {p['level']:.4g}" if p["level"] is not None else "")
-        lines.append(f"{p['drive_stiffness']:>26.5g}  {p['worst_hz']:>10.3f} {p['zero_stroke_hz']:>10.3f}  "
+        what = f"K {p['drive_stiffness']:.4g} {unit}" if stroke else what
+        lines.append(f"{p['stroke' if stroke else 'drive_stiffness']:>26.5g}  {p['worst_hz']:>10.3f} {p['zero_stroke_hz']:>10.3f}  "
                      f"{p['stress_ratio']:>12.3f}  {what:<18} {design}")
     prob = result["spec"]["problem"]
     lines.append(f"{len(result['points'])} verified points on {prob['verify_points']} exact stroke points each; "
-                 f"drive stiffness = peak drive over the stroke / its half range; {result['seconds']:.1f} s")
+                 + ("the frequency optimum at each stroke" if stroke else
+                    "drive stiffness = peak drive over the stroke / its half range") + f"; {result['seconds']:.1f} s")
     if result.get("check"):
         lines.append(result["check"]["summary"])
     lines += [f"warning ({w['kind']}): {w['message']}" for w in result.get("warnings", [])]
