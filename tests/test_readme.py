@@ -1,4 +1,5 @@
-"""The README's examples run as tests, so the README cannot drift from the code (issue 26, item 1).
+"""The README's examples run as tests, so the README cannot drift from the code (issue 26, item 1); so do the
+documentation pages' blocks that talk to a server (their other blocks run in test_docs.py, page by page).
 
 Every fenced block of README.md is a case: ``json`` blocks are validated as the spec their ``format`` names;
 ``sh`` blocks run command by command in a temporary directory (exit status 0, or the ``# exit N`` their
@@ -23,62 +24,23 @@ import shlex
 import subprocess
 import sys
 from collections.abc import Iterator
-from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-README = ROOT / "README.md"
-OPT_OUT = {"starts a server", "long run"}  # the reasons a block may give after "skip: " (one or both)
-_FENCE = re.compile(r"^(?:<!-- readme-test: (?P<mark>[^>]*?) -->\n)?```(?P<lang>[a-z]*)\n(?P<body>.*?)^```$",
-                    re.M | re.S)
+from .doc_blocks import OPT_OUT, README, ROOT, Block, blocks, pages
+from .doc_blocks import commands as _commands
+from .doc_blocks import expected_exit as _expected_exit
+from .doc_blocks import uses_server as _uses_server
 
 
-@dataclass(frozen=True)
-class Block:
-    line: int  # the fence's line in README.md (1-based)
-    lang: str
-    body: str
-    mark: str | None
-
-    def __str__(self) -> str:
-        return f"README.md:{self.line} ({self.lang})"
-
-
-def blocks() -> list[Block]:
-    text = README.read_text()
-    return [Block(text.count("\n", 0, m.start("lang")) + 1, m["lang"], m["body"], m["mark"])
-            for m in _FENCE.finditer(text)]
-
-
-def _commands(body: str) -> list[str]:
-    """Shell commands of a block, continuation lines joined."""
-    out, cur = [], ""
-    for line in body.splitlines():
-        cur += line
-        if cur.endswith("\\"):
-            cur = cur[:-1] + " "
-            continue
-        if cur.strip():
-            out.append(cur.strip())
-        cur = ""
-    return out
-
-
-def _expected_exit(command: str) -> int:
-    m = re.search(r"#\s*exit (\d+)", command)
-    return int(m[1]) if m else 0
-
-
-def _uses_server(block: Block) -> bool:
-    return "localhost:8000" in block.body or "127.0.0.1:8000" in block.body or block.lang == "python"
+def _all() -> list[Block]:
+    return [b for path in (README, *pages()) for b in blocks(path)]
 
 
 def test_every_block_is_run_or_opts_out_for_a_listed_reason() -> None:
-    found = blocks()
-    assert len(found) >= 5, "the README's fenced blocks were not found: the pattern no longer matches"
-    for b in found:
+    assert len(blocks(README)) >= 5, "the README's fenced blocks were not found: the pattern no longer matches"
+    for b in _all():
         assert b.lang in ("sh", "python", "json"), f"{b}: a fenced block without a language this test runs"
         if b.mark is None or b.mark == "ci":
             continue
@@ -89,10 +51,10 @@ def test_every_block_is_run_or_opts_out_for_a_listed_reason() -> None:
 
 def _case(b: Block) -> None:
     if b.mark is not None and b.mark.startswith("skip"):
-        pytest.skip(f"{b}: {b.mark.removeprefix('skip: ')} (marked in the README)")
+        pytest.skip(f"{b}: {b.mark.removeprefix('skip: ')} (marked in the page)")
 
 
-@pytest.mark.parametrize("block", [b for b in blocks() if b.lang == "json"], ids=str)
+@pytest.mark.parametrize("block", [b for b in _all() if b.lang == "json"], ids=str)
 def test_json_block_is_a_valid_spec(block: Block) -> None:
     from flexopt.optim import Problem
     from flexopt.optim.topology.spec import TopologySpec
@@ -104,7 +66,7 @@ def test_json_block_is_a_valid_spec(block: Block) -> None:
 
 
 def test_ci_block_is_what_ci_runs() -> None:
-    ci = [b for b in blocks() if b.mark == "ci"]
+    ci = [b for b in blocks(README) if b.mark == "ci"]
     assert ci, "the README shows no test command marked '<!-- readme-test: ci -->'"
     script = (ROOT / ".ci" / "run").read_text()
     for b in ci:
@@ -113,7 +75,7 @@ def test_ci_block_is_what_ci_runs() -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("block", [b for b in blocks() if b.lang == "sh" and b.mark != "ci"
+@pytest.mark.parametrize("block", [b for b in blocks(README) if b.lang == "sh" and b.mark != "ci"
                                    and not _uses_server(b)], ids=str)
 def test_shell_block_runs(block: Block, tmp_path: Path) -> None:
     _case(block)
@@ -157,7 +119,7 @@ def _cancel_jobs(url: str) -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("block", [b for b in blocks() if b.lang == "sh" and _uses_server(b)], ids=str)
+@pytest.mark.parametrize("block", [b for b in _all() if b.lang == "sh" and _uses_server(b)], ids=str)
 def test_curl_block_runs_against_a_server(block: Block, server_url: str, tmp_path: Path) -> None:
     _case(block)
     job = None
@@ -184,7 +146,7 @@ def test_curl_block_runs_against_a_server(block: Block, server_url: str, tmp_pat
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("block", [b for b in blocks() if b.lang == "python"], ids=str)
+@pytest.mark.parametrize("block", [b for b in _all() if b.lang == "python" and _uses_server(b)], ids=str)
 def test_python_block_runs_against_a_server(block: Block, server_url: str, tmp_path: Path) -> None:
     _case(block)
     code = block.body.replace("http://127.0.0.1:8000", server_url).replace("localhost:8000",
