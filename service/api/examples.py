@@ -17,6 +17,7 @@ def _bodies() -> dict[str, dict[str, dict[str, Any]]]:
 
     from ...model.scene import Scene
     from ...model.spacar import write_dat
+    from ...optim.pareto import example_spec as pareto_example
 
     leaf = template("leaf-spring", points=5, segments=4).model_dump(mode="json")
     guide = template("wire-guide-parallel").model_dump(mode="json")
@@ -44,6 +45,8 @@ def _bodies() -> dict[str, dict[str, dict[str, Any]]]:
             "value": {"families": [{"template": "cross-spring-pivot", "fixed": {"segments": 4},
                                     "design": {"length": [0.03, 0.07], "thickness": [1.5e-4, 4e-4]}}],
                       "starts": 1, "samples": 5, "verify_points": 31}}},
+        "/v1/pareto-fronts": {"pivot": {
+            "summary": "the small front of GET /v1/pareto-fronts/example", "value": pareto_example()}},
         "/v1/topology-searches": {"two": {
             "summary": "two topologies, one start each",
             "value": {"topologies": ["R:+-", "R:++"], "segments": 4, "samples": 5, "starts": 1}}},
