@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import json
 from pathlib import Path
 from typing import Any
@@ -9,7 +11,7 @@ from typing import Any
 from pydantic import ValidationError
 
 from .errors import SceneError
-from .scene import Scene, did_you_mean
+from .scene import SUGGEST_BUDGET, Scene, closest
 
 __all__ = ["scene_from_dict", "load_scene", "load_dat", "format_validation_error", "clean_errors"]
 
@@ -19,6 +21,7 @@ __all__ = ["scene_from_dict", "load_scene", "load_dat", "format_validation_error
 _UNION_TAGS = frozenset({"beam", "truss", "rectangular", "general"})
 
 
+@functools.cache
 def _field_names() -> list[str]:
     """Every field name of the scene's models (for "did you mean" on a misspelt field)."""
     from . import scene as sc
@@ -37,6 +40,7 @@ def clean_errors(errors: list[dict[str, Any]]) -> list[dict[str, Any]]:
     missing); that echo of a real error inside the same field is dropped.
     """
     out = []
+    budget = SUGGEST_BUDGET  # one bound on the suggestions' work for all the errors (issue 29 item 3)
     for e in errors:
         loc = tuple(p for i, p in enumerate(e["loc"])
                     if not (isinstance(p, str) and p in _UNION_TAGS and i > 0
@@ -44,7 +48,10 @@ def clean_errors(errors: list[dict[str, Any]]) -> list[dict[str, Any]]:
         e = {**e, "loc": loc}
         if e["type"] == "extra_forbidden" and loc and isinstance(loc[-1], str):
             e["type"] = "value_error"  # the message is final: later formatters keep it
-            e["msg"] = f"unknown field{did_you_mean(loc[-1], _field_names())}; remove it or check its spelling"
+            close, spent = closest(loc[-1], _field_names(), budget)
+            budget -= spent
+            hint = f" (did you mean '{close}'?)" if close else ""
+            e["msg"] = f"unknown field{hint}; remove it or check its spelling"
         out.append(e)
     locs = [e["loc"] for e in out]
     return [e for e in out if not (e["type"] == "too_short" and any(

@@ -564,9 +564,12 @@ class _ReferenceCheck:
         self.carrier: dict[str, str] = {}
         self.supported: dict[str, set[str]] = {}
         self.grounded: set[str] = set()
+        self.budget = SUGGEST_BUDGET  # work left for suggestions (character pairs)
 
     def unknown(self, kind: str, name: str) -> str:
-        return f"unknown {kind} '{name}'{did_you_mean(name, self.names_of[kind])}"
+        close, spent = closest(name, self.names_of[kind], self.budget)  # one budget for the whole scene
+        self.budget -= spent
+        return f"unknown {kind} '{name}'" + (f" (did you mean '{close}'?)" if close else "")
 
     def unique(self, kind: str, names: list[str]) -> set[str]:
         seen: set[str] = set()
@@ -728,10 +731,45 @@ class _ReferenceCheck:
                 self.out.append(f"loads[{i}]: a ramp or table load needs a stroke; give a constant 'force'")
 
 
-def did_you_mean(name: str, choices: list[str] | tuple[str, ...]) -> str:
-    """``" (did you mean 'x'?)"`` for the closest of ``choices`` to a misspelt ``name`` (difflib), else ``""``."""
-    close = difflib.get_close_matches(name, [str(c) for c in choices], n=1, cutoff=0.6)
-    return f" (did you mean '{close[0]}'?)" if close else ""
+#: the work one scene's "did you mean" suggestions may do, in character pairs compared (difflib's ratio costs
+#: about a microsecond per pair of characters, up to ~10 ms for two 100-character names, plus ~0.1 ms a name):
+#: about 0.2 s at most, however many unknown names a scene has. Before (issue 29 item 3) every unknown name
+#: was compared with every node name on the request thread: a 43 kB scene held the server 18 s.
+SUGGEST_BUDGET = 200_000
+_PAIR_COST = 100  # the fixed cost of comparing two names, in character pairs
+
+
+def closest(name: str, choices: list[str] | tuple[str, ...], budget: int = SUGGEST_BUDGET) -> tuple[str | None, int]:
+    """The closest of ``choices`` to ``name`` (difflib's ratio at least 0.6), or None, and the work spent.
+
+    Names are compared in order until ``budget`` (character pairs) is spent; only names whose lengths allow
+    the cutoff (``2M/(a+b) >= 0.6`` needs the shorter at least 3/7 of the longer) are compared.
+    """
+    n, spent, best, found = len(name), 0, 0.6, None
+    if budget < _PAIR_COST:
+        return None, 0
+    m = difflib.SequenceMatcher()
+    m.set_seq2(name)
+    for c in map(str, choices):
+        if 3 * max(n, len(c)) > 7 * min(n, len(c)):
+            continue
+        cost = n * len(c) + _PAIR_COST
+        if spent + cost > budget:
+            break
+        spent += cost
+        m.set_seq1(c)
+        if m.real_quick_ratio() >= best and m.quick_ratio() >= best and (r := m.ratio()) >= best:
+            best, found = r, c
+            if r == 1.0:
+                break
+    return found, spent
+
+
+def did_you_mean(name: str, choices: list[str] | tuple[str, ...], budget: int = SUGGEST_BUDGET) -> str:
+    """``" (did you mean 'x'?)"`` for the closest of ``choices`` to a misspelt ``name`` (:func:`closest`,
+    bounded by ``budget``), else ``""``."""
+    close, _ = closest(name, choices, budget)
+    return f" (did you mean '{close}'?)" if close else ""
 
 
 def expand_modes(names: tuple[str, ...]) -> tuple[int, ...]:

@@ -10,6 +10,7 @@
     jobs.store.TooManyJobs  -> 429 with Retry-After
     jobs.store.StoreUnavailable -> 503 with Retry-After (the job database is locked or unreachable)
     HTTPException           -> its status (404, 401, 413, ...)
+    guards.TooCostly        -> 413 (a computation estimated past the server's cost limit)
     Busy                    -> 429 with Retry-After
     ComputeTimeout          -> 504
     anything else           -> 500 with a generic message (details only in the server log); the
@@ -123,6 +124,7 @@ def _summary(errors: list[FieldError]) -> str:
 def install(app: FastAPI) -> None:
     """Register every exception handler on ``app``."""
     from ..jobs.store import KeyReused, StoreUnavailable, TooManyJobs
+    from .guards import TooCostly
     from ...model.errors import FlexoptError, KernelBuildError, SceneError
 
     @app.exception_handler(RequestValidationError)
@@ -173,6 +175,10 @@ def install(app: FastAPI) -> None:
         if exc.status_code == 400 and detail == "There was an error parsing the body":  # FastAPI's wording
             detail = "the body could not be read: send JSON encoded as UTF-8"
         return problem(exc.status_code, detail, headers=getattr(exc, "headers", None))
+
+    @app.exception_handler(TooCostly)
+    async def _too_costly(_: Request, exc: TooCostly) -> JSONResponse:
+        return problem(413, str(exc))
 
     @app.exception_handler(Busy)
     async def _busy(_: Request, exc: Busy) -> JSONResponse:

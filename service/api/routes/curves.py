@@ -61,11 +61,11 @@ def router(prefix: str) -> APIRouter:
                                            "msg": "nested too deeply; a scene is a few levels deep"}]) from None
         hit = rt.cached(key)  # only validated scenes are ever stored, so a hit needs no re-validation
         if hit is None:
-            scene = scene_from(req.scene)
+            scene = await asyncio.to_thread(scene_from, req.scene)  # off the event loop (issue 29 item 3)
             spec = {"scene": scene.model_dump(mode="json"), "stroke": req.stroke, "method": req.method,
                     "tolerance": req.tolerance, "media": media, "shapes": req.shapes}
             try:
-                check_cost(scene, req.stroke, rt.settings)
+                await asyncio.to_thread(check_cost, scene, req.stroke, rt.settings)
             except TooCostly as exc:  # large models go to a job when the client accepts an asynchronous answer
                 if "respond-async" not in request.headers.get("prefer", "") or exc.seconds > rt.settings.max_job_cost:
                     raise HTTPException(413, str(exc)) from None

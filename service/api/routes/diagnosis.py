@@ -12,7 +12,7 @@ from fastapi.responses import Response
 from ...jobs import worker
 from ...schemas import DiagnosisRequest, StateSpaceRequest
 from ..errors import HEAVY
-from ..guards import check_cost, scene_from
+from ..guards import admit
 from ..runtime import runtime
 
 __all__ = ["router"]
@@ -26,8 +26,7 @@ def router(prefix: str) -> APIRouter:
             response_model=dict[str, Any], responses=HEAVY)
     async def diagnosis(req: DiagnosisRequest, request: Request) -> Response:
         rt = runtime(request)
-        scene = scene_from(req.scene)
-        check_cost(scene, [0.0], rt.settings)
+        scene = await admit(req.scene, [0.0], rt.settings)
         spec = {"scene": scene.model_dump(mode="json"), "at_stroke": req.at_stroke, "kinematic": req.kinematic}
         return Response(await rt.run(worker.diagnosis, json.dumps(spec)), media_type="application/json")
 

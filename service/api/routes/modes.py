@@ -13,7 +13,7 @@ from fastapi.responses import Response
 from ...jobs import worker
 from ...schemas import ModesOut, ModesRequest
 from ..errors import HEAVY
-from ..guards import TooCostly, check_cost, scene_from
+from ..guards import TooCostly, admit
 from ..runtime import runtime
 
 __all__ = ["router"]
@@ -38,9 +38,8 @@ def router(prefix: str) -> APIRouter:
     async def modes(req: ModesRequest, request: Request) -> Response:
         accept = request.headers.get("accept", "")
         media = next((m for m in _MEDIA if m in accept), "application/json")
-        scene = scene_from(req.scene)
         try:  # the continuation walks to the stroke value in the scene's own steps: cost as for the whole curve
-            check_cost(scene, None, runtime(request).settings)
+            scene = await admit(req.scene, None, runtime(request).settings)
         except TooCostly as exc:
             raise HTTPException(413, str(exc)) from None
         spec = {"scene": scene.model_dump(mode="json"), "at_stroke": req.at_stroke, "mode": req.mode, "media": media}

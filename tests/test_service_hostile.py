@@ -1,0 +1,95 @@
+"""The service under hostile input (issue 29): a request cannot hold the server, the cost limit cannot be
+bypassed, memory levels off, and one key cannot see another's work in the response cache."""
+
+from __future__ import annotations
+
+import asyncio
+import copy
+import difflib
+from collections.abc import Iterator
+from pathlib import Path
+
+import httpx
+import pytest
+
+from flexopt.model import template
+from flexopt.model.scene import SUGGEST_BUDGET
+from flexopt.service.api import guards
+from flexopt.service.api.settings import Settings
+from tests.test_service import _Server
+
+
+@pytest.fixture(scope="module")
+def client(tmp_path_factory: pytest.TempPathFactory) -> Iterator[httpx.Client]:
+    settings = Settings(executor="thread", data_dir=tmp_path_factory.mktemp("hostile"), api_keys="")
+    with _Server(settings) as srv, httpx.Client(base_url=srv.url, timeout=60) as c:
+        yield c
+
+
+def _unknown_names(nodes: int, pad: int = 0) -> dict:
+    """A leaf spring with ``nodes`` nodes and as many elements, each naming two nodes that do not exist but
+    look like existing ones (the shape of the audit's 43 kB request that held the server 18 s)."""
+    d = template("leaf-spring").model_dump(mode="json")
+    node, el = d["nodes"][0], d["elements"][0]
+    d["nodes"] = [{**node, "name": f"node_{i:05d}" + "a" * pad, "position": [i * 1e-3, 0, 0]} for i in range(nodes)]
+    d["elements"] = [{**el, "name": f"e{i}", "nodes": [f"nod_{i:05d}x" + "a" * pad, f"nxde_{i:05d}" + "a" * pad]}
+                     for i in range(nodes)]
+    return d
+
+
+# -- item 3: one request froze every route ------------------------------------------------------------------
+
+def test_did_you_mean_work_is_bounded_per_scene(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue 29 item 3: every unknown name was compared with every node name (400 x 200 ratios here, 40,000
+    for the audit's scene); the suggestions of one scene now do at most SUGGEST_BUDGET character pairs of work.
+    Counts the names compared, not the time (it failed before: 80,000 comparisons of 10-character names)."""
+    work = []
+    real = difflib.SequenceMatcher.ratio
+
+    def counted(self: difflib.SequenceMatcher) -> float:
+        work.append(len(self.a) * len(self.b))
+        return real(self)
+
+    monkeypatch.setattr(difflib.SequenceMatcher, "ratio", counted)
+    for pad in (0, 88):  # short names, and 100-character ones (difflib's slowest case here: ~10 ms a pair)
+        work.clear()
+        with pytest.raises(Exception, match="unknown node") as info:
+            guards.scene_from(_unknown_names(200, pad))
+        assert sum(work) <= SUGGEST_BUDGET, (pad, len(work), sum(work))
+        assert "did you mean 'node_00000" in str(info.value.errors()[0]["msg"])  # the first names still get one
+
+
+def test_unknown_fields_listed_up_to_a_bound() -> None:
+    """40,000 misspelt fields: 101 entries (100 named, one counting the rest), not 40,000 messages (it failed
+    before: every one listed, each with a "did you mean" search)."""
+    d = template("leaf-spring").model_dump(mode="json")
+    d["nodes"][0].update({f"positon{i}": 1 for i in range(40_000)})
+    with pytest.raises(Exception) as info:
+        guards.scene_from(d)
+    errs = info.value.errors()
+    assert len(errs) == guards.MAX_ERRORS + 1
+    assert "did you mean 'position'" in errs[0]["msg"] and "more errors not listed" in errs[-1]["msg"]
+
+
+def test_scenes_are_validated_off_the_event_loop(client: httpx.Client, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Validation (pure Python, up to about a second for a 1 MB body) runs in a worker thread, so /health
+    answers meanwhile: checked on the three scene routes (it failed before: validated on the loop's thread)."""
+    seen: list[bool] = []
+    real = guards.scene_from
+
+    def where(data: dict) -> object:
+        try:
+            asyncio.get_running_loop()
+            seen.append(True)
+        except RuntimeError:
+            seen.append(False)
+        return real(data)
+
+    monkeypatch.setattr(guards, "scene_from", where)
+    monkeypatch.setattr("flexopt.service.api.routes.curves.scene_from", where)
+    bad = _unknown_names(20)
+    for route in ("/v1/frequency-curve", "/v1/modes", "/v1/diagnosis"):
+        r = client.post(route, json={"scene": bad})
+        assert r.status_code == 422, (route, r.text)
+        assert "unknown node 'nod_00000x' (did you mean 'node_00000'?)" in r.json()["detail"]
+    assert seen == [False, False, False]
