@@ -4,18 +4,16 @@ bypassed, memory levels off, and one key cannot see another's work in the respon
 from __future__ import annotations
 
 import asyncio
-import copy
 import difflib
 from collections.abc import Iterator
-from pathlib import Path
 
 import httpx
 import pytest
-
 from flexopt.model import template
 from flexopt.model.scene import SUGGEST_BUDGET
 from flexopt.service.api import guards
 from flexopt.service.api.settings import Settings
+
 from tests.test_service import _Server
 
 
