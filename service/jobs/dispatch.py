@@ -9,7 +9,9 @@ backoff (0.5 s doubling to 30 s): the thread never dies of it, and ``healthy()``
 
 Job processes are started in their own session (``start_new_session``), so a job process and its pool
 workers form one process group that can be ended together; a stopping server sends SIGTERM to each group,
-waits ``stop_timeout`` seconds for the job to store its cases in progress, then SIGKILLs what is left.
+waits ``stop_timeout`` seconds for the job to store its cases in progress, then SIGKILLs what is left. Only
+processes that carry the run's token (:data:`RUN_TOKEN`) in their environment are ever signalled
+(:func:`end_run`).
 Lifecycle events (``job.started``, ``job.ended``, ``job.requeued``, ``job.failed``) are logged as JSON fields.
 """
 
@@ -22,23 +24,70 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 from typing import Any
 
 from .store import HOST, JobStore, StoreUnavailable
 
-__all__ = ["Dispatcher", "end_group"]
+__all__ = ["RUN_TOKEN", "Dispatcher", "end_run"]
 
 log = logging.getLogger("flexopt.service.jobs")
 
 
-def end_group(pgid: int, sig: int = signal.SIGKILL) -> None:
-    """Signal the process group ``pgid`` (a job process and its pool workers); nothing left is fine."""
-    if os.name != "posix":  # pragma: no cover - process groups are POSIX
-        return
+#: The environment variable that marks every process of one job run: ``"<job id>:<attempt>"``, set on the job
+#: process and inherited by its pool workers (spawn and forkserver copy the environment). A process is
+#: signalled only if its environment carries the run's token: a pid alone proves nothing once the process
+#: is gone (issue 29 item 6: a restarted server killed an unrelated process-group leader that had taken
+#: the pid of a stale lease).
+RUN_TOKEN = "FLEXOPT_JOB_RUN"
+
+
+def _pgid(pid: int) -> int | None:
+    """The process group of ``pid`` from ``/proc/<pid>/stat`` (field 5, after the parenthesised name)."""
     try:
-        os.killpg(pgid, sig)
-    except (ProcessLookupError, PermissionError):
-        pass
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    return int(stat[stat.rindex(")") + 2:].split()[2])
+
+
+def _token(pid: int) -> str | None:
+    """The run token in the environment of ``pid`` (readable only for our own user's processes), or None."""
+    try:
+        env = Path(f"/proc/{pid}/environ").read_bytes()
+    except OSError:
+        return None
+    prefix = f"{RUN_TOKEN}=".encode()
+    return next((v[len(prefix):].decode(errors="replace") for v in env.split(b"\0") if v.startswith(prefix)), None)
+
+
+def end_run(pgid: int, token: str, sig: int = signal.SIGKILL) -> int:
+    """Signal the processes of group ``pgid`` (a job process and its pool workers) that prove to be the run
+    ``token``; how many were signalled.
+
+    Each candidate is pinned with a pidfd before its environment is read, so the signal reaches the process
+    that was checked even if it dies and its pid is reused in between. Where this cannot be proven (no
+    ``/proc``, no pidfd, another user's process), nothing is signalled.
+    """
+    if not hasattr(os, "pidfd_open") or not Path("/proc/self/environ").exists():  # pragma: no cover - not Linux
+        return 0
+    sent = 0
+    for entry in os.scandir("/proc"):
+        if not entry.name.isdigit() or _pgid(pid := int(entry.name)) != pgid:
+            continue
+        try:
+            fd = os.pidfd_open(pid)
+        except OSError:  # gone already
+            continue
+        try:
+            if _token(pid) == token:
+                signal.pidfd_send_signal(fd, sig)
+                sent += 1
+        except OSError:
+            pass
+        finally:
+            os.close(fd)
+    return sent
 
 
 class Dispatcher:
@@ -68,8 +117,8 @@ class Dispatcher:
         """Stop dispatching and the job processes: their jobs are requeued and resume at the next start."""
         self._stop.set()
         self._thread.join(5)
-        for p, _ in self.procs.values():
-            end_group(p.pid, signal.SIGTERM)
+        for jid, (p, attempt) in self.procs.items():
+            end_run(p.pid, f"{jid}:{attempt}", signal.SIGTERM)
         deadline = time.monotonic() + self.stop_timeout
         for jid, (p, attempt) in self.procs.items():
             try:  # the job stops its batch (cases in progress end or are dropped), then exits
@@ -77,7 +126,7 @@ class Dispatcher:
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait()
-            end_group(p.pid)
+            end_run(p.pid, f"{jid}:{attempt}")
             try:
                 self.store.requeue(jid, attempt, "interrupted by a stopping server")
             except StoreUnavailable:  # recovered from the expired lease at the next start
@@ -106,7 +155,7 @@ class Dispatcher:
                 if not self._started(jid):  # until the job process beats, the dispatcher holds its lease
                     self.store.heartbeat(jid, attempt, self.holder)
                 continue
-            end_group(p.pid)  # a job process killed outright leaves its worker pool behind
+            end_run(p.pid, f"{jid}:{attempt}")  # a job process killed outright leaves its worker pool behind
             new = self.store.requeue(jid, attempt, f"the job process ended without a result (exit code {code})")
             del self.procs[jid]
             if new is None:  # the job process wrote its verdict
@@ -122,8 +171,8 @@ class Dispatcher:
                 continue
             host, _, rest = (job["lease_holder"] or "").partition(":")
             pid, _, kind = rest.partition(":")
-            if host == HOST and kind == "job" and pid.isdigit():
-                end_group(int(pid))  # its job process is gone (it led its own group); its pool may not be
+            if host == HOST and kind == "job" and pid.isdigit():  # its job process is gone, its pool may not be:
+                end_run(int(pid), f"{job['id']}:{job['attempts']}")  # only processes proven to be that run
             new = self.store.requeue(job["id"], job["attempts"], "the job's lease expired (its process is gone)")
             if new is not None:
                 log.warning("job lease expired", extra={"event": f"job.{'requeued' if new == 'queued' else new}",
@@ -132,7 +181,8 @@ class Dispatcher:
             job = self.store.next_queued(self.holder)
             if job is None:
                 break
-            env: dict[str, Any] = dict(os.environ, FLEXOPT_DATABASE_URL=self.store.url,
+            env: dict[str, Any] = dict(os.environ, **{RUN_TOKEN: f"{job['id']}:{job['attempts']}"},
+                                       FLEXOPT_DATABASE_URL=self.store.url,
                                        FLEXOPT_DATA_DIR=str(self.store.data_dir),
                                        FLEXOPT_LEASE_SECONDS=str(self.store.lease_seconds))
             if self.workers:
