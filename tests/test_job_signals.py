@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from flexopt.service.jobs.dispatch import RUN_TOKEN, Dispatcher
-from flexopt.service.jobs.store import HOST, JobStore
+from flexopt.service.jobs.store import HOST, MAX_CRASHES, JobStore
 
 pytestmark = pytest.mark.skipif(not Path("/proc/self/environ").exists() or not hasattr(os, "pidfd_open"),
                                 reason="identity is proven from /proc and pidfds (Linux)")
@@ -106,3 +106,20 @@ def test_stale_lease_ends_the_processes_of_its_own_run(tmp_path: Path) -> None:
             except ProcessLookupError:
                 pass
             p.wait()
+
+
+def test_stopping_server_requeues_its_job_without_counting_a_crash(tmp_path: Path) -> None:
+    """Issue 29 item 5: each graceful stop (SIGTERM to the run, then requeued) leaves the job queued with no
+    crash counted, however many there are (it failed before: failed at the third stop)."""
+    store = JobStore(f"sqlite:///{tmp_path / 'jobs.sqlite'}", tmp_path, lease_seconds=5)
+    job, _ = store.submit(SPEC, None)
+    for attempt in range(1, MAX_CRASHES + 2):
+        assert store.next_queued("dispatcher")["attempts"] == attempt
+        run, _ = _group(dict(os.environ, **{RUN_TOKEN: f"{job['id']}:{attempt}"}))
+        d = Dispatcher(store, max_jobs=0, workers=1, stop_timeout=5)
+        d.procs[job["id"]] = (run, attempt)
+        d.start()
+        d.stop()  # SIGTERM to the run (the sleeping stand-in ends on it), then requeued
+        assert run.returncode == -15
+        assert store.get(job["id"])["status"] == "queued"
+        assert store.row(job["id"])["lease_holder"] is None

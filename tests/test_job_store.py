@@ -21,6 +21,7 @@ pytest.importorskip("sqlalchemy")
 
 from flexopt.service.jobs.store import (  # noqa: E402
     MAX_ATTEMPTS,
+    MAX_CRASHES,
     JobStore,
     KeyReused,
     StoreCorrupt,
@@ -118,6 +119,22 @@ def test_retries_end_in_failure_with_the_reason(store: JobStore) -> None:
         assert new == ("failed" if attempt == MAX_ATTEMPTS else "queued")
     final = store.get(job["id"])
     assert final["status"] == "failed" and "exit code -9" in final["error"] and "3 times" in final["error"]
+
+
+def test_graceful_stops_never_fail_a_job_and_crashes_do_by_policy(store: JobStore) -> None:
+    """Issue 29 item 5: a rolling deploy (five graceful stops of the server during one job) requeues it each
+    time without counting; three crashes then fail it, the error naming the policy. It failed before: the
+    third graceful stop failed the job."""
+    job, _ = store.submit(SPEC, None)
+    for attempt in range(1, 6):
+        assert store.next_queued("h:1")["attempts"] == attempt
+        assert store.requeue(job["id"], attempt, "interrupted by a stopping server", crash=False) == "queued"
+    for attempt in range(6, 6 + MAX_CRASHES):
+        store.next_queued("h:1")
+        new = store.requeue(job["id"], attempt, "the job process ended without a result (exit code -9)")
+        assert new == ("failed" if attempt == 5 + MAX_CRASHES else "queued")
+    error = store.get(job["id"])["error"]
+    assert "(exit code -9), 3 times" in error and "policy" in error and "restarts are not counted" in error
 
 
 def test_cancel_and_delete(store: JobStore, tmp_path: Path) -> None:

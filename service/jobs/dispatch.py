@@ -1,8 +1,8 @@
 """The job dispatcher: runs queued jobs in their own process groups, retries lost runs, survives the database.
 
 One thread per server. Each tick it (1) collects job processes that ended: a run that ended without a
-verdict (killed, out of memory, a pool worker lost) is requeued, and after ``MAX_ATTEMPTS`` runs failed with
-its reason; the rest of the process group (the pool workers) is killed with it; (2) requeues jobs whose
+verdict (killed, out of memory, a pool worker lost) is requeued, and after ``MAX_CRASHES`` such crashes failed
+with its reason (a run stopped by a stopping server is requeued and never counted); the rest of the process group (the pool workers) is killed with it; (2) requeues jobs whose
 lease expired (a job process of a server that was killed and whose process then died too); (3) starts
 queued jobs up to ``max_jobs``. A database error in a tick is logged and the tick retried with exponential
 backoff (0.5 s doubling to 30 s): the thread never dies of it, and ``healthy()`` reports it for ``/ready``.
@@ -128,7 +128,7 @@ class Dispatcher:
                 p.wait()
             end_run(p.pid, f"{jid}:{attempt}")
             try:
-                self.store.requeue(jid, attempt, "interrupted by a stopping server")
+                self.store.requeue(jid, attempt, "interrupted by a stopping server", crash=False)
             except StoreUnavailable:  # recovered from the expired lease at the next start
                 pass
         self.procs.clear()

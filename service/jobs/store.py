@@ -35,11 +35,15 @@ from sqlalchemy import update as sql_update
 from sqlalchemy.exc import DatabaseError, IntegrityError, OperationalError, SQLAlchemyError
 from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column
 
-__all__ = ["ACTIVE", "MAX_ATTEMPTS", "STATUSES", "Job", "JobStore", "KeyReused", "StoreCorrupt",
+__all__ = ["ACTIVE", "MAX_ATTEMPTS", "MAX_CRASHES", "STATUSES", "Job", "JobStore", "KeyReused", "StoreCorrupt",
            "StoreUnavailable", "TooManyJobs", "owner_of"]
 
-#: Runs of a job (interrupted by a stopped server, a killed job process or worker) before it is failed.
-MAX_ATTEMPTS = 3
+#: Crashed runs of a job (its job process or a pool worker killed, out of memory, its lease expired) before
+#: it is failed: the stated policy, named in the job's error. A run interrupted by a graceful server stop
+#: (SIGTERM, a rolling deploy) is not counted: such a job resumes from its finished cases however often the
+#: server restarts (issue 29 item 5: three SIGTERMs during one long job failed it).
+MAX_CRASHES = 3
+MAX_ATTEMPTS = MAX_CRASHES  # the former name
 ACTIVE = ("queued", "running", "cancelling")
 FINISHED = ("succeeded", "failed", "cancelled")
 STATUSES = (*ACTIVE, *FINISHED)
@@ -115,6 +119,7 @@ class Job(_Base):
     owner: Mapped[str] = mapped_column(String(64), default="", index=True)
     lease_holder: Mapped[str | None] = mapped_column(String(300), nullable=True)  # host:pid of the run
     lease_until: Mapped[float | None] = mapped_column(Float, nullable=True)  # epoch seconds
+    crashes: Mapped[int] = mapped_column(Integer, default=0)  # runs that crashed (graceful stops not counted)
 
     def to_dict(self) -> dict[str, Any]:
         kind = next((k for k in KINDS if f'"kind": "{k}"' in (self.spec or "")), "optimisation")
@@ -128,7 +133,8 @@ class Job(_Base):
 KINDS = ("frequency-curve", "topology-search", "pareto-front")
 
 # columns added after the first release: added to an older database at start (all nullable or defaulted)
-_ADDED = {"owner": "VARCHAR(64) NOT NULL DEFAULT ''", "lease_holder": "VARCHAR(300)", "lease_until": "FLOAT"}
+_ADDED = {"owner": "VARCHAR(64) NOT NULL DEFAULT ''", "lease_holder": "VARCHAR(300)", "lease_until": "FLOAT",
+          "crashes": "INTEGER NOT NULL DEFAULT 0"}
 
 
 def _now() -> str:
@@ -352,21 +358,27 @@ class JobStore:
             # cancelled (or claimed by another server) in the meantime: look again
 
     @_guarded
-    def requeue(self, job_id: str, attempt: int, reason: str) -> str | None:
-        """Run ``attempt`` ended without a verdict (process or worker killed, server stopped): back to the
-        queue, or failed with ``reason`` after :data:`MAX_ATTEMPTS` runs, or cancelled if it was being
-        cancelled. The new status, or None if that run no longer owned the job."""
-        job = self.row(job_id)
-        if job is None or job["attempts"] != attempt or job["status"] not in ("running", "cancelling"):
-            return None
-        if job["status"] == "cancelling":
+    def requeue(self, job_id: str, attempt: int, reason: str, crash: bool = True) -> str | None:
+        """Run ``attempt`` ended without a verdict: back to the queue, or cancelled if it was being cancelled.
+
+        ``crash`` (the job process or a pool worker killed, its lease expired) counts towards
+        :data:`MAX_CRASHES`, after which the job fails with ``reason`` and the policy; a graceful stop of the
+        server (``crash=False``) never fails a job. The new status, or None if that run no longer owned the job.
+        """
+        with Session(self.engine) as s:
+            job = s.get(Job, job_id)
+            if job is None or job.attempts != attempt or job.status not in ("running", "cancelling"):
+                return None
+            status, crashes = job.status, (job.crashes or 0) + crash
+        if status == "cancelling":
             new, extra = "cancelled", {}
-        elif attempt >= MAX_ATTEMPTS:
-            new, extra = "failed", {"error": f"{reason}, {attempt} times; finished cases are kept: resubmit to "
-                                              "resume from them"}
+        elif crashes >= MAX_CRASHES:
+            new, extra = "failed", {"error": f"{reason}, {crashes} times: a job whose run crashes {MAX_CRASHES} "
+                                             "times is failed (the policy; graceful server restarts are not "
+                                             "counted); finished cases are kept: resubmit to resume from them"}
         else:
             new, extra = "queued", {}
-        ok = self._set(job_id, (Job.attempts == attempt, Job.status == job["status"]), status=new,
+        ok = self._set(job_id, (Job.attempts == attempt, Job.status == status), status=new, crashes=crashes,
                        lease_holder=None, lease_until=None, **extra)
         return new if ok else None
 
