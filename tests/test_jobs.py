@@ -163,6 +163,34 @@ def test_job_whose_every_case_failed_is_failed(tmp_path: Path, monkeypatch: pyte
     assert "no equilibrium at stroke 3 deg" in final["error"]
 
 
+def test_progress_lost_in_an_outage_is_written_with_the_verdict(tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue 29 item 8: with the database out for every progress write (here: all of them, as at the very
+    end of a job), the job once succeeded listed 3 of 12 cases and progress 3/12. The verdict now carries
+    the final progress and every case (it failed before: progress {} and no cases listed)."""
+    from flexopt.service.jobs.store import StoreUnavailable
+
+    real = JobStore.update
+
+    def outage(self: JobStore, job_id: str, attempt: int | None = None, **fields: object) -> bool:
+        if "progress" in fields and "status" not in fields:
+            raise StoreUnavailable(OSError("database is unreachable"))
+        return real(self, job_id, attempt, **fields)
+
+    monkeypatch.setattr(JobStore, "update", outage)
+    url = f"sqlite:///{tmp_path / 'jobs.sqlite'}"
+    monkeypatch.setenv("FLEXOPT_DATABASE_URL", url)
+    monkeypatch.setenv("FLEXOPT_DATA_DIR", str(tmp_path))
+    monkeypatch.setenv("FLEXOPT_JOB_WORKERS", "1")
+    store = JobStore(url, tmp_path)
+    job, _ = store.submit({**TINY, "starts": 2}, None)
+    store.next_queued("test:1")
+    assert run_job(job["id"], 1, handle_signals=False) == 0
+    final = store.get(job["id"])
+    assert final["status"] == "succeeded"
+    assert final["progress"] == {"done": 2, "total": 2} and len(final["partial"]) == 2, final["progress"]
+
+
 def test_job_cancelled(tmp_path: Path) -> None:
     srv = _server(tmp_path)  # one job at a time: the second one waits in the queue
     try:

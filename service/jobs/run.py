@@ -11,7 +11,8 @@ and never compute them again.
 
 Life cycle: ``queued -> running -> succeeded | failed | cancelled``. A run that ends without a verdict (the
 process or one of its pool workers killed, the server stopping) is requeued and resumes from its finished
-cases; after ``MAX_ATTEMPTS`` runs the job fails with that reason. A job whose every case failed is
+cases; after ``MAX_CRASHES`` crashed runs the job fails with that reason (a graceful stop of the server is
+not a crash: such a job resumes however often the server restarts). A job whose every case failed is
 ``failed`` with the reasons. The job process keeps running if its server is killed (its lease stays alive,
 so a restarted server does not start it a second time) and writes its own verdict. Cancellation is
 cooperative: the process reads ``cancelling`` from its row and stops the batch.
@@ -80,6 +81,7 @@ def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
     spec = json.loads(job["spec"])
     cancel, interrupted = threading.Event(), threading.Event()
     partial: list[dict] = []
+    latest: dict = {}  # the last progress event ({done, total}), written again with the verdict
     cases = store.case_dir()
 
     def stop_outside() -> None:
@@ -106,6 +108,7 @@ def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
             time.sleep(0.3)
 
     def progress(event: dict) -> None:
+        latest.update(done=event["done"], total=event["total"])
         try:
             partial.append(_summary(json.loads((cases / f"{event['id']}.json").read_text())))
         except (OSError, json.JSONDecodeError):
@@ -161,6 +164,8 @@ def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
     if spec.get("kind") == "pareto-front" and not result.get("points"):  # no verified point: say why
         reasons = "no verified point: " + "; ".join(w["message"] for w in result.get("warnings", []))[:2000]
     verdict = {"status": "failed", "error": reasons} if reasons is not None else {"status": "succeeded"}
+    if latest:  # progress writes are best effort: one lost in an outage at the end is written with the verdict
+        verdict.update(progress=json.dumps(latest), partial=json.dumps(finite(partial), allow_nan=False))
     for wait in (0.5, 1, 2, 4, 8, 16, 30):  # the verdict outlasts a busy or briefly unreachable database
         try:
             store.update(job_id, attempt, result=blob, **verdict)
