@@ -91,3 +91,46 @@ def test_scenes_are_validated_off_the_event_loop(client: httpx.Client, monkeypat
         assert r.status_code == 422, (route, r.text)
         assert "unknown node 'nod_00000x' (did you mean 'node_00000'?)" in r.json()["detail"]
     assert seen == [False, False, False]
+
+
+# -- item 4: the cost limit and the compute slots -----------------------------------------------------------
+
+def _segments(name: str, segments: object, **scene: object) -> dict:
+    d = template(name).model_dump(mode="json")
+    for e in d["elements"]:
+        if "segments" in e:
+            e["segments"] = segments
+    return {**d, **scene}
+
+
+def test_auto_segments_costed_at_the_worst_mesh_they_may_reach() -> None:
+    """Issue 29 item 4: 128 segments per beam are refused, and 'auto' with a tiny mesh_tolerance (which may
+    refine to 128) was accepted, costed at its 4-segment start mesh; it is now refused with the mesh named
+    (it failed before: accepted)."""
+    from flexopt.model.scene import Scene
+
+    settings = Settings(api_keys="")
+    with pytest.raises(guards.TooCostly):
+        guards.check_cost(Scene.model_validate(_segments("cross-spring-pivot", 128)), None, settings)
+    auto = Scene.model_validate(_segments("cross-spring-pivot", "auto", mesh_tolerance=1e-9))
+    with pytest.raises(guards.TooCostly, match="'auto' may refine to 128 per beam"):
+        guards.check_cost(auto, None, settings)
+    few = Scene.model_validate(_segments("leaf-spring", "auto", stroke={**template("leaf-spring").model_dump(
+        mode="json")["stroke"], "points": 3}))
+    guards.check_cost(few, None, settings)  # a small auto request still fits
+
+
+def test_timed_out_request_frees_its_slot(tmp_path: Path) -> None:
+    """Issue 29 item 4: a computation past the time limit is ended with its worker process, so the next
+    request gets the slot (it failed before: 429 while the abandoned computation ran on)."""
+    settings = Settings(executor="process", max_concurrent=1, request_timeout=8.0, queue_timeout=0, max_cost=1e9,
+                        data_dir=tmp_path, api_keys="")
+    slow = {"scene": _segments("cross-spring-pivot", 128), "method": "exact",  # minutes of work
+            "stroke": [-45 + 0.09 * i for i in range(1001)]}
+    quick = {"scene": template("leaf-spring").model_dump(mode="json")}
+    with _Server(settings) as srv, httpx.Client(base_url=srv.url, timeout=120) as c:
+        assert c.post("/v1/diagnosis", json=quick).status_code == 200  # the worker is up
+        r = c.post("/v1/frequency-curve", json=slow)
+        assert r.status_code == 504, r.text[:300]
+        r = c.post("/v1/diagnosis", json=quick)
+        assert r.status_code == 200, r.text[:300]

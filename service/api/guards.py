@@ -83,7 +83,7 @@ def scene_from(data: dict[str, Any]) -> Any:
                          "msg": f"{len(found) - MAX_ERRORS} more errors not listed; fix the ones above first"})
         raise RequestValidationError(errs) from None
     except Exception as exc:  # noqa: BLE001 - a validator's arithmetic broke on extreme numbers: named, not a 500
-        ok, err = worker.broken(exc, data)
+        _, err = worker.broken(exc, data)
         raise ComputationFailed(err["field"], err["message"]) from None
 
 
@@ -98,8 +98,31 @@ def _dofs(scene: Any) -> int:
     except FlexoptError:
         raise
     except Exception as exc:  # noqa: BLE001 - overflow and the like on extreme numbers: named, never a 500
-        ok, err = worker.broken(exc, scene.model_dump(mode="json"))
+        _, err = worker.broken(exc, scene.model_dump(mode="json"))
         raise ComputationFailed(err["field"], err["message"]) from None
+
+
+def _auto_meshes(scene: Any) -> list[tuple[int, int]]:
+    """``(segments, DOFs)`` of every mesh that ``segments: "auto"`` beams may be refined through
+    (``model.mesh.resolve_auto_segments``: AUTO_START doubling to AUTO_MAX, while the model stays within
+    MAX_DOFS); empty when no beam is "auto"."""
+    from ...model.mesh import AUTO_MAX
+    from ...model.scene import AUTO_START, Beam
+    from ...model.structure import MAX_DOFS, compile_scene
+
+    auto = [i for i, e in enumerate(scene.elements) if isinstance(e, Beam) and e.segments == "auto"]
+    out: list[tuple[int, int]] = []
+    n = AUTO_START
+    while auto and n <= AUTO_MAX:
+        els = list(scene.elements)
+        for i in auto:
+            els[i] = els[i].model_copy(update={"segments": n})
+        st = compile_scene(scene.model_copy(update={"elements": tuple(els)}))
+        if int(st.active.sum()) > MAX_DOFS:
+            break
+        out.append((n, st.n_dof))
+        n *= 2
+    return out
 
 
 class TooCostly(Exception):
@@ -124,11 +147,21 @@ def check_cost(scene: Any, stroke: list[float] | None, settings: Settings) -> No
                                        "msg": f"{points} stroke points; give 1 to {settings.max_stroke_points}"}])
     dofs = _dofs(scene)
     seconds = seconds_per_point(dofs) * points
+    what = f"{dofs} degrees of freedom x {points} stroke points"
+    meshes = _auto_meshes(scene)
+    if meshes:  # the worst mesh 'auto' may reach, plus the refinement's own solves (issue 29 item 4: a tiny
+        # mesh_tolerance bypassed the limit, estimated at the 4-segment start mesh)
+        from ...model.mesh import ESTIMATE_POINTS
+
+        n, dofs = meshes[-1]
+        refine = sum(seconds_per_point(d) for _, d in meshes) * (2 * ESTIMATE_POINTS + 1)
+        seconds = seconds_per_point(dofs) * points + refine
+        what = (f"segments 'auto' may refine to {n} per beam: {dofs} degrees of freedom x {points} stroke points, "
+                f"plus {refine:.0f} s of refinement")
     if seconds > settings.max_cost:
-        raise TooCostly(seconds, f"estimated cost {seconds:.0f} s ({dofs} degrees of freedom x {points} stroke "
-                                 f"points) exceeds this server's limit of {settings.max_cost:g} s for a request; "
-                                 "send 'Prefer: respond-async' to run it as a job, or use fewer stroke points or "
-                                 "fewer segments")
+        raise TooCostly(seconds, f"estimated cost {seconds:.0f} s ({what}) exceeds this server's limit of "
+                                 f"{settings.max_cost:g} s for a request; send 'Prefer: respond-async' to run it "
+                                 "as a job, or use fewer stroke points or fewer (explicit) segments")
 
 
 async def admit(data: dict[str, Any], stroke: list[float] | None, settings: Settings) -> Any:

@@ -21,7 +21,10 @@ from ..schemas import Job
 from .errors import Busy, ComputeTimeout, log
 from .settings import Settings
 
-__all__ = ["Runtime", "job_store", "runtime", "submit_job"]
+__all__ = ["WORKER_TASKS", "Runtime", "job_store", "runtime", "submit_job"]
+
+#: computations a worker process serves before it is replaced by a fresh one (bounds what it retains)
+WORKER_TASKS = 200
 
 
 @dataclass
@@ -30,8 +33,9 @@ class Runtime:
 
     Heavy computations: at most ``max_concurrent`` run at once (one worker process, or thread, each); up to ``max_queued``
     more wait at most ``queue_timeout`` seconds for a slot; anything past that gets 429 with Retry-After.
-    A slot is given back when the computation really ends, also for a computation abandoned at the time
-    limit (the computation is not interrupted), so the CPU is never oversubscribed.
+    Each slot has its own worker process; a computation past the time limit is ended with its process, so
+    its slot is free at once and the CPU is never oversubscribed (with the thread executor, which cannot end
+    a computation, the slot is given back when the computation really ends).
     """
 
     settings: Settings
@@ -39,7 +43,8 @@ class Runtime:
     lock: threading.Lock = field(default_factory=threading.Lock)
     cache: OrderedDict[str, Any] = field(default_factory=OrderedDict)  # canonical request -> result (LRU)
     _slots: asyncio.Semaphore | None = None
-    pool: concurrent.futures.ProcessPoolExecutor | None = None
+    pools: list[Any] = field(default_factory=list)  # one single-process pool per slot (executor "process")
+    idle: list[int] = field(default_factory=list)  # slots whose process is free
     jobs: Any = None  # service.jobs.store.JobStore, opened by start()
     dispatcher: Any = None  # service.jobs.dispatch.Dispatcher
 
@@ -85,20 +90,33 @@ class Runtime:
             self.waiting -= 1
 
     async def run(self, fn: Callable[[str], tuple[bool, Any]], spec: str) -> Any:
-        """``fn(spec)`` in the worker pool within the slot limit (429) and the time limit (504).
+        """``fn(spec)`` in a worker process within the slot limit (429) and the time limit (504).
 
-        ``fn`` is a :mod:`service.jobs.worker` function; a model error it reports is raised here again.
+        ``fn`` is a :mod:`service.jobs.worker` function; a model error it reports is raised here again. Each
+        slot has its own worker process: a computation past the time limit is ended with its process and the
+        slot is free at once (issue 29 item 4: two abandoned computations held both slots for minutes). With
+        the thread executor a computation cannot be ended; its slot is given back when it ends.
         """
         s = self.settings
         await self._acquire()
         loop = asyncio.get_running_loop()
-        release = self.slots().release
-        if self.pool is not None:
-            try:
-                future = self.pool.submit(fn, spec)
-            except concurrent.futures.BrokenExecutor:  # a worker died: replace the pool, once
+        freed = threading.Event()
+        slot = self.idle.pop() if self.pools else -1
+
+        def free() -> None:  # once, whichever comes first: the work ends, or it is ended at the time limit
+            if not freed.is_set():
+                freed.set()
+                if slot >= 0:
+                    self.idle.append(slot)
                 self.slots().release()
-                self._new_pool()
+
+        pool = self.pools[slot] if slot >= 0 else None
+        if pool is not None:
+            try:
+                future = pool.submit(fn, spec)
+            except concurrent.futures.BrokenExecutor:  # its worker died: replace it, once
+                self._new_pool(slot)
+                free()
                 return await self.run(fn, spec)
         else:
             future = concurrent.futures.Future()
@@ -110,28 +128,36 @@ class Runtime:
                     future.set_exception(exc)
 
             threading.Thread(target=in_thread, daemon=True, name="flexopt-compute").start()
-        # The slot is released when the work really ends (not when the request gives up at the time limit).
-        future.add_done_callback(lambda _: loop.call_soon_threadsafe(release))
+        future.add_done_callback(lambda _: loop.call_soon_threadsafe(free))
         try:
             ok, payload = await asyncio.wait_for(asyncio.shield(asyncio.wrap_future(future)), s.request_timeout)
         except TimeoutError:
-            future.cancel()  # drops it if still queued in the pool; a running computation finishes on its own
+            if slot >= 0:  # end the computation with its process; the slot gets a fresh one
+                self._new_pool(slot)
+                free()
             raise ComputeTimeout(s.request_timeout) from None
         except concurrent.futures.BrokenExecutor:  # the worker running it died (killed, out of memory)
-            self._new_pool()
+            if self.pools and self.pools[slot] is pool:  # not yet replaced by the next user of the slot
+                self._new_pool(slot)
             raise ComputationFailed([], "the worker process computing this request died (out of memory or "
                                         "killed); retry, or use fewer stroke points or a smaller model") from None
         if not ok:
             worker.raise_error(payload)
         return payload
 
-    def _new_pool(self) -> None:
-        old, self.pool = self.pool, None
+    def _new_pool(self, slot: int) -> None:
+        """A fresh one-process pool for ``slot``; the old one's process (if any) is ended."""
+        old = self.pools[slot]
         if old is not None:
+            procs = list(getattr(old, "_processes", {}).values())
             old.shutdown(wait=False, cancel_futures=True)
+            for p in procs:
+                p.kill()
         ctx = multiprocessing.get_context("spawn")  # never fork the threaded server
-        self.pool = concurrent.futures.ProcessPoolExecutor(self.settings.max_concurrent, mp_context=ctx,
-                                                           initializer=worker.warm_up)
+        # A worker is replaced after WORKER_TASKS computations: the compiled kernels and caches of the
+        # distinct scenes it met go with it (issue 29 item 2: memory grew over a fuzzing run).
+        self.pools[slot] = concurrent.futures.ProcessPoolExecutor(1, mp_context=ctx, initializer=worker.warm_up,
+                                                                  max_tasks_per_child=WORKER_TASKS)
 
     def start(self) -> None:
         """Open the job store (a corrupt one raises ``store.StoreCorrupt``), start the pool and the dispatcher."""
@@ -146,7 +172,10 @@ class Runtime:
         threading.Thread(target=_warm_up, daemon=True, name="flexopt-warm-up").start()
         self.jobs = JobStore(s.job_store_url(), s.data_dir, s.lease_seconds)
         if s.executor == "process":
-            self._new_pool()
+            self.pools = [None] * s.max_concurrent
+            for slot in range(s.max_concurrent):
+                self._new_pool(slot)
+            self.idle = list(range(s.max_concurrent))
         self.dispatcher = Dispatcher(self.jobs, s.max_jobs, s.job_workers or None, s.job_stop_timeout)
         self.dispatcher.start()  # jobs whose lease expired (their server and process gone) are requeued
 
@@ -164,7 +193,7 @@ class Runtime:
                 out.append(str(exc))
         if self.dispatcher is not None and (why := self.dispatcher.healthy()):
             out.append(why)
-        if self.settings.executor == "process" and self.pool is None:
+        if self.settings.executor == "process" and not self.pools:
             out.append("the worker pool is not running")
         return out
 
@@ -173,17 +202,19 @@ class Runtime:
         if self.dispatcher is not None:
             self.dispatcher.stop()
             self.dispatcher = None
-        if self.pool is not None:
+        if self.pools:
             # Queued work is dropped and running computations are ended: their requests were answered or cut
             # when the server stopped listening, and waiting for them would outlast a container's stop grace.
-            workers = list(getattr(self.pool, "_processes", {}).values())
-            self.pool.shutdown(wait=False, cancel_futures=True)
+            workers = [p for pool in self.pools for p in getattr(pool, "_processes", {}).values()]
+            for pool in self.pools:
+                pool.shutdown(wait=False, cancel_futures=True)
             for p in workers:
                 p.terminate()
             for p in workers:
                 p.join(5)
-            self.pool.shutdown(wait=True)  # the pool's manager sees its workers gone and frees its queues
-            self.pool = None
+            for pool in self.pools:
+                pool.shutdown(wait=True)  # the pool's manager sees its workers gone and frees its queues
+            self.pools, self.idle = [], []
         self.cache.clear()
 
 
