@@ -134,3 +134,38 @@ def test_timed_out_request_frees_its_slot(tmp_path: Path) -> None:
         assert r.status_code == 504, r.text[:300]
         r = c.post("/v1/diagnosis", json=quick)
         assert r.status_code == 200, r.text[:300]
+
+
+# -- item 2: what the server retains; item 9: the cache per key ---------------------------------------------
+
+def test_response_cache_levels_off_in_bytes() -> None:
+    """Issue 29 item 2: the response cache was bounded in entries only (256 curves with shapes, PNGs or GIFs
+    of distinct scenes: hundreds of MB). A stream of 1,000 distinct 100 kB responses now levels off at
+    cache_bytes, and a response over an eighth of it is not kept (it failed before: 25.6 MB held, the
+    256-entry cap, against a 2 MB bound)."""
+    from flexopt.service.api.runtime import Runtime
+
+    rt = Runtime(Settings(cache_size=256, cache_bytes=2_000_000, api_keys=""))
+    held = []
+    for i in range(1000):
+        rt.store(f"scene-{i}", bytes(100_000))
+        held.append(sum(len(v) for v in rt.cache.values()))
+    assert max(held) <= 2_000_000 and held[-1] == held[500] == rt.cached_bytes
+    rt.store("huge", bytes(300_000))
+    assert rt.cached("huge") is None
+    assert rt.cached("scene-999") is not None
+
+
+def test_result_cache_is_per_api_key(tmp_path: Path) -> None:
+    """Issue 29 item 9: key B's request for the scene key A computed was a hit (0.17 s against 1.06 s: B could
+    tell that A computed it); each key now has its own entries (it failed before: one shared entry)."""
+    settings = Settings(executor="thread", data_dir=tmp_path, api_keys="key-a,key-b")
+    body = {"scene": template("leaf-spring").model_dump(mode="json"), "method": "fd1"}
+    with _Server(settings) as srv, httpx.Client(base_url=srv.url, timeout=120) as c:
+        rt = srv.server.config.app.state.runtime
+        a = c.post("/v1/frequency-curve", json=body, headers={"X-API-Key": "key-a"})
+        assert a.status_code == 200 and len(rt.cache) == 1
+        assert c.post("/v1/frequency-curve", json=body, headers={"X-API-Key": "key-a"}).content == a.content
+        assert len(rt.cache) == 1, "key A's repeat is its own hit"
+        b = c.post("/v1/frequency-curve", json=body, headers={"X-API-Key": "key-b"})
+        assert b.status_code == 200 and len(rt.cache) == 2, "key B computed its own, not A's cached answer"

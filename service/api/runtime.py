@@ -42,6 +42,7 @@ class Runtime:
     waiting: int = 0  # requests queued for a slot
     lock: threading.Lock = field(default_factory=threading.Lock)
     cache: OrderedDict[str, Any] = field(default_factory=OrderedDict)  # canonical request -> result (LRU)
+    cached_bytes: int = 0  # bytes held by the cache's values
     _slots: asyncio.Semaphore | None = None
     pools: list[Any] = field(default_factory=list)  # one single-process pool per slot (executor "process")
     idle: list[int] = field(default_factory=list)  # slots whose process is free
@@ -63,14 +64,22 @@ class Runtime:
         return None
 
     def store(self, key: str, value: Any) -> None:
-        """Cache ``value``; the least recently used entry goes once the cache is full."""
-        if self.settings.cache_size <= 0:
+        """Cache ``value`` (bytes); the least recently used entries go while the cache holds more than
+        ``cache_size`` entries or ``cache_bytes`` bytes. Before the byte bound (issue 29 item 2), 256 entries of
+        curves with shapes, PNGs and GIFs of distinct scenes took the server from 129 MB to 601 MB."""
+        s = self.settings
+        size = len(value)
+        if s.cache_size <= 0 or size > s.cache_bytes // 8:
             return
         with self.lock:
+            if key in self.cache:
+                self.cached_bytes -= len(self.cache[key])
             self.cache[key] = value
+            self.cached_bytes += size
             self.cache.move_to_end(key)
-            while len(self.cache) > self.settings.cache_size:
-                self.cache.popitem(last=False)
+            while len(self.cache) > s.cache_size or self.cached_bytes > s.cache_bytes:
+                _, old = self.cache.popitem(last=False)
+                self.cached_bytes -= len(old)
 
     async def _acquire(self) -> None:
         s = self.settings
@@ -216,6 +225,7 @@ class Runtime:
                 pool.shutdown(wait=True)  # the pool's manager sees its workers gone and frees its queues
             self.pools, self.idle = [], []
         self.cache.clear()
+        self.cached_bytes = 0
 
 
 def _warm_up() -> None:

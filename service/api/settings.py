@@ -40,6 +40,9 @@ class Settings(BaseSettings):
     max_job_cost: PositiveFloat = Field(
         3600.0, description="largest estimated cost of a frequency curve run as a job [s] (413 past it)")
     cache_size: int = Field(256, ge=0, description="entries of the LRU response cache for identical requests (0 = off)")
+    cache_bytes: int = Field(
+        32_000_000, ge=0, description="bytes the LRU response cache may hold in all [bytes] (a response larger "
+        "than an eighth of it is not cached): bounds the server's memory whatever the responses' size")
     api_keys: str = Field("", description="comma-separated API keys; empty = no authentication")
     api_key_header: str = Field("X-API-Key", description="header carrying the API key")
     allowed_hosts: str = Field(

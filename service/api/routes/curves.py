@@ -53,10 +53,13 @@ def router(prefix: str) -> APIRouter:
             raise RequestValidationError([{"loc": ("body", "stroke"), "type": "value_error",
                                            "msg": f"give 1 to {rt.settings.max_stroke_points} stroke values"}])
         media = _accepted(request)
+        # one cache per API key: a hit is never another key's computation, whose speed would tell that key's
+        # scenes to this one (issue 29 item 9)
         try:
-            key = hashlib.sha256(json.dumps([req.model_dump(mode="json"), media], sort_keys=True).encode()).hexdigest()
+            key = hashlib.sha256(json.dumps([request.state.owner, req.model_dump(mode="json"), media],
+                                            sort_keys=True).encode()).hexdigest()
         except (ValueError, RecursionError):  # nested too deeply to serialise: the scene's validation says where
-            scene_from(req.scene)
+            await asyncio.to_thread(scene_from, req.scene)
             raise RequestValidationError([{"loc": ("body", "scene"), "type": "value_error",
                                            "msg": "nested too deeply; a scene is a few levels deep"}]) from None
         hit = rt.cached(key)  # only validated scenes are ever stored, so a hit needs no re-validation
