@@ -99,3 +99,62 @@ def test_mutated_template_scenes_never_5xx(tmp_path_factory: pytest.TempPathFact
             rounds += 1
     print(f"mutated template scenes: {sum(seen.values())} requests, statuses {dict(sorted(seen.items()))}")
     assert rounds >= 1 and sum(seen.values()) >= len(names) * len(methods)
+
+
+# -- the built-in templates as they come, deep nesting, unknown names, frequencies (issue 29) ------------------
+
+def _deep(depth: int) -> object:
+    out: object = []
+    for _ in range(depth):
+        out = [out]
+    return out
+
+
+def _frequencies(body: dict) -> list[float | None]:
+    """Every frequency of a curve's JSON answer (parasitic and per-mode), None for a missing one."""
+    out = list(body.get("parasitic_hz") or [])
+    for row in body.get("modes_hz") or []:
+        out.extend(row)
+    return out
+
+
+def test_templates_as_they_come_deep_nesting_and_names_never_5xx(tmp_path_factory: pytest.TempPathFactory) -> None:
+    """Every built-in template exactly as the server gives it (truss12's stroke is null) on every scene route
+    and method; a scene with JSON nested 255 and 300 levels deep; scenes naming unknown nodes. No 5xx, every
+    error says what is wrong, and no answer has a negative or NaN frequency without a warning (issue 29 items
+    1, 3 and 7: 500s on truss12 and on deep nesting; fast methods' negative frequencies as complete)."""
+    import httpx
+
+    with _Server(Settings(executor="thread", request_timeout=20.0, max_cost=5.0, max_stroke_points=11,
+                          data_dir=tmp_path_factory.mktemp("templates"))) as srv, \
+            httpx.Client(base_url=srv.url, timeout=60) as c:
+        names = [t["name"] for t in c.get("/v1/templates").json()]
+        methods = c.get("/health").json()["methods"]
+        scenes = {n: c.post(f"/v1/templates/{n}/scene").json() for n in names}
+        bodies: list[tuple[str, dict]] = []
+        for n, scene in scenes.items():
+            if scene.get("stroke"):  # a few points keep the exact method cheap
+                scene = {**scene, "stroke": {**scene["stroke"], "points": 5}}
+            bodies += [("/v1/frequency-curve", {"scene": scene, "method": m}) for m in methods]
+            bodies += [("/v1/modes", {"scene": scene}), ("/v1/diagnosis", {"scene": scene})]
+        leaf = scenes["leaf-spring"]
+        for depth in (255, 300):
+            for route in ("/v1/frequency-curve", "/v1/modes", "/v1/diagnosis"):
+                bodies.append((route, {"scene": {**leaf, "name": _deep(depth)}}))
+                bodies.append((route, {"scene": {**leaf, "extra": _deep(depth)}}))
+        unknown = {**leaf, "elements": [{**e, "nodes": [f"{e['nodes'][0]}x", "nowhere"]} for e in leaf["elements"]]}
+        bodies += [(route, {"scene": unknown}) for route in ("/v1/frequency-curve", "/v1/modes", "/v1/diagnosis")]
+        for route, body in bodies:
+            r = c.post(route, json=body)
+            what = (route, body.get("method"), body["scene"].get("name") if isinstance(body["scene"].get("name"),
+                                                                                       str) else "nested")
+            assert r.status_code < 500 or r.status_code == 504, (*what, r.status_code, r.text[:300])
+            if r.status_code >= 400:
+                assert r.json()["detail"].strip(), r.text
+                continue
+            if route == "/v1/frequency-curve":
+                out = r.json()
+                bad = [f for f in _frequencies(out) if f is not None and not f >= 0]
+                assert not bad or out.get("warnings") or out.get("status") != "complete", (
+                    *what, "negative or NaN frequencies without a warning", bad[:3])
+        assert any(r == "/v1/frequency-curve" and b["scene"] is unknown for r, b in bodies)
