@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import asyncio
 import difflib
+import socket
 from collections.abc import Iterator
 
 import httpx
@@ -169,3 +170,51 @@ def test_result_cache_is_per_api_key(tmp_path: Path) -> None:
         assert len(rt.cache) == 1, "key A's repeat is its own hit"
         b = c.post("/v1/frequency-curve", json=body, headers={"X-API-Key": "key-b"})
         assert b.status_code == 200 and len(rt.cache) == 2, "key B computed its own, not A's cached answer"
+
+
+# -- item 8: slow clients and oversized uploads -------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def small_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[_Server]:
+    settings = Settings(executor="thread", data_dir=tmp_path_factory.mktemp("slow"), api_keys="", body_timeout=1.0,
+                        max_body_bytes=100_000)
+    with _Server(settings) as srv:
+        yield srv
+
+
+def _connect(srv: _Server) -> socket.socket:
+    s = socket.create_connection(("127.0.0.1", srv.port), timeout=10)
+    return s
+
+
+def test_chunked_upload_past_the_limit_is_cut_at_the_limit(small_server: _Server) -> None:
+    """A chunked upload larger than the limit gets its 413 and the connection closed once the limit is passed:
+    the server stops reading (it failed before: read to the end, a 50 MB upload 145 s, behind its 413)."""
+    s = _connect(small_server)
+    s.sendall(b"POST /v1/diagnosis HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
+              b"Transfer-Encoding: chunked\r\n\r\n")
+    chunk = b"%x\r\n%s\r\n" % (16_384, b" " * 16_384)
+    sent = 0
+    try:
+        for _ in range(3200):  # 50 MB if the server read it all
+            s.sendall(chunk)
+            sent += 16_384
+    except OSError:  # the server closed the connection: the upload was cut
+        pass
+    reply = s.recv(65536)
+    s.close()
+    assert reply.startswith(b"HTTP/1.1 413") and b"connection: close" in reply.lower(), reply[:200]
+    assert sent < 5_000_000, f"{sent} bytes accepted after a 100 kB limit"
+
+
+def test_slow_body_gets_408_and_the_connection_closed(small_server: _Server) -> None:
+    """A client that announces a body and never sends it is answered 408 after body_timeout (1 s here) and
+    disconnected (it failed before: the connection stayed open, the request waiting for good)."""
+    s = _connect(small_server)
+    s.sendall(b"POST /v1/diagnosis HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
+              b"Content-Length: 500\r\n\r\n{\"scene\"")
+    reply = s.recv(65536)
+    rest = s.recv(65536)  # b"" once the server has closed
+    s.close()
+    assert reply.startswith(b"HTTP/1.1 408"), reply[:200]
+    assert rest == b""

@@ -91,7 +91,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(routes.router(settings))
     web.install(app)  # the page at / and its static assets
     app.add_middleware(JsonOnly)  # inside BodyLimit: a body too large is 413 whatever its type
-    app.add_middleware(BodyLimit, limit=settings.max_body_bytes)
+    app.add_middleware(BodyLimit, limit=settings.max_body_bytes, timeout=settings.body_timeout)
     app.add_middleware(AllowedHosts, hosts=settings.hosts())  # before anything reads the body (DNS rebinding)
     app.add_middleware(FrameBlock)  # every answer, a 400 for a foreign Host included
     app.add_middleware(RequestLog)  # added last: the outermost layer, sees every request and exception

@@ -38,7 +38,7 @@ __all__ = ["Busy", "ComputeTimeout", "ERRORS", "HEAVY", "JOBS", "problem", "inst
 
 log = logging.getLogger("flexopt.service")
 
-_TITLES = {400: "Bad request", 401: "Unauthorized", 404: "Not found", 405: "Method not allowed",
+_TITLES = {400: "Bad request", 401: "Unauthorized", 404: "Not found", 405: "Method not allowed", 408: "Request timeout",
            413: "Payload too large", 415: "Unsupported media type", 422: "Unprocessable content",
            429: "Too many requests", 500: "Internal server error", 503: "Service unavailable",
            504: "Gateway timeout", 406: "Not acceptable"}

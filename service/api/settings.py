@@ -24,6 +24,8 @@ class Settings(BaseSettings):
     model_config = SettingsConfigDict(env_prefix="FLEXOPT_", extra="ignore")
 
     max_body_bytes: PositiveInt = Field(1_000_000, description="largest accepted request body [bytes] (413 past it)")
+    body_timeout: PositiveFloat = Field(30.0, description="time allowed to receive a request body [s] (408 past it, "
+                                        "and the connection is closed)")
     request_timeout: PositiveFloat = Field(30.0, description="time limit of a synchronous computation [s] (504 past it)")
     max_concurrent: PositiveInt = Field(2, description="heavy computations running at once (429 past it)")
     executor: Literal["process", "thread"] = Field(
