@@ -218,3 +218,41 @@ def test_slow_body_gets_408_and_the_connection_closed(small_server: _Server) -> 
     s.close()
     assert reply.startswith(b"HTTP/1.1 408"), reply[:200]
     assert rest == b""
+
+
+# -- item 8: /ready tells the truth about the store and the disk --------------------------------------------
+
+def test_ready_503_when_the_sqlite_file_is_deleted(tmp_path: Path) -> None:
+    """Deleting the SQLite file under a running server: /ready 503 naming it, and submissions 503 (it failed
+    before: /ready 200, every later job failed after three lost runs)."""
+    with _Server(Settings(executor="thread", data_dir=tmp_path, api_keys="")) as srv, \
+            httpx.Client(base_url=srv.url, timeout=30) as c:
+        assert c.get("/ready").status_code == 200
+        (tmp_path / "jobs.sqlite").unlink()
+        r = c.get("/ready")
+        assert r.status_code == 503 and "deleted or replaced" in r.json()["detail"], r.text
+        spec = {"families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]}}], "starts": 1}
+        assert c.post("/v1/optimisations", json=spec).status_code == 503
+
+
+def test_ready_503_when_the_data_directory_cannot_be_written(tmp_path: Path,
+                                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    """A full disk (writes in the data directory fail with ENOSPC, simulated at open): /ready 503 naming the
+    directory (it failed before: 200 while submissions got 503)."""
+    import builtins
+    import errno
+
+    real_open = builtins.open
+    data = str(tmp_path)
+
+    def full(file: object, *args: object, **kw: object) -> object:
+        if str(file).startswith(data) and ".ready-" in str(file):
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real_open(file, *args, **kw)
+
+    with _Server(Settings(executor="thread", data_dir=tmp_path, api_keys="")) as srv, \
+            httpx.Client(base_url=srv.url, timeout=30) as c:
+        assert c.get("/ready").status_code == 200
+        monkeypatch.setattr(builtins, "open", full)
+        r = c.get("/ready")
+        assert r.status_code == 503 and "No space left on device" in r.json()["detail"], r.text

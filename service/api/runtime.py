@@ -6,10 +6,12 @@ from __future__ import annotations
 import asyncio
 import concurrent.futures
 import multiprocessing
+import os
 import threading
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from fastapi import Request, Response
@@ -200,6 +202,8 @@ class Runtime:
                 self.jobs.ping()
             except StoreUnavailable as exc:
                 out.append(str(exc))
+        if (why := _unwritable(self.settings.data_dir)) is not None:
+            out.append(why)
         if self.dispatcher is not None and (why := self.dispatcher.healthy()):
             out.append(why)
         if self.settings.executor == "process" and not self.pools:
@@ -235,6 +239,23 @@ def _warm_up() -> None:
         from ...optim import search  # noqa: F401 - guards.check_problem's import
     except Exception:  # noqa: BLE001 - the request that needs the import raises it again, with its context
         log.warning("warm-up import failed", exc_info=True)
+
+
+def _unwritable(data_dir: Path) -> str | None:
+    """Why ``data_dir`` (finished cases, the SQLite file) cannot take a write now, or None: a 64 kB probe file
+    written, flushed to disk and removed. On a full disk /ready said 200 while submissions got 503 (issue 29
+    item 8)."""
+    probe = data_dir / f".ready-{os.getpid()}"
+    try:
+        with open(probe, "wb") as f:
+            f.write(bytes(65536))
+            f.flush()
+            os.fsync(f.fileno())
+    except OSError as exc:
+        return f"the data directory {data_dir} cannot be written ({exc.strerror or exc}); free space or fix it"
+    finally:
+        probe.unlink(missing_ok=True)
+    return None
 
 
 def runtime(request: Request) -> Runtime:

@@ -162,6 +162,7 @@ class JobStore:
         try:
             _Base.metadata.create_all(self.engine)
             self._add_columns()
+            self._file = self._identity()  # the SQLite file opened: ping() checks it is still the one in place
         except DatabaseError as exc:
             where = url.removeprefix("sqlite:///") if sqlite else url.split("@")[-1]
             if sqlite and "not a database" in str(exc) or "malformed" in str(exc):
@@ -188,11 +189,31 @@ class JobStore:
         return self.data_dir / "jobs" / job_id
 
     # -- reads and writes -------------------------------------------------------------------------------------
+    def _identity(self) -> tuple[int, int] | None:
+        """(device, inode) of the SQLite file, or None (not SQLite, or no file)."""
+        if not self.url.startswith("sqlite:///"):
+            return None
+        try:
+            st = Path(self.url.removeprefix("sqlite:///")).stat()
+        except OSError:
+            return None
+        return st.st_dev, st.st_ino
+
+    def _same_file(self) -> None:
+        """:class:`StoreUnavailable` when the SQLite file opened at start is no longer the one in place."""
+        if self.url.startswith("sqlite:///") and self._identity() != self._file:
+            raise StoreUnavailable(OSError(f"the database file {self.url.removeprefix('sqlite:///')} was deleted "
+                                           "or replaced under the running server; restore it and restart the "
+                                           "server"))
+
     @_guarded
     def ping(self) -> None:
         """Raise :class:`StoreUnavailable` unless the store can be written: a write transaction begins (SQLite:
         readers go on while another process holds the write lock, so a read proves nothing) or a query
-        answers (a server database)."""
+        answers (a server database). A SQLite file deleted or replaced under the running server is
+        unavailable too: the server would go on writing to the deleted file while its job processes open a
+        new one (issue 29 item 8: /ready said 200 and every later job failed after three lost runs)."""
+        self._same_file()
         with self.engine.connect() as conn:
             if self.url.startswith("sqlite"):
                 conn.exec_driver_sql("BEGIN IMMEDIATE")
@@ -208,6 +229,7 @@ class JobStore:
         Returns ``(job, created)``. Raises :class:`KeyReused` when the key names a job with a different spec,
         and :class:`TooManyJobs` when the owner already has ``max_active`` unfinished jobs.
         """
+        self._same_file()  # a job stored in a deleted file would be lost
         scoped = f"{owner}/{idempotency_key}" if idempotency_key else None
 
         def same(old: Job) -> tuple[dict, bool]:
