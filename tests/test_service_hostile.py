@@ -256,3 +256,13 @@ def test_ready_503_when_the_data_directory_cannot_be_written(tmp_path: Path,
         monkeypatch.setattr(builtins, "open", full)
         r = c.get("/ready")
         assert r.status_code == 503 and "No space left on device" in r.json()["detail"], r.text
+
+
+@pytest.mark.parametrize("bounds", [[3e-4, 1e308], [-1e308, 1e308]])
+def test_design_bound_of_1e308_is_422_naming_the_design(client: httpx.Client, bounds: list[float]) -> None:
+    """Issue 29 item 8: a design bound of 1e308 overflowed the section's arithmetic at submission: 500. Now a
+    422 at families[0].design naming the corner (it failed before: 500)."""
+    spec = {"families": [{"template": "leaf-spring", "design": {"thickness": bounds}}], "starts": 1}
+    r = client.post("/v1/optimisations", json=spec)
+    assert r.status_code == 422, r.text
+    assert r.json()["errors"][0]["loc"] == ["body", "families", 0, "design"] and "corner" in r.json()["detail"]

@@ -230,3 +230,10 @@ def check_problem(spec: OptimisationProblem) -> None:
                                "box)") from None
             except FlexoptError as exc:
                 raise bad(("families", i), str(exc)) from None
+            except (ArithmeticError, ValueError) as exc:  # a bound such as 1e308 overflows the section's
+                # arithmetic: named, not a 500 (issue 29 item 8)
+                side = "lower" if corner == 0 else "upper"
+                values = ", ".join(f"{k} = {params[k]:g}" for k in fam.design)
+                raise bad(("families", i, "design"), f"the scene at the {side} corner of the design box ({values}) "
+                          f"cannot be computed ({type(exc).__name__}: numbers out of range); narrow the bounds "
+                          "to physical values") from None
