@@ -238,3 +238,20 @@ def test_dispatcher_survives_database_errors(tmp_path: Path, monkeypatch: pytest
         assert gaps[1] > gaps[0] > 0.4, f"exponential backoff between retries: {gaps}"
     finally:
         d.stop()
+
+
+def test_fair_share_between_owners(store: JobStore) -> None:
+    """Issue 29 item 8: key A submits three jobs, then key B one. B's job is claimed second (A has one running),
+    and after A's first job ends, before A's second (A was served last): it failed before, B's job waited
+    behind all of A's (one first-in-first-out queue)."""
+    a, b = owner_of("key-a"), owner_of("key-b")
+    jobs_a = [store.submit({**SPEC, "starts": n}, None, a)[0]["id"] for n in (1, 2, 3)]
+    job_b = store.submit(SPEC, None, b)[0]["id"]
+    assert store.next_queued("h:1")["id"] == jobs_a[0], "nothing running: the oldest"
+    assert store.next_queued("h:1")["id"] == job_b, "A has a job running, B none"
+    store.update(jobs_a[0], 1, status="succeeded")
+    store.update(job_b, 1, status="succeeded")
+    assert store.next_queued("h:1")["id"] == jobs_a[1], "B has no job left: A's next"
+    job_b2 = store.submit({**SPEC, "starts": 4}, None, b)[0]["id"]
+    store.update(jobs_a[1], 1, status="succeeded")
+    assert store.next_queued("h:1")["id"] == job_b2, "none running: B, served less recently than A"

@@ -120,6 +120,7 @@ class Job(_Base):
     lease_holder: Mapped[str | None] = mapped_column(String(300), nullable=True)  # host:pid of the run
     lease_until: Mapped[float | None] = mapped_column(Float, nullable=True)  # epoch seconds
     crashes: Mapped[int] = mapped_column(Integer, default=0)  # runs that crashed (graceful stops not counted)
+    started: Mapped[float | None] = mapped_column(Float, nullable=True)  # epoch seconds of the latest claim
 
     def to_dict(self) -> dict[str, Any]:
         kind = next((k for k in KINDS if f'"kind": "{k}"' in (self.spec or "")), "optimisation")
@@ -134,7 +135,7 @@ KINDS = ("frequency-curve", "topology-search", "pareto-front")
 
 # columns added after the first release: added to an older database at start (all nullable or defaulted)
 _ADDED = {"owner": "VARCHAR(64) NOT NULL DEFAULT ''", "lease_holder": "VARCHAR(300)", "lease_until": "FLOAT",
-          "crashes": "INTEGER NOT NULL DEFAULT 0"}
+          "crashes": "INTEGER NOT NULL DEFAULT 0", "started": "FLOAT"}
 
 
 def _now() -> str:
@@ -366,16 +367,29 @@ class JobStore:
 
     @_guarded
     def next_queued(self, holder: str) -> dict | None:
-        """Claim the oldest queued job: running, one more attempt, a lease held by ``holder`` (the dispatcher)
-        until the job process takes it over."""
+        """Claim the next queued job: running, one more attempt, a lease held by ``holder`` (the dispatcher)
+        until the job process takes it over.
+
+        Fair share between owners (API keys): the oldest queued job of the owner with the fewest running jobs,
+        ties going to the owner served least recently, then to the oldest job. Before (issue 29 item 8), one
+        first-in-first-out queue: key B's small job waited 72 s behind key A's three.
+        """
         while True:
             with Session(self.engine) as s:
-                job = s.scalar(select(Job).where(Job.status == "queued").order_by(Job.created, Job.id).limit(1))
-                if job is None:
+                queued = s.execute(select(Job.id, Job.owner, Job.attempts).where(Job.status == "queued")
+                                   .order_by(Job.created, Job.id).limit(500)).all()
+                if not queued:
                     return None
-                job_id, attempts = job.id, job.attempts
+                owners = {q.owner for q in queued}
+                running = dict(s.execute(select(Job.owner, func.count()).where(
+                    Job.status.in_(("running", "cancelling")), Job.owner.in_(owners)).group_by(Job.owner)).all())
+                served = dict(s.execute(select(Job.owner, func.max(Job.started)).where(
+                    Job.owner.in_(owners)).group_by(Job.owner)).all())
+            job_id, _, attempts = min(queued, key=lambda q: (running.get(q.owner, 0), served.get(q.owner) or 0.0))
+            now = time.time()
             if self._set(job_id, (Job.status == "queued", Job.attempts == attempts), status="running",
-                         attempts=attempts + 1, lease_holder=holder, lease_until=time.time() + self.lease_seconds):
+                         attempts=attempts + 1, lease_holder=holder, lease_until=now + self.lease_seconds,
+                         started=now):
                 return self.row(job_id)
             # cancelled (or claimed by another server) in the meantime: look again
 
