@@ -70,8 +70,10 @@ class Runtime:
         ``cache_size`` entries or ``cache_bytes`` bytes. Before the byte bound (issue 29 item 2), 256 entries of
         curves with shapes, PNGs and GIFs of distinct scenes took the server from 129 MB to 601 MB."""
         s = self.settings
+        if s.cache_size <= 0:
+            return
         size = len(value)
-        if s.cache_size <= 0 or size > s.cache_bytes // 8:
+        if size > s.cache_bytes // 8:
             return
         with self.lock:
             if key in self.cache:
