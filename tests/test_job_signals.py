@@ -15,7 +15,6 @@ import time
 from pathlib import Path
 
 import pytest
-
 from flexopt.service.jobs.dispatch import RUN_TOKEN, Dispatcher
 from flexopt.service.jobs.store import HOST, MAX_CRASHES, JobStore
 

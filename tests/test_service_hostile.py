@@ -7,6 +7,7 @@ import asyncio
 import difflib
 import socket
 from collections.abc import Iterator
+from pathlib import Path
 
 import httpx
 import pytest
