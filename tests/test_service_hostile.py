@@ -267,3 +267,27 @@ def test_design_bound_of_1e308_is_422_naming_the_design(client: httpx.Client, bo
     r = client.post("/v1/optimisations", json=spec)
     assert r.status_code == 422, r.text
     assert r.json()["errors"][0]["loc"] == ["body", "families", 0, "design"] and "corner" in r.json()["detail"]
+
+
+def test_slow_or_silent_connections_are_closed(tmp_path: Path) -> None:
+    """Issue 29 item 8: uvicorn never closed a connection that trickled its headers or sent nothing (350 slow
+    connections stayed open). flexopt serve's protocol closes one whose request head is not complete within
+    head_timeout (1 s here); a connection that sends a request in time is served (it failed before: both slow
+    connections still open after 10 s)."""
+    import time
+
+    from flexopt.service.cli.serve import head_timeout_protocol
+
+    srv = _Server(Settings(executor="thread", data_dir=tmp_path, api_keys=""))
+    srv.server.config.http = head_timeout_protocol(1.0)
+    with srv:
+        trickle, silent = _connect(srv), _connect(srv)
+        trickle.sendall(b"GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\n")  # never the blank line
+        t0 = time.monotonic()
+        assert trickle.recv(100) == b"" and silent.recv(100) == b"", "closed, nothing answered"
+        assert time.monotonic() - t0 < 8
+        ok = _connect(srv)
+        ok.sendall(b"GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+        assert ok.recv(100).startswith(b"HTTP/1.1 200")
+        for s in (trickle, silent, ok):
+            s.close()

@@ -24,6 +24,9 @@ class Settings(BaseSettings):
     model_config = SettingsConfigDict(env_prefix="FLEXOPT_", extra="ignore")
 
     max_body_bytes: PositiveInt = Field(1_000_000, description="largest accepted request body [bytes] (413 past it)")
+    head_timeout: PositiveFloat = Field(10.0, description="time allowed to send a request's line and headers [s], "
+                                        "from the connection's opening or its last response (the connection is "
+                                        "closed past it; flexopt serve)")
     body_timeout: PositiveFloat = Field(30.0, description="time allowed to receive a request body [s] (408 past it, "
                                         "and the connection is closed)")
     request_timeout: PositiveFloat = Field(30.0, description="time limit of a synchronous computation [s] (504 past it)")

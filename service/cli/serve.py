@@ -4,7 +4,43 @@ from __future__ import annotations
 
 import argparse
 
-__all__ = ["add_parser"]
+__all__ = ["add_parser", "head_timeout_protocol"]
+
+
+def head_timeout_protocol(seconds: float) -> type:
+    """uvicorn's h11 protocol with a deadline for each request's head: a connection that has not sent a
+    complete request line and headers ``seconds`` after it opened (or after its last response) is closed.
+    uvicorn itself closes idle keep-alive connections but never one that trickles its headers or sends
+    nothing at all (issue 29 item 8: 350 slow connections stayed open). Request bodies have their own
+    deadline (``FLEXOPT_BODY_TIMEOUT``, ``api.middleware.BodyLimit``)."""
+    from uvicorn.protocols.http.h11_impl import H11Protocol
+
+    class HeadTimeoutProtocol(H11Protocol):
+        _head_timer = None
+
+        def connection_made(self, transport):  # type: ignore[no-untyped-def]
+            super().connection_made(transport)
+            self._arm()
+
+        def on_response_complete(self) -> None:
+            super().on_response_complete()
+            self._arm()
+
+        def connection_lost(self, exc: Exception | None) -> None:
+            if self._head_timer is not None:
+                self._head_timer.cancel()
+            super().connection_lost(exc)
+
+        def _arm(self) -> None:
+            if self._head_timer is not None:
+                self._head_timer.cancel()
+            self._head_timer = self.loop.call_later(seconds, self._expired)
+
+        def _expired(self) -> None:
+            if self.cycle is None or self.cycle.response_complete:  # no request in progress: its head is late
+                self.transport.close()
+
+    return HeadTimeoutProtocol
 
 
 def _cmd_serve(args: argparse.Namespace) -> int:
@@ -32,7 +68,8 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     print(f"flexopt serve: the page at http://{shown}:{args.port}/ (API documentation at /docs); Ctrl+C stops",
           file=sys.stderr, flush=True)
     uvicorn.run(create_app(settings), host=args.host, port=args.port, log_level=args.log_level,
-                log_config=log_config(args.log_level), access_log=False, timeout_graceful_shutdown=3)
+                log_config=log_config(args.log_level), access_log=False, timeout_graceful_shutdown=3,
+                http=head_timeout_protocol(settings.head_timeout))
     return 0
 
 
