@@ -126,9 +126,10 @@ def _openapi(app: FastAPI) -> dict[str, Any]:
     comps.pop("HTTPValidationError", None)
     comps.pop("ValidationError", None)
     # two models are called Problem (the error body and optim's problem): pydantic names them Problem-Input
-    # and Problem-Output by accident of use; give each its own name
+    # and Problem-Output, or by their module paths (flexopt__service__schemas__Problem) once both are used
+    # in one direction, by accident of use; give each its own name
     renames = {}
-    for name in [k for k in comps if k.split("-")[0] == "Problem"]:
+    for name in [k for k in comps if k.split("-")[0].split("__")[-1] == "Problem"]:
         is_error = {"detail", "errors", "status"} <= set(comps[name].get("properties", {}))
         renames[name] = "ProblemDetails" if is_error else "OptimisationProblem"
     text = json.dumps(doc)

@@ -34,8 +34,7 @@ def router(prefix: str) -> APIRouter:
             response_model=dict[str, Any], responses=HEAVY)
     async def state_space(req: StateSpaceRequest, request: Request) -> Response:
         rt = runtime(request)
-        scene = scene_from(req.scene)
-        check_cost(scene, [0.0, req.at_stroke], rt.settings)
+        scene = await admit(req.scene, [0.0, req.at_stroke], rt.settings)  # validated off the event loop
         spec = {"scene": scene.model_dump(mode="json"), "at_stroke": req.at_stroke, "inputs": req.inputs,
                 "outputs": req.outputs, "damping": req.damping, "modes": req.modes,
                 "frequencies_hz": req.frequencies_hz}
