@@ -6,6 +6,7 @@ import functools
 
 import json
 from pathlib import Path
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from pydantic import ValidationError
@@ -31,7 +32,7 @@ def _field_names() -> list[str]:
     return sorted({f for m in models for f in m.model_fields})
 
 
-def clean_errors(errors: list[dict[str, Any]]) -> list[dict[str, Any]]:
+def clean_errors(errors: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
     """pydantic error dicts as they should reach a user: union tags dropped from locations, and no echo.
 
     An unknown field gets the closest field name of the scene's models ("did you mean"). A tuple whose

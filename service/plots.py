@@ -182,7 +182,7 @@ def curve_png(curve: Any, scene: Any = None, log: bool | None = None, dpi: int =
 
 
 # ------------------------------------------------------------------------------------------------ shapes
-def _rotmat(rotvec: Sequence[float]) -> np.ndarray:
+def _rotmat(rotvec: Sequence[float] | np.ndarray) -> np.ndarray:
     from scipy.spatial.transform import Rotation
 
     return Rotation.from_rotvec(np.asarray(rotvec, dtype=float)).as_matrix()

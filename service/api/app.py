@@ -73,7 +73,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     async def health_head() -> Response:
         return Response()
 
-    _NOT_READY = {503: {"model": Problem, "description": "not ready; detail says what is missing"}}
+    _NOT_READY: dict[int | str, dict[str, Any]] = {
+        503: {"model": Problem, "description": "not ready; detail says what is missing"}}
 
     @app.get("/ready", response_model=Health, responses=_NOT_READY,
              summary="Readiness: the job store answers, the job dispatcher runs, the worker pool is up")

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import logging
 import re
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -89,7 +90,7 @@ def _loc(loc: Any) -> list[str | int]:
     return [p if isinstance(p, int) else str(p) for p in loc]
 
 
-def validation_errors(errs: list[dict[str, Any]], prefix: tuple[str | int, ...] = ()) -> list[FieldError]:
+def validation_errors(errs: Sequence[Mapping[str, Any]], prefix: tuple[str | int, ...] = ()) -> list[FieldError]:
     """pydantic error dicts -> FieldError entries with readable messages."""
     out = []
     for e in errs:

@@ -136,6 +136,7 @@ class TooCostly(Exception):
 def check_cost(scene: Any, stroke: list[float] | None, settings: Settings) -> None:
     """422 for more stroke points than allowed, :class:`TooCostly` for a computation estimated to exceed
     ``max_cost``."""
+    loc: tuple[str, ...]
     if stroke is not None:
         points, loc = len(stroke), ("body", "stroke")
     elif scene.stroke is not None:
@@ -221,9 +222,9 @@ def check_problem(spec: OptimisationProblem) -> None:
                 compile_scene(template(fam.template, **params))
             except SceneError as exc:
                 # the scene's field (elements[0].beam.segments) named by the template parameter it comes from
-                path = exc.field or exc.message.split(":")[0]  # a pydantic error's path leads the message
-                key = [p for p in re.split(r"[.\[\]]", path.removeprefix("template.")) if p][-1:]
-                key = key[0] if key else ""
+                field = exc.field or exc.message.split(":")[0]  # a pydantic error's path leads the message
+                parts = [p for p in re.split(r"[.\[\]]", field.removeprefix("template.")) if p][-1:]
+                key = parts[0] if parts else ""
                 loc = ("families", i, "fixed", key) if key in fam.fixed else (
                     ("families", i, "design", key) if key in fam.design else ("families", i))
                 raise bad(loc, f"{exc.message} (at the {'lower' if corner == 0 else 'upper'} corner of the design "

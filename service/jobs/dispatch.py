@@ -178,9 +178,10 @@ class Dispatcher:
                 log.warning("job lease expired", extra={"event": f"job.{'requeued' if new == 'queued' else new}",
                                                         "job_id": job["id"], "attempt": job["attempts"]})
         while len(self.procs) < self.max_jobs and not self._stop.is_set():
-            job = self.store.next_queued(self.holder)
-            if job is None:
+            queued = self.store.next_queued(self.holder)
+            if queued is None:
                 break
+            job = queued
             env: dict[str, Any] = dict(os.environ, **{RUN_TOKEN: f"{job['id']}:{job['attempts']}"},
                                        FLEXOPT_DATABASE_URL=self.store.url,
                                        FLEXOPT_DATA_DIR=str(self.store.data_dir),

@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from sqlalchemy import Float, Integer, String, Text, create_engine, event, func, inspect, select, text
+from sqlalchemy import delete as sql_delete
 from sqlalchemy import update as sql_update
 from sqlalchemy.exc import DatabaseError, IntegrityError, OperationalError, SQLAlchemyError
 from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column
@@ -299,7 +300,8 @@ class JobStore:
     def _set(self, job_id: str, where: tuple, **fields: Any) -> bool:
         """``UPDATE jobs SET fields WHERE id = job_id AND where``: whether a row changed."""
         with Session(self.engine) as s:
-            n = s.execute(sql_update(Job).where(Job.id == job_id, *where).values(**fields, updated=_now())).rowcount
+            res: Any = s.execute(sql_update(Job).where(Job.id == job_id, *where).values(**fields, updated=_now()))
+            n = res.rowcount  # a CursorResult's (SQLAlchemy types execute() as the general Result)
             s.commit()
             return bool(n)
 
@@ -338,7 +340,7 @@ class JobStore:
             return self.cancel(job_id, owner)
         with Session(self.engine) as s:
             spec = s.scalar(select(Job.spec).where(Job.id == job_id))
-            s.execute(Job.__table__.delete().where(Job.id == job_id, Job.status.in_(FINISHED)))
+            s.execute(sql_delete(Job).where(Job.id == job_id, Job.status.in_(FINISHED)))
             shared = s.scalar(select(func.count()).select_from(Job).where(Job.spec == spec)) if spec else 0
             s.commit()
         shutil.rmtree(self.job_dir(job_id), ignore_errors=True)
