@@ -481,9 +481,10 @@ def _rotor(m: float, r: float, com: list, nodes: list[str], name: str = "rotor")
     return {"name": name, "mass": m, "center_of_mass": com, "inertia": inertia, "nodes": nodes}
 
 
-def _leaf(p: dict, name: str, a: str, b: str, width, segments: int) -> dict:
+def _leaf(p: dict, name: str, a: str, b: str, width, segments: int, thickness=None) -> dict:
+    t = p["thickness"] if thickness is None else thickness
     return {"kind": "beam", "name": name, "nodes": [a, b], "material": "steel",
-            "section": {"kind": "rectangular", "width": width, "thickness": p["thickness"], "warping": p["warping"]},
+            "section": {"kind": "rectangular", "width": width, "thickness": t, "warping": p["warping"]},
             "y_axis": [0, 0, 1], "segments": segments}
 
 
@@ -654,7 +655,9 @@ def topology_layout(descriptor: str) -> list[dict]:
 def _layer_heights(stages: list[dict], w: Any, t_gap: Any) -> dict[tuple[int, int], Any]:
     """The z of every leaf's centre, keyed (stage, leaf): layers (a stacked leaf, or one in-plane crossing)
     stacked along z with ``t_gap`` between them and centred on z = 0, stage 1's in the middle and each later
-    stage's first half above, second half below the earlier ones (see :func:`_topology_hinge`)."""
+    stage's first half above, second half below the earlier ones (see :func:`_topology_hinge`). ``w``: the
+    width of every stage, or a list of each stage's width (a layer's height is its multiple times it)."""
+    widths = list(w) if isinstance(w, (list, tuple)) else [w] * len(stages)
     # layers (top to bottom): (stage index, leaf indices, width multiple)
     order: list[tuple[int, list[int], int]] = []
     for k, st in enumerate(stages):
@@ -662,13 +665,13 @@ def _layer_heights(stages: list[dict], w: Any, t_gap: Any) -> dict[tuple[int, in
                else [(k, [i], lf[1]) for i, lf in enumerate(st["leaves"])])
         up = (len(own) + 1) // 2
         order = own if k == 0 else own[:up] + order + own[up:]
-    total = sum(m for *_, m in order) * w + (len(order) - 1) * t_gap
+    total = sum(m * widths[k] for k, _, m in order) + (len(order) - 1) * t_gap
     z_of: dict[tuple[int, int], Any] = {}
     top = total / 2.0
     for k, idx, m in order:
         for i in idx:
-            z_of[(k, i)] = top - m * w / 2.0
-        top = top - m * w - t_gap
+            z_of[(k, i)] = top - m * widths[k] / 2.0
+        top = top - m * widths[k] - t_gap
     return z_of
 
 
@@ -687,16 +690,32 @@ def _topology_hinge(p: dict) -> dict:
     (``r``) is rigid over the middle fraction ``rigid_fraction`` of its length: a rigid body of the leaf's
     width, ``rigid_thickness`` thick, steel. ``flexure_level`` 1 builds each leaf as one segment between its
     ends (the reinforcement and the in-plane halves condensed into the flexure, as the kinematic screen
-    sees it: seed 002, section 4.2). Traceable (casadi maths on the continuous parameters)."""
+    sees it: seed 002, section 4.2). Traceable (casadi maths on the continuous parameters).
+
+    Per-stage and per-leaf dimensions (optional; every default 0 means "as stage 1", so a scene without them
+    is the one described above): stage k >= 2 has its own ``length_s<k>``, ``thickness_s<k>``, ``width_s<k>``
+    and ``angle_s<k>`` (stage 1 uses ``length``, ``thickness``, ``width``, ``angle``); leaf i of stage k its
+    own thickness ``thickness_s<k>l<i>`` (default: its stage's). A layer's height along z is its width
+    multiple times its stage's width."""
     stages = topology_layout(p["topology"])
-    L, w, t_gap = p["length"], p["width"], p["gap"]
-    half = p["angle"] * ca.pi / 360.0
-    sx, cy = ca.sin(half), ca.cos(half)
-    dirs = {"+": (sx, cy), "-": (-sx, cy), "0": (0.0, 1.0)}
+    t_gap = p["gap"]
+
+    def inherit(name: str, base: Any) -> Any:
+        v = p.get(name, 0.0)
+        return base if isinstance(v, (int, float)) and v == 0 else v  # 0: inherited (a symbol is designed)
+
+    dims = []
+    for k in range(len(stages)):
+        half = (inherit(f"angle_s{k + 1}", p["angle"]) if k else p["angle"]) * ca.pi / 360.0
+        sx, cy = ca.sin(half), ca.cos(half)
+        dims.append({"L": inherit(f"length_s{k + 1}", p["length"]) if k else p["length"],
+                     "w": inherit(f"width_s{k + 1}", p["width"]) if k else p["width"],
+                     "t": inherit(f"thickness_s{k + 1}", p["thickness"]) if k else p["thickness"], "cy": cy,
+                     "dirs": {"+": (sx, cy), "-": (-sx, cy), "0": (0.0, 1.0)}})
     level = int(p["flexure_level"])
     n = 1 if level else int(p["segments"])
     n_half = max(n // 2, 1)
-    z_of = _layer_heights(stages, w, t_gap)
+    z_of = _layer_heights(stages, [d["w"] for d in dims], t_gap)
     nodes: list[tuple[str, list]] = []
     elements: list[dict] = []
     bodies: list[dict] = []
@@ -709,9 +728,11 @@ def _topology_hinge(p: dict) -> dict:
         centre = f"s{k + 1}_centre"
         if st["inplane"]:
             nodes.append((centre, [0.0, 0.0, z_of[(k, 0)]]))
+        L, w, dirs = dims[k]["L"], dims[k]["w"], dims[k]["dirs"]
         for i, (plane, mult, rein) in enumerate(st["leaves"]):
             ux, uy = dirs[plane]
             z = z_of[(k, i)]
+            ti = inherit(f"thickness_s{k + 1}l{i + 1}", dims[k]["t"])
             tag = f"s{k + 1}l{i + 1}"
             a = [-ux * L * lam, -uy * L * lam, z]
             b = [ux * L * (1 - lam), uy * L * (1 - lam), z]
@@ -720,25 +741,25 @@ def _topology_hinge(p: dict) -> dict:
             s1.append(f"{tag}_1")
             wi = mult * w
             if st["inplane"] and not level:
-                elements += [_leaf(p, f"{tag}a", f"{tag}_0", centre, wi, n_half),
-                             _leaf(p, f"{tag}b", centre, f"{tag}_1", wi, n_half)]
+                elements += [_leaf(p, f"{tag}a", f"{tag}_0", centre, wi, n_half, ti),
+                             _leaf(p, f"{tag}b", centre, f"{tag}_1", wi, n_half, ti)]
             elif st["inplane"]:
-                elements += [_leaf(p, f"{tag}a", f"{tag}_0", centre, wi, 1),
-                             _leaf(p, f"{tag}b", centre, f"{tag}_1", wi, 1)]
+                elements += [_leaf(p, f"{tag}a", f"{tag}_0", centre, wi, 1, ti),
+                             _leaf(p, f"{tag}b", centre, f"{tag}_1", wi, 1, ti)]
             elif rein and not level:
                 f0, f1 = (1 - rho) / 2.0, (1 + rho) / 2.0
                 ra = [a[j] + (b[j] - a[j]) * f0 for j in range(3)]
                 rb = [a[j] + (b[j] - a[j]) * f1 for j in range(3)]
                 nodes += [(f"{tag}_ra", ra), (f"{tag}_rb", rb)]
-                elements += [_leaf(p, f"{tag}a", f"{tag}_0", f"{tag}_ra", wi, n_half),
-                             _leaf(p, f"{tag}b", f"{tag}_rb", f"{tag}_1", wi, n_half)]
+                elements += [_leaf(p, f"{tag}a", f"{tag}_0", f"{tag}_ra", wi, n_half, ti),
+                             _leaf(p, f"{tag}b", f"{tag}_rb", f"{tag}_1", wi, n_half, ti)]
                 mr = p["density"] * wi * p["rigid_thickness"] * rho * L
                 jr = mr * (rho * L) ** 2 / 12.0
                 bodies.append({"name": f"{tag}_rigid", "mass": mr,
                                "center_of_mass": [(ra[j] + rb[j]) / 2 for j in range(3)],
                                "inertia": [[jr, 0, 0], [0, jr, 0], [0, 0, jr]], "nodes": [f"{tag}_ra", f"{tag}_rb"]})
             else:
-                elements.append(_leaf(p, tag, f"{tag}_0", f"{tag}_1", wi, n))
+                elements.append(_leaf(p, tag, f"{tag}_0", f"{tag}_1", wi, n, ti))
         starts.append(s0)
         ends.append(s1)
     for k in range(len(stages) - 1):
@@ -746,14 +767,19 @@ def _topology_hinge(p: dict) -> dict:
         bodies.append(_rotor(p["mid_mass"], p["body_radius"], [0.0, 0.0, 0.0], ends[k] + starts[k + 1], name=name))
     last = stages[-1]
     lam = p["crossing"] if last["free_crossing"] else 0.5
-    reach = (1.0 if any(lf[0] == "0" for lf in last["leaves"]) else cy) * L * (1 - lam)
+    reach = (1.0 if any(lf[0] == "0" for lf in last["leaves"]) else dims[-1]["cy"]) * dims[-1]["L"] * (1 - lam)
     bodies.append(_rotor(p["body_mass"], p["body_radius"], [0, reach + p["body_offset"], 0], ends[-1]))
     out = _hinge(p, "topology-hinge", nodes, bodies, elements, starts[0])
     out["name"] = f"topology {p['topology']}"
     return out
 
 
+#: Stages and leaves per stage that may have their own dimensions (the grammar's largest spaces: 3 stages, 6 leaves).
+_OWN_STAGES, _OWN_LEAVES = 3, 6
+_PER_STAGE = {f"{key}_s{k}": 0.0 for k in range(2, _OWN_STAGES + 1) for key in ("length", "thickness", "width", "angle")}
+_PER_LEAF = {f"thickness_s{k}l{i}": 0.0 for k in range(1, _OWN_STAGES + 1) for i in range(1, _OWN_LEAVES + 1)}
 TEMPLATES["topology-hinge"] = (_topology_hinge, dict(_HINGE, topology="R:+-@", crossing=0.5, mid_mass=0.02,
                                                      rigid_fraction=1.0 / 3.0, rigid_thickness=2e-3,
-                                                     flexure_level=0))
-PARAMETER_UNITS.update({"rigid_thickness": "m", "rigid_fraction": ""})
+                                                     flexure_level=0, **_PER_STAGE, **_PER_LEAF))
+PARAMETER_UNITS.update({"rigid_thickness": "m", "rigid_fraction": "",
+                        **{k: ("deg" if k.startswith("angle") else "m") for k in (*_PER_STAGE, *_PER_LEAF)}})

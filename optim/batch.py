@@ -38,7 +38,7 @@ from collections import deque
 from collections.abc import Callable
 from pathlib import Path
 
-__all__ = ["BatchCancelled", "NoWorkers", "case_id", "case_seed", "dask_executor", "run_cases"]
+__all__ = ["BatchCancelled", "NoWorkers", "case_id", "case_seed", "dask_executor", "process_pool", "run_cases"]
 
 _FAILURE_KEYS = frozenset({"id", "error", "kind"})
 _POLL = 0.2  # seconds between looks at the cancel event while cases run
@@ -167,6 +167,15 @@ def _default_executor(workers: int) -> cf.Executor:
     return cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=limit_process)
 
 
+def process_pool(workers: int | None = None) -> cf.Executor:
+    """The local process pool :func:`run_cases` uses by default (``workers`` processes, default the CPUs this
+    process may use; one BLAS thread each), for a caller that runs several batches on one pool (a topology
+    search's screen, passes and verification); the caller shuts it down."""
+    if workers is not None and workers < 1:
+        raise ValueError(f"workers must be at least 1, got {workers}")
+    return _default_executor(workers or _cpu_count())
+
+
 def dask_executor(address: str, **client_kwargs: object) -> cf.Executor:
     """A ``concurrent.futures`` executor on the Dask cluster at ``address`` (``Client(address).get_executor()``).
 
@@ -270,8 +279,8 @@ def run_cases(cases: list[dict], fn: str, *, executor: cf.Executor | None = None
     store
         Directory of finished cases (see the module docstring); cases found there are not run again.
     progress
-        Called in this process after each case with ``{"done", "total", "id", "status"}``, status one of
-        ``"done"``, ``"failed"``, ``"skipped"`` (found in the store).
+        Called in this process after each case with ``{"done", "total", "id", "status", "record"}``, status
+        one of ``"done"``, ``"failed"``, ``"skipped"`` (found in the store), record the case's record.
     cancel
         When set, no new case starts; queued ones are cancelled; cases already running on a process pool
         cannot be stopped: they finish and are stored, then :class:`BatchCancelled` is raised.
@@ -311,10 +320,10 @@ def run_cases(cases: list[dict], fn: str, *, executor: cf.Executor | None = None
     total, done = len(cases), 0
     bar = _Bar(total)
 
-    def report(cid: str, status: str) -> None:
+    def report(cid: str, status: str, record: dict) -> None:
         bar(done, status)
         if progress is not None:
-            progress({"done": done, "total": total, "id": cid, "status": status})
+            progress({"done": done, "total": total, "id": cid, "status": status, "record": record})
 
     todo: dict[str, list[int]] = {}  # case id -> its positions in `cases`
     for i, cid in enumerate(ids):
@@ -325,7 +334,7 @@ def run_cases(cases: list[dict], fn: str, *, executor: cf.Executor | None = None
         if old is not None and not (retry_failed and _is_failure(old)):
             results[i] = old
             done += 1
-            report(cid, "skipped")
+            report(cid, "skipped", old)
         else:
             todo[cid] = [i]
     if not todo:
@@ -392,7 +401,7 @@ def run_cases(cases: list[dict], fn: str, *, executor: cf.Executor | None = None
         for i in todo[cid]:
             results[i] = record
             done += 1
-        report(cid, "failed" if _is_failure(record) else "done")
+        report(cid, "failed" if _is_failure(record) else "done", record)
 
     try:
         fill()

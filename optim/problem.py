@@ -11,7 +11,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, field_validator, model_validator
 
-__all__ = ["Envelope", "Family", "Problem"]
+__all__ = ["Envelope", "Family", "Problem", "Ratio"]
 
 
 class Envelope(BaseModel):
@@ -28,6 +28,19 @@ class Envelope(BaseModel):
                                               "unbounded)")
 
 
+class Ratio(BaseModel):
+    """A validity constraint of a family: ``numerator >= minimum x factor x denominator`` on two template
+    parameters (designed or fixed), e.g. ``length >= 2 width`` so that a leaf stays a beam, not a plate."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    numerator: str = Field(description="template parameter above, e.g. 'length'")
+    denominator: str = Field(description="template parameter below, e.g. 'width'")
+    minimum: PositiveFloat = Field(description="smallest allowed numerator / (factor x denominator)")
+    factor: PositiveFloat = Field(default=1.0, description="multiple of the denominator (a leaf of double width: 2)")
+    reason: str = Field(default="", max_length=200, description="why, in words (shown when it is active)")
+
+
 class Family(BaseModel):
     """One parametric family (a template) and its design space."""
 
@@ -41,6 +54,14 @@ class Family(BaseModel):
     fixed: dict[str, float | int | str] = Field(
         default_factory=dict, description="other template parameters held at these values (default: the template's)"
     )
+    origins: dict[str, tuple[str, str]] = Field(
+        default_factory=dict, description="where each design bound comes from, (lower, upper) in words (e.g. "
+        "'the envelope's height shared by 2 layers'): a warning for an optimum on a bound names it (optional; "
+        "bounds without an origin are the family's design box)")
+    ratios: list[Ratio] = Field(
+        default_factory=list, max_length=32, description="validity constraints numerator / (factor x "
+        "denominator) >= minimum on template parameters, e.g. a leaf's length over its width within beam "
+        "theory (optional)")
 
     @field_validator("design")
     @classmethod
@@ -57,6 +78,9 @@ class Family(BaseModel):
         both = sorted(set(self.design) & set(self.fixed))
         if both:
             raise ValueError(f"parameters {both} are both designed and fixed; keep each in one of the two")
+        stray = sorted(set(self.origins) - set(self.design))
+        if stray:
+            raise ValueError(f"origins names {stray}, which are not designed; give origins of design parameters only")
         return self
 
 

@@ -232,6 +232,20 @@ class _Family:
                     H2 = prob.envelope.half_height**2
                     rows_g.append((1.0 - a * a / H2, -2.0 * a * da * scale / H2, float("nan"), "envelope",
                                    f"{name} on the envelope's end"))
+        if self.fam.ratios:
+            full = {**TEMPLATES[self.fam.template][1], **self.params(x)}
+            for rt in self.fam.ratios:
+                num, den = float(full[rt.numerator]), float(full[rt.denominator])
+                k = rt.minimum * rt.factor
+                g = np.zeros(len(x))
+                for i, name in enumerate(self.names):  # d(1 - k den / num) along the scaled design
+                    if name == rt.numerator:
+                        g[i] += k * den / num**2 * scale[i]
+                    if name == rt.denominator:
+                        g[i] -= k / num * scale[i]
+                rows_g.append((1.0 - k * den / num, g, float("nan"), "validity",
+                               f"{rt.numerator} / ({rt.factor:g} {rt.denominator}) >= {rt.minimum:g}"
+                               + (f" ({rt.reason})" if rt.reason else "")))
         curve = an.frequency_curve(stroke=self.samples, visit=visit)
         if curve.status != "complete":
             raise FlexoptError(curve.failures[0].message if curve.failures else "the stroke was not completed")
@@ -735,17 +749,34 @@ def _case_warnings(fam: _Family, start: int, status: str, message: str, verified
         out.append(ResultWarning("notice", f"{name} start {start}: {status} ({message}); it is not ranked",
                                  value=None if opt is None else opt["kkt_residual"]))
     if opt is not None and opt["active_bounds"]:
-        which = ", ".join(f"{k} ({side})" for k, side in opt["active_bounds"].items())
-        out.append(ResultWarning("notice", f"{name} start {start}: stopped by the design bounds {which}: the design "
-                                 "is the bounds' result, not the family's; widen them (or bound the family by an "
-                                 "envelope) to compare families fairly"))
+        origins = fam.fam.origins
+        plain = {k: side for k, side in opt["active_bounds"].items() if k not in origins}
+        told = {k: side for k, side in opt["active_bounds"].items() if k in origins}
+        if plain:
+            which = ", ".join(f"{k} ({side})" for k, side in plain.items())
+            out.append(ResultWarning("notice", f"{name} start {start}: stopped by the design bounds {which}: the "
+                                     "design is the bounds' result, not the family's; widen them (or bound the "
+                                     "family by an envelope) to compare families fairly"))
+        for k, side in told.items():  # the bound's origin says whether widening it is the user's choice
+            why = origins[k][0 if side == "lower" else 1]
+            out.append(ResultWarning("notice", f"{name} start {start}: {k} is on its {side} bound, which is {why}: "
+                                     "the optimum is limited by it", value=fam.params(
+                                         np.zeros(len(fam.names)) if side == "lower" else np.ones(len(fam.names)))[k]))
+    if opt is not None and "validity" in opt.get("active_kinds", []):
+        act = [a for a in opt["active"] if " / (" in a]
+        out.append(ResultWarning("notice", f"{name} start {start}: the validity constraint is active "
+                                 f"({'; '.join(act)}): the optimum is limited by it"))
     return out
 
 
 def cases(problem: Problem | dict) -> list[dict]:
-    """The batch's units of work: one per (family, start)."""
+    """The batch's units of work: one per (family, start). A case's problem leaves out ``starts`` (a case is
+    one start, and start k does not depend on how many there are: :func:`start_point`), so that a case's id
+    (:func:`optim.batch.case_id`) is the same whatever the number of starts, and adding starts to a stored
+    run reuses every finished case."""
     prob = Problem.model_validate(problem)
     pj = prob.model_dump(mode="json")
+    del pj["starts"]
     return [{"problem": pj, "family": i, "start": k} for i in range(len(prob.families)) for k in range(prob.starts)]
 
 

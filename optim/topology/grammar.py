@@ -51,7 +51,7 @@ from dataclasses import dataclass
 from ...model.templates import guide_layout, topology_layout
 
 __all__ = ["Leaf", "Stage", "Topology", "parse", "canonical", "family_of", "enumerate_topologies", "FAMILIES",
-           "design_parameters", "GuideTopology", "parse_guide", "canonical_guide", "enumerate_guides",
+           "design_parameters", "DIMENSIONS", "crosses", "GuideTopology", "parse_guide", "canonical_guide", "enumerate_guides",
            "GUIDE_PLACES"]
 
 
@@ -162,11 +162,44 @@ def family_of(t: Topology | str) -> str | None:
     return _FAMILY_OF.get(str(canonical(t)))
 
 
-def design_parameters(t: Topology) -> list[str]:
-    """The continuous parameters a topology's shape depends on (its design space's names)."""
-    names = ["length", "thickness", "width"]
-    if any(lf.plane in "+-" for s in t.stages for lf in s.leaves):
-        names.append("angle")
+#: How a topology's dimensions are designed: one set for every stage (today's), one per stage, or one per
+#: stage with every leaf its own thickness.
+DIMENSIONS = ("shared", "stage", "leaf")
+
+
+def _stage_names(k: int, stage: Stage, dimensions: str) -> list[str]:
+    """The dimensions of stage ``k`` (0-based) that are its own: stage 1 names the template's base parameters
+    (``length``, ``thickness``, ``width``, ``angle``), stage k >= 2 ``length_s<k>`` and so on, and with
+    ``dimensions="leaf"`` each leaf's thickness is ``thickness_s<k>l<i>`` in place of its stage's."""
+    tag = "" if k == 0 else f"_s{k + 1}"
+    names = ["length" + tag]
+    if dimensions == "leaf":
+        names += [f"thickness_s{k + 1}l{i + 1}" for i in range(len(stage.leaves))]
+    else:
+        names.append("thickness" + tag)
+    names.append("width" + tag)
+    if any(lf.plane in "+-" for lf in stage.leaves):
+        names.append("angle" + tag)
+    return names
+
+
+def design_parameters(t: Topology, dimensions: str = "shared") -> list[str]:
+    """The continuous parameters a topology's shape depends on (its design space's names, template
+    ``topology-hinge``'s parameters).
+
+    ``dimensions``: ``"shared"`` (every stage the same length, thickness, width and plane angle: today's
+    spaces), ``"stage"`` (stage k >= 2 its own ``length_s<k>``, ``thickness_s<k>``, ``width_s<k>``,
+    ``angle_s<k>``) or ``"leaf"`` (as ``"stage"``, and every leaf its own thickness ``thickness_s<k>l<i>``).
+    A one-stage topology has the same space under ``"shared"`` and ``"stage"``.
+    """
+    if dimensions not in DIMENSIONS:
+        raise ValueError(f"dimensions must be one of {DIMENSIONS}, got {dimensions!r}")
+    if dimensions == "shared":
+        names = ["length", "thickness", "width"]
+        if any(lf.plane in "+-" for s in t.stages for lf in s.leaves):
+            names.append("angle")
+    else:
+        names = [n for k, s in enumerate(t.stages) for n in _stage_names(k, s, dimensions)]
     if any(s.free_crossing for s in t.stages):
         names.append("crossing")
     if any(lf.reinforced for s in t.stages for lf in s.leaves):
@@ -174,7 +207,15 @@ def design_parameters(t: Topology) -> list[str]:
     return names
 
 
-def _stage_patterns(k: int, planes: str, inplane: bool, free_crossing: bool, reinforce: bool) -> list[Stage]:
+def crosses(stage: Stage) -> bool:
+    """Whether a stage's leaves cross one another (they lie in at least two planes). A stage whose leaves all
+    lie in one plane crosses nothing: a designed crossing fraction ('@') only slides its leaves along their
+    own line, away from the axis, and is pruned from the enumeration (``prune``)."""
+    return len({lf.plane for lf in stage.leaves}) >= 2
+
+
+def _stage_patterns(k: int, planes: str, inplane: bool, free_crossing: bool, reinforce: bool,
+                    prune: bool = False) -> list[Stage]:
     """Every stage of ``k`` leaves: stacked sequences of planes (and, for an odd mirror-symmetric stack whose
     middle leaf differs from its neighbours, the variant with a double-width middle leaf: the three-fold
     principle of equal width per plane), in-plane crossings of ``k`` different planes; each with the
@@ -189,7 +230,8 @@ def _stage_patterns(k: int, planes: str, inplane: bool, free_crossing: bool, rei
         for leaves in variants:
             for rein in ((False, True) if reinforce else (False,)):
                 lv = tuple(Leaf(lf.plane, lf.width, rein) for lf in leaves)
-                out += [Stage(lv, False, fc) for fc in ((False, True) if free_crossing else (False,))]
+                designed = free_crossing and not (prune and len(set(seq)) < 2)
+                out += [Stage(lv, False, fc) for fc in ((False, True) if designed else (False,))]
     if inplane and k >= 2:
         for combo in itertools.combinations(sorted(planes), k):
             leaves = tuple(Leaf(p) for p in combo)
@@ -198,7 +240,7 @@ def _stage_patterns(k: int, planes: str, inplane: bool, free_crossing: bool, rei
 
 
 def enumerate_topologies(max_flexures: int, max_stages: int, planes: str = "+-", inplane: bool = True,
-                         free_crossing: bool = True, reinforce: bool = False) -> list[Topology]:
+                         free_crossing: bool = True, reinforce: bool = False, prune: bool = False) -> list[Topology]:
     """Every topology with at most ``max_flexures`` leaves in at most ``max_stages`` stages, one per symmetry
     class (canonical form), sorted by (flexures, stages, descriptor).
 
@@ -210,11 +252,13 @@ def enumerate_topologies(max_flexures: int, max_stages: int, planes: str = "+-",
         The leaf planes to place (a subset of ``"+-0"``).
     inplane, free_crossing, reinforce
         Whether to generate in-plane crossings, designed crossing fractions and reinforced stages.
+    prune
+        Leave out the designed crossing ('@') of a stage whose leaves cross nothing (:func:`crosses`).
     """
     if not set(planes) <= set("+-0") or not planes:
         raise ValueError(f"planes must be a non-empty subset of '+-0', got {planes!r}")
     seen: dict[str, Topology] = {}
-    per_k = {k: _stage_patterns(k, planes, inplane, free_crossing, reinforce) for k in range(1, max_flexures + 1)}
+    per_k = {k: _stage_patterns(k, planes, inplane, free_crossing, reinforce, prune) for k in range(1, max_flexures + 1)}
     for s in range(1, max_stages + 1):
         for sizes in itertools.product(range(1, max_flexures + 1), repeat=s):
             if sum(sizes) > max_flexures:

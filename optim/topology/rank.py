@@ -4,61 +4,152 @@ Every accepted candidate is optimised with the existing worst-case formulation (
 epigraph of the lowest parasitic frequencies at the stroke samples, per-end squared stress rows, the
 common cylinder envelope, exact design gradients, verification on a dense exact grid) as a one-family
 :class:`optim.problem.Problem` of the ``topology-hinge`` template with the same envelope, stress limit,
-material, moving-body mass and inertia for every candidate, so that the ranking is fair. All starts of all
-candidates run as one batch (:func:`optim.batch.run_cases`: a local process pool, or any executor such as a
-Dask cluster's), resumable from a store, with progress.
+material, moving-body mass and inertia for every candidate, so that the ranking is fair.
 
-Design space of a candidate (:func:`design_space`): its continuous parameters
-(:func:`.grammar.design_parameters`) with bounds inside the common envelope: length up to twice the
-envelope's radius (a leaf crossing the axis at its midpoint reaches a radius of half its length; the
-envelope rows bound the rest), width up to what lets the candidate's stack of layers fit the envelope's
-height with its gaps, thickness from the problem's minimum, angle 30-150 degrees, crossing fraction
-0.15-0.85, rigid fraction 0.1-0.6.
+Schedule (:func:`run_topology_search`; every phase a batch on one executor, :func:`optim.batch.run_cases`:
+a local process pool or any executor such as a Dask cluster's, resumable from one store, with progress)
+-----------------------------------------------------------------------------------------------------------
+1. *Generate* (:func:`.grammar.enumerate_topologies`, with ``prune`` no designed crossing on a stage that
+   crosses nothing) and *screen* (:mod:`.screen`, the exact-constraint filter; candidates that differ only
+   by '@' or 'r' share one verdict, :func:`.screen.screen_key`).
+2. *First pass* (``schedule="multi-fidelity"`` and more survivors than ``promote_min``): every survivor one
+   start on a coarse mesh (``first_pass_segments``), few samples (``first_pass_samples``), no refinement.
+   A designed crossing that ends at the midpoint (within :data:`_SAME_CROSSING`) while its midpoint
+   variant is a candidate too is pruned: it reduces to that variant, which inherits its score.
+3. *Full pass*: the best ``max(promote_min, promote x scored)`` by the first pass's verified worst case
+   (every survivor with ``"exhaustive"``) get ``starts`` starts on the search's mesh.
+4. *Refined verification* of every optimum (``refine_segments``, "auto": the mesh that meets
+   ``refine_tolerance``, :mod:`model.mesh`): worst case, zero-stroke frequency, stress and the mesh error
+   there; the ranking is by the refined worst case, feasible (refined stress within the limit) first.
+Cases are keyed by their content only (the problem without ``starts``, :func:`optim.search.cases`), so a
+rerun with more starts or more candidates reuses every finished case of the store.
+
+Design space of a candidate (:func:`design_space`, with :func:`bound_origins` saying where each bound comes
+from): its continuous parameters (:func:`.grammar.design_parameters` under the spec's ``dimensions``) with
+bounds inside the common envelope: length 20 mm up to twice the envelope's radius (a leaf crossing the axis
+at its midpoint reaches a radius of half its length; the envelope rows bound the rest), width up to what
+lets the candidate's stack of layers fit the envelope's height with its gaps (per stage: with the other
+stages at their smallest width), thickness from the problem's minimum to 1 mm, angle 30-150 degrees,
+crossing fraction 0.15-0.85, rigid fraction 0.1-0.6. Optional validity constraints (``min_length_over_width``,
+``min_length_over_thickness``) bound every leaf's slenderness (:class:`optim.problem.Ratio`).
 """
 
 from __future__ import annotations
 
+import math
+import sys
 import time
 from collections.abc import Callable
 from typing import Any
 
-from ..problem import Family, Problem
+from ..problem import Family, Problem, Ratio
 from .grammar import Topology, canonical, design_parameters, enumerate_topologies, family_of, parse
 from .spec import TopologySpec, example_spec
 from ...model.threads import limited
 
-__all__ = ["TopologySpec", "example_spec", "run_topology_search", "design_space", "candidate_problem",
-           "family_problem"]
+__all__ = ["TopologySpec", "example_spec", "run_topology_search", "design_space", "bound_origins",
+           "candidate_problem", "family_problem", "refine_case"]
+
+_GAP = 0.002  # the template's gap between layers [m]
+_SAME_CROSSING = 0.02  # a first-pass crossing this close to 0.5 reduces to the midpoint variant
+_SCREEN_CHUNK = 16  # descriptors per screening case (a verdict takes tens of milliseconds)
+
+
+def _stage_width_sums(t: Topology) -> list[int]:
+    """Per stage, the sum of the width multiples over its layers (an in-plane crossing is one layer)."""
+    return [max(lf.width for lf in s.leaves) if s.inplane else sum(lf.width for lf in s.leaves) for s in t.stages]
 
 
 def _layers(t: Topology) -> tuple[int, int]:
     """(layers, sum of width multiples over the layers) of a topology's stack."""
-    n = sum(s.layers for s in t.stages)
-    w = sum(max(lf.width for lf in s.leaves) if s.inplane else sum(lf.width for lf in s.leaves) for s in t.stages)
-    return n, w
+    return sum(s.layers for s in t.stages), sum(_stage_width_sums(t))
 
 
-_GAP = 0.002  # the template's gap between layers [m]
+def _boxes(t: Topology, spec: TopologySpec) -> dict[str, tuple[float, float, str, str]]:
+    """Every parameter's (lower, upper, origin of the lower, origin of the upper)."""
+    env = spec.envelope
+    n, wsum = _layers(t)
+    height = 2 * env.half_height if env.half_height is not None else 0.1
+    h_origin = ("the envelope's height" if env.half_height is not None else "0.1 m (no envelope height: the "
+                "search's own)") + f" shared by the stack's {n} layer{'s' * (n > 1)} and {n - 1} gap{'s' * (n != 2)}"
+    w_hi = (height - (n - 1) * _GAP) / wsum
+    w_lo = min(0.005, 0.5 * w_hi)
+    w_lo_origin = "5 mm, the search's smallest width" if w_lo == 0.005 else "half the width the envelope allows"
+    t_lo = max(spec.min_thickness, 5e-5)
+    box: dict[str, tuple[float, float, str, str]] = {
+        "length": (0.02, 2 * env.radius, "20 mm, the search's shortest leaf",
+                   "twice the envelope's radius (a leaf across the axis)"),
+        "thickness": (t_lo, 1e-3, "the minimum manufacturable thickness (min_thickness)" if t_lo == spec.min_thickness
+                      else "50 um, the search's thinnest leaf", "1 mm, the search's thickest leaf"),
+        "width": (w_lo, w_hi, w_lo_origin, h_origin),
+        "angle": (30.0, 150.0, "30 deg, the search's range of plane angles", "150 deg, the search's range"),
+        "crossing": (0.15, 0.85, "0.15, the search's range of crossing fractions", "0.85, the search's range"),
+        "rigid_fraction": (0.1, 0.6, "0.1, the search's range of rigid fractions", "0.6, the search's range")}
+    sums = _stage_width_sums(t)
+    for k in range(1, len(t.stages)):
+        box[f"length_s{k + 1}"] = box["length"]
+        box[f"thickness_s{k + 1}"] = box["thickness"]
+        box[f"angle_s{k + 1}"] = box["angle"]
+    if spec.dimensions != "shared":  # each stage's width: the height left by the others at their smallest
+        for k in range(len(t.stages)):
+            hi = (height - (n - 1) * _GAP - (wsum - sums[k]) * w_lo) / sums[k]
+            key = "width" if k == 0 else f"width_s{k + 1}"
+            box[key] = (w_lo, hi, w_lo_origin, h_origin + (", the other stages at their smallest width"
+                                                           if len(t.stages) > 1 else ""))
+    for k, st in enumerate(t.stages):
+        for i in range(len(st.leaves)):
+            box[f"thickness_s{k + 1}l{i + 1}"] = box["thickness"]
+    return box
 
 
 def design_space(t: Topology, spec: TopologySpec) -> dict[str, tuple[float, float]]:
     """The candidate's continuous parameters with bounds inside the common envelope (module docstring)."""
-    env = spec.envelope
-    n, wsum = _layers(t)
-    height = 2 * env.half_height if env.half_height is not None else 0.1
-    w_hi = (height - (n - 1) * _GAP) / wsum
-    box = {"length": (0.02, 2 * env.radius), "thickness": (max(spec.min_thickness, 5e-5), 1e-3),
-           "width": (min(0.005, 0.5 * w_hi), w_hi), "angle": (30.0, 150.0), "crossing": (0.15, 0.85),
-           "rigid_fraction": (0.1, 0.6)}
-    return {k: box[k] for k in design_parameters(t)}
+    box = _boxes(t, spec)
+    return {k: box[k][:2] for k in design_parameters(t, spec.dimensions)}
 
 
-def candidate_problem(t: Topology, spec: TopologySpec) -> Problem:
-    """The one-family optimisation problem of a candidate (the same for every candidate but its family)."""
+def bound_origins(t: Topology, spec: TopologySpec) -> dict[str, tuple[str, str]]:
+    """Where each bound of :func:`design_space` comes from, (lower, upper) in words."""
+    box = _boxes(t, spec)
+    return {k: box[k][2:] for k in design_parameters(t, spec.dimensions)}
+
+
+def _ratios(t: Topology, spec: TopologySpec) -> list[Ratio]:
+    """The validity constraints of the spec on every stage's leaves (length over width times the widest
+    multiple, length over thickness of each leaf's thickness parameter)."""
+    names = set(design_parameters(t, spec.dimensions))
+    out: dict[tuple, Ratio] = {}
+    for k, st in enumerate(t.stages):
+        tag = "" if k == 0 or spec.dimensions == "shared" else f"_s{k + 1}"
+        length, width = "length" + tag, "width" + tag
+        if spec.min_length_over_width is not None:
+            m = max(lf.width for lf in st.leaves)
+            out[(length, width, m)] = Ratio(numerator=length, denominator=width, minimum=spec.min_length_over_width,
+                                            factor=float(m), reason="leaves longer than wide: beams, not plates")
+        if spec.min_length_over_thickness is not None:
+            th = [f"thickness_s{k + 1}l{i + 1}" for i in range(len(st.leaves))] if spec.dimensions == "leaf" else \
+                ["thickness" + tag]
+            for name in th:
+                if name in names:
+                    out[(length, name, 1)] = Ratio(numerator=length, denominator=name,
+                                                   minimum=spec.min_length_over_thickness,
+                                                   reason="leaves longer than thick")
+    return list(out.values())
+
+
+def candidate_problem(t: Topology, spec: TopologySpec, first_pass: bool = False) -> Problem:
+    """The one-family optimisation problem of a candidate (the same for every candidate but its family); with
+    ``first_pass`` the schedule's cheap pass (one start, coarse mesh, few samples, no refinement)."""
     r = (2 * spec.body_inertia / spec.body_mass) ** 0.5  # the template's inertia m r^2 / 2
-    fam = Family(template="topology-hinge", design=design_space(t, spec),
-                 fixed={"topology": str(t), "segments": spec.segments, "body_radius": r,
-                        "mid_mass": spec.intermediate_mass, "gap": _GAP})
+    fam = Family(template="topology-hinge", design=design_space(t, spec), origins=bound_origins(t, spec),
+                 ratios=_ratios(t, spec),
+                 fixed={"topology": str(t), "segments": spec.first_pass_segments if first_pass else spec.segments,
+                        "body_radius": r, "mid_mass": spec.intermediate_mass, "gap": _GAP})
+    if first_pass:
+        return Problem(families=[fam], stroke=spec.stroke, samples=spec.first_pass_samples,
+                       safety_factor=spec.safety_factor, min_thickness=spec.min_thickness, envelope=spec.envelope,
+                       body_mass=spec.body_mass, solver=spec.solver, starts=1, seed=spec.seed,
+                       max_iterations=spec.first_pass_iterations, refine_rounds=0, verify_points=31)
     return Problem(families=[fam], stroke=spec.stroke, samples=spec.samples, safety_factor=spec.safety_factor,
                    min_thickness=spec.min_thickness, envelope=spec.envelope, body_mass=spec.body_mass,
                    solver=spec.solver, starts=spec.starts, seed=spec.seed, max_iterations=spec.max_iterations,
@@ -67,8 +158,10 @@ def candidate_problem(t: Topology, spec: TopologySpec) -> Problem:
 
 def family_problem(name: str, descriptor: str, spec: TopologySpec) -> dict:
     """The problem of candidate ``descriptor`` with the hand-made family ``name``'s own template in place of
-    ``topology-hinge`` (same design bounds, envelope, mass and limits): the reference a search restricted to
-    that family must reproduce (tests/test_topology.py, bench/bench_topology.py)."""
+    ``topology-hinge`` (same design bounds, envelope, mass and limits; shared dimensions, the families' own):
+    the reference a search restricted to that family must reproduce (tests/test_topology.py,
+    bench/bench_topology.py)."""
+    spec = spec.model_copy(update={"dimensions": "shared"})
     prob = candidate_problem(parse(descriptor), spec).model_dump(mode="json")
     fam = prob["families"][0]
     fam["template"] = name
@@ -102,77 +195,352 @@ def _candidates(spec: TopologySpec) -> list[Topology]:
             seen.setdefault(str(c), c)
         return list(seen.values())
     return enumerate_topologies(spec.max_flexures, spec.max_stages, spec.planes, spec.inplane, spec.free_crossing,
-                                spec.reinforcement)
+                                spec.reinforcement, prune=spec.prune)
+
+
+def refine_case(case: dict) -> dict:
+    """A batch case of the refined verification: the exact curve of one optimum on the mesh ``segments``
+    ("auto": every leaf's segments refined until the estimated error of the first parasitic frequency is
+    within ``tolerance``, :func:`model.mesh.resolve_auto_segments`) at ``points`` stroke points and the
+    ``extra`` strokes (the search's verified minimum), with its stress, and the mesh error estimated there
+    (:func:`model.mesh.mesh_error`).
+
+    ``case``: ``{"params", "stroke", "points", "extra", "segments", "tolerance", "safety_factor"}``.
+    """
+    import numpy as np
+
+    from ...model.analysis import Analysis
+    from ...model.scene import Beam
+    from ...model.templates import template
+    from ..search import _curve_summary
+
+    seg = case["segments"]
+    scene = template("topology-hinge", **{**case["params"], "segments": 4 if seg == "auto" else int(seg)})
+    if seg == "auto":
+        els = tuple(e.model_copy(update={"segments": "auto"}) if isinstance(e, Beam) else e for e in scene.elements)
+        scene = scene.model_copy(update={"elements": els, "mesh_tolerance": float(case["tolerance"])})
+    an = Analysis(scene)
+    s = float(case["stroke"])
+    grid = np.unique(np.concatenate([np.linspace(-s, s, int(case["points"])), np.asarray(case["extra"], float)]))
+    curve = an.frequency_curve(stroke=grid, mesh_error=True)
+    out = _curve_summary(curve, len(grid))
+    used = sorted({e.segments for e in an.scene.elements if isinstance(e, Beam)})
+    out.update(segments=seg, segments_used=used, auto_note=an.auto_note, mesh_error=curve.mesh_error,
+               tolerance=case["tolerance"] if seg == "auto" else None,
+               warnings=[w.to_dict() for w in curve.warnings])
+    if "worst_hz" in out:
+        mats = {m.name: m for m in an.scene.materials}
+        allow = min(mats[e.material].allowable_stress for e in an.scene.elements)
+        peak = np.nan_to_num(np.array([curve.max_von_mises[m] for m in curve.max_von_mises]), nan=-np.inf)
+        im, ip = np.unravel_index(int(np.argmax(peak)), peak.shape)
+        out.update(stress_ratio=float(peak[im, ip]) * float(case["safety_factor"]) / allow,
+                   member_at_max_stress=list(curve.max_von_mises)[im], stroke_at_max_stress=float(curve.stroke[ip]))
+    return out
+
+
+class _Tracker:
+    """Progress of a search: counts (generated, screened, passed, first pass, optimised, verified) and the best
+    so far, given to the caller's callback with every batch event and written as one line per event to
+    stderr when it is not a terminal (logs), one line per phase when it is (the batch draws its own bar)."""
+
+    def __init__(self, progress: Callable[[dict], None] | None, generated: int, echo: bool) -> None:
+        self.progress, self.echo, self.tty = progress, echo, sys.stderr.isatty()
+        self.counts = {"generated": generated, "screened": 0, "passed": 0, "first_pass": 0, "optimised": 0,
+                       "verified": 0}
+        self.best: dict | None = None
+        self.t0 = time.perf_counter()
+
+    def offer(self, descriptor: str, hz: float | None, phase: str) -> None:
+        if hz is not None and (self.best is None or hz > self.best["worst_hz"]):
+            self.best = {"topology": descriptor, "worst_hz": hz, "phase": phase}
+
+    def line(self, phase: str, done: int | None = None, total: int | None = None) -> str:
+        c = self.counts
+        best = (f", best {self.best['topology']} {self.best['worst_hz']:.2f} Hz ({self.best['phase']})"
+                if self.best else "")
+        where = f" {done}/{total}" if total is not None else ""
+        return (f"topology search {time.perf_counter() - self.t0:.0f} s: {phase}{where}: generated {c['generated']}, "
+                f"screened {c['screened']}, passed {c['passed']}, first pass {c['first_pass']}, optimised "
+                f"{c['optimised']}, verified {c['verified']}{best}")
+
+    def event(self, phase: str, ev: dict) -> None:
+        out = {k: v for k, v in ev.items() if k != "record"}
+        out.update(phase=phase, counts=dict(self.counts), best=self.best)
+        if self.progress is not None:
+            self.progress(out)
+        if self.echo and not self.tty:
+            print(self.line(phase, ev.get("done"), ev.get("total")), file=sys.stderr, flush=True)
+
+    def phase_end(self, phase: str) -> None:
+        if self.echo and self.tty:
+            print(self.line(phase + " done"), file=sys.stderr, flush=True)
+
+
+def _best_hz(results: list[dict]) -> float | None:
+    ok = [r["verified"]["worst_hz"] for r in results if r.get("status") == "optimal"
+          and (r.get("verified") or {}).get("worst_hz") is not None]
+    return max(ok) if ok else None
+
+
+def _first_pass_score(r: dict, tol: float = 1e-3) -> float | None:
+    """The first pass's verdict on a candidate: its verified worst case when the start ended optimal or
+    unconverged and within the stress limit; divided by the stress ratio when above it (a thinner leaf
+    would bring it down: a heuristic for promotion only); None when it failed."""
+    v = r.get("verified") or {}
+    if r.get("status") not in ("optimal", "unconverged", "infeasible") or v.get("worst_hz") is None:
+        return None
+    sr = v.get("stress_ratio") or 0.0
+    return v["worst_hz"] / sr if sr > 1 + tol else v["worst_hz"]
 
 
 @limited()  # one BLAS thread while it computes (model.threads)
 def run_topology_search(spec: TopologySpec | dict, *, executor: Any = None, workers: int | None = None,
-                        store: Any = None, progress: Callable[[dict], None] | None = None, cancel: Any = None) -> dict:
-    """Generate, screen, optimise and rank hinge topologies (the unit of work a service job calls).
+                        store: Any = None, progress: Callable[[dict], None] | None = None, cancel: Any = None,
+                        echo: bool = True) -> dict:
+    """Generate, screen, optimise, verify and rank hinge topologies (the unit of work a service job calls;
+    the schedule is the module docstring's).
 
     Parameters
     ----------
     spec
         A :class:`TopologySpec` or its JSON.
-    executor, workers, store, progress, cancel
+    executor, workers, store, cancel
         As :func:`optim.batch.run_cases`: any ``concurrent.futures.Executor`` (default a local process pool
-        of ``workers``), a directory of finished cases (a rerun resumes), a callback per finished case
-        (``{"done", "total", "id", "status"}``) and a ``threading.Event`` that stops the batch.
+        of ``workers``, shared by every phase), a directory of finished cases (a rerun resumes) and a
+        ``threading.Event`` that stops the batch.
+    progress
+        Called after each case of each phase with the batch's event (``{"done", "total", "id", "status"}``)
+        and ``phase`` ("screen", "first pass", "full pass", "refine"), ``counts`` (generated, screened,
+        passed, first_pass, optimised, verified) and ``best`` (the best verified worst case so far).
+    echo
+        Write the progress to stderr (one line per event when it is not a terminal).
 
     Returns
     -------
     dict
-        JSON-serialisable: ``spec``, ``counts`` (generated, rejected by reason kind, untraceable, optimised,
-        failed), ``candidates`` (each ``topology``, ``family``, ``dof``, ``intended_dof``,
-        ``overconstraints``, ``self_stress``, ``release``, ``status`` (``rejected`` with ``reason``,
-        ``optimised``, ``untraceable`` or ``failed`` with ``reason``), ``same_design_as`` (a designed
-        crossing that ends at the midpoint: the descriptor without '@'), ``worst_case_hz``,
-        ``zero_stroke_hz``, ``ratio``, ``design``, ``stress_ratio``, ``kkt_residual``, ``active_bounds``,
-        ``starts``), ``ranking`` (descriptors of the optimised candidates, best first), ``best`` (the first
-        candidate of the ranking, or None), ``seconds`` (``screen``, ``optimise``).
+        JSON-serialisable: ``spec``, ``counts`` (generated, rejected by reason kind, untraceable, pruned,
+        first_pass, promoted, optimised, failed), ``candidates`` (each ``topology``, ``family``, ``dof``,
+        ``intended_dof``, ``overconstraints``, ``self_stress``, ``release``, ``status`` (``rejected`` with
+        ``reason``, ``pruned`` with ``same_design_as``, ``first pass`` (not promoted, with ``first_pass``),
+        ``optimised``, ``untraceable`` or ``failed`` with ``reason``), ``same_design_as``, ``first_pass``
+        (the cheap pass's verified worst case and design), ``worst_case_hz``, ``zero_stroke_hz``, ``ratio``
+        (verified on the search's mesh), ``refined`` (on the refined mesh: ``worst_hz``, ``zero_stroke_hz``,
+        ``ratio``, ``stress_ratio``, ``mesh_error``, ``segments_used``), ``design``, ``stress_ratio``,
+        ``kkt_residual``, ``active_bounds``, ``bound_origins``, ``warnings``, ``starts``), ``ranking``
+        (descriptors of the optimised candidates, best refined worst case first, those within the stress
+        limit on the refined mesh before those beyond it), ``best``, ``seconds`` (per phase).
     """
-    from ..batch import run_cases
+    from ..batch import process_pool, run_cases
     from ..search import cases as problem_cases
-    from .screen import screen_topology
+    from .screen import screen_key
 
     spec = TopologySpec.model_validate(spec)
     if spec.motion == "translation":
         return _guide_search(spec)
     t0 = time.perf_counter()
+    seconds: dict[str, float] = {}
     tops = _candidates(spec)
-    records: list[dict] = []
-    jobs: list[tuple[int, Problem]] = []
-    for t in tops:
-        sc = screen_topology(t, spec.allow_overconstraints)
-        rec = {"topology": str(t), "family": family_of(t), "flexures": t.flexures, "stages": len(t.stages),
-               "dof": sc["dof"], "intended_dof": 1 + sc["intended_motions"], "overconstraints": sc["overconstraints"],
-               "self_stress": sc["self_stress"], "release": sc["release"], "free_motions": sc["free_motions"],
-               "status": "rejected" if sc["status"] == "rejected" else "pending", "reason": sc["reason"],
-               "worst_case_hz": None, "zero_stroke_hz": None, "ratio": None, "design": None}
-        if rec["status"] == "pending":
-            prob = candidate_problem(t, spec)
-            why = _traceable(t, prob)
-            if why:
-                rec.update(status="untraceable", reason=why)
-            else:
-                jobs.append((len(records), prob))
-        records.append(rec)
-    t_screen = time.perf_counter() - t0
-    batch = [c for _, prob in jobs for c in problem_cases(prob)]
-    results = run_cases(batch, "flexopt.optim.search:run_case", executor=executor, workers=workers, store=store,
-                        progress=progress, cancel=cancel) if batch else []
-    k = 0
-    for i, prob in jobs:
-        rs = results[k:k + prob.starts]
-        k += prob.starts
-        _fill(records[i], rs)
-    _mark_same_designs(records)
-    ranked = sorted((r for r in records if r["status"] == "optimised"), key=lambda r: -r["worst_case_hz"])
+    track = _Tracker(progress, len(tops), echo)
+    own = executor is None
+    ex = process_pool(workers) if own else executor
+
+    def batch(phase: str, cases: list[dict], fn: str, on_record: Callable[[int, dict], None] | None = None
+              ) -> list[dict]:
+        pos: dict[str, list[int]] = {}
+        if not cases:
+            return []
+        from ..batch import case_id
+
+        for i, c in enumerate(cases):
+            pos.setdefault(case_id(c), []).append(i)
+
+        def ev(e: dict) -> None:
+            if on_record is not None and "record" in e:
+                for i in pos.get(e["id"], []):
+                    on_record(i, e["record"])
+            track.event(phase, e)
+
+        out = run_cases(cases, fn, executor=ex, store=store, progress=ev, cancel=cancel)
+        track.phase_end(phase)
+        return out
+
+    try:
+        # 1. screen: one verdict per screen key, in chunks, on the executor
+        keys = sorted({screen_key(t) for t in tops})
+        chunks = [keys[i:i + _SCREEN_CHUNK] for i in range(0, len(keys), _SCREEN_CHUNK)]
+        verdicts: dict[str, dict] = {}
+
+        def screened(i: int, rec: dict) -> None:
+            if "verdicts" in rec:
+                verdicts.update(rec["verdicts"])
+                track.counts["screened"] = sum(1 for t in tops if screen_key(t) in verdicts)
+                track.counts["passed"] = sum(1 for t in tops if verdicts.get(screen_key(t), {}).get("status")
+                                             == "accepted")
+
+        res = batch("screen", [{"descriptors": c, "allow_overconstraints": spec.allow_overconstraints}
+                               for c in chunks], "flexopt.optim.topology.screen:screen_case", screened)
+        for r in res:
+            if "verdicts" not in r:
+                raise RuntimeError(f"the screen failed: {r.get('kind')}: {r.get('error')}")
+            verdicts.update(r["verdicts"])
+        records: list[dict] = []
+        pending: list[int] = []
+        for t in tops:
+            sc = verdicts[screen_key(t)]
+            rec = {"topology": str(t), "family": family_of(t), "flexures": t.flexures, "stages": len(t.stages),
+                   "dof": sc["dof"], "intended_dof": 1 + sc["intended_motions"],
+                   "overconstraints": sc["overconstraints"], "self_stress": sc["self_stress"],
+                   "release": sc["release"], "free_motions": sc["free_motions"],
+                   "status": "rejected" if sc["status"] == "rejected" else "pending", "reason": sc["reason"],
+                   "worst_case_hz": None, "zero_stroke_hz": None, "ratio": None, "design": None,
+                   "same_design_as": None, "first_pass": None, "refined": None}
+            if rec["status"] == "pending":
+                why = _traceable(t, candidate_problem(t, spec, first_pass=True))
+                if why:
+                    rec.update(status="untraceable", reason=why)
+                else:
+                    pending.append(len(records))
+            records.append(rec)
+        seconds["screen"] = time.perf_counter() - t0
+        # 2. first pass (multi-fidelity), pruning of the designed crossings that reduce to the midpoint
+        t1 = time.perf_counter()
+        promoted = list(pending)
+        first = spec.schedule == "multi-fidelity" and len(pending) > spec.promote_min
+        if first:
+            probs = [candidate_problem(parse(records[i]["topology"]), spec, first_pass=True) for i in pending]
+            cheap_cases = [problem_cases(p)[0] for p in probs]
+
+            def cheap(k: int, rec: dict) -> None:
+                track.counts["first_pass"] += 1
+                track.offer(records[pending[k]]["topology"], _best_hz([rec]), "first pass")
+
+            res = batch("first pass", cheap_cases, "flexopt.optim.search:run_case", cheap)
+            score: dict[int, float] = {}
+            for i, r in zip(pending, res):
+                sc = _first_pass_score(r)
+                records[i]["first_pass"] = {"status": r.get("status", "failed"), "score_hz": sc,
+                                            "worst_hz": (r.get("verified") or {}).get("worst_hz"),
+                                            "stress_ratio": (r.get("verified") or {}).get("stress_ratio"),
+                                            "design": r.get("design"), "message": r.get("message") or r.get("error")}
+                if sc is not None:
+                    score[i] = sc
+            if spec.prune:
+                by_name = {records[i]["topology"]: i for i in pending}
+                for i in pending:
+                    d = records[i]["first_pass"]["design"] or {}
+                    if "crossing" not in d or abs(d["crossing"] - 0.5) > _SAME_CROSSING:
+                        continue
+                    base = str(canonical(records[i]["topology"].replace("@", "")))
+                    j = by_name.get(base)
+                    if j is None or j == i:
+                        continue
+                    records[i].update(status="pruned", same_design_as=base,
+                                      reason=f"its first pass crosses at {d['crossing']:.3f}, the midpoint: it "
+                                      f"reduces to {base}")
+                    if i in score:
+                        score[j] = max(score.get(j, -math.inf), score.pop(i))
+            ranked_first = sorted(score, key=lambda i: -score[i])
+            n_full = max(spec.promote_min, math.ceil(spec.promote * len(ranked_first)))
+            promoted = ranked_first[:n_full]
+            for i in pending:
+                if records[i]["status"] == "pending" and i not in promoted:
+                    fp = records[i]["first_pass"]
+                    records[i].update(status="first pass", reason="not promoted: its first pass ranks below the "
+                                      f"best {n_full}" if fp["score_hz"] is not None else
+                                      f"not promoted: its first pass failed ({fp['message']})")
+        seconds["first_pass"] = time.perf_counter() - t1
+        # 3. full pass
+        t2 = time.perf_counter()
+        full_probs = {i: candidate_problem(parse(records[i]["topology"]), spec) for i in promoted}
+        full_cases: list[dict] = []
+        owner: list[int] = []
+        for i in promoted:
+            cs = problem_cases(full_probs[i])
+            full_cases += cs
+            owner += [i] * len(cs)
+        results_of: dict[int, list[dict]] = {i: [] for i in promoted}
+
+        def full(k: int, rec: dict) -> None:
+            i = owner[k]
+            results_of[i].append(rec)
+            if len(results_of[i]) == full_probs[i].starts:
+                track.counts["optimised"] += 1
+            track.offer(records[i]["topology"], _best_hz([rec]), "full pass")
+
+        res = batch("full pass", full_cases, "flexopt.optim.search:run_case", full)
+        for i in promoted:
+            _fill(records[i], [r for r, o in zip(res, owner) if o == i])
+            records[i]["bound_origins"] = {k: list(v) for k, v in full_probs[i].families[0].origins.items()}
+        _mark_same_designs(records)
+        seconds["optimise"] = time.perf_counter() - t2
+        # 4. refined verification of every optimum
+        t3 = time.perf_counter()
+        done = [i for i in promoted if records[i]["status"] == "optimised"]
+        if spec.refine_segments is not None and done:
+            ref_cases = []
+            for i in done:
+                r = records[i]
+                params = {**full_probs[i].families[0].fixed, **r["design"], "body_mass": spec.body_mass,
+                          "stroke": spec.stroke}
+                ref_cases.append({"params": params, "stroke": spec.stroke, "points": spec.refine_points,
+                                  "extra": [r["stroke_at_worst"]], "segments": spec.refine_segments,
+                                  "tolerance": spec.refine_tolerance, "safety_factor": spec.safety_factor})
+
+            def refined(k: int, rec: dict) -> None:
+                track.counts["verified"] += 1
+
+            res = batch("refine", ref_cases, "flexopt.optim.topology.rank:refine_case", refined)
+            for i, r in zip(done, res):
+                _refined(records[i], r, spec)
+        seconds["refine"] = time.perf_counter() - t3
+    finally:
+        if own:
+            ex.shutdown(wait=True, cancel_futures=True)
+    ranked = sorted((r for r in records if r["status"] == "optimised"), key=_rank_key)
     counts = {"generated": len(records), "rejected": sum(r["status"] == "rejected" for r in records),
               "untraceable": sum(r["status"] == "untraceable" for r in records),
-              "optimised": len(ranked), "failed": sum(r["status"] == "failed" for r in records)}
-    return _result(spec, records, ranked, counts,
-                   {"screen": t_screen, "optimise": time.perf_counter() - t0 - t_screen})
+              "pruned": sum(r["status"] == "pruned" for r in records),
+              "first_pass": sum(r["first_pass"] is not None for r in records),
+              "promoted": len(promoted), "optimised": len(ranked),
+              "failed": sum(r["status"] == "failed" for r in records)}
+    seconds["total"] = time.perf_counter() - t0
+    return _result(spec, records, ranked, counts, seconds)
+
+
+def _rank_key(r: dict) -> tuple:
+    """Feasible on the refined mesh first, then by the refined worst case (the search mesh's without one)."""
+    ref = r.get("refined") or {}
+    hz = ref.get("worst_hz") if ref.get("worst_hz") is not None else r["worst_case_hz"]
+    return (not ref.get("feasible", True), -hz)
+
+
+def _refined(rec: dict, r: dict, spec: TopologySpec, tol: float = 1e-3) -> None:
+    """A candidate's refined verification, and a warning for what it finds (stress beyond the limit, a mesh
+    error above the tolerance, a refined worst case that differs from the search's)."""
+    if "worst_hz" not in r:
+        why = r.get("error") or "; ".join(r.get("failures", [])) or "incomplete curve"
+        rec["refined"] = {"status": "failed", "reason": why, "feasible": False, "worst_hz": None}
+        rec.setdefault("warnings", []).append({"kind": "notice", "message": f"{rec['topology']}: the refined "
+                                               f"verification failed ({why}); it is ranked last"})
+        return
+    feasible = r["stress_ratio"] <= 1 + tol
+    rec["refined"] = {"status": "complete", "worst_hz": r["worst_hz"], "zero_stroke_hz": r["zero_stroke_hz"],
+                      "ratio": r["ratio"], "stroke_at_worst": r["stroke_at_worst"], "stress_ratio": r["stress_ratio"],
+                      "member_at_max_stress": r["member_at_max_stress"], "feasible": feasible,
+                      "mesh_error": r["mesh_error"], "segments": r["segments"], "segments_used": r["segments_used"],
+                      "tolerance": r["tolerance"], "points": r["points"],
+                      "change": r["worst_hz"] / rec["worst_case_hz"] - 1}
+    notes = rec.setdefault("warnings", [])
+    if not feasible:
+        notes.append({"kind": "stress", "message": f"{rec['topology']}: on the refined mesh the peak stress is "
+                      f"{r['stress_ratio']:.3f} times allowable / safety_factor in {r['member_at_max_stress']}: "
+                      "beyond the limit; ranked after the feasible candidates", "value": r["stress_ratio"]})
+    if r["mesh_error"] is not None and r["tolerance"] is not None and r["mesh_error"] > r["tolerance"]:
+        notes.append({"kind": "mesh", "message": f"{rec['topology']}: the refined mesh's estimated error "
+                      f"{r['mesh_error']:.2g} is above the tolerance {r['tolerance']:g}", "value": r["mesh_error"]})
+    for w in r.get("warnings", []):
+        if w.get("kind") not in ("stress", "mesh"):
+            notes.append(dict(w, message=f"{rec['topology']} (refined): {w['message']}"))
 
 
 def _mark_same_designs(records: list[dict], tol: float = 1e-3) -> None:
@@ -180,6 +548,8 @@ def _mark_same_designs(records: list[dict], tol: float = 1e-3) -> None:
     (within ``tol``), the candidate without '@', whose scene is then the same; None otherwise."""
     by_name = {r["topology"]: r for r in records}
     for r in records:
+        if r["status"] == "pruned":  # already the same design as another (first pass)
+            continue
         r["same_design_as"] = None
         if r["status"] != "optimised" or "crossing" not in r["design"] or abs(r["design"]["crossing"] - 0.5) > tol:
             continue
@@ -203,6 +573,7 @@ def _fill(rec: dict, starts: list[dict]) -> None:
     b = max(ok, key=lambda r: r["verified"]["worst_hz"])
     v = b["verified"]
     rec.update(status="optimised", reason=None, worst_case_hz=v["worst_hz"], zero_stroke_hz=v["zero_stroke_hz"],
+               stroke_at_worst=v["stroke_at_worst"],
                ratio=v["ratio"], design=b["design"], stress_ratio=v["stress_ratio"],
                kkt_residual=b["optimality"]["kkt_residual"], active_bounds=b["optimality"]["active_bounds"],
                moving_mass=b.get("moving_mass"), scene=v.get("scene"), curve={"stroke": v.get("stroke"),

@@ -30,7 +30,7 @@ from ...model.templates import template
 
 from .grammar import GuideTopology, Topology
 
-__all__ = ["screen_scene", "screen_topology", "screen_guide", "name_motion"]
+__all__ = ["screen_scene", "screen_topology", "screen_guide", "name_motion", "screen_key", "screen_case"]
 
 
 def _master_motion(d: ConstraintDiagnosis, v: np.ndarray) -> dict[str, np.ndarray]:
@@ -162,3 +162,20 @@ def screen_guide(g: GuideTopology, allow_overconstraints: bool = True) -> dict:
                 f"the 5 motions besides the stroke (at least {n} free)"}
     scene = template("wire-guide-topology", topology=str(g), segments=1)
     return screen_scene(scene, [], allow_overconstraints)
+
+
+def screen_key(t: Topology) -> str:
+    """The descriptor whose verdict ``t`` shares: ``t`` without its designed crossing ('@') and reinforcement
+    ('r'). At the flexure level the screen sees (one segment per leaf at the template's defaults) these give
+    the same scene: the default crossing fraction is the midpoint, and a reinforced leaf is condensed into
+    its flexure."""
+    return "R:" + str(t)[2:].replace("@", "").replace("r", "")
+
+
+def screen_case(case: dict) -> dict:
+    """A batch case of the screen (:func:`optim.batch.run_cases`): ``{"descriptors": [...],
+    "allow_overconstraints": bool}`` -> ``{"verdicts": {descriptor: screen_topology's dict}}``."""
+    from .grammar import parse
+
+    allow = bool(case.get("allow_overconstraints", True))
+    return {"verdicts": {d: screen_topology(parse(d), allow) for d in case["descriptors"]}}

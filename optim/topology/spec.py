@@ -9,7 +9,7 @@ from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationInfo
 
 from ..problem import Envelope
 
-__all__ = ["TopologySpec", "example_spec"]
+__all__ = ["TopologySpec", "example_spec", "QUICK"]
 
 
 class TopologySpec(BaseModel):
@@ -36,8 +36,42 @@ class TopologySpec(BaseModel):
                                         "centre of mass [kg m^2] (the families' 0.1 kg x (20 mm)^2 / 2)")
     intermediate_mass: PositiveFloat = Field(default=0.02, description="mass of each intermediate body [kg] "
                                              "(inertia as the rotor's per unit mass)")
-    max_flexures: int = Field(default=4, ge=1, le=6, description="at most this many leaf flexures")
-    max_stages: int = Field(default=2, ge=1, le=3, description="at most this many stages in series")
+    max_flexures: int = Field(default=6, ge=1, le=6, description="at most this many leaf flexures")
+    max_stages: int = Field(default=3, ge=1, le=3, description="at most this many stages in series")
+    dimensions: Literal["shared", "stage", "leaf"] = Field(
+        default="stage", description="how each candidate's dimensions are designed: 'shared' (one length, "
+        "thickness, width and plane angle for every stage), 'stage' (each stage its own) or 'leaf' (each stage "
+        "its own, and each leaf its own thickness)")
+    prune: bool = Field(default=True, description="leave out duplicates before optimising: a designed crossing "
+                        "('@') on a stage whose leaves cross nothing, and (after the first pass) a designed "
+                        "crossing that ends at the midpoint when its midpoint variant is a candidate too")
+    schedule: Literal["multi-fidelity", "exhaustive"] = Field(
+        default="multi-fidelity", description="'multi-fidelity': every survivor gets one cheap pass (one start, "
+        "first_pass_samples, first_pass_segments, no refinement) and only the most promising (promote) get "
+        "the full starts; 'exhaustive': every survivor gets the full starts")
+    first_pass_segments: int = Field(default=4, ge=2, le=40, description="beam elements per leaf of the first "
+                                     "pass")
+    first_pass_samples: int = Field(default=5, ge=3, le=61, description="stroke samples of the first pass")
+    first_pass_iterations: int = Field(default=15, ge=1, le=500, description="solver iterations of the first "
+                                       "pass")
+    promote: float = Field(default=0.1, gt=0, le=1, description="fraction of the first pass's candidates (best "
+                           "first) given the full starts")
+    promote_min: int = Field(default=8, ge=1, le=10000, description="at least this many are given the full "
+                             "starts (a search with this many survivors or fewer skips the first pass)")
+    refine_segments: int | Literal["auto"] | None = Field(
+        default="auto", description="the mesh every ranked optimum is verified on before it is ranked: 'auto' "
+        "(refined until the estimated discretisation error of the first parasitic frequency is within "
+        "refine_tolerance), a number of beam elements per leaf, or null (ranked on the search's mesh)")
+    refine_tolerance: float = Field(default=2e-3, gt=0, le=0.1, description="discretisation error aimed at by "
+                                    "refine_segments 'auto' (relative)")
+    refine_points: int = Field(default=31, ge=5, le=2001, description="stroke points of the refined "
+                               "verification (and the stroke of the search's verified minimum)")
+    min_length_over_width: float | None = Field(
+        default=None, gt=0, le=100, description="validity constraint: every leaf at least this many times as "
+        "long as it is wide (beam theory; e.g. 2 excludes plate-like leaves); null: no constraint")
+    min_length_over_thickness: float | None = Field(
+        default=None, gt=0, le=10000, description="validity constraint: every leaf at least this many times as "
+        "long as it is thick; null: no constraint")
     planes: str = Field(default="+-", description="leaf planes to place: a subset of '+-0' ('+' and '-' at "
                         "+-angle/2 about the axis, '0' radial)")
     inplane: bool = Field(default=True, description="also generate leaves crossing in one plane (joined)")
@@ -81,6 +115,13 @@ class TopologySpec(BaseModel):
         return v
 
 
-def example_spec() -> dict:
-    """The default spec as JSON (``flexopt topology --example``)."""
-    return TopologySpec().model_dump(mode="json")
+#: The quick spec: today's 4-leaf, 2-stage space with shared dimensions (``flexopt topology --example quick``).
+QUICK = {"max_flexures": 4, "max_stages": 2, "dimensions": "shared"}
+
+
+def example_spec(kind: str = "default") -> dict:
+    """The default spec as JSON (``flexopt topology --example``): the broad space (6 leaves, 3 stages, each
+    stage its own dimensions); ``kind="quick"`` the quick one (:data:`QUICK`)."""
+    if kind not in ("default", "quick"):
+        raise ValueError(f"example kind must be 'default' or 'quick', got {kind!r}")
+    return TopologySpec(**(QUICK if kind == "quick" else {})).model_dump(mode="json")
