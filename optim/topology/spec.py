@@ -52,9 +52,13 @@ class TopologySpec(BaseModel):
     first_pass_segments: int = Field(default=4, ge=2, le=40, description="beam elements per leaf of the first "
                                      "pass")
     first_pass_samples: int = Field(default=5, ge=3, le=61, description="stroke samples of the first pass")
+    first_pass_dimensions: Literal["shared", "stage", "leaf", "same"] = Field(
+        default="shared", description="the design space of the first pass: 'shared' (the fewest parameters, "
+        "the cheapest: it ranks topologies, the full pass then designs them under 'dimensions') or 'same' "
+        "(the full pass's)")
     first_pass_iterations: int = Field(default=15, ge=1, le=500, description="solver iterations of the first "
                                        "pass")
-    promote: float = Field(default=0.1, gt=0, le=1, description="fraction of the first pass's candidates (best "
+    promote: float = Field(default=0.04, gt=0, le=1, description="fraction of the first pass's candidates (best "
                            "first) given the full starts")
     promote_min: int = Field(default=8, ge=1, le=10000, description="at least this many are given the full "
                              "starts (a search with this many survivors or fewer skips the first pass)")
