@@ -11,7 +11,8 @@ a local process pool or any executor such as a Dask cluster's, resumable from on
 -----------------------------------------------------------------------------------------------------------
 1. *Generate* (:func:`.grammar.enumerate_topologies`, with ``prune`` no designed crossing on a stage that
    crosses nothing) and *screen* (:mod:`.screen`, the exact-constraint filter; candidates that differ only
-   by '@' or 'r' share one verdict, :func:`.screen.screen_key`).
+   by '@' or 'r' share one verdict, :func:`.screen.screen_key`; the survivors' scenes traced for exact
+   gradients, :func:`.screen.traceable`, in the same cases).
 2. *First pass* (``schedule="multi-fidelity"`` and more survivors than ``promote_min``): every survivor one
    start on a coarse mesh (``first_pass_segments``), few samples (``first_pass_samples``), no refinement,
    in the smallest design space (``first_pass_dimensions``, default shared dimensions: measured, a case of
@@ -175,20 +176,6 @@ def family_problem(name: str, descriptor: str, spec: TopologySpec) -> dict:
     if name == "cartwheel-hinge":
         fam["fixed"].pop("gap", None)  # the leaves cross in one plane
     return prob
-
-
-def _traceable(t: Topology, prob: Problem) -> str | None:
-    """None when the candidate's scene can be traced with CasADi symbols at its start, else why not."""
-    from ...model.design import trace_template
-    from ...model.errors import FlexoptError
-    from ..search import _Family
-
-    try:
-        fam = _Family(prob, prob.families[0])
-        trace_template("topology-hinge", fam.params(fam.default_x()), fam.names)
-    except (FlexoptError, ValueError, RuntimeError) as exc:  # casadi raises RuntimeError
-        return f"cannot be traced for exact design gradients: {exc}"
-    return None
 
 
 def _candidates(spec: TopologySpec) -> list[Topology]:
@@ -370,9 +357,13 @@ def run_topology_search(spec: TopologySpec | dict, *, executor: Any = None, work
 
     try:
         # 1. screen: one verdict per screen key, in chunks, on the executor
-        keys = sorted({screen_key(t) for t in tops})
+        members: dict[str, list[str]] = {}
+        for t in tops:
+            members.setdefault(screen_key(t), []).append(str(t))
+        keys = sorted(members)
         chunks = [keys[i:i + _SCREEN_CHUNK] for i in range(0, len(keys), _SCREEN_CHUNK)]
         verdicts: dict[str, dict] = {}
+        untraceable: dict[str, str] = {}
 
         def screened(i: int, rec: dict) -> None:
             if "verdicts" in rec:
@@ -381,12 +372,14 @@ def run_topology_search(spec: TopologySpec | dict, *, executor: Any = None, work
                 track.counts["passed"] = sum(1 for t in tops if verdicts.get(screen_key(t), {}).get("status")
                                              == "accepted")
 
-        res = batch("screen", [{"descriptors": c, "allow_overconstraints": spec.allow_overconstraints}
+        res = batch("screen", [{"descriptors": c, "allow_overconstraints": spec.allow_overconstraints,
+                                "members": {k: members[k] for k in c}, "dimensions": spec.dimensions}
                                for c in chunks], "flexopt.optim.topology.screen:screen_case", screened)
         for r in res:
             if "verdicts" not in r:
                 raise RuntimeError(f"the screen failed: {r.get('kind')}: {r.get('error')}")
             verdicts.update(r["verdicts"])
+            untraceable.update(r["untraceable"])
         records: list[dict] = []
         pending: list[int] = []
         for t in tops:
@@ -399,9 +392,8 @@ def run_topology_search(spec: TopologySpec | dict, *, executor: Any = None, work
                    "worst_case_hz": None, "zero_stroke_hz": None, "ratio": None, "design": None,
                    "same_design_as": None, "first_pass": None, "refined": None}
             if rec["status"] == "pending":
-                why = _traceable(t, candidate_problem(t, spec, first_pass=True))
-                if why:
-                    rec.update(status="untraceable", reason=why)
+                if str(t) in untraceable:
+                    rec.update(status="untraceable", reason=untraceable[str(t)])
                 else:
                     pending.append(len(records))
             records.append(rec)

@@ -30,7 +30,7 @@ from ...model.templates import template
 
 from .grammar import GuideTopology, Topology
 
-__all__ = ["screen_scene", "screen_topology", "screen_guide", "name_motion", "screen_key", "screen_case"]
+__all__ = ["screen_scene", "screen_topology", "screen_guide", "name_motion", "screen_key", "screen_case", "traceable"]
 
 
 def _master_motion(d: ConstraintDiagnosis, v: np.ndarray) -> dict[str, np.ndarray]:
@@ -172,10 +172,45 @@ def screen_key(t: Topology) -> str:
     return "R:" + str(t)[2:].replace("@", "").replace("r", "")
 
 
+def traceable(descriptor: str, dimensions: str) -> str | None:
+    """None when the candidate's scene can be traced with CasADi symbols in its design parameters (under
+    ``dimensions``), else why not. Traced at the template's defaults, a per-stage or per-leaf parameter at
+    its stage 1 counterpart's default (its own default 0 means "inherited")."""
+    from ...model.design import trace_template
+    from ...model.errors import FlexoptError
+    from ...model.templates import TEMPLATES
+    from .grammar import design_parameters, parse
+
+    defaults = TEMPLATES["topology-hinge"][1]
+    names = design_parameters(parse(descriptor), dimensions)
+    params: dict = {"topology": descriptor, "segments": 2}
+    for k in names:
+        if defaults[k] == 0:
+            params[k] = defaults[k.split("_s")[0]]
+    try:
+        trace_template("topology-hinge", params, names)
+    except (FlexoptError, ValueError, RuntimeError) as exc:  # casadi raises RuntimeError
+        return f"cannot be traced for exact design gradients: {exc}"
+    return None
+
+
 def screen_case(case: dict) -> dict:
     """A batch case of the screen (:func:`optim.batch.run_cases`): ``{"descriptors": [...],
-    "allow_overconstraints": bool}`` -> ``{"verdicts": {descriptor: screen_topology's dict}}``."""
+    "allow_overconstraints": bool}`` -> ``{"verdicts": {descriptor: screen_topology's dict}}``; with
+    ``"members": {descriptor: [candidates sharing its verdict]}`` and ``"dimensions"``, also
+    ``"untraceable": {candidate: reason}`` for the members of accepted descriptors that cannot be traced
+    (:func:`traceable`)."""
     from .grammar import parse
 
     allow = bool(case.get("allow_overconstraints", True))
-    return {"verdicts": {d: screen_topology(parse(d), allow) for d in case["descriptors"]}}
+    verdicts = {d: screen_topology(parse(d), allow) for d in case["descriptors"]}
+    out: dict = {"verdicts": verdicts}
+    if "members" in case:
+        out["untraceable"] = {}
+        for d, members in case["members"].items():
+            if verdicts[d]["status"] == "accepted":
+                for m in members:
+                    why = traceable(m, case["dimensions"])
+                    if why:
+                        out["untraceable"][m] = why
+    return out
