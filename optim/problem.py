@@ -135,5 +135,7 @@ class Problem(BaseModel):
                                "stressed member's constraints) is added to the search and the search resumed; "
                                "a round that would add nothing stops with the reason")
     verify_points: int = Field(default=181, ge=31, le=2001, description="exact stroke points of the verification")
+    preview: bool = Field(default=True, description="compute the start design's curve (method 'auto') for the "
+                          "plot of start against optimum; a topology search's first pass leaves it out")
     tolerance: float = Field(default=1e-3, gt=0, lt=0.1, description="relative tolerance of the search "
                              "(SLSQP ftol) and of the verified-versus-searched worst case")

@@ -636,7 +636,7 @@ def run_case(case: dict) -> dict:
     screening = None
     if prob.screen:
         x0, screening = _screen(fam, prob, fi, si, x0)
-    initial = _preview(fam, x0, prob.verify_points, prob.tolerance)
+    initial = _preview(fam, x0, prob.verify_points, prob.tolerance) if prob.preview else None
     x = x0.copy()
     history: list[dict] = []
     status, message = "optimal", ""

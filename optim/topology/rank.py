@@ -154,7 +154,7 @@ def candidate_problem(t: Topology, spec: TopologySpec, first_pass: bool = False)
         return Problem(families=[fam], stroke=spec.stroke, samples=spec.first_pass_samples,
                        safety_factor=spec.safety_factor, min_thickness=spec.min_thickness, envelope=spec.envelope,
                        body_mass=spec.body_mass, solver=spec.solver, starts=1, seed=spec.seed,
-                       max_iterations=spec.first_pass_iterations, refine_rounds=0, verify_points=31)
+                       max_iterations=spec.first_pass_iterations, refine_rounds=0, verify_points=31, preview=False)
     return Problem(families=[fam], stroke=spec.stroke, samples=spec.samples, safety_factor=spec.safety_factor,
                    min_thickness=spec.min_thickness, envelope=spec.envelope, body_mass=spec.body_mass,
                    solver=spec.solver, starts=spec.starts, seed=spec.seed, max_iterations=spec.max_iterations,

@@ -51,7 +51,8 @@ class TopologySpec(BaseModel):
         "the full starts; 'exhaustive': every survivor gets the full starts")
     first_pass_segments: int = Field(default=4, ge=2, le=40, description="beam elements per leaf of the first "
                                      "pass")
-    first_pass_samples: int = Field(default=5, ge=3, le=61, description="stroke samples of the first pass")
+    first_pass_samples: int = Field(default=3, ge=3, le=61, description="stroke samples of the first pass (3: "
+                                    "the stroke's ends and zero, two after the mirror symmetry)")
     first_pass_dimensions: Literal["shared", "stage", "leaf", "same"] = Field(
         default="shared", description="the design space of the first pass: 'shared' (the fewest parameters, "
         "the cheapest: it ranks topologies, the full pass then designs them under 'dimensions') or 'same' "
