@@ -636,7 +636,8 @@ def run_case(case: dict) -> dict:
     screening = None
     if prob.screen:
         x0, screening = _screen(fam, prob, fi, si, x0)
-    initial = _preview(fam, x0, prob.verify_points, prob.tolerance) if prob.preview else None
+    initial = (_preview(fam, x0, prob.verify_points, prob.tolerance) if prob.preview else
+               {"points": 0, "status": "skipped", "failures": [], "stroke": [], "parasitic_hz": []})
     x = x0.copy()
     history: list[dict] = []
     status, message = "optimal", ""
