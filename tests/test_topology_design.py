@@ -4,6 +4,8 @@ run with the refined verification's order checked on a 4x finer mesh."""
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -220,4 +222,4 @@ def test_schedule_matches_the_exhaustive_run_and_refinement_keeps_the_order(tmp_
                            "extra": [r["stroke_at_worst"]], "segments": 4 * max(ref["segments_used"]),
                            "tolerance": None, "safety_factor": 1.5})
         fine.append(out["worst_hz"])
-    assert all(a > b for a, b in zip(fine, fine[1:])), (sched["ranking"][:5], fine)
+    assert all(a > b for a, b in itertools.pairwise(fine)), (sched["ranking"][:5], fine)

@@ -24,6 +24,12 @@ Examples, the four hand-made families (:data:`FAMILIES`):
 ``R:+-|-+``                double-cross-hinge          two pivots in series, the second mirrored and outside
 =========================  ==========================  ==================================================
 
+Dimensions (:func:`design_parameters`): one length, thickness, width and plane angle for every stage
+(``"shared"``, today's spaces), each stage its own (``"stage"``: stage k >= 2's ``length_s<k>`` and so on),
+or each stage its own and each leaf its own thickness (``"leaf"``: ``thickness_s<k>l<i>``). They are the
+design space's choice, not the descriptor's: a descriptor names the same hinge under each, and keeps the
+meaning it had.
+
 The scene of a descriptor is built by one builder, ``model.templates``' ``topology-hinge`` (which reads the
 descriptor with :func:`model.templates.topology_layout`, so the grammar and the scene cannot disagree).
 

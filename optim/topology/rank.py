@@ -413,13 +413,13 @@ def run_topology_search(spec: TopologySpec | dict, *, executor: Any = None, work
             res = batch("first pass", cheap_cases, "flexopt.optim.search:run_case", cheap)
             score: dict[int, float] = {}
             for i, r in zip(pending, res):
-                sc = _first_pass_score(r)
-                records[i]["first_pass"] = {"status": r.get("status", "failed"), "score_hz": sc,
+                fs = _first_pass_score(r)
+                records[i]["first_pass"] = {"status": r.get("status", "failed"), "score_hz": fs,
                                             "worst_hz": (r.get("verified") or {}).get("worst_hz"),
                                             "stress_ratio": (r.get("verified") or {}).get("stress_ratio"),
                                             "design": r.get("design"), "message": r.get("message") or r.get("error")}
-                if sc is not None:
-                    score[i] = sc
+                if fs is not None:
+                    score[i] = fs
             if spec.prune:
                 by_name = {records[i]["topology"]: i for i in pending}
                 for i in pending:
@@ -507,7 +507,7 @@ def _rank_key(r: dict) -> tuple:
     """Feasible on the refined mesh first, then by the refined worst case (the search mesh's without one)."""
     ref = r.get("refined") or {}
     hz = ref.get("worst_hz") if ref.get("worst_hz") is not None else r["worst_case_hz"]
-    return (not ref.get("feasible", True), -hz)
+    return (not ref.get("feasible", True), -float(hz))
 
 
 def _refined(rec: dict, r: dict, spec: TopologySpec, tol: float = 1e-3) -> None:

@@ -121,7 +121,7 @@ class TopologySpec(BaseModel):
 
 
 #: The quick spec: today's 4-leaf, 2-stage space with shared dimensions (``flexopt topology --example quick``).
-QUICK = {"max_flexures": 4, "max_stages": 2, "dimensions": "shared"}
+QUICK: dict[str, object] = {"max_flexures": 4, "max_stages": 2, "dimensions": "shared"}
 
 
 def example_spec(kind: str = "default") -> dict:
@@ -129,4 +129,4 @@ def example_spec(kind: str = "default") -> dict:
     stage its own dimensions); ``kind="quick"`` the quick one (:data:`QUICK`)."""
     if kind not in ("default", "quick"):
         raise ValueError(f"example kind must be 'default' or 'quick', got {kind!r}")
-    return TopologySpec(**(QUICK if kind == "quick" else {})).model_dump(mode="json")
+    return TopologySpec.model_validate(QUICK if kind == "quick" else {}).model_dump(mode="json")
