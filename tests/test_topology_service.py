@@ -20,7 +20,7 @@ from tests.test_jobs import _cases, _server, _until  # noqa: E402
 # one hinge that survives the filter (the cross-spring pivot's leaves, optimised) and one the filter rejects
 # (both leaves in one plane: a mechanism); a few seconds in all
 TINY = {"topologies": ["R:+-", "R:++"], "segments": 4, "samples": 5, "verify_points": 31, "refine_rounds": 1,
-        "starts": 1}
+        "starts": 1, "refine_segments": None}  # no refined verification: the cases are the screen's and the search's
 
 
 def test_topology_search_job_over_http(tmp_path: Path) -> None:
@@ -86,7 +86,7 @@ def test_topology_search_job_over_http(tmp_path: Path) -> None:
                 c.optimisation(h.id)
         assert _cases(tmp_path) == before
         ids = {p["id"] for p in job["partial"]}
-        assert len(ids) == 1 and {f"{i}.json" for i in ids} <= set(before), "the search's case, recorded"
+        assert len(ids) == 2 and {f"{i}.json" for i in ids} <= set(before), "the screen's and the search's case"
         assert httpx.delete(f"{srv.url}/v1/topology-searches/{job_id}", headers=a_hdr).json()["status"] == "succeeded"
         assert httpx.get(f"{srv.url}/v1/topology-searches/{job_id}", headers=a_hdr).status_code == 404
         assert not {f"{i}.json" for i in ids} & set(_cases(tmp_path)), "and removed with the last job using it"
@@ -127,14 +127,15 @@ def test_restarted_topology_search_resumes_from_its_finished_cases(tmp_path: Pat
     store = JobStore(Settings(data_dir=tmp_path).job_store_url(), tmp_path)
     assert store.get(h.id)["status"] == "queued", "requeued by the stopping server"
     before = _cases(tmp_path)
-    assert 1 <= len(before) < 8
+    assert 1 <= len(before) < 9
     srv = _server(tmp_path)
     try:
         with Client(srv.url, max_retries=0) as c:
             job = _until(lambda: (j := c.optimisation(h.id)).status in ("succeeded", "failed") and j, timeout=240)
             assert job.status == "succeeded" and job.attempts == 2, job.error
             after = _cases(tmp_path)
-            assert len(after) == 8 and all(after[k] == v for k, v in before.items()), "finished cases kept"
+            # 8 search cases and the screen's (one case for both descriptors)
+            assert len(after) == 9 and all(after[k] == v for k, v in before.items()), "finished cases kept"
             assert job.progress == {"done": 8, "total": 8} and job.result["best"] is not None
     finally:
         srv.__exit__()
