@@ -200,7 +200,7 @@ def refine_case(case: dict) -> dict:
     """
     import numpy as np
 
-    from ...model.analysis import Analysis
+    from ...model.curve import Analysis
     from ...model.scene import Beam
     from ...model.templates import template
     from ..search import _curve_summary
