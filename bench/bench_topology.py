@@ -88,7 +88,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--repeats", type=int, default=1)
-    ap.add_argument("--runs", nargs="+", default=list(RUNS), choices=list(RUNS))
+    ap.add_argument("--runs", nargs="*", default=list(RUNS), choices=list(RUNS))
     ap.add_argument("--store", default=None, help="a case store shared by the runs (a rerun reuses every case)")
     ap.add_argument("--baseline", type=int, default=0, metavar="N", help="re-optimise the default search's top 3 "
                     "with N starts each")
@@ -108,6 +108,8 @@ def main() -> None:
             wall = time.perf_counter() - t0
             rows[name].append(_row(name, res, wall, (l0, _load())))
             results[name] = res
+    if not a.runs:
+        print("(no search runs: --runs empty)")
     print("| run | generated | rejected | survivors | first pass | pruned | full pass | optimised | screen [s] | "
           "first pass [s] | full pass [s] | refine [s] | total [s] | best (worst / zero) | load before / after |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
