@@ -169,6 +169,10 @@ def test_cli_example_and_rejected_only(tmp_path, capsys) -> None:
     assert main(["topology", "--example"]) == 0
     spec = json.loads(capsys.readouterr().out)
     assert spec["format"] == "flexopt-topology" and spec["version"] == 1
+    assert (spec["max_flexures"], spec["max_stages"], spec["dimensions"]) == (6, 3, "stage")
+    assert main(["topology", "--example", "quick"]) == 0
+    quick = json.loads(capsys.readouterr().out)
+    assert (quick["max_flexures"], quick["max_stages"], quick["dimensions"]) == (4, 2, "shared")
     f = tmp_path / "s.json"
     f.write_text(json.dumps({"topologies": ["R:++", "R:+"]}))
     assert main(["topology", str(f), "--json"]) == 1  # nothing survives: no best

@@ -20,7 +20,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Add the ``topology`` subcommand to an argparse subparsers object."""
     o = subparsers.add_parser("topology", help="topology search: generate, screen, optimise and rank hinges")
     o.add_argument("spec", nargs="?", help="search spec JSON (format flexopt-topology; see --example)")
-    o.add_argument("--example", action="store_true", help="print the default spec and exit")
+    o.add_argument("--example", nargs="?", const="default", choices=["default", "quick"], default=None,
+                   help="print the default spec (the broad space: 6 leaves, 3 stages, each stage its own "
+                   "dimensions) or, with 'quick', the quick one (4 leaves, 2 stages, shared dimensions) and exit")
     o.add_argument("--workers", type=int, default=None, help="local worker processes (default: CPU count)")
     o.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://host:8786")
     o.add_argument("--store", metavar="DIR", help="write each finished case here; rerun to resume")
@@ -42,7 +44,7 @@ def _cmd_topology(args: argparse.Namespace) -> int:
     from .optimise import case_lines, executor_for, read_spec
 
     if args.example:
-        print(json.dumps(example_spec(), indent=2))
+        print(json.dumps(example_spec(args.example), indent=2))
         return 0
     if args.spec is None:
         raise ValueError("give a spec file (flexopt topology --example > spec.json) or --example")
@@ -80,11 +82,15 @@ def table(result: dict) -> str:
     """The ranking and the rejected candidates as text."""
     c = result["counts"]
     by = ", ".join(f"{n} {k}" for k, n in sorted(c["rejected_by"].items()))
+    sec = result["seconds"]
+    passes = (f", first pass {c['first_pass']}, pruned {c['pruned']}, full pass {c['promoted']}"
+              if "first_pass" in c else "")
     lines = [f"{c['generated']} topologies generated, {c['rejected']} rejected ({by or 'none'}), "
-             f"{c['untraceable']} untraceable, {c['optimised']} optimised, {c['failed']} failed "
-             f"(screen {result['seconds']['screen']:.1f} s, optimisation {result['seconds']['optimise']:.1f} s)",
+             f"{c['untraceable']} untraceable{passes}, {c['optimised']} optimised, {c['failed']} failed "
+             f"(screen {sec['screen']:.1f} s, first pass {sec.get('first_pass', 0.0):.1f} s, optimisation "
+             f"{sec['optimise']:.1f} s, refined verification {sec.get('refine', 0.0):.1f} s)",
              "rank  topology          family                   dof  self-stress  worst [Hz]  zero [Hz]  worst/zero  "
-             "design"]
+             "stress  mesh error  KKT      design (bound: origin)"]
     by_name = {r["topology"]: r for r in result["candidates"]}
     if result["spec"]["motion"] == "translation":
         lines[0] += f", {c['accepted']} accepted (guides: screened, not optimised)"
@@ -111,12 +117,28 @@ def table(result: dict) -> str:
     for i, name in enumerate(shown, start=1):
         r = by_name[name]
         design = design_text(r["design"], r["family"] or "topology-hinge")
+        bounds = r.get("active_bounds") or {}
+        origins = r.get("bound_origins") or {}
+        told = [f"{k} {side}: {origins[k][side == 'upper']}" for k, side in bounds.items() if k in origins]
+        if told:
+            design += f" (on bounds: {'; '.join(told)})"
         if r.get("same_design_as"):
             design += f" (crossing at the midpoint: the design of {r['same_design_as']})"
         if name in variants:
             design += f"; also {', '.join(variants[name])} (their optimum crosses at the midpoint: this design)"
+        ref = r.get("refined") or {}
+        worst = ref.get("worst_hz") if ref.get("worst_hz") is not None else r["worst_case_hz"]
+        zero = ref.get("zero_stroke_hz", r["zero_stroke_hz"])
+        ratio = ref.get("ratio", r["ratio"])
+        stress = ref.get("stress_ratio", r.get("stress_ratio"))
+        me = f"{ref['mesh_error']:.1e}" if ref.get("mesh_error") is not None else "-"
         lines.append(f"{i:>4}  {name:<17} {r['family'] or '-':<24} {r['dof']:>3}  {r['overconstraints']:>11}  "
-                     f"{r['worst_case_hz']:>10.2f} {r['zero_stroke_hz']:>10.2f}  {r['ratio']:>10.3f}  {design}")
+                     f"{worst:>10.2f} {zero:>10.2f}  {ratio:>10.3f}  {stress:>6.3f}  {me:>10}  "
+                     f"{r['kkt_residual']:.1e}  {design}")
+        lines += [f"      ! {w['message']}" for w in r.get("warnings", []) if w.get("kind") in ("stress", "mesh")]
+    if any(by_name[n].get("refined") for n in result["ranking"]):
+        lines.append("      (worst, zero, worst/zero and stress on the refined mesh: refine_segments, "
+                     "refine_tolerance)")
     for r in result["candidates"]:
         if r["status"] in ("failed", "untraceable"):
             lines.append(f"   -  {r['topology']:<17} {r['family'] or '-':<24} {r['status']}: {r['reason']}")
