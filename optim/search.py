@@ -605,15 +605,17 @@ def _refine(fam: _Family, verified: dict, low: bool, stressed: bool, symmetric: 
     return added, "; ".join(why)
 
 
-def _provenance(prob: Problem) -> dict:
-    """Where a result comes from: flexopt's version, the problem's SHA-256 (canonical JSON) and the solver."""
+def _provenance(prob: Problem, one_start: bool = False) -> dict:
+    """Where a result comes from: flexopt's version, the problem's SHA-256 (canonical JSON; with ``one_start``,
+    a case's, without ``starts``, as :func:`cases` gives it) and the solver."""
     from importlib.metadata import PackageNotFoundError, version
 
     try:
         ver = version("flexopt")
     except PackageNotFoundError:  # pragma: no cover - running from a source tree without installing
         ver = "0+unknown"
-    blob = json.dumps(prob.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+    blob = json.dumps(prob.model_dump(mode="json", exclude={"starts"} if one_start else None), sort_keys=True,
+                      separators=(",", ":"))
     settings = {"method": prob.solver, "max_iterations": prob.max_iterations, "tolerance": prob.tolerance,
                 "kkt_tolerance": prob.kkt_tolerance, "refine_rounds": prob.refine_rounds,
                 "stress_rows": "every segment end at every sample", "step_backs": _STEP_BACKS,
@@ -727,7 +729,7 @@ def run_case(case: dict) -> dict:
         "optimality": opt, "moving_mass": fam.moving_mass(), "start_moved": moved,
         "verified": verified, "initial": initial, "history": history, "screening": screening,
         "evaluations": fam.evaluations, "seconds": time.perf_counter() - t0,
-        "warnings": [w.to_dict() for w in notes], "provenance": _provenance(prob),
+        "warnings": [w.to_dict() for w in notes], "provenance": _provenance(prob, one_start=True),
     }
 
 
