@@ -223,3 +223,25 @@ def test_schedule_matches_the_exhaustive_run_and_refinement_keeps_the_order(tmp_
                            "tolerance": None, "safety_factor": 1.5})
         fine.append(out["worst_hz"])
     assert all(a > b for a, b in itertools.pairwise(fine)), (sched["ranking"][:5], fine)
+
+
+def test_progress_is_one_line_per_event_in_logs(capsys) -> None:
+    """Not on a terminal (pytest captures stderr), every event of every phase is one line with the counts
+    and the best so far, and the callback gets the phase, the counts and the best with the batch's event."""
+    from flexopt.optim.topology.rank import _Tracker
+
+    events: list[dict] = []
+    tr = _Tracker(events.append, generated=3, echo=True)
+    tr.counts.update(screened=3, passed=1)
+    tr.event("screen", {"done": 1, "total": 1, "id": "a", "status": "done", "record": {"verdicts": {}}})
+    tr.offer("R:+-|-+", 52.0, "first pass")
+    tr.offer("R:+-", 23.0, "first pass")  # lower: not the best
+    tr.counts["first_pass"] = 1
+    tr.event("first pass", {"done": 1, "total": 2, "id": "b", "status": "done", "record": {}})
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 2
+    assert "screen 1/1: generated 3, screened 3, passed 1, first pass 0" in err[0]
+    assert "first pass 1/2" in err[1] and "best R:+-|-+ 52.00 Hz (first pass)" in err[1]
+    assert [e["phase"] for e in events] == ["screen", "first pass"] and "record" not in events[0]
+    assert events[1]["best"] == {"topology": "R:+-|-+", "worst_hz": 52.0, "phase": "first pass"}
+    assert events[1]["counts"]["first_pass"] == 1
