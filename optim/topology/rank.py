@@ -327,7 +327,7 @@ def run_topology_search(spec: TopologySpec | dict, *, executor: Any = None, work
 
     spec = TopologySpec.model_validate(spec)
     if spec.motion == "translation":
-        return _guide_search(spec)
+        return _guide_search(spec, executor=executor, workers=workers, store=store, cancel=cancel)
     t0 = time.perf_counter()
     seconds: dict[str, float] = {}
     tops = _candidates(spec)
@@ -577,10 +577,30 @@ def _fill(rec: dict, starts: list[dict]) -> None:
                warnings=b.get("warnings", []))
 
 
-def _guide_search(spec: TopologySpec) -> dict:
+#: A guide's design space: the wires' side and length, and where each bound comes from.
+GUIDE_DESIGN = {"wire_diameter": (5e-4, 2e-3), "wire_length": (0.02, 0.06)}
+GUIDE_ORIGINS = {"wire_diameter": ("0.5 mm, the search's thinnest wire", "2 mm, the search's thickest wire"),
+                 "wire_length": ("20 mm, the search's shortest wire", "60 mm, the search's longest wire")}
+
+
+def guide_problem(descriptor: str, spec: TopologySpec) -> Problem:
+    """The one-family problem of a guide (template ``wire-guide-topology``): its worst-case parasitic
+    frequency over +-``guide_stroke`` under the stress limit, wire side and length designed."""
+    fam = Family(template="wire-guide-topology", design=dict(GUIDE_DESIGN), origins=dict(GUIDE_ORIGINS),
+                 fixed={"topology": descriptor, "segments": spec.segments})
+    return Problem(families=[fam], stroke=spec.guide_stroke, samples=spec.samples, safety_factor=spec.safety_factor,
+                   min_thickness=spec.min_thickness, solver=spec.solver, starts=spec.starts, seed=spec.seed,
+                   max_iterations=spec.max_iterations, refine_rounds=spec.refine_rounds,
+                   verify_points=spec.verify_points)
+
+
+def _guide_search(spec: TopologySpec, executor: Any = None, workers: int | None = None, store: Any = None,
+                  cancel: Any = None) -> dict:
     """Straight guides: every arrangement of up to ``max_flexures`` wires (or the listed descriptors) screened;
     the accepted ones ranked by the condition number of their scaled D_cc (smaller: further from a singular,
-    compliant arrangement). No shape optimisation (the optimiser's families are hinges)."""
+    compliant arrangement). With ``optimise_guides`` N, the best N by conditioning are shape-optimised like
+    hinges (:func:`guide_problem`: the worst-case parasitic frequency over the translation stroke) and ranked
+    by it first."""
     from .grammar import canonical_guide, enumerate_guides
     from .screen import screen_guide
 
@@ -599,9 +619,28 @@ def _guide_search(spec: TopologySpec) -> dict:
                         "status": "accepted" if sc["status"] == "accepted" else "rejected", "reason": sc["reason"],
                         "worst_case_hz": None, "zero_stroke_hz": None, "ratio": None, "design": None})
     ranked = sorted((r for r in records if r["status"] == "accepted"), key=lambda r: r["condition_number"])
-    counts = {"generated": len(records), "rejected": len(records) - len(ranked), "untraceable": 0, "optimised": 0,
-              "accepted": len(ranked), "failed": 0}
-    return _result(spec, records, ranked, counts, {"screen": time.perf_counter() - t0, "optimise": 0.0})
+    t1 = time.perf_counter()
+    chosen = ranked[:spec.optimise_guides]
+    if chosen:
+        from ..batch import run_cases
+        from ..search import cases as problem_cases
+
+        probs = [guide_problem(r["topology"], spec) for r in chosen]
+        batch = [c for p in probs for c in problem_cases(p)]
+        res = run_cases(batch, "flexopt.optim.search:run_case", executor=executor, workers=workers, store=store,
+                        cancel=cancel)
+        for k, r in enumerate(chosen):
+            _fill(r, res[k * spec.starts:(k + 1) * spec.starts])
+            r["bound_origins"] = {n: list(v) for n, v in GUIDE_ORIGINS.items()}
+            if r["status"] == "optimised":
+                r["status"] = "accepted"  # the screen's verdict; 'optimised' below says it was optimised too
+                r["optimised"] = True
+        done = sorted((r for r in chosen if r.get("optimised")), key=lambda r: -r["worst_case_hz"])
+        ranked = done + [r for r in ranked if not r.get("optimised")]
+    counts = {"generated": len(records), "rejected": len(records) - len(ranked), "untraceable": 0,
+              "optimised": sum(bool(r.get("optimised")) for r in records), "accepted": len(ranked),
+              "failed": sum(r["status"] == "failed" for r in records)}
+    return _result(spec, records, ranked, counts, {"screen": t1 - t0, "optimise": time.perf_counter() - t1})
 
 
 def _result(spec: TopologySpec, records: list[dict], ranked: list[dict], counts: dict[str, int],

@@ -77,6 +77,12 @@ class TopologySpec(BaseModel):
     min_length_over_thickness: float | None = Field(
         default=None, gt=0, le=10000, description="validity constraint: every leaf at least this many times as "
         "long as it is thick; null: no constraint")
+    optimise_guides: int = Field(default=0, ge=0, le=256, description="translation only: shape-optimise the "
+                                 "best this many accepted guides (by the condition number of D_cc) for their "
+                                 "worst-case parasitic frequency over guide_stroke, and rank them by it before "
+                                 "the others; 0: rank by conditioning only")
+    guide_stroke: PositiveFloat = Field(default=0.002, le=0.05, description="half range of a guide's translation "
+                                        "[m] (translation only)")
     planes: str = Field(default="+-", description="leaf planes to place: a subset of '+-0' ('+' and '-' at "
                         "+-angle/2 about the axis, '0' radial)")
     inplane: bool = Field(default=True, description="also generate leaves crossing in one plane (joined)")
