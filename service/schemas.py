@@ -268,7 +268,10 @@ class Job(_Wire):
         "optimisation", description="an optimisation, a frequency curve too costly for a request, a topology "
                                     "search or a Pareto front")
     status: Literal["queued", "running", "cancelling", "succeeded", "failed", "cancelled"]
-    progress: dict[str, Any] = Field(description="{'done': cases finished, 'total': cases}")
+    progress: dict[str, Any] = Field(description="{'done': cases finished, 'total': cases} of the running batch; "
+                                     "a topology search adds 'phase' (screen, first pass, full pass, refine), "
+                                     "'counts' (generated, screened, passed, first_pass, optimised, verified) "
+                                     "and 'best' (the best verified worst case so far)")
     partial: list[dict[str, Any]] = Field(description="summary of every finished case (family, start, verified "
                                                       "worst-case frequency, design)")
     result: dict[str, Any] | None = Field(description="optim.optimise's result once succeeded: per family the best "

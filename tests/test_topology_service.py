@@ -136,7 +136,9 @@ def test_restarted_topology_search_resumes_from_its_finished_cases(tmp_path: Pat
             after = _cases(tmp_path)
             # 8 search cases and the screen's (one case for both descriptors)
             assert len(after) == 9 and all(after[k] == v for k, v in before.items()), "finished cases kept"
-            assert job.progress == {"done": 8, "total": 8} and job.result["best"] is not None
+            assert (job.progress["done"], job.progress["total"], job.progress["phase"]) == (8, 8, "full pass")
+            assert job.progress["counts"]["optimised"] == 2 and job.progress["best"]["topology"] in ("R:+-", "R:+-@")
+            assert job.result["best"] is not None
     finally:
         srv.__exit__()
         store.engine.dispose()

@@ -114,7 +114,10 @@ def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
         except (OSError, json.JSONDecodeError):
             pass
         try:  # best effort: a database busy for longer than its timeout must not fail the optimisation
-            store.update(job_id, attempt, progress=json.dumps({"done": event["done"], "total": event["total"]}),
+            # a topology search adds its phase, its counts (screened, passed, ...) and the best so far
+            shown = {"done": event["done"], "total": event["total"],
+                     **{k: event[k] for k in ("phase", "counts", "best") if k in event}}
+            store.update(job_id, attempt, progress=json.dumps(finite(shown), allow_nan=False),
                          partial=json.dumps(finite(partial), allow_nan=False))
         except StoreUnavailable:  # the next case's progress writes it again
             log.warning("job %s: progress not written", job_id)
