@@ -8,7 +8,6 @@ import itertools
 
 import numpy as np
 import pytest
-
 from flexopt.model.templates import template
 from flexopt.optim import Problem, cases
 from flexopt.optim.topology import enumerate_topologies, parse, screen_topology

@@ -85,12 +85,13 @@ def table(result: dict) -> str:
     sec = result["seconds"]
     passes = (f", first pass {c['first_pass']}, pruned {c['pruned']}, full pass {c['promoted']}"
               if "first_pass" in c else "")
-    lines = [f"{c['generated']} topologies generated, {c['rejected']} rejected ({by or 'none'}), "
-             f"{c['untraceable']} untraceable{passes}, {c['optimised']} optimised, {c['failed']} failed "
-             f"(screen {sec['screen']:.1f} s, first pass {sec.get('first_pass', 0.0):.1f} s, optimisation "
-             f"{sec['optimise']:.1f} s, refined verification {sec.get('refine', 0.0):.1f} s)",
-             "rank  topology          family                   dof  self-stress  worst [Hz]  zero [Hz]  worst/zero  "
-             "stress  mesh error  KKT      design (bound: origin)"]
+    head = (f"{c['generated']} topologies generated, {c['rejected']} rejected ({by or 'none'}), "
+            f"{c['untraceable']} untraceable{passes}, {c['optimised']} optimised, {c['failed']} failed "
+            f"(screen {sec['screen']:.1f} s, first pass {sec.get('first_pass', 0.0):.1f} s, optimisation "
+            f"{sec['optimise']:.1f} s, refined verification {sec.get('refine', 0.0):.1f} s)")
+    columns = ("rank  topology          family                   dof  self-stress  worst [Hz]  zero [Hz]  worst/zero  "
+               "stress  mesh error  KKT      design (bound: origin)")
+    lines = [head, columns]
     by_name = {r["topology"]: r for r in result["candidates"]}
     if result["spec"]["motion"] == "translation":
         lines[0] += f", {c['accepted']} accepted (guides: screened, not optimised)"
