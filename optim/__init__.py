@@ -12,15 +12,15 @@ from typing import Any
 
 from .problem import Family, Problem
 
-__all__ = ["optimise", "run_case", "cases", "summarise", "pareto_front", "Problem", "Family"]
+__all__ = ["optimise", "run_case", "cases", "summarise", "Problem", "Family"]
 
 
 _LAZY = ("optimise", "run_case", "cases", "summarise")
 
 
 def __getattr__(name: str) -> Any:
-    if name in _LAZY or name == "pareto_front":
+    if name in _LAZY:
         import importlib
 
-        return getattr(importlib.import_module(".search" if name in _LAZY else ".pareto", __package__), name)
+        return getattr(importlib.import_module(".search", __package__), name)
     raise AttributeError(f"module 'flexopt.optim' has no attribute {name!r}")
