@@ -343,7 +343,7 @@ def run_cases(cases: list[dict], fn: str, *, executor: cf.Executor | None = None
 
     own = executor is None
     n_workers = min(workers or _cpu_count(), len(todo))
-    ex = _default_executor(n_workers) if own else executor
+    ex: cf.Executor = _default_executor(n_workers) if executor is None else executor
     # Own pool: keep exactly one case per worker in flight, so a cancel stops every case not yet started
     # (a process pool hands queued calls to its workers early and cannot take them back). A foreign
     # executor gets every case at once: a Dask scheduler places them, and cancels queued or running ones.

@@ -108,7 +108,9 @@ def _stroke_si(prob: Problem) -> tuple[float, str, str]:
     params = {k: v for k, v in fam.fixed.items()}
     params.update({k: 0.5 * (lo + hi) for k, (lo, hi) in fam.design.items()})
     params["stroke"] = stroke
-    kind = template(fam.template, **params).stroke.kind
+    st = template(fam.template, **params).stroke
+    assert st is not None  # a family is a stroked template (search._Family refuses others)
+    kind = st.kind
     if kind == "rotation":
         return math.radians(stroke), "N m/rad", "N m"
     return stroke, "N/m", "N"
@@ -319,6 +321,7 @@ def evaluate_design(case: dict) -> dict:
         if isinstance(prob.envelope, float):
             env = max(float(p @ p) / prob.envelope**2 for p in pts) - 1.0
         else:
+            assert scene.stroke is not None  # a family is a stroked template
             axis = np.asarray(scene.stroke.axis, float)
             axis = axis / np.linalg.norm(axis)
             env = max((float(p @ p) - float(p @ axis) ** 2) / prob.envelope.radius**2 for p in pts) - 1.0

@@ -184,7 +184,9 @@ class _Family:
         dstructs = [structure_derivative(s, ds.scene_dict, d) for d in ds.dscene]
         rows_f: list[tuple[float, np.ndarray, float, str]] = []
         rows_g: list[tuple[float, np.ndarray, float, str, str]] = []  # value, gradient, stroke, kind, label
-        unit = ds.scene.stroke.resolved_unit
+        stroke = ds.scene.stroke
+        assert stroke is not None  # every family is a stroked template (_Family refuses others)
+        unit = stroke.resolved_unit
         to_user = (lambda v: float(np.degrees(v))) if unit == "deg" else float
         pts: dict[float, tuple[float, float]] = {}
         mats = {m.name: m for m in ds.scene.materials}
@@ -222,7 +224,7 @@ class _Family:
                     rows_g.append((1.0 - float(pos @ pos) / R2, -2.0 * (dpos @ pos) * scale / R2, float("nan"),
                                    "envelope", f"{name} on the envelope (sphere)"))
                     continue
-                axis = np.asarray(ds.scene.stroke.axis, float)
+                axis = np.asarray(stroke.axis, float)
                 axis = axis / float(np.linalg.norm(axis))
                 a, da = float(pos @ axis), dpos @ axis
                 R2 = prob.envelope.radius**2
@@ -439,9 +441,10 @@ def _optimality(fam: _Family, ev: _Eval, tol: float) -> dict:
     else:
         mu, resid = np.zeros(0), float(np.linalg.norm(g))
     active = [nm for nm, m in zip(names, mu) if m > 1e-9]
+    kinds = ev.kinds if ev.kinds is not None else np.array([], dtype=object)
     return {"kkt_residual": float(resid), "max_violation": float(max(0.0, -float(c.min()))),
             "active": active, "active_bounds": bounds,
-            "active_kinds": sorted({str(ev.kinds[i]) for i, m in zip(act, mu) if m > 1e-9})}
+            "active_kinds": sorted({str(kinds[i]) for i, m in zip(act, mu) if m > 1e-9})}
 
 
 def _curve_summary(curve, points: int) -> dict:
@@ -515,7 +518,8 @@ def _screen(fam: _Family, prob: Problem, family_index: int, start: int, x0: np.n
     sampler = qmc.LatinHypercube(d=len(fam.names), seed=np.random.default_rng([prob.seed, family_index, start, 1]))
     cands = [x0] + list(sampler.random(prob.screen - 1)) if prob.screen > 1 else [x0]
     grid = np.linspace(-fam.stroke, fam.stroke, 2 * prob.samples - 1)
-    best, best_f, methods, scored = x0, -np.inf, {}, 0
+    best, best_f, scored = x0, -np.inf, 0
+    methods: dict[str, Any] = {}
     for x in cands:
         try:
             c = fast_curve(Analysis(template(fam.fam.template, **fam.params(x))), "auto", prob.screen_tolerance, grid)
@@ -545,13 +549,15 @@ def _search(fam: _Family, prob: Problem, x: np.ndarray) -> dict:
         if not good.ok:
             return {"x": x, "success": False, "code": -1, "iterations": iterations, "steps": steps,
                     "failed": good.message, "message": "evaluation failed"}
+        assert fam.f_ref is not None  # set by the first evaluation
         t0 = good.worst_hz / fam.f_ref
         try:
             out = _solve(fam, prob, x, t0, lo, hi)
         except _EvaluationFailed as exc:
             backs += 1
-            good = fam._good
-            assert good is not None
+            last = fam._good
+            assert last is not None
+            good = last
             steps.append({"failed_at": fam.params(exc.x), "message": str(exc)})
             if backs > _STEP_BACKS:
                 return {"x": good.x, "success": False, "code": -1, "iterations": iterations, "steps": steps,
@@ -672,7 +678,8 @@ def run_case(case: dict) -> dict:
             searched = fam.evaluate(x)
             history.append({"round": rnd, "samples": fam.samples.tolist(), "solver_status": run["code"],
                             "solver_message": run["message"], "iterations": run["iterations"],
-                            "constraints": int(len(fam.keep)), "step_backs": run["steps"],
+                            "constraints": 0 if fam.keep is None else int(len(fam.keep)),
+                            "step_backs": run["steps"],
                             "searched_worst_hz": searched.worst_hz})
             if run["failed"] or not searched.ok:
                 status, message = "failed", run["failed"] or searched.message
@@ -786,7 +793,7 @@ def cases(problem: Problem | dict) -> list[dict]:
 def summarise(prob: Problem, results: list[dict]) -> dict:
     """Best *optimal* start per family (converged, verified, feasible) and the ranking of families by verified
     worst-case frequency; every other start is listed with its status and message."""
-    fams = []
+    fams: list[dict[str, Any]] = []
     notes: list[dict] = []
     for i, fam in enumerate(prob.families):
         rs = [r for r in results if r.get("family_index") == i]
@@ -845,7 +852,7 @@ def optimise(problem: Problem | dict, *, executor: Any = None, workers: int | No
     prob = Problem.model_validate(problem)
     for fam in prob.families:  # fail fast, in the caller, on a bad family
         _Family(prob, fam)
-    kw = {} if no_worker_timeout is None else {"no_worker_timeout": no_worker_timeout}
+    kw: dict[str, Any] = {} if no_worker_timeout is None else {"no_worker_timeout": no_worker_timeout}
     results = run_cases(cases(prob), "flexopt.optim.search:run_case", executor=executor, workers=workers, store=store,
                         progress=progress, cancel=cancel, **kw)
     return summarise(prob, results)

@@ -506,7 +506,7 @@ def run_topology_search(spec: TopologySpec | dict, *, executor: Any = None, work
 def _rank_key(r: dict) -> tuple:
     """Feasible on the refined mesh first, then by the refined worst case (the search mesh's without one)."""
     ref = r.get("refined") or {}
-    hz = ref.get("worst_hz") if ref.get("worst_hz") is not None else r["worst_case_hz"]
+    hz: Any = ref.get("worst_hz") if ref.get("worst_hz") is not None else r["worst_case_hz"]
     return (not ref.get("feasible", True), -float(hz))
 
 
