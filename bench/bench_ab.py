@@ -88,7 +88,6 @@ def routes(pairs: int) -> int:
     routes were bit-identical to the numpy ones, the banded ones round differently)."""
     sys.path.insert(0, ROOT)
     import numpy as np
-
     from flexopt.model import Analysis, template
 
     load0 = os.getloadavg()[0]
@@ -117,8 +116,10 @@ def routes(pairs: int) -> int:
             np.testing.assert_allclose(b.modes_hz, ref.modes_hz, rtol=3e-8, atol=0)
         ratio = statistics.median([y / x for x, y in zip(on, off)])
         rows.append((label, statistics.median(on), statistics.median(off), ratio))
-    print(f"{pairs} alternating pairs of warm curves in one process; load average {load0:.2f} at start, "
-          f"{os.getloadavg()[0]:.2f} at end; {os.cpu_count()} CPUs; frequencies within 3e-8 on both routes")
+    print(
+        f"{pairs} alternating pairs of warm curves in one process; load average {load0:.2f} at start, "
+        f"{os.getloadavg()[0]:.2f} at end; {os.cpu_count()} CPUs; frequencies within 3e-8 on both routes"
+    )
     print("| case | compiled routes, median [ms] | numpy routes, median [ms] | speed-up (median of pairs) |")
     print("|---|---|---|---|")
     for label, a, b, r in rows:
@@ -130,8 +131,11 @@ def main(argv: list[str] | None = None) -> int:
     """Alternate A (this checkout) and B (``--base``) and print one markdown table."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--base", help="directory holding the other version's flexopt package")
-    ap.add_argument("--routes", action="store_true",
-                    help="instead: this checkout's compiled per-point routes against its numpy routes, in process")
+    ap.add_argument(
+        "--routes",
+        action="store_true",
+        help="instead: this checkout's compiled per-point routes against its numpy routes, in process",
+    )
     ap.add_argument("--pairs", type=int, default=5, help="A B pairs of child processes (or of curves, --routes)")
     ap.add_argument("--inner", type=int, default=5, help="warm curves per case and child (median taken)")
     args = ap.parse_args(argv)
@@ -144,8 +148,10 @@ def main(argv: list[str] | None = None) -> int:
     for _ in range(args.pairs):
         a_runs.append(_run(ROOT, args.inner))
         b_runs.append(_run(args.base, args.inner))
-    print(f"{args.pairs} interleaved A/B pairs x {args.inner} warm curves; load average {load0:.2f} at start, "
-          f"{os.getloadavg()[0]:.2f} at end; {os.cpu_count()} CPUs")
+    print(
+        f"{args.pairs} interleaved A/B pairs x {args.inner} warm curves; load average {load0:.2f} at start, "
+        f"{os.getloadavg()[0]:.2f} at end; {os.cpu_count()} CPUs"
+    )
     print("| case | A: this checkout, median [ms] | B: base, median [ms] | speed-up B/A (median of pairs) |")
     print("|---|---|---|---|")
     for label, _, _ in CASES:

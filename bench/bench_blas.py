@@ -38,14 +38,23 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 #: every variable through which a BLAS/OpenMP library or flexopt reads its thread count: none is set, as a
 #: user's shell sets none
-THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
-               "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS", "FLEXOPT_BLAS_THREADS")
+THREAD_VARS = (
+    "OPENBLAS_NUM_THREADS",
+    "OMP_NUM_THREADS",
+    "MKL_NUM_THREADS",
+    "BLIS_NUM_THREADS",
+    "VECLIB_MAXIMUM_THREADS",
+    "NUMEXPR_NUM_THREADS",
+    "FLEXOPT_BLAS_THREADS",
+)
 #: the console script's entry, for either layout (service/cli.py, or the package service/cli/ with main.py)
 LAUNCH = "import sys; from flexopt.service.cli import main; sys.exit(getattr(main, 'main', main)())"
-BUSY = ("import numpy as np\n"
-        "a = np.random.default_rng(0).random((1200, 1200))\n"
-        "while True:\n"
-        "    a = a @ a; a /= np.abs(a).max()\n")
+BUSY = (
+    "import numpy as np\n"
+    "a = np.random.default_rng(0).random((1200, 1200))\n"
+    "while True:\n"
+    "    a = a @ a; a /= np.abs(a).max()\n"
+)
 
 
 def package(src: Path, dest: Path) -> Path:
@@ -84,8 +93,13 @@ def free_port() -> int:
 
 def cli_once(pythonpath: Path) -> tuple[float, int]:
     t = time.perf_counter()
-    out = subprocess.run([sys.executable, "-c", LAUNCH, "curve", "--template", "double-cross-hinge"],
-                         env=user_env(pythonpath), capture_output=True, text=True, check=False)
+    out = subprocess.run(
+        [sys.executable, "-c", LAUNCH, "curve", "--template", "double-cross-hinge"],
+        env=user_env(pythonpath),
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     return time.perf_counter() - t, out.returncode
 
 
@@ -94,9 +108,12 @@ class Server:
 
     def __init__(self, pythonpath: Path, data_dir: Path) -> None:
         self.port = free_port()
-        self.proc = subprocess.Popen([sys.executable, "-c", LAUNCH, "serve", "--port", str(self.port),
-                                      "--log-level", "warning"], env=user_env(pythonpath, data_dir),
-                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        self.proc = subprocess.Popen(
+            [sys.executable, "-c", LAUNCH, "serve", "--port", str(self.port), "--log-level", "warning"],
+            env=user_env(pythonpath, data_dir),
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
         deadline = time.time() + 120
         while True:
             try:
@@ -109,8 +126,9 @@ class Server:
 
     def curve(self, scene: dict, n: int) -> float:
         body = json.dumps({"scene": {**scene, "name": f"double-cross-hinge-{n}"}}).encode()
-        req = urllib.request.Request(f"http://127.0.0.1:{self.port}/v1/frequency-curve", data=body,
-                                     headers={"Content-Type": "application/json"})
+        req = urllib.request.Request(
+            f"http://127.0.0.1:{self.port}/v1/frequency-curve", data=body, headers={"Content-Type": "application/json"}
+        )
         t = time.perf_counter()
         with urllib.request.urlopen(req, timeout=3000) as r:
             data = json.loads(r.read())
@@ -129,8 +147,10 @@ class Server:
 
 def summary(label: str, a: list[float], b: list[float]) -> str:
     ratio = statistics.median([y / x for x, y in zip(a, b)])
-    return (f"| {label} | {statistics.median(b):.2f} ({min(b):.2f}-{max(b):.2f}) | "
-            f"{statistics.median(a):.2f} ({min(a):.2f}-{max(a):.2f}) | {ratio:.1f}x |")
+    return (
+        f"| {label} | {statistics.median(b):.2f} ({min(b):.2f}-{max(b):.2f}) | "
+        f"{statistics.median(a):.2f} ({min(a):.2f}-{max(a):.2f}) | {ratio:.1f}x |"
+    )
 
 
 def main() -> int:
@@ -150,9 +170,15 @@ def main() -> int:
         after = package(ROOT, tmp / "after")
         before = args.base if args.base is not None else from_commit(args.base_commit, tmp / "before")
         label = args.base_commit or str(args.base)
-        scene = json.loads(subprocess.run([sys.executable, "-c", LAUNCH, "template", "double-cross-hinge"],
-                                          env=user_env(after), capture_output=True, text=True,
-                                          check=True).stdout)
+        scene = json.loads(
+            subprocess.run(
+                [sys.executable, "-c", LAUNCH, "template", "double-cross-hinge"],
+                env=user_env(after),
+                capture_output=True,
+                text=True,
+                check=True,
+            ).stdout
+        )
         for path in (after, before):  # warm the kernel caches (compiled once, shared by both versions)
             cli_once(path)
         clean = {k: v for k, v in os.environ.items() if k not in THREAD_VARS}
@@ -183,14 +209,19 @@ def main() -> int:
             b.terminate()
             b.wait()
         shutil.rmtree(tmp, ignore_errors=True)
-    print(f"# no *_NUM_THREADS set; {args.busy} busy numpy processes with default threads; "
-          f"{os.cpu_count()} CPUs; load average {load0[0]:.2f} before, {load1[0]:.2f} after; "
-          f"CLI exit codes {sorted(codes)}")
+    print(
+        f"# no *_NUM_THREADS set; {args.busy} busy numpy processes with default threads; "
+        f"{os.cpu_count()} CPUs; load average {load0[0]:.2f} before, {load1[0]:.2f} after; "
+        f"CLI exit codes {sorted(codes)}"
+    )
     print(f"| double cross, wall s | before ({label}) | after | before / after |")
     print("|---|---|---|---|")
     if cli_a:
-        print(summary(f"`flexopt curve --template double-cross-hinge` (whole process, {args.pairs} runs each)",
-                      cli_a, cli_b))
+        print(
+            summary(
+                f"`flexopt curve --template double-cross-hinge` (whole process, {args.pairs} runs each)", cli_a, cli_b
+            )
+        )
     if req_a:
         print(summary(f"server: one POST /v1/frequency-curve ({args.requests} requests each)", req_a, req_b))
     return 0

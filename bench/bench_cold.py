@@ -34,8 +34,14 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_blas import LAUNCH, ROOT, from_commit, package  # noqa: E402
 
-TEMPLATES = ("leaf-spring", "parallel-leaf-spring", "cross-spring-pivot", "cartwheel-hinge",
-             "three-fold-cross-hinge", "double-cross-hinge")
+TEMPLATES = (
+    "leaf-spring",
+    "parallel-leaf-spring",
+    "cross-spring-pivot",
+    "cartwheel-hinge",
+    "three-fold-cross-hinge",
+    "double-cross-hinge",
+)
 METHODS = ("exact", "hermite", "auto")
 WARM = """
 import json, statistics, sys
@@ -58,8 +64,13 @@ def env(pythonpath: Path) -> dict[str, str]:
 def cold(pythonpath: Path, name: str, method: str) -> tuple[float, float]:
     """(solver.seconds, whole-process wall seconds) of one fresh ``flexopt curve``."""
     t = time.perf_counter()
-    out = subprocess.run([sys.executable, "-c", LAUNCH, "curve", "--template", name, "--method", method, "--json"],
-                         env=env(pythonpath), capture_output=True, text=True, check=False)
+    out = subprocess.run(
+        [sys.executable, "-c", LAUNCH, "curve", "--template", name, "--method", method, "--json"],
+        env=env(pythonpath),
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     wall = time.perf_counter() - t
     if out.returncode not in (0, 3):
         raise RuntimeError(f"{name} {method}: exit {out.returncode}: {out.stderr[-500:]}")
@@ -68,8 +79,7 @@ def cold(pythonpath: Path, name: str, method: str) -> tuple[float, float]:
 
 def warm(pythonpath: Path, n: int) -> dict[str, float]:
     code = f"TEMPLATES = {TEMPLATES!r}\nMETHODS = {METHODS!r}\nWARM = {n}\n" + WARM
-    out = subprocess.run([sys.executable, "-c", code], env=env(pythonpath), capture_output=True, text=True,
-                         check=True)
+    out = subprocess.run([sys.executable, "-c", code], env=env(pythonpath), capture_output=True, text=True, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
@@ -85,8 +95,10 @@ def main() -> int:
     names = tuple(args.only.split(",")) if args.only else TEMPLATES
     tmp = Path(tempfile.mkdtemp(prefix="bench_cold_"))
     try:
-        versions = {"before": args.base if args.base is not None else from_commit(args.base_commit, tmp / "b"),
-                    "after": package(ROOT, tmp / "a")}
+        versions = {
+            "before": args.base if args.base is not None else from_commit(args.base_commit, tmp / "b"),
+            "after": package(ROOT, tmp / "a"),
+        }
         for v in versions.values():  # kernels compiled once (shared cache), not inside a timed run
             for name in names:
                 cold(v, name, "auto")
@@ -101,10 +113,14 @@ def main() -> int:
         load1 = os.getloadavg()[0]
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    print(f"# OPENBLAS_NUM_THREADS=1; {args.rounds} cold runs per cell, interleaved; warm: median of {args.warm} "
-          f"after one; load average {load0:.2f} before, {load1:.2f} after")
-    print("| template | version | cold exact s | cold hermite s (x) | cold auto s (x) | process wall exact / auto s "
-          "| warm hermite x | warm auto x |")
+    print(
+        f"# OPENBLAS_NUM_THREADS=1; {args.rounds} cold runs per cell, interleaved; warm: median of {args.warm} "
+        f"after one; load average {load0:.2f} before, {load1:.2f} after"
+    )
+    print(
+        "| template | version | cold exact s | cold hermite s (x) | cold auto s (x) | process wall exact / auto s "
+        "| warm hermite x | warm auto x |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     for name in names:
         for vname in versions:
@@ -114,12 +130,16 @@ def main() -> int:
                 r = runs[(vname, name, m)]
                 x = statistics.median([a[0] / b[0] for a, b in zip(e, r)])
                 cells.append(f"{statistics.median(s for s, _ in r):.3f} ({x:.1f}x)")
-            wall = (f"{statistics.median(w for _, w in e):.2f} / "
-                    f"{statistics.median(w for _, w in runs[(vname, name, 'auto')]):.2f}")
+            wall = (
+                f"{statistics.median(w for _, w in e):.2f} / "
+                f"{statistics.median(w for _, w in runs[(vname, name, 'auto')]):.2f}"
+            )
             w = warms[vname]
             wx = [w[f"{name}/exact"] / w[f"{name}/{m}"] for m in ("hermite", "auto")]
-            print(f"| {name} | {vname} | {statistics.median(s for s, _ in e):.3f} | {cells[0]} | {cells[1]} | {wall} "
-                  f"| {wx[0]:.1f}x | {wx[1]:.1f}x |")
+            print(
+                f"| {name} | {vname} | {statistics.median(s for s, _ in e):.3f} | {cells[0]} | {cells[1]} | {wall} "
+                f"| {wx[0]:.1f}x | {wx[1]:.1f}x |"
+            )
     return 0
 
 

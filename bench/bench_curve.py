@@ -54,8 +54,13 @@ print(time.perf_counter() - t0)
 
 def _child_seconds(name: str, params: dict, cache: str) -> float:
     env = dict(os.environ, FLEXOPT_CACHE_DIR=cache)
-    out = subprocess.run([sys.executable, "-c", _CHILD.format(name=name, params=params)], env=env,
-                         capture_output=True, text=True, check=True)
+    out = subprocess.run(
+        [sys.executable, "-c", _CHILD.format(name=name, params=params)],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     return float(out.stdout.strip().splitlines()[-1])
 
 
@@ -86,19 +91,25 @@ def split(repeat: int) -> None:
         setattr(owner, name, g)
         return f
 
-    print(f"where the warm exact 91-point curve's time goes ({repeat} curves per case, medians of the whole "
-          f"curve; parts summed over the curves); load average {os.getloadavg()[0]:.2f}; {os.cpu_count()} CPUs")
-    print("| case | curve [ms] | eigen solves / curve | eigen [ms] | per eigen solve [us] | Newton solves / curve "
-          "| Newton solves [ms] | per Newton solve [us] | mass matrices [ms] | rest [ms] |")
+    print(
+        f"where the warm exact 91-point curve's time goes ({repeat} curves per case, medians of the whole "
+        f"curve; parts summed over the curves); load average {os.getloadavg()[0]:.2f}; {os.cpu_count()} CPUs"
+    )
+    print(
+        "| case | curve [ms] | eigen solves / curve | eigen [ms] | per eigen solve [us] | Newton solves / curve "
+        "| Newton solves [ms] | per Newton solve [us] | mass matrices [ms] | rest [ms] |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|")
     for label, name, params in CASES:
         an = Analysis(template(name, **params))
         an.frequency_curve()
         acc.clear()
-        originals = [(linalg, "lowest_pairs", timed(linalg, "lowest_pairs", "eigen")),
-                     (linalg.BandedPencil, "solve", timed(linalg.BandedPencil, "solve", "eigen")),
-                     (statics._PointLoop, "solve", timed(statics._PointLoop, "solve", "newton")),
-                     (assembly.System, "mass", timed(assembly.System, "mass", "mass"))]
+        originals = [
+            (linalg, "lowest_pairs", timed(linalg, "lowest_pairs", "eigen")),
+            (linalg.BandedPencil, "solve", timed(linalg.BandedPencil, "solve", "eigen")),
+            (statics._PointLoop, "solve", timed(statics._PointLoop, "solve", "newton")),
+            (assembly.System, "mass", timed(assembly.System, "mass", "mass")),
+        ]
         try:
             ts = []
             for _ in range(repeat):
@@ -112,9 +123,11 @@ def split(repeat: int) -> None:
         total = sum(ts) / repeat
         eig, newton, mass = per.get("eigen", (0, 0)), per.get("newton", (0, 0)), per.get("mass", (0, 0))
         rest = total - eig[0] - newton[0] - mass[0]
-        print(f"| {label} | {st.median(ts) * 1e3:.1f} | {eig[1]:.0f} | {eig[0] * 1e3:.1f} | "
-              f"{eig[0] / max(eig[1], 1) * 1e6:.0f} | {newton[1]:.0f} | {newton[0] * 1e3:.1f} | "
-              f"{newton[0] / max(newton[1], 1) * 1e6:.0f} | {mass[0] * 1e3:.1f} | {rest * 1e3:.1f} |")
+        print(
+            f"| {label} | {st.median(ts) * 1e3:.1f} | {eig[1]:.0f} | {eig[0] * 1e3:.1f} | "
+            f"{eig[0] / max(eig[1], 1) * 1e6:.0f} | {newton[1]:.0f} | {newton[0] * 1e3:.1f} | "
+            f"{newton[0] / max(newton[1], 1) * 1e6:.0f} | {mass[0] * 1e3:.1f} | {rest * 1e3:.1f} |"
+        )
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -122,8 +135,11 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=15, help="warm repetitions per case (median reported)")
     ap.add_argument("--markdown", action="store_true", help="print a markdown table")
-    ap.add_argument("--split", action="store_true",
-                    help="instead: where a warm curve's time goes (eigen, Newton solves, mass, the rest)")
+    ap.add_argument(
+        "--split",
+        action="store_true",
+        help="instead: where a warm curve's time goes (eigen, Newton solves, mass, the rest)",
+    )
     args = ap.parse_args(argv)
     if args.split:
         split(args.repeat)
@@ -145,17 +161,45 @@ def main(argv: list[str] | None = None) -> None:
                 t = time.perf_counter()
                 an.frequency_curve()
                 warm.append(time.perf_counter() - t)
-            rows.append((label, an.system.n, cold, fresh, first, statistics.median(warm), min(warm), max(warm),
-                         curve.solver["mean_newton_iterations"]))
+            rows.append(
+                (
+                    label,
+                    an.system.n,
+                    cold,
+                    fresh,
+                    first,
+                    statistics.median(warm),
+                    min(warm),
+                    max(warm),
+                    curve.solver["mean_newton_iterations"],
+                )
+            )
 
-    head = ("case", "DOFs", "cold [s]", "new process [s]", "first call [ms]", "warm median [ms]",
-            "warm min-max [ms]", "Newton it./point")
-    fmt = [lambda r: r[0], lambda r: f"{r[1]}", lambda r: f"{r[2]:.2f}", lambda r: f"{r[3]:.2f}",
-           lambda r: f"{r[4] * 1e3:.0f}", lambda r: f"{r[5] * 1e3:.1f}",
-           lambda r: f"{r[6] * 1e3:.0f}-{r[7] * 1e3:.0f}", lambda r: f"{r[8]:.2f}"]
+    head = (
+        "case",
+        "DOFs",
+        "cold [s]",
+        "new process [s]",
+        "first call [ms]",
+        "warm median [ms]",
+        "warm min-max [ms]",
+        "Newton it./point",
+    )
+    fmt = [
+        lambda r: r[0],
+        lambda r: f"{r[1]}",
+        lambda r: f"{r[2]:.2f}",
+        lambda r: f"{r[3]:.2f}",
+        lambda r: f"{r[4] * 1e3:.0f}",
+        lambda r: f"{r[5] * 1e3:.1f}",
+        lambda r: f"{r[6] * 1e3:.0f}-{r[7] * 1e3:.0f}",
+        lambda r: f"{r[8]:.2f}",
+    ]
     table = [[f(r) for f in fmt] for r in rows]
-    print(f"exact 91-point curve over the template's full stroke; {args.repeat} warm repetitions; "
-          f"{os.cpu_count()} CPUs; Python {sys.version.split()[0]}")
+    print(
+        f"exact 91-point curve over the template's full stroke; {args.repeat} warm repetitions; "
+        f"{os.cpu_count()} CPUs; Python {sys.version.split()[0]}"
+    )
     if args.markdown:
         print("| " + " | ".join(head) + " |")
         print("|" + "|".join("---" for _ in head) + "|")

@@ -34,8 +34,14 @@ from flexopt.model.modal import modes_at  # noqa: E402
 from flexopt.model.statics import path_curvature, walk  # noqa: E402
 from flexopt.model.symmetry import image_indices, one_side  # noqa: E402
 
-TEMPLATES = ("leaf-spring", "parallel-leaf-spring", "cross-spring-pivot", "cartwheel-hinge",
-             "three-fold-cross-hinge", "double-cross-hinge")
+TEMPLATES = (
+    "leaf-spring",
+    "parallel-leaf-spring",
+    "cross-spring-pivot",
+    "cartwheel-hinge",
+    "three-fold-cross-hinge",
+    "double-cross-hinge",
+)
 
 
 def oracle_curve(an: Analysis, internal: np.ndarray, sides: dict[int, list[float]]) -> np.ndarray:
@@ -103,10 +109,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--repeat", type=int, default=25)
     p.add_argument("--tolerance", type=float, default=0.01)
     args = p.parse_args(argv)
-    print(f"load average {os.getloadavg()[0]:.2f} at start; {os.cpu_count()} CPUs; {args.repeat} rounds of exact, "
-          f"hermite, oracle; tolerance {args.tolerance:g}\n")
-    print("| template | oracle samples (deg or mm, one side) | oracle max error | exact [ms] | hermite [ms] | "
-          "oracle [ms] | hermite speed-up | oracle speed-up |")
+    print(
+        f"load average {os.getloadavg()[0]:.2f} at start; {os.cpu_count()} CPUs; {args.repeat} rounds of exact, "
+        f"hermite, oracle; tolerance {args.tolerance:g}\n"
+    )
+    print(
+        "| template | oracle samples (deg or mm, one side) | oracle max error | exact [ms] | hermite [ms] | "
+        "oracle [ms] | hermite speed-up | oracle speed-up |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     for name in TEMPLATES:
         an = Analysis(template(name))
@@ -137,8 +147,10 @@ def main(argv: list[str] | None = None) -> int:
         sh = statistics.median([e / h for e, h in zip(te, th)])
         so = statistics.median([e / o for e, o in zip(te, to)])
         n = sum(len(s) - 1 for s in sides.values())
-        print(f"| {name} | {shown} ({n} + stroke 0) | {err:.1e} | {statistics.median(te) * 1e3:.1f} | "
-              f"{statistics.median(th) * 1e3:.1f} | {statistics.median(to) * 1e3:.1f} | {sh:.2f}x | {so:.2f}x |")
+        print(
+            f"| {name} | {shown} ({n} + stroke 0) | {err:.1e} | {statistics.median(te) * 1e3:.1f} | "
+            f"{statistics.median(th) * 1e3:.1f} | {statistics.median(to) * 1e3:.1f} | {sh:.2f}x | {so:.2f}x |"
+        )
     print(f"\nload average {os.getloadavg()[0]:.2f} at the end")
     return 0
 

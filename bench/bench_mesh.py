@@ -52,8 +52,7 @@ def main() -> None:
         fine = Analysis(template(name, segments=80)).frequency_curve(stroke=sub, mesh_error=False)
         sel = [int(np.argmin(np.abs(c.stroke - s))) for s in fine.stroke]
         true = float(np.max(np.abs(c.parasitic_hz[sel] / fine.parasitic_hz - 1)))
-        print(f"| {name} | {sc.elements[0].segments} | {c.mesh_error:.2e} | {true:.2e} | "
-              f"{c.mesh_error / true:.2f} |")
+        print(f"| {name} | {sc.elements[0].segments} | {c.mesh_error:.2e} | {true:.2e} | {c.mesh_error / true:.2f} |")
 
     print(f"\n## Cost of the estimate (91-point curves, medians of {args.repeat} interleaved runs)\n")
     print("| template | without [s] | with [s] | extra |\n|---|---|---|---|")

@@ -22,30 +22,50 @@ import time
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
-
 from flexopt.model import Analysis, template  # noqa: E402
 from flexopt.model.curve import curve_with_method  # noqa: E402
 
 #: Converged reference: Richardson's extrapolation (order 2) of two fine meshes (segments per member; the
 #: cartwheel's template puts segments // 2 on each half leaf), whose own error is O(h^2) of theirs.
-REF = {"cartwheel-hinge": (48, 96), "folded-sheet-guide-5": (16, 32), "folded-sheet-guide-6": (16, 32),
-       "wire-guide-5": (16, 32), "wire-guide-parallel": (16, 32)}
+REF = {
+    "cartwheel-hinge": (48, 96),
+    "folded-sheet-guide-5": (16, 32),
+    "folded-sheet-guide-6": (16, 32),
+    "wire-guide-5": (16, 32),
+    "wire-guide-parallel": (16, 32),
+}
 REF_DEFAULT = (32, 64)
 
 #: (label, template, overrides (empty: the template's default mesh), method). The first six: issue 26 item 3's
 #: cases at the meshes it names (the former defaults); then every template's default mesh (item 4).
-CASES = [
-    ("folded-sheet-guide-5 1 segment", "folded-sheet-guide-5", {"segments": 1}, "exact"),
-    ("wire-guide-5 1 segment", "wire-guide-5", {"segments": 1}, "exact"),
-    ("cartwheel 1 segment", "cartwheel-hinge", {"segments": 2}, "exact"),
-    ("double cross 2 segments", "double-cross-hinge", {"segments": 2}, "exact"),
-    ("cartwheel 4 per half leaf, auto", "cartwheel-hinge", {"segments": 8}, "auto"),
-    ("cartwheel 4 per half leaf, hermite", "cartwheel-hinge", {"segments": 8}, "hermite"),
-    ("cartwheel 4 per half leaf", "cartwheel-hinge", {"segments": 8}, "exact"),
-] + [(f"{name} default", name, {}, "exact") for name in (
-    "leaf-spring", "parallel-leaf-spring", "cross-spring-pivot", "cartwheel-hinge", "three-fold-cross-hinge",
-    "double-cross-hinge", "topology-hinge", "wire-guide-5", "wire-guide-parallel", "folded-sheet-guide-5",
-    "folded-sheet-guide-6")] + [("cartwheel default, auto", "cartwheel-hinge", {}, "auto")]
+CASES = (
+    [
+        ("folded-sheet-guide-5 1 segment", "folded-sheet-guide-5", {"segments": 1}, "exact"),
+        ("wire-guide-5 1 segment", "wire-guide-5", {"segments": 1}, "exact"),
+        ("cartwheel 1 segment", "cartwheel-hinge", {"segments": 2}, "exact"),
+        ("double cross 2 segments", "double-cross-hinge", {"segments": 2}, "exact"),
+        ("cartwheel 4 per half leaf, auto", "cartwheel-hinge", {"segments": 8}, "auto"),
+        ("cartwheel 4 per half leaf, hermite", "cartwheel-hinge", {"segments": 8}, "hermite"),
+        ("cartwheel 4 per half leaf", "cartwheel-hinge", {"segments": 8}, "exact"),
+    ]
+    + [
+        (f"{name} default", name, {}, "exact")
+        for name in (
+            "leaf-spring",
+            "parallel-leaf-spring",
+            "cross-spring-pivot",
+            "cartwheel-hinge",
+            "three-fold-cross-hinge",
+            "double-cross-hinge",
+            "topology-hinge",
+            "wire-guide-5",
+            "wire-guide-parallel",
+            "folded-sheet-guide-5",
+            "folded-sheet-guide-6",
+        )
+    ]
+    + [("cartwheel default, auto", "cartwheel-hinge", {}, "auto")]
+)
 
 
 _REF_CACHE: dict[str, tuple[np.ndarray, np.ndarray]] = {}
@@ -81,8 +101,11 @@ def main(names: list[str]) -> None:
         segs = sorted({e.segments for e in an.scene.elements if hasattr(e, "segments")})
         warned = any(w.kind == "mesh" for w in c.warnings)
         me = "None" if c.mesh_error is None else f"{100 * c.mesh_error:.3g} %"
-        print(f"{label:32s} {','.join(map(str, segs)):>8s} {method:>8s} {me:>10s} {str(warned):>7s} "
-              f"{100 * true:7.3g} % {sec:6.1f}", flush=True)
+        print(
+            f"{label:32s} {','.join(map(str, segs)):>8s} {method:>8s} {me:>10s} {str(warned):>7s} "
+            f"{100 * true:7.3g} % {sec:6.1f}",
+            flush=True,
+        )
 
 
 def cost(names: list[str]) -> None:

@@ -84,9 +84,12 @@ def bench_template(name: str, repeat: int) -> tuple[list[str], dict]:
         r1, r5 = _range_within(values, err, 0.01), _range_within(values, err, 0.05)
         label = m if m != "auto" else f"auto ({c.method})"
         speed = statistics.median(times) / exact_median if m != "exact" else 1.0
-        rows.append(f"| {label} | {statistics.median(times) * 1e3:.2f} | {1 / speed:.1f}x | "
-                    f"{'-' if not np.isfinite(build) else f'{build * 1e3:.1f}'} | " + " | ".join(cols)
-                    + f" | +-{r1:.4g} {unit} | +-{r5:.4g} {unit} |")
+        rows.append(
+            f"| {label} | {statistics.median(times) * 1e3:.2f} | {1 / speed:.1f}x | "
+            f"{'-' if not np.isfinite(build) else f'{build * 1e3:.1f}'} | "
+            + " | ".join(cols)
+            + f" | +-{r1:.4g} {unit} | +-{r5:.4g} {unit} |"
+        )
     return rows, curves
 
 
@@ -109,9 +112,11 @@ def auto_table(tolerances: list[float], repeat: int) -> None:
                 a = frequency_curve(an, "auto", tolerance=tol)
                 ratios.append((time.perf_counter() - t1) / (t1 - t0))
             err = float(np.max(np.abs(a.parasitic_hz / ex.parasitic_hz - 1)))
-            print(f"| {name} | {tol:g} | {a.solver['auto_method']} | {a.solver.get('samples', '-')} | "
-                  f"{a.solver.get('exact_points', '-')} | {statistics.median(ratios):.2f} | "
-                  f"{a.solver['auto_estimate']:.1e} | {err:.1e} |")
+            print(
+                f"| {name} | {tol:g} | {a.solver['auto_method']} | {a.solver.get('samples', '-')} | "
+                f"{a.solver.get('exact_points', '-')} | {statistics.median(ratios):.2f} | "
+                f"{a.solver['auto_estimate']:.1e} | {err:.1e} |"
+            )
     print(f"\nload average {os.getloadavg()[0]:.2f} at the end")
 
 
@@ -121,8 +126,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--repeat", type=int, default=5)
     p.add_argument("--plot", default=None, help="write a PNG of the first parasitic frequency per method")
     p.add_argument("--only-interleaved", action="store_true", help="print only the exact/hermite/auto table")
-    p.add_argument("--auto-tolerances", default=None, metavar="T1,T2,...",
-                   help="only the table of auto against exact at these tolerances (e.g. 1e-2,1e-3,1e-4,1e-5)")
+    p.add_argument(
+        "--auto-tolerances",
+        default=None,
+        metavar="T1,T2,...",
+        help="only the table of auto against exact at these tolerances (e.g. 1e-2,1e-3,1e-4,1e-5)",
+    )
     args = p.parse_args(argv)
     if args.auto_tolerances:
         auto_table([float(t) for t in args.auto_tolerances.split(",")], args.repeat)
@@ -136,16 +145,24 @@ def main(argv: list[str] | None = None) -> int:
         unit = curves["exact"].stroke_unit
         smax = float(np.abs(curves["exact"].stroke).max())
         thirds = ", ".join(f"+-{f * smax:.3g}" for f in (1 / 3, 2 / 3, 1.0))
-        print(f"\n### {name} (first parasitic at 0: {curves['exact'].parasitic_hz[len(curves['exact'].stroke) // 2]:.2f} Hz)\n")
-        print(f"| method | warm 91-pt [ms] | speed-up vs exact | build [ms] | max / RMS rel. error over {thirds} {unit} "
-              "(three columns) | | | within 1 % | within 5 % |")
+        print(
+            f"\n### {name} (first parasitic at 0: {curves['exact'].parasitic_hz[len(curves['exact'].stroke) // 2]:.2f} Hz)\n"
+        )
+        print(
+            f"| method | warm 91-pt [ms] | speed-up vs exact | build [ms] | max / RMS rel. error over {thirds} {unit} "
+            "(three columns) | | | within 1 % | within 5 % |"
+        )
         print("|---|---|---|---|---|---|---|---|---|")
         for r in rows:
             print(r)
-    print(f"\n### exact, hermite and auto interleaved (tolerance 1 %; {args.repeat} rounds of E H A; load average "
-          f"{os.getloadavg()[0]:.2f})\n")
-    print("| template | exact median [ms] | hermite median [ms] | hermite speed-up (median of rounds) | auto ran "
-          "| auto speed-up | hermite samples | hermite max error | hermite estimate |")
+    print(
+        f"\n### exact, hermite and auto interleaved (tolerance 1 %; {args.repeat} rounds of E H A; load average "
+        f"{os.getloadavg()[0]:.2f})\n"
+    )
+    print(
+        "| template | exact median [ms] | hermite median [ms] | hermite speed-up (median of rounds) | auto ran "
+        "| auto speed-up | hermite samples | hermite max error | hermite estimate |"
+    )
     print("|---|---|---|---|---|---|---|---|---|")
     for name in TEMPLATES + FAMILIES:
         an = Analysis(template(name))
@@ -164,8 +181,10 @@ def main(argv: list[str] | None = None) -> int:
         err = float(np.max(np.abs(h.parasitic_hz / ex.parasitic_hz - 1)))
         sh = statistics.median([e / x for e, x in zip(te, th)])
         sa = statistics.median([e / x for e, x in zip(te, ta)])
-        print(f"| {name} | {statistics.median(te) * 1e3:.1f} | {statistics.median(th) * 1e3:.1f} | {sh:.1f}x | "
-              f"{a.method} | {sa:.1f}x | {h.solver['samples']} | {err:.2e} | {h.solver['estimated_error']:.2e} |")
+        print(
+            f"| {name} | {statistics.median(te) * 1e3:.1f} | {statistics.median(th) * 1e3:.1f} | {sh:.1f}x | "
+            f"{a.method} | {sa:.1f}x | {h.solver['samples']} | {err:.2e} | {h.solver['estimated_error']:.2e} |"
+        )
     if args.plot and all_curves:
         import matplotlib
 

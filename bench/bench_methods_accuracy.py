@@ -24,8 +24,14 @@ from flexopt.model.methods import frequency_curve  # noqa: E402
 from flexopt.model.methods.accuracy import limit  # noqa: E402
 from flexopt.model.methods.auto import expansion_curve  # noqa: E402
 
-TEMPLATES = ("leaf-spring", "parallel-leaf-spring", "cross-spring-pivot", "cartwheel-hinge",
-             "three-fold-cross-hinge", "double-cross-hinge")
+TEMPLATES = (
+    "leaf-spring",
+    "parallel-leaf-spring",
+    "cross-spring-pivot",
+    "cartwheel-hinge",
+    "three-fold-cross-hinge",
+    "double-cross-hinge",
+)
 FAST = ("fd1", "fd2", "manifold", "reduced")
 
 
@@ -61,8 +67,10 @@ def rows(name: str, tolerances: list[float]) -> list[str]:
             worst = float(true[keep].max())
             big = keep & (true > 0.01 * tol)
             ratio = float(np.min(est[big] / true[big])) if big.any() else float("nan")
-            out.append(f"| {name} | {m} | {tol:g} | {lo * scale:.3g} .. {hi * scale:.3g} {u} | {tlo * scale:.3g} .. "
-                       f"{thi * scale:.3g} {u} | {worst:.2e} | {ratio:.2f} | {curve.solver['exact_checks']} |")
+            out.append(
+                f"| {name} | {m} | {tol:g} | {lo * scale:.3g} .. {hi * scale:.3g} {u} | {tlo * scale:.3g} .. "
+                f"{thi * scale:.3g} {u} | {worst:.2e} | {ratio:.2f} | {curve.solver['exact_checks']} |"
+            )
     return out
 
 
@@ -72,8 +80,10 @@ def main() -> None:
     ap.add_argument("--templates", default=",".join(TEMPLATES))
     a = ap.parse_args()
     tols = [float(x) for x in a.tolerances.split(",")]
-    print("| template | method | tolerance | kept (own estimate) | true error within tolerance | largest true error "
-          "kept | min estimate / true | exact checks |")
+    print(
+        "| template | method | tolerance | kept (own estimate) | true error within tolerance | largest true error "
+        "kept | min estimate / true | exact checks |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     for name in a.templates.split(","):
         for r in rows(name, tols):

@@ -40,8 +40,9 @@ def _families(wide: bool) -> list[dict]:
     fams = []
     for name, box in DESIGN_SPACES.items():
         if name in TEMPLATES and TEMPLATES[name][1].get("stroke", 0) == 45.0:
-            fams.append({"template": name, "design": {k: list(WIDE[k] if wide and k in WIDE else v)
-                                                      for k, v in box.items()}})
+            fams.append(
+                {"template": name, "design": {k: list(WIDE[k] if wide and k in WIDE else v) for k, v in box.items()}}
+            )
     return fams
 
 
@@ -59,7 +60,9 @@ def grid_check(n: int, workers: int) -> None:
     t = time.perf_counter()
     for L in np.linspace(*PIVOT["design"]["length"], n):
         for th in np.linspace(*PIVOT["design"]["thickness"], n):
-            c = Analysis(template("cross-spring-pivot", length=float(L), thickness=float(th), points=61)).frequency_curve()
+            c = Analysis(
+                template("cross-spring-pivot", length=float(L), thickness=float(th), points=61)
+            ).frequency_curve()
             stress = max(float(np.max(v)) for v in c.max_von_mises.values())
             if c.status == "complete" and stress <= allow and float(np.min(c.parasitic_hz)) > best:
                 best, arg = float(np.min(c.parasitic_hz)), (float(L), float(th))
@@ -71,9 +74,13 @@ def grid_check(n: int, workers: int) -> None:
     print("| method | worst-case first parasitic [Hz] (181 exact points) | design | time [s] |")
     print("|---|---|---|---|")
     d = res["ranking"][0]["design"] if res["ranking"] else {}
-    print(f"| optimiser (4 starts) | {opt:.3f} | L {d.get('length', 0) * 1e3:.2f} mm, t {d.get('thickness', 0) * 1e6:.1f} um | |")
-    print(f"| grid {n} x {n} (61-point curves, best re-verified) | {best181:.3f} | L {arg[0] * 1e3:.2f} mm, "
-          f"t {arg[1] * 1e6:.1f} um | {grid_s:.1f} |")
+    print(
+        f"| optimiser (4 starts) | {opt:.3f} | L {d.get('length', 0) * 1e3:.2f} mm, t {d.get('thickness', 0) * 1e6:.1f} um | |"
+    )
+    print(
+        f"| grid {n} x {n} (61-point curves, best re-verified) | {best181:.3f} | L {arg[0] * 1e3:.2f} mm, "
+        f"t {arg[1] * 1e6:.1f} um | {grid_s:.1f} |"
+    )
     print(f"\noptimiser / grid = {opt / best181:.4f} (criterion: >= 0.995)")
 
 
@@ -81,7 +88,10 @@ def speed(workers: int) -> None:
     one = {"families": [PIVOT], "starts": 4}
     dense = dict(one, samples=61, refine_rounds=0)
     rows = []
-    for label, spec in (("ladder (9 samples + 181-point verification)", one), ("exact-only dense search (61 samples)", dense)):
+    for label, spec in (
+        ("ladder (9 samples + 181-point verification)", one),
+        ("exact-only dense search (61 samples)", dense),
+    ):
         res, t = _timed(spec, workers)
         rows.append((label, t, res["ranking"][0]["worst_hz"] if res["ranking"] else float("nan")))
     print(f"\n### Time, cross-spring pivot, 1 family x 4 starts ({workers} worker processes, {os.cpu_count()} CPUs)\n")
@@ -93,20 +103,33 @@ def speed(workers: int) -> None:
 
 
 def _design(d: dict) -> str:
-    unit = {"length": (1e3, "mm"), "thickness": (1e3, "mm"), "width": (1e3, "mm"), "angle": (1, "deg"), "crossing": (1, "")}
-    return ", ".join(f"{k} {v * unit.get(k, (1, ''))[0]:.4g}{(' ' + unit[k][1]) if unit.get(k, (1, ''))[1] else ''}"
-                     for k, v in d.items())
+    unit = {
+        "length": (1e3, "mm"),
+        "thickness": (1e3, "mm"),
+        "width": (1e3, "mm"),
+        "angle": (1, "deg"),
+        "crossing": (1, ""),
+    }
+    return ", ".join(
+        f"{k} {v * unit.get(k, (1, ''))[0]:.4g}{(' ' + unit[k][1]) if unit.get(k, (1, ''))[1] else ''}"
+        for k, v in d.items()
+    )
 
 
 def families(workers: int, starts: int, solvers: list[str], fair: bool) -> None:
     base = {"starts": starts}
     if fair:
         base.update(envelope=ENVELOPE, body_mass=0.1)
-    title = ("one envelope (cylinder r 35 mm, half-height 20 mm, nodes and leaf edges), 0.1 kg moving body, wide boxes"
-             if fair else "each family in its own box (DESIGN_SPACES), no envelope")
+    title = (
+        "one envelope (cylinder r 35 mm, half-height 20 mm, nodes and leaf edges), 0.1 kg moving body, wide boxes"
+        if fair
+        else "each family in its own box (DESIGN_SPACES), no envelope"
+    )
     print(f"\n### Hinge families, +-45 deg, {starts} starts each: {title}\n")
-    print("| family | solver | worst [Hz] | worst / zero | optimal starts | spread of optimal starts | KKT residual "
-          "(best) | active bounds | active constraints | time [s] | design |")
+    print(
+        "| family | solver | worst [Hz] | worst / zero | optimal starts | spread of optimal starts | KKT residual "
+        "(best) | active bounds | active constraints | time [s] | design |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     summary, notes = [], []
     for fam in _families(wide=fair):
@@ -116,21 +139,27 @@ def families(workers: int, starts: int, solvers: list[str], fair: bool) -> None:
             b = f["best"]
             others = ", ".join(f"{x['status']}" for x in f["failed"])
             starts_col = f"{f['optimal_starts']}/{f['starts']}" + (f" ({others})" if others else "")
-            notes += [f"- {fam['template']}, {solver}, start {x['start']}: {x['status']}: {x['message']}" for x in f["failed"]]
+            notes += [
+                f"- {fam['template']}, {solver}, start {x['start']}: {x['status']}: {x['message']}" for x in f["failed"]
+            ]
             if b is None:
                 print(f"| {fam['template']} | {solver} | - | - | {starts_col} | - | - | - | - | {t:.1f} | |")
                 continue
             v, o = b["verified"], b["optimality"]
             bounds = ", ".join(f"{k} {side}" for k, side in o["active_bounds"].items()) or "none"
-            print(f"| {fam['template']} | {solver} | {v['worst_hz']:.2f} | {v['ratio']:.3f} | {starts_col} | "
-                  f"{f['spread'] * 100:.2f} % | {o['kkt_residual']:.1e} | {bounds} | {', '.join(o['active_kinds'])} | "
-                  f"{t:.1f} | {_design(b['design'])} |")
+            print(
+                f"| {fam['template']} | {solver} | {v['worst_hz']:.2f} | {v['ratio']:.3f} | {starts_col} | "
+                f"{f['spread'] * 100:.2f} % | {o['kkt_residual']:.1e} | {bounds} | {', '.join(o['active_kinds'])} | "
+                f"{t:.1f} | {_design(b['design'])} |"
+            )
             summary.append((solver, fam["template"], v["worst_hz"], t))
     print("\n" + "\n".join(notes) if notes else "")
     for solver in solvers:
         rank = sorted((s for s in summary if s[0] == solver), key=lambda s: -s[2])
-        print(f"\n{solver}: ranking {' > '.join(f'{s[1]} ({s[2]:.2f} Hz)' for s in rank)}; total "
-              f"{sum(s[3] for s in summary if s[0] == solver):.1f} s")
+        print(
+            f"\n{solver}: ranking {' > '.join(f'{s[1]} ({s[2]:.2f} Hz)' for s in rank)}; total "
+            f"{sum(s[3] for s in summary if s[0] == solver):.1f} s"
+        )
 
 
 def combined(workers: int, starts: int) -> None:
@@ -138,10 +167,14 @@ def combined(workers: int, starts: int) -> None:
     together), as a topology search runs them; the per-family tables above start a pool per family."""
     fams = _families(wide=False)
     res, t = _timed({"families": fams, "starts": starts}, workers)
-    print(f"\n### All {len(fams)} families in one optimise call ({starts} starts each, {workers} worker processes, "
-          f"each family in its own box)\n")
-    print(f"wall time {t:.1f} s; ranking " + " > ".join(f"{f['template']} ({f['worst_hz']:.2f} Hz)"
-                                                      for f in res["ranking"]))
+    print(
+        f"\n### All {len(fams)} families in one optimise call ({starts} starts each, {workers} worker processes, "
+        f"each family in its own box)\n"
+    )
+    print(
+        f"wall time {t:.1f} s; ranking "
+        + " > ".join(f"{f['template']} ({f['worst_hz']:.2f} Hz)" for f in res["ranking"])
+    )
 
 
 def main() -> None:

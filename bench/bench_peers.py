@@ -46,23 +46,31 @@ class ExudynLeaf:
 
     def __init__(self, segments: int) -> None:
         import exudyn as exu
-        from exudyn.itemInterface import (CoordinateConstraint, MarkerNodeCoordinate, NodePointGround,
-                                          NodeRigidBodyRxyz, ObjectBeamGeometricallyExact)
+        from exudyn.itemInterface import (
+            CoordinateConstraint,
+            MarkerNodeCoordinate,
+            NodePointGround,
+            NodeRigidBodyRxyz,
+            ObjectBeamGeometricallyExact,
+        )
 
         self.exu = exu
         A, Iy, Iz = W * T, W * T**3 / 12, T * W**3 / 12
         J = W * T**3 / 3 * (1 - 0.63 * T / W * (1 - T**4 / (12 * W**4)))  # the same series as flexopt's
         sc = exu.SystemContainer()
         mbs = sc.AddSystem()
-        nodes = [mbs.AddNode(NodeRigidBodyRxyz(referenceCoordinates=[i * L / segments, 0, 0, 0, 0, 0]))
-                 for i in range(segments + 1)]
+        nodes = [
+            mbs.AddNode(NodeRigidBodyRxyz(referenceCoordinates=[i * L / segments, 0, 0, 0, 0, 0]))
+            for i in range(segments + 1)
+        ]
         sec = exu.BeamSection()
         sec.stiffnessMatrix = np.diag([E * A, G * A * 5 / 6, G * A * 5 / 6, G * J, E * Iy, E * Iz])
         sec.massPerLength = RHO * A
         sec.inertia = RHO * np.diag([Iy + Iz, Iy, Iz])
         for i in range(segments):
-            mbs.AddObject(ObjectBeamGeometricallyExact(nodeNumbers=[nodes[i], nodes[i + 1]],
-                                                       length=L / segments, sectionData=sec))
+            mbs.AddObject(
+                ObjectBeamGeometricallyExact(nodeNumbers=[nodes[i], nodes[i + 1]], length=L / segments, sectionData=sec)
+            )
         ground = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=mbs.AddNode(NodePointGround()), coordinate=0))
         for c in range(6):
             m = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=nodes[0], coordinate=c))
@@ -127,19 +135,35 @@ def main(argv: list[str] | None = None) -> int:
             ex.curve()
             tx.append(time.perf_counter() - t0)
         i0, i45 = int(np.argmin(np.abs(fc.stroke))), int(np.argmin(np.abs(fc.stroke - 45)))
-        rows.append((n, statistics.median(tf), statistics.median(ts), statistics.median(tx),
-                     statistics.median([b / a for a, b in zip(tf, tx)]),
-                     statistics.median([b / a for a, b in zip(ts, tx)]),
-                     fc.parasitic_hz[i0], fc.parasitic_hz[i45], xc[0.0][1], xc[45.0][1]))
-    print(f"91-point leaf curve, {args.repeat} interleaved repetitions; Exudyn {exudyn.__version__}; "
-          f"{os.cpu_count()} CPUs; Python {sys.version.split()[0]}; load {os.getloadavg()[0]:.2f}")
-    print("| elements | flexopt median [ms] | flexopt, both sides, no mesh estimate [ms] | Exudyn median [ms] "
-          "| Exudyn / flexopt (median of pairs) | Exudyn / flexopt both sides | torsion at 0 / 45 deg, flexopt [Hz] "
-          "| torsion at 0 / 45 deg, Exudyn [Hz] |")
+        rows.append(
+            (
+                n,
+                statistics.median(tf),
+                statistics.median(ts),
+                statistics.median(tx),
+                statistics.median([b / a for a, b in zip(tf, tx)]),
+                statistics.median([b / a for a, b in zip(ts, tx)]),
+                fc.parasitic_hz[i0],
+                fc.parasitic_hz[i45],
+                xc[0.0][1],
+                xc[45.0][1],
+            )
+        )
+    print(
+        f"91-point leaf curve, {args.repeat} interleaved repetitions; Exudyn {exudyn.__version__}; "
+        f"{os.cpu_count()} CPUs; Python {sys.version.split()[0]}; load {os.getloadavg()[0]:.2f}"
+    )
+    print(
+        "| elements | flexopt median [ms] | flexopt, both sides, no mesh estimate [ms] | Exudyn median [ms] "
+        "| Exudyn / flexopt (median of pairs) | Exudyn / flexopt both sides | torsion at 0 / 45 deg, flexopt [Hz] "
+        "| torsion at 0 / 45 deg, Exudyn [Hz] |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     for n, a, a2, b, r, r2, f0, f45, x0, x45 in rows:
-        print(f"| {n} | {a * 1e3:.1f} | {a2 * 1e3:.1f} | {b * 1e3:.1f} | {r:.2f} | {r2:.2f} | {f0:.2f} / {f45:.2f} "
-              f"| {x0:.2f} / {x45:.2f} |")
+        print(
+            f"| {n} | {a * 1e3:.1f} | {a2 * 1e3:.1f} | {b * 1e3:.1f} | {r:.2f} | {r2:.2f} | {f0:.2f} / {f45:.2f} "
+            f"| {x0:.2f} / {x45:.2f} |"
+        )
     return 0
 
 

@@ -42,8 +42,22 @@ def _free_port() -> int:
 def _start(env_extra: dict[str, str]) -> tuple[subprocess.Popen, str]:
     port = _free_port()
     env = {**os.environ, "PYTHONPATH": str(ROOT), **env_extra}
-    proc = subprocess.Popen([sys.executable, "-m", "flexopt.service.cli", "serve", "--host", "127.0.0.1", "--port", str(port),
-                             "--log-level", "warning"], env=env, cwd=ROOT)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "flexopt.service.cli",
+            "serve",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(port),
+            "--log-level",
+            "warning",
+        ],
+        env=env,
+        cwd=ROOT,
+    )
     url = f"http://127.0.0.1:{port}"
     deadline = time.monotonic() + 30
     while time.monotonic() < deadline:
@@ -85,8 +99,14 @@ async def _run(url: str, clients: int, seconds: float) -> dict[str, float]:
         wall = time.perf_counter() - t0
     lat = sorted(latencies)
     q = statistics.quantiles(lat, n=100) if len(lat) > 1 else [lat[0] if lat else float("nan")] * 99
-    return {"n": len(lat), "p50": q[49] * 1e3, "p99": q[98] * 1e3, "rps": len(lat) / wall,
-            "r429": counts["429"], "errors": counts["errors"]}
+    return {
+        "n": len(lat),
+        "p50": q[49] * 1e3,
+        "p99": q[98] * 1e3,
+        "rps": len(lat) / wall,
+        "r429": counts["429"],
+        "errors": counts["errors"],
+    }
 
 
 def main() -> None:
@@ -105,8 +125,10 @@ def main() -> None:
             proc.terminate()
             proc.wait(10)
         rows.append((mode, res))
-    print(f"POST /v1/frequency-curve, leaf-spring, exact, 91 points, {args.clients} concurrent clients, "
-          f"{args.seconds:g} s per mode, {os.cpu_count()} cores\n")
+    print(
+        f"POST /v1/frequency-curve, leaf-spring, exact, 91 points, {args.clients} concurrent clients, "
+        f"{args.seconds:g} s per mode, {os.cpu_count()} cores\n"
+    )
     print("| server | requests ok | p50 [ms] | p99 [ms] | throughput [req/s] | 429 answers (retried) | errors |")
     print("|---|---:|---:|---:|---:|---:|---:|")
     for mode, r in rows:

@@ -23,8 +23,10 @@ from pathlib import Path
 
 import httpx
 
-JOB = {"families": [{"template": "cross-spring-pivot",
-                     "design": {"length": [0.03, 0.07], "thickness": [1.5e-4, 4e-4]}}], "starts": 4}
+JOB = {
+    "families": [{"template": "cross-spring-pivot", "design": {"length": [0.03, 0.07], "thickness": [1.5e-4, 4e-4]}}],
+    "starts": 4,
+}
 
 
 def _free_port() -> int:
@@ -48,8 +50,11 @@ def main() -> None:
     port = _free_port()
     url = f"http://127.0.0.1:{port}"
     env = {**os.environ, "FLEXOPT_DATA_DIR": tempfile.mkdtemp(), "FLEXOPT_JOB_WORKERS": "1"}
-    p = subprocess.Popen([sys.executable, "-m", "flexopt.service.cli", "serve", "--port", str(port),
-                          "--log-level", "warning"], env=env, stderr=subprocess.DEVNULL)
+    p = subprocess.Popen(
+        [sys.executable, "-m", "flexopt.service.cli", "serve", "--port", str(port), "--log-level", "warning"],
+        env=env,
+        stderr=subprocess.DEVNULL,
+    )
     while True:
         try:
             if httpx.get(url + "/ready").status_code == 200:
@@ -73,8 +78,10 @@ def main() -> None:
     t0 = time.perf_counter()
     p.send_signal(signal.SIGTERM)
     p.wait(60)
-    print(f"server exited {time.perf_counter() - t0:.1f} s after SIGTERM (exit {p.returncode}); "
-          f"job processes left: {len(_job_processes(jid))}")
+    print(
+        f"server exited {time.perf_counter() - t0:.1f} s after SIGTERM (exit {p.returncode}); "
+        f"job processes left: {len(_job_processes(jid))}"
+    )
 
 
 if __name__ == "__main__":

@@ -47,7 +47,7 @@ def _children(pid: int) -> list[int]:
             text = stat.read_text()
         except OSError:
             continue
-        if int(text[text.rindex(")") + 2:].split()[1]) == pid:
+        if int(text[text.rindex(")") + 2 :].split()[1]) == pid:
             out.append(int(stat.parent.name))
     return out
 
@@ -60,8 +60,10 @@ def main() -> None:
     port = _free_port()
     with tempfile.TemporaryDirectory() as data:
         env = dict(os.environ, FLEXOPT_DATA_DIR=data, OPENBLAS_NUM_THREADS="1")
-        srv = subprocess.Popen([sys.executable, "-m", "flexopt.service.cli", "serve", "--port", str(port),
-                                "--log-level", "warning"], env=env)
+        srv = subprocess.Popen(
+            [sys.executable, "-m", "flexopt.service.cli", "serve", "--port", str(port), "--log-level", "warning"],
+            env=env,
+        )
         try:
             url = f"http://127.0.0.1:{port}"
             with httpx.Client(base_url=url, timeout=120) as c:
@@ -76,9 +78,15 @@ def main() -> None:
                 print(f"load: {os.getloadavg()[0]:.1f}  requests  seconds  server_MB  workers_MB  statuses")
                 start, seen = time.monotonic(), {}
                 for i in range(args.requests):
-                    scene = {**base, "elements": [{**e, "section": {**e["section"],
-                                                                     "thickness": 4e-4 * (1 + 1e-4 * i)}}
-                                                  if "section" in e else e for e in base["elements"]]}
+                    scene = {
+                        **base,
+                        "elements": [
+                            {**e, "section": {**e["section"], "thickness": 4e-4 * (1 + 1e-4 * i)}}
+                            if "section" in e
+                            else e
+                            for e in base["elements"]
+                        ],
+                    }
                     kind = i % 5
                     if kind == 0:
                         r = c.post("/v1/frequency-curve", json={"scene": scene})
@@ -89,8 +97,13 @@ def main() -> None:
                     elif kind == 3:
                         r = c.post("/v1/modes", json={"scene": scene, "at_stroke": 0.0})
                     elif i % 10 == 4:  # a large body (about 600 kB) of misspelt fields: a 422 listing 100 of them
-                        bad = {**scene, "nodes": [{**scene["nodes"][0], **{f"positon{i}_{k}": k for k in range(30_000)}},
-                                                  *scene["nodes"][1:]]}
+                        bad = {
+                            **scene,
+                            "nodes": [
+                                {**scene["nodes"][0], **{f"positon{i}_{k}": k for k in range(30_000)}},
+                                *scene["nodes"][1:],
+                            ],
+                        }
                         r = c.post("/v1/frequency-curve", json={"scene": bad})
                     else:  # elements naming unknown nodes: a 422 with suggestions
                         bad = {**scene, "elements": [{**e, "nodes": [f"n{i}a", f"n{i}b"]} for e in scene["elements"]]}
@@ -98,8 +111,11 @@ def main() -> None:
                     seen[r.status_code] = seen.get(r.status_code, 0) + 1
                     if (i + 1) % args.every == 0:
                         workers = sum(_rss_mb(p) for p in _children(srv.pid))
-                        print(f"{'':13}{i + 1:8d}  {time.monotonic() - start:7.0f}  {_rss_mb(srv.pid):9.0f}  "
-                              f"{workers:10.0f}  {dict(sorted(seen.items()))}", flush=True)
+                        print(
+                            f"{'':13}{i + 1:8d}  {time.monotonic() - start:7.0f}  {_rss_mb(srv.pid):9.0f}  "
+                            f"{workers:10.0f}  {dict(sorted(seen.items()))}",
+                            flush=True,
+                        )
         finally:
             srv.terminate()
             srv.wait(30)

@@ -41,8 +41,14 @@ from flexopt.optim.topology import FAMILIES, run_topology_search  # noqa: E402
 from flexopt.optim.topology.spec import QUICK, TopologySpec  # noqa: E402
 
 PUBLISHED_RATIO = 0.75  # seed 000: an optimised hinge loses about 25 % at +-45 deg
-TODAY = {"max_flexures": 4, "max_stages": 2, "dimensions": "shared", "prune": False, "schedule": "exhaustive",
-         "refine_segments": None}
+TODAY = {
+    "max_flexures": 4,
+    "max_stages": 2,
+    "dimensions": "shared",
+    "prune": False,
+    "schedule": "exhaustive",
+    "refine_segments": None,
+}
 RUNS = {"today": TODAY, "quick": QUICK, "default": {}}
 TARGET_GAIN, TARGET_KEEP = 0.10, 0.80  # issue 30: +10 % worst case, keeping 80 % of the zero-stroke frequency
 
@@ -59,29 +65,42 @@ def _hz(r: dict) -> float:
 def _row(name: str, res: dict, wall: float, loads: tuple[str, str]) -> str:
     c, s = res["counts"], res["seconds"]
     best = res["best"]
-    b = (f"`{best['topology']}` {_hz(best):.2f} Hz ({(best.get('refined') or {}).get('ratio', best['ratio']):.3f})"
-         if best else "none")
-    return (f"| {name} | {c['generated']} | {c['rejected']} | {c['generated'] - c['rejected'] - c['untraceable']} | "
-            f"{c.get('first_pass', 0)} | {c.get('pruned', 0)} | {c.get('promoted', c['optimised'])} | {c['optimised']} | "
-            f"{s.get('screen', 0):.0f} | {s.get('first_pass', 0):.0f} | {s.get('optimise', 0):.0f} | "
-            f"{s.get('refine', 0):.0f} | {wall:.0f} | {b} | {loads[0]} / {loads[1]} |")
+    b = (
+        f"`{best['topology']}` {_hz(best):.2f} Hz ({(best.get('refined') or {}).get('ratio', best['ratio']):.3f})"
+        if best
+        else "none"
+    )
+    return (
+        f"| {name} | {c['generated']} | {c['rejected']} | {c['generated'] - c['rejected'] - c['untraceable']} | "
+        f"{c.get('first_pass', 0)} | {c.get('pruned', 0)} | {c.get('promoted', c['optimised'])} | {c['optimised']} | "
+        f"{s.get('screen', 0):.0f} | {s.get('first_pass', 0):.0f} | {s.get('optimise', 0):.0f} | "
+        f"{s.get('refine', 0):.0f} | {wall:.0f} | {b} | {loads[0]} / {loads[1]} |"
+    )
 
 
 def _ranking(res: dict, n: int = 10) -> None:
     by = {r["topology"]: r for r in res["candidates"]}
-    print("| rank | topology | family | worst-case [Hz] (refined) | on the search mesh | zero-stroke [Hz] | worst / zero "
-          "| stress ratio | mesh error (segments) | KKT | active bounds | design |")
+    print(
+        "| rank | topology | family | worst-case [Hz] (refined) | on the search mesh | zero-stroke [Hz] | worst / zero "
+        "| stress ratio | mesh error (segments) | KKT | active bounds | design |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for i, name in enumerate(res["ranking"][:n], start=1):
         r = by[name]
         ref = r.get("refined") or {}
-        design = ", ".join(f"{k} {v * 1e3:.3g} mm" if any(k.startswith(p) for p in ("length", "width", "thickness"))
-                           else f"{k} {v:.3g}" for k, v in r["design"].items())
-        me = (f"{ref['mesh_error']:.1e} ({max(ref['segments_used'])})" if ref.get("mesh_error") is not None else "-")
-        print(f"| {i} | `{name}` | {r['family'] or ''} | {_hz(r):.2f} | {r['worst_case_hz']:.2f} | "
-              f"{ref.get('zero_stroke_hz', r['zero_stroke_hz']):.2f} | {ref.get('ratio', r['ratio']):.3f} | "
-              f"{ref.get('stress_ratio', r['stress_ratio']):.3f} | {me} | {r['kkt_residual']:.1e} | "
-              f"{', '.join(f'{k} ({v})' for k, v in (r.get('active_bounds') or {}).items()) or 'none'} | {design} |")
+        design = ", ".join(
+            f"{k} {v * 1e3:.3g} mm"
+            if any(k.startswith(p) for p in ("length", "width", "thickness"))
+            else f"{k} {v:.3g}"
+            for k, v in r["design"].items()
+        )
+        me = f"{ref['mesh_error']:.1e} ({max(ref['segments_used'])})" if ref.get("mesh_error") is not None else "-"
+        print(
+            f"| {i} | `{name}` | {r['family'] or ''} | {_hz(r):.2f} | {r['worst_case_hz']:.2f} | "
+            f"{ref.get('zero_stroke_hz', r['zero_stroke_hz']):.2f} | {ref.get('ratio', r['ratio']):.3f} | "
+            f"{ref.get('stress_ratio', r['stress_ratio']):.3f} | {me} | {r['kkt_residual']:.1e} | "
+            f"{', '.join(f'{k} ({v})' for k, v in (r.get('active_bounds') or {}).items()) or 'none'} | {design} |"
+        )
 
 
 def main() -> None:
@@ -90,11 +109,17 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=1)
     ap.add_argument("--runs", nargs="*", default=list(RUNS), choices=list(RUNS))
     ap.add_argument("--store", default=None, help="a case store shared by the runs (a rerun reuses every case)")
-    ap.add_argument("--baseline", type=int, default=0, metavar="N", help="re-optimise the default search's top 3 "
-                    "with N starts each")
+    ap.add_argument(
+        "--baseline", type=int, default=0, metavar="N", help="re-optimise the default search's top 3 with N starts each"
+    )
     ap.add_argument("--json", default=None, help="write every result to this file")
-    ap.add_argument("--default-result", default=None, metavar="FILE", help="the default search's result JSON "
-                    "(from an earlier --json) for the family comparison, instead of running it here")
+    ap.add_argument(
+        "--default-result",
+        default=None,
+        metavar="FILE",
+        help="the default search's result JSON "
+        "(from an earlier --json) for the family comparison, instead of running it here",
+    )
     a = ap.parse_args()
     results: dict[str, dict] = {}
     if a.default_result:
@@ -110,8 +135,10 @@ def main() -> None:
             results[name] = res
     if not a.runs:
         print("(no search runs: --runs empty)")
-    print("| run | generated | rejected | survivors | first pass | pruned | full pass | optimised | screen [s] | "
-          "first pass [s] | full pass [s] | refine [s] | total [s] | best (worst / zero) | load before / after |")
+    print(
+        "| run | generated | rejected | survivors | first pass | pruned | full pass | optimised | screen [s] | "
+        "first pass [s] | full pass [s] | refine [s] | total [s] | best (worst / zero) | load before / after |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name in a.runs:
         print("\n".join(rows[name]))
@@ -123,7 +150,9 @@ def main() -> None:
         fam_spec = {**spec.model_dump(mode="json"), "topologies": sorted(FAMILIES.values()), "dimensions": "shared"}
         l0, t0 = _load(), time.perf_counter()
         fams = run_topology_search(fam_spec, workers=a.workers, store=a.store)
-        print(f"\nfamilies under the default spec's problem ({time.perf_counter() - t0:.0f} s, load {l0} / {_load()})\n")
+        print(
+            f"\nfamilies under the default spec's problem ({time.perf_counter() - t0:.0f} s, load {l0} / {_load()})\n"
+        )
         _ranking(fams)
         results["families"] = fams
         best, bf = results["default"]["best"], fams["best"]
@@ -131,18 +160,22 @@ def main() -> None:
             gain = _hz(best) / _hz(bf) - 1
             keep = (best.get("refined") or {}).get("ratio", best["ratio"])
             ok = gain >= TARGET_GAIN and keep >= TARGET_KEEP
-            print(f"\nbest `{best['topology']}` {_hz(best):.2f} Hz keeping {keep:.1%} of its zero-stroke frequency; "
-                  f"best family {bf['family']} `{bf['topology']}` {_hz(bf):.2f} Hz keeping "
-                  f"{(bf.get('refined') or {}).get('ratio', bf['ratio']):.1%}: gain {gain:+.1%} "
-                  f"({'meets' if ok else 'misses'} the target of +{TARGET_GAIN:.0%} keeping >= {TARGET_KEEP:.0%}; "
-                  f"published ratio about {PUBLISHED_RATIO})")
+            print(
+                f"\nbest `{best['topology']}` {_hz(best):.2f} Hz keeping {keep:.1%} of its zero-stroke frequency; "
+                f"best family {bf['family']} `{bf['topology']}` {_hz(bf):.2f} Hz keeping "
+                f"{(bf.get('refined') or {}).get('ratio', bf['ratio']):.1%}: gain {gain:+.1%} "
+                f"({'meets' if ok else 'misses'} the target of +{TARGET_GAIN:.0%} keeping >= {TARGET_KEEP:.0%}; "
+                f"published ratio about {PUBLISHED_RATIO})"
+            )
         if a.baseline:
             leaders = results["default"]["ranking"][:3]
             base_spec = {**spec.model_dump(mode="json"), "topologies": leaders, "starts": a.baseline}
             l0, t0 = _load(), time.perf_counter()
             glob = run_topology_search(base_spec, workers=a.workers, store=a.store)
-            print(f"\nglobal baseline: the leaders with {a.baseline} starts each ({time.perf_counter() - t0:.0f} s, "
-                  f"load {l0} / {_load()})\n")
+            print(
+                f"\nglobal baseline: the leaders with {a.baseline} starts each ({time.perf_counter() - t0:.0f} s, "
+                f"load {l0} / {_load()})\n"
+            )
             _ranking(glob)
             results["baseline"] = glob
     if a.json:

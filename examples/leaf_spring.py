@@ -29,8 +29,10 @@ def main(outdir: str = "leaf_spring_out") -> dict:
     curve = analysis.frequency_curve()
     plots.save(plots.curve_figure(curve, scene_json), str(out / "curve.png"))
     worst = float(curve.parasitic_hz.min())
-    print(f"first parasitic: {curve.parasitic_hz[len(curve.stroke) // 2]:.1f} Hz at stroke 0, "
-          f"worst {worst:.1f} Hz over +-45 deg")
+    print(
+        f"first parasitic: {curve.parasitic_hz[len(curve.stroke) // 2]:.1f} Hz at stroke 0, "
+        f"worst {worst:.1f} Hz over +-45 deg"
+    )
 
     # 2. the mode shapes at stroke 0 and at the end of the stroke
     at0 = shapes_at(analysis, 0.0).to_dict()
@@ -53,15 +55,24 @@ def main(outdir: str = "leaf_spring_out") -> dict:
 
     # 4. a small optimisation: thickness and width that maximise the worst-case first parasitic frequency,
     #    stress within the allowable (safety factor 1.5) over +-20 deg
-    problem = {"families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 8e-4], "width": [0.02, 0.05]}}],
-               "stroke": 20.0, "samples": 5, "modes": 1, "starts": 1, "max_iterations": 6, "refine_rounds": 0,
-               "verify_points": 31}
+    problem = {
+        "families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 8e-4], "width": [0.02, 0.05]}}],
+        "stroke": 20.0,
+        "samples": 5,
+        "modes": 1,
+        "starts": 1,
+        "max_iterations": 6,
+        "refine_rounds": 0,
+        "verify_points": 31,
+    }
     with ThreadPoolExecutor(1) as pool:
         result = optimise(problem, executor=pool)
     best = result["ranking"][0] if result["ranking"] else None
     if best is not None:
-        print(f"optimised: worst first parasitic {best['worst_hz']:.1f} Hz with "
-              + ", ".join(f"{k} {v * 1e3:.3g} mm" for k, v in best["design"].items()))
+        print(
+            f"optimised: worst first parasitic {best['worst_hz']:.1f} Hz with "
+            + ", ".join(f"{k} {v * 1e3:.3g} mm" for k, v in best["design"].items())
+        )
     return {"curve": curve, "shapes0": at0, "first_parasitic": first, "diagnosis": diag, "optimisation": result}
 
 

@@ -15,14 +15,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from .assembly import System
+from .causes import check_free_motions, check_mass, stiff_axis_drives
 from .checks import annotate_curve
 from .elements import von_mises_spec
+from .errors import EquilibriumError, SceneError
 from .kernels import compiled
-from .causes import check_free_motions, check_mass, stiff_axis_drives
 from .modal import Modes, modes_at, participation, track
 from .results import Failure, FrequencyCurve
 from .scene import Scene
-from .errors import EquilibriumError, SceneError
 from .statics import Equilibrium, NewtonOptions, StepFailure, WalkFailure, reference_equilibrium, walk
 from .structure import Structure, compile_scene
 from .symmetry import StrokeSymmetry, image_indices, one_side, stroke_symmetry
@@ -110,8 +110,11 @@ class MeshAnalysis:
     def __init__(self, scene: Scene, options: NewtonOptions | None = None) -> None:
         auto = [e.name for e in scene.elements if getattr(e, "segments", 1) == "auto"]
         if auto:
-            raise SceneError("elements[].segments", f"beams {', '.join(auto)} have segments 'auto', which one given "
-                             "mesh cannot solve: use flexopt.model.Analysis (model.curve), which resolves them")
+            raise SceneError(
+                "elements[].segments",
+                f"beams {', '.join(auto)} have segments 'auto', which one given "
+                "mesh cannot solve: use flexopt.model.Analysis (model.curve), which resolves them",
+            )
         self.scene = scene
         self.structure = compile_scene(scene)
         self.system = System(self.structure)
@@ -144,8 +147,9 @@ class MeshAnalysis:
                 frac = modes.phi[dd] * (modes.M[dd] @ modes.phi)
             labels[int(np.argmax(np.abs(frac)))] = "drive"
         if part is not None:
-            labels = [lab if lab == "drive" else ("parasitic" if p > 0.5 else "intended")
-                      for lab, p in zip(labels, part)]
+            labels = [
+                lab if lab == "drive" else ("parasitic" if p > 0.5 else "intended") for lab, p in zip(labels, part)
+            ]
         par = [h for h, lab in zip(hz, labels) if lab == "parasitic"]
         return labels, (min(par) if par else float("nan"))
 
@@ -227,8 +231,7 @@ class MeshAnalysis:
             return None
         return stroke_symmetry(self.scene)
 
-    def _mirrored(self, sym: StrokeSymmetry, internal: np.ndarray, points: dict, failures: list
-                  ) -> tuple[dict, list]:
+    def _mirrored(self, sym: StrokeSymmetry, internal: np.ndarray, points: dict, failures: list) -> tuple[dict, list]:
         """The requested points of both sides from the solved side of positive strokes (see
         :meth:`frequency_curve`), and the failures of both sides (a loss at ``s`` is one at ``-s``)."""
         names = list(self.structure.member_names)
@@ -249,8 +252,12 @@ class MeshAnalysis:
         if np.any(internal < 0):
             for f in failures:
                 # the failure's message has the signed strokes in it: built again for the mirrored numbers
-                wf = WalkFailure(f.reason, -self.structure.scene.stroke.to_internal(f.stroke),
-                                 -self.structure.scene.stroke.to_internal(f.last_converged), "")
+                wf = WalkFailure(
+                    f.reason,
+                    -self.structure.scene.stroke.to_internal(f.stroke),
+                    -self.structure.scene.stroke.to_internal(f.last_converged),
+                    "",
+                )
                 both.append(self._failure(wf))
         return out, both
 
@@ -261,21 +268,32 @@ class MeshAnalysis:
         f = (lambda v: float(np.degrees(v))) if unit == "deg" else float
         s_loss, s_a = f(fail.stroke), f(fail.last_converged)
         if fail.reason == "unstable":
-            what = (f"equilibrium becomes unstable at stroke {s_loss:+.5g} {unit} (the tangent stiffness loses "
-                    f"positive definiteness: a parasitic frequency reaches 0 by extrapolation of omega^2; "
-                    f"buckling or a bifurcation)")
+            what = (
+                f"equilibrium becomes unstable at stroke {s_loss:+.5g} {unit} (the tangent stiffness loses "
+                f"positive definiteness: a parasitic frequency reaches 0 by extrapolation of omega^2; "
+                f"buckling or a bifurcation)"
+            )
         else:
-            what = (f"no equilibrium found beyond stroke {s_a:+.5g} {unit}: Newton fails by {s_loss:+.5g} {unit} "
-                    f"even with small steps (a limit point, snap-through or loss of equilibrium)")
+            what = (
+                f"no equilibrium found beyond stroke {s_a:+.5g} {unit}: Newton fails by {s_loss:+.5g} {unit} "
+                f"even with small steps (a limit point, snap-through or loss of equilibrium)"
+            )
         causes = stiff_axis_drives(self.structure)
         cause = ("; cause: " + "; ".join(causes)) if causes else ""
-        return Failure(fail.reason, s_loss, s_a,
-                       f"{what}; last stable equilibrium at {s_a:+.5g} {unit}{cause}. The curve stops there")
+        return Failure(
+            fail.reason,
+            s_loss,
+            s_a,
+            f"{what}; last stable equilibrium at {s_a:+.5g} {unit}{cause}. The curve stops there",
+        )
 
     @limited()  # one BLAS thread while it computes (model.threads)
     def frequency_curve(
-        self, stroke: np.ndarray | None = None, progress: Callable[[int, int], None] | None = None,
-        visit: Callable[[Equilibrium, Modes, list[str]], None] | None = None, mirror: bool = True,
+        self,
+        stroke: np.ndarray | None = None,
+        progress: Callable[[int, int], None] | None = None,
+        visit: Callable[[Equilibrium, Modes, list[str]], None] | None = None,
+        mirror: bool = True,
     ) -> FrequencyCurve:
         """The exact frequency curve of this mesh with its checks' warnings and provenance
         (:func:`model.checks.annotate_curve`); arguments as :meth:`exact_curve`."""
@@ -283,8 +301,11 @@ class MeshAnalysis:
         return annotate_curve(curve, self.scene, self.options)  # warnings and provenance (model.checks)
 
     def exact_curve(
-        self, stroke: np.ndarray | None = None, progress: Callable[[int, int], None] | None = None,
-        visit: Callable[[Equilibrium, Modes, list[str]], None] | None = None, mirror: bool = True,
+        self,
+        stroke: np.ndarray | None = None,
+        progress: Callable[[int, int], None] | None = None,
+        visit: Callable[[Equilibrium, Modes, list[str]], None] | None = None,
+        mirror: bool = True,
     ) -> tuple[FrequencyCurve, dict[float, float]]:
         """The exact frequency curve at ``stroke`` (stroke unit; default: the scene's stroke grid), before
         its checks, and the first parasitic frequency at every solved stroke (internal units; the solved
@@ -322,8 +343,14 @@ class MeshAnalysis:
         solved = dict(points)
         if sym is not None:
             points, failures = self._mirrored(sym, internal, points, failures)
-        curve = self._curve_record(points, failures, iters, sym if np.any(internal < 0) else None,
-                                   time.perf_counter() - t0, dict(zip(internal.tolist(), values.tolist())))
+        curve = self._curve_record(
+            points,
+            failures,
+            iters,
+            sym if np.any(internal < 0) else None,
+            time.perf_counter() - t0,
+            dict(zip(internal.tolist(), values.tolist())),
+        )
         return curve, {k: p.parasitic for k, p in solved.items()}
 
     def _reference(self) -> tuple[Equilibrium, Modes]:
@@ -336,18 +363,32 @@ class MeshAnalysis:
             if self.system.loads is not None:
                 raise EquilibriumError(
                     f"no equilibrium under the scene's loads at stroke 0: {exc}; reduce the loads or gravity, or "
-                    "stiffen the structure", stroke=0.0, last_converged=float("nan"), reason="divergence") from exc
+                    "stiffen the structure",
+                    stroke=0.0,
+                    last_converged=float("nan"),
+                    reason="divergence",
+                ) from exc
             raise EquilibriumError(
                 f"no equilibrium at the stress-free reference (stroke 0): {exc}; the tangent stiffness is "
                 "singular, so some part moves without deforming anything (a mechanism or an unconnected part); "
-                "support it or connect it to the structure", stroke=0.0,
-                last_converged=float("nan"), reason="divergence") from exc
+                "support it or connect it to the structure",
+                stroke=0.0,
+                last_converged=float("nan"),
+                reason="divergence",
+            ) from exc
         s = self.structure
         return eq0, modes_at(self.system, eq0, s.scene.modes + 2, s.scene.stroke.drive)
 
-    def _walk_side(self, side: np.ndarray, eq0: Equilibrium, modes0: Modes, points: dict[float, "_Point"],
-                   iters: list[int], visit: Callable[[Equilibrium, Modes, list[str]], None] | None,
-                   report: Callable[[], None] | None) -> list[Failure]:
+    def _walk_side(
+        self,
+        side: np.ndarray,
+        eq0: Equilibrium,
+        modes0: Modes,
+        points: dict[float, _Point],
+        iters: list[int],
+        visit: Callable[[Equilibrium, Modes, list[str]], None] | None,
+        report: Callable[[], None] | None,
+    ) -> list[Failure]:
         """Continuation from ``eq0`` through the targets of one side (internal units, ordered away from 0)
         with tracked modes at every point, into ``points`` (and the Newton iterations into ``iters``); a
         loss of stability is located (:meth:`_locate_loss`) and ends the side. Returns its failures."""
@@ -373,8 +414,9 @@ class MeshAnalysis:
             if visit is not None:
                 visit(eq, modes, labels)
             vm = von_mises(s, self.system, eq)
-            points[eq.stroke] = _Point(eq.stroke, modes.hz[:n_rep].copy(), labels[:n_rep], par,
-                                       eq.drive_reaction, vm, eq.iterations)
+            points[eq.stroke] = _Point(
+                eq.stroke, modes.hz[:n_rep].copy(), labels[:n_rep], par, eq.drive_reaction, vm, eq.iterations
+            )
             iters.append(eq.iterations)
             prev[0], prev_w2[0], last_eq[0] = modes, lowest, eq
             if report is not None:
@@ -392,8 +434,9 @@ class MeshAnalysis:
                 break
             # the requested stroke the walk could not pass: where accept() found instability, else the
             # first target beyond the last accepted point
-            target = bad[0] if fail.reason == "unstable" else float(
-                targets[np.abs(targets) > abs(last_eq[0].stroke)][0])
+            target = (
+                bad[0] if fail.reason == "unstable" else float(targets[np.abs(targets) > abs(last_eq[0].stroke)][0])
+            )
             reached = self._locate_loss(last_eq[0], prev_w2[0], target)
             if isinstance(reached, WalkFailure):
                 return [self._failure(reached)]
@@ -403,9 +446,15 @@ class MeshAnalysis:
             targets = targets[np.abs(targets) > abs(target)]
         return []
 
-    def _curve_record(self, points: dict[float, "_Point"], failures: list[Failure], iters: list[int],
-                      sym: StrokeSymmetry | None, seconds: float,
-                      asked: dict[float, float] | None = None) -> FrequencyCurve:
+    def _curve_record(
+        self,
+        points: dict[float, _Point],
+        failures: list[Failure],
+        iters: list[int],
+        sym: StrokeSymmetry | None,
+        seconds: float,
+        asked: dict[float, float] | None = None,
+    ) -> FrequencyCurve:
         """The :class:`FrequencyCurve` of the solved ``points`` (internal strokes, both sides), before its
         checks; ``sym`` the symmetry that mirrored negative strokes, if it did. ``asked``: internal stroke ->
         the value requested in the stroke unit; a requested point is reported as requested (-30.0, not
@@ -435,8 +484,11 @@ class MeshAnalysis:
             status="complete" if not failures else "truncated",
             failures=tuple(failures),
             conventions=self._conventions(sym),
-            solver={"tol": self.options.tol, "seconds": seconds,
-                    "mean_newton_iterations": float(np.mean(iters)) if iters else 0.0},
+            solver={
+                "tol": self.options.tol,
+                "seconds": seconds,
+                "mean_newton_iterations": float(np.mean(iters)) if iters else 0.0,
+            },
         )
 
     def _conventions(self, sym: StrokeSymmetry | None) -> dict[str, str]:
@@ -447,13 +499,18 @@ class MeshAnalysis:
             "drive": DRIVE_CONVENTION[spec.kind],
             "drive_in_eigen_analysis": spec.drive,
             "parasitic": "modes with more than half their kinetic energy in the declared support directions"
-            if s.support_projector is not None else "every mode with the drive locked",
+            if s.support_projector is not None
+            else "every mode with the drive locked",
             "warping": ", ".join(f"{n}: {w}" for n, w in zip(s.member_names, s.warping)),
             "mesh": MESH_CONVENTION,
-            **({"symmetry": f"negative strokes mirrored from positive ones: {sym.describe()} maps the design "
-                "onto itself and reverses the stroke (model.symmetry); mirror=False solves both sides"}
-               if sym is not None else {}),
+            **(
+                {
+                    "symmetry": f"negative strokes mirrored from positive ones: {sym.describe()} maps the design "
+                    "onto itself and reverses the stroke (model.symmetry); mirror=False solves both sides"
+                }
+                if sym is not None
+                else {}
+            ),
             "mass": "consistent translational mass of the cubic (Hermite) centre line (Przemieniecki 1968 ch. 11); "
             "rotary inertia the mean of lumped and consistent (model.elements.beam_mass_spec)",
         }
-

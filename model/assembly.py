@@ -42,14 +42,24 @@ def _assembler():
             lib = native_library("flexopt_assemble", "assemble.c", *assemble_source_definitions())
             fn = lib.assemble
             fn.restype = ctypes.c_int
-            fn.argtypes = [ctypes.c_void_p] + [ctypes.c_longlong] * 3 + [ctypes.c_void_p] * 10 \
-                + [ctypes.c_longlong] * 2 + [ctypes.c_void_p] * 3 + [ctypes.c_longlong] * 2
+            fn.argtypes = (
+                [ctypes.c_void_p]
+                + [ctypes.c_longlong] * 3
+                + [ctypes.c_void_p] * 10
+                + [ctypes.c_longlong] * 2
+                + [ctypes.c_void_p] * 3
+                + [ctypes.c_longlong] * 2
+            )
             lib.mass_matrix.restype = ctypes.c_int
             lib.mass_matrix.argtypes = [ctypes.c_void_p] * 4
             up = lib.update_state
             up.restype = ctypes.c_int
-            up.argtypes = [ctypes.c_void_p, ctypes.c_longlong] + [ctypes.c_void_p] * 5 + [ctypes.c_longlong] \
+            up.argtypes = (
+                [ctypes.c_void_p, ctypes.c_longlong]
+                + [ctypes.c_void_p] * 5
+                + [ctypes.c_longlong]
                 + [ctypes.c_void_p] * 4
+            )
             _ASSEMBLER.append((lib, fn, up))
         except KernelBuildError:
             _ASSEMBLER.append(None)
@@ -65,10 +75,16 @@ def rotate(R: np.ndarray, v: np.ndarray) -> np.ndarray:
 def rjrt(R: np.ndarray, J: np.ndarray) -> np.ndarray:
     """``R J R^T`` for stacks of 3 x 3 matrices (..., 3, 3): ``A = R J``, then ``A R^T``, each entry a sum of
     products taken left to right, as the compiled mass (``mass_matrix``) sums it: the same numbers to the bit."""
-    A = R[..., :, 0, None] * J[..., None, 0, :] + R[..., :, 1, None] * J[..., None, 1, :] \
+    A = (
+        R[..., :, 0, None] * J[..., None, 0, :]
+        + R[..., :, 1, None] * J[..., None, 1, :]
         + R[..., :, 2, None] * J[..., None, 2, :]
-    return A[..., :, 0, None] * R[..., None, :, 0] + A[..., :, 1, None] * R[..., None, :, 1] \
+    )
+    return (
+        A[..., :, 0, None] * R[..., None, :, 0]
+        + A[..., :, 1, None] * R[..., None, :, 1]
         + A[..., :, 2, None] * R[..., None, :, 2]
+    )
 
 
 @dataclass
@@ -79,7 +95,7 @@ class State:
     R: np.ndarray  # (nm, 3, 3) master rotation matrices
     lam: np.ndarray  # (nr,) generalised stresses of the rigid deformations
 
-    def copy(self) -> "State":
+    def copy(self) -> State:
         """A deep copy."""
         return State(self.X.copy(), self.R.copy(), self.lam.copy())
 
@@ -125,9 +141,12 @@ class System:
         if s.drive_kind == "none":
             from .errors import SceneError
 
-            raise SceneError("stroke", f"scene '{s.scene.name}' has no stroke (stroke: null), which only the "
-                             "exact-constraint diagnosis accepts; a frequency curve or equilibrium needs a "
-                             "driven coordinate: add a 'stroke'")
+            raise SceneError(
+                "stroke",
+                f"scene '{s.scene.name}' has no stroke (stroke: null), which only the "
+                "exact-constraint diagnosis accepts; a frequency curve or equilibrium needs a "
+                "driven coordinate: add a 'stroke'",
+            )
         self.s = s
         self.n_full = s.n_dof
         self.beam_kernel = compiled(beam_spec()[0]) if s.n_beams else None
@@ -248,8 +267,9 @@ class System:
                 continue
             var = moved[nodes].any(axis=1)
             fl = flat.reshape(len(nodes), 144)
-            const += np.bincount(fl[~var].ravel(), self._trans_mass(np.zeros((int((~var).sum()), 2, 3)),
-                                                                     mass[~var]), minlength=N * N)
+            const += np.bincount(
+                fl[~var].ravel(), self._trans_mass(np.zeros((int((~var).sum()), 2, 3)), mass[~var]), minlength=N * N
+            )
             if var.any():
                 self._mvar.append((nodes[var], mass[var], fl[var].ravel()))
         nm = len(s.master_names)
@@ -323,8 +343,10 @@ class System:
         pencils = self._pencils
         got = pencils.get(locked)
         if got is None or got[0] is not band:
-            got = pencils[locked] = (band, linalg.BandedPencil(self.free if locked else np.arange(self.n), self.N,
-                                                                *band))
+            got = pencils[locked] = (
+                band,
+                linalg.BandedPencil(self.free if locked else np.arange(self.n), self.N, *band),
+            )
         return got[1]
 
     def free_block(self, A: np.ndarray, locked: bool = True) -> np.ndarray:
@@ -517,8 +539,17 @@ class System:
             rate = self.loads.gradient_rate(st.R, self.load_stroke, self.load_scale)
             dg_ds = None if rate is None else self.reduce_vector(rate)
         H = self.reduce_matrix(Hflat.reshape(N, N))
-        return Assembled(self.reduce_vector(g), H, c, self.reduce_matrix(G, rows=False), e_beam, e_truss,
-                         self.chart_correction(g_full), dg_ds, g_load)
+        return Assembled(
+            self.reduce_vector(g),
+            H,
+            c,
+            self.reduce_matrix(G, rows=False),
+            e_beam,
+            e_truss,
+            self.chart_correction(g_full),
+            dg_ds,
+            g_load,
+        )
 
     def chart_correction(self, g_full: np.ndarray) -> np.ndarray:
         """``-1/2 skew(g_m)`` on each master's rotation block, in active numbering.
@@ -578,8 +609,9 @@ class System:
             k, el, mode = self.con_joint
             U += float(st.lam[k] @ e_joint[el, mode])
         if self.loads is not None:
-            U += self.loads.potential(self.node_states(st)[0], st.X, st.R, self.beam_in, self.load_stroke,
-                                      self.load_scale)
+            U += self.loads.potential(
+                self.node_states(st)[0], st.X, st.R, self.beam_in, self.load_stroke, self.load_scale
+            )
         return U
 
     # --------------------------------------------------------------- drive
@@ -649,9 +681,30 @@ class System:
 
 #: The slots of the compiled mass's context (``mass_matrix`` of model/native/assemble.c), in order: the one list of
 #: them, which the C source sees as an enum of the same names upper-cased (:func:`assemble_source_definitions`).
-MASS_SLOTS = ("kernel", "ne", "n_in", "n_out", "end_master", "end_node", "kernel_in", "dofs", "dofs_full", "flat",
-              "n_ext", "n_full", "node_master", "node_offset", "nodes", "offsets", "mass_const", "node_inertia",
-              "masters", "body_inertia", "rot_flat", "inertia_work")
+MASS_SLOTS = (
+    "kernel",
+    "ne",
+    "n_in",
+    "n_out",
+    "end_master",
+    "end_node",
+    "kernel_in",
+    "dofs",
+    "dofs_full",
+    "flat",
+    "n_ext",
+    "n_full",
+    "node_master",
+    "node_offset",
+    "nodes",
+    "offsets",
+    "mass_const",
+    "node_inertia",
+    "masters",
+    "body_inertia",
+    "rot_flat",
+    "inertia_work",
+)
 
 
 class NativeRoute:
@@ -693,24 +746,39 @@ class NativeRoute:
         self.mass_in: np.ndarray | None = None  # the mass kernel's input buffer (state, constants, mass)
         self.beam_in_at = self.mass_in_at = 0  # addresses of System.beam_in and mass_in
         self.mass_size = 0  # doubles of the compiled mass's output (kernel outputs, g, g_full, M)
-        asm = _assembler() if (s.n_beams and not len(s.truss_nodes) and not sys.n_con and sys.loads is None
-                               and sys.beam_kernel.address is not None) else None
+        asm = (
+            _assembler()
+            if (
+                s.n_beams
+                and not len(s.truss_nodes)
+                and not sys.n_con
+                and sys.loads is None
+                and sys.beam_kernel.address is not None
+            )
+            else None
+        )
         if asm is not None:
             ends = s.beam_nodes.ravel()
             nc = 30 + s.beam_const.shape[1]
             self.mass_in = np.zeros((s.n_beams, nc + 1))  # the mass kernel's input: state, constants, mass
             self.mass_in[:, 30:nc] = s.beam_const
             self.mass_in[:, nc] = s.beam_mass
-            self._keep["assemble"] = arrays = [np.ascontiguousarray(a, dtype=np.int64) for a in (
-                s.node_master[ends], ends, sys.beam_dofs, sys.beam_dofs_full, sys.beam_flat)]
+            self._keep["assemble"] = arrays = [
+                np.ascontiguousarray(a, dtype=np.int64)
+                for a in (s.node_master[ends], ends, sys.beam_dofs, sys.beam_dofs_full, sys.beam_flat)
+            ]
             self.assemble_call = (asm[1], *(a.ctypes.data for a in arrays))
             self.beam_in_at, self.mass_in_at = sys.beam_in.ctypes.data, self.mass_in.ctypes.data
         upd = _assembler() if (sys.direct and sys._rot_update.address is not None) else None
         if upd is not None:
             rm = sys._rot_masters
             act = np.where(sys.pos < sys.n, sys.pos, -1).astype(np.int64)
-            self._keep["update"] = arrays = [act, np.ascontiguousarray(rm, dtype=np.int64), np.zeros((len(rm), 12)),
-                                             np.zeros((len(rm), 9))]
+            self._keep["update"] = arrays = [
+                act,
+                np.ascontiguousarray(rm, dtype=np.int64),
+                np.zeros((len(rm), 12)),
+                np.zeros((len(rm), 9)),
+            ]
             self.update_call = (upd[2], sys._rot_update.address, *(a.ctypes.data for a in arrays))
 
     # ------------------------------------------------------------ switches
@@ -749,14 +817,38 @@ class NativeRoute:
         no = nb * kernel.n_out
         buf = np.empty(no + N + n_full + N * N)
         b = buf.ctypes.data
-        if fn(kernel.address, nb, kernel.n_in, kernel.n_out, X.ctypes.data, R.ctypes.data, end_master, end_node,
-              r.ctypes.data, inputs_at, b, dofs, dofs_full, flat, N, n_full, b + 8 * no,
-              b + 8 * (no + N), b + 8 * (no + N + n_full), 0 if gradient else -1, 12 if gradient else 0):
+        if fn(
+            kernel.address,
+            nb,
+            kernel.n_in,
+            kernel.n_out,
+            X.ctypes.data,
+            R.ctypes.data,
+            end_master,
+            end_node,
+            r.ctypes.data,
+            inputs_at,
+            b,
+            dofs,
+            dofs_full,
+            flat,
+            N,
+            n_full,
+            b + 8 * no,
+            b + 8 * (no + N),
+            b + 8 * (no + N + n_full),
+            0 if gradient else -1,
+            12 if gradient else 0,
+        ):
             from .errors import KernelBuildError
 
             raise KernelBuildError(f"kernel '{kernel.spec.name}' reported an evaluation error")
-        return (buf[:no].reshape(nb, kernel.n_out), buf[no : no + N], buf[no + N : no + N + n_full],
-                buf[no + N + n_full :])
+        return (
+            buf[:no].reshape(nb, kernel.n_out),
+            buf[no : no + N],
+            buf[no + N : no + N + n_full],
+            buf[no + N + n_full :],
+        )
 
     def evaluate(self, st: State) -> Assembled:
         """:meth:`System.evaluate` in one C call (beams only, no rigid deformations; same numbers)."""
@@ -764,8 +856,15 @@ class NativeRoute:
         N = sys.N
         out, g, g_full, Hflat = self.call(st, sys.beam_kernel, self.beam_in_at, True)
         H = sys.reduce_matrix(Hflat.reshape(N, N))
-        return Assembled(sys.reduce_vector(g), H, np.zeros(0), sys.reduce_matrix(np.zeros((0, N)), rows=False),
-                         out[:, 156:162], np.zeros(0), sys.chart_correction(g_full))
+        return Assembled(
+            sys.reduce_vector(g),
+            H,
+            np.zeros(0),
+            sys.reduce_matrix(np.zeros((0, N)), rows=False),
+            out[:, 156:162],
+            np.zeros(0),
+            sys.chart_correction(g_full),
+        )
 
     def hessian_derivative(self, st: State, kernel, vg: np.ndarray) -> np.ndarray:
         """:meth:`System.hessian_derivative` in one C call through the compiled third-derivative ``kernel``, the
@@ -786,8 +885,20 @@ class NativeRoute:
         R = np.ascontiguousarray(st.R, dtype=np.float64)
         x = np.ascontiguousarray(xi, dtype=np.float64)
         Xn, Rn = np.empty(X.shape), np.empty(R.shape)
-        if fn(kernel, len(X), X.ctypes.data, R.ctypes.data, x.ctypes.data, act, moving,
-              len(self.sys._rot_masters), rin, rout, Xn.ctypes.data, Rn.ctypes.data):
+        if fn(
+            kernel,
+            len(X),
+            X.ctypes.data,
+            R.ctypes.data,
+            x.ctypes.data,
+            act,
+            moving,
+            len(self.sys._rot_masters),
+            rin,
+            rout,
+            Xn.ctypes.data,
+            Rn.ctypes.data,
+        ):
             from .errors import KernelBuildError
 
             raise KernelBuildError("the rotation update kernel reported an evaluation error")
@@ -809,21 +920,42 @@ class NativeRoute:
             if self.assemble_call is not None and sys.beam_mass_kernel.address is not None and not sys._mvar:
                 s, N = sys.s, sys.N
                 _, end_master, end_node, dofs, dofs_full, flat = self.assemble_call
-                keep = [np.ascontiguousarray(s.node_master, dtype=np.int64),
-                        np.ascontiguousarray(s.node_offset, dtype=np.float64), np.zeros((len(s.node_master), 3)),
-                        np.ascontiguousarray(sys._mass_const, dtype=np.float64),
-                        np.ascontiguousarray(s.node_rot_inertia, dtype=np.float64),
-                        np.ascontiguousarray(s.master_inertia, dtype=np.float64),
-                        np.ascontiguousarray(sys.rot_flat, dtype=np.int64), np.zeros(9 * len(s.master_names))]
+                keep = [
+                    np.ascontiguousarray(s.node_master, dtype=np.int64),
+                    np.ascontiguousarray(s.node_offset, dtype=np.float64),
+                    np.zeros((len(s.node_master), 3)),
+                    np.ascontiguousarray(sys._mass_const, dtype=np.float64),
+                    np.ascontiguousarray(s.node_rot_inertia, dtype=np.float64),
+                    np.ascontiguousarray(s.master_inertia, dtype=np.float64),
+                    np.ascontiguousarray(sys.rot_flat, dtype=np.int64),
+                    np.zeros(9 * len(s.master_names)),
+                ]
                 at = [a.ctypes.data for a in keep]
                 k = sys.beam_mass_kernel
-                slots = {"kernel": k.address, "ne": s.n_beams, "n_in": k.n_in, "n_out": k.n_out,
-                         "end_master": end_master, "end_node": end_node, "kernel_in": self.mass_in_at, "dofs": dofs,
-                         "dofs_full": dofs_full, "flat": flat, "n_ext": N, "n_full": sys.n_full,
-                         "node_master": at[0], "node_offset": at[1], "nodes": len(s.node_master), "offsets": at[2],
-                         "mass_const": at[3], "node_inertia": at[4], "masters": len(s.master_names),
-                         "body_inertia": at[5] if sys._has_body_inertia else 0, "rot_flat": at[6],
-                         "inertia_work": at[7]}
+                slots = {
+                    "kernel": k.address,
+                    "ne": s.n_beams,
+                    "n_in": k.n_in,
+                    "n_out": k.n_out,
+                    "end_master": end_master,
+                    "end_node": end_node,
+                    "kernel_in": self.mass_in_at,
+                    "dofs": dofs,
+                    "dofs_full": dofs_full,
+                    "flat": flat,
+                    "n_ext": N,
+                    "n_full": sys.n_full,
+                    "node_master": at[0],
+                    "node_offset": at[1],
+                    "nodes": len(s.node_master),
+                    "offsets": at[2],
+                    "mass_const": at[3],
+                    "node_inertia": at[4],
+                    "masters": len(s.master_names),
+                    "body_inertia": at[5] if sys._has_body_inertia else 0,
+                    "rot_flat": at[6],
+                    "inertia_work": at[7],
+                }
                 if set(slots) != set(MASS_SLOTS):
                     raise ValueError(f"the mass context has slots {sorted(set(slots) ^ set(MASS_SLOTS))} on one side")
                 c = np.array([slots[name] for name in MASS_SLOTS], dtype=np.int64)
@@ -839,8 +971,12 @@ class NativeRoute:
         sys = self.sys
         N = sys.N
         out = np.empty(self.mass_size)
-        if _assembler()[0].mass_matrix(self.mass_context(), np.ascontiguousarray(st.X, dtype=np.float64).ctypes.data,
-                                       np.ascontiguousarray(st.R, dtype=np.float64).ctypes.data, out.ctypes.data):
+        if _assembler()[0].mass_matrix(
+            self.mass_context(),
+            np.ascontiguousarray(st.X, dtype=np.float64).ctypes.data,
+            np.ascontiguousarray(st.R, dtype=np.float64).ctypes.data,
+            out.ctypes.data,
+        ):
             from .errors import KernelBuildError
 
             raise KernelBuildError(f"kernel '{sys.beam_mass_kernel.spec.name}' reported an evaluation error")
@@ -856,9 +992,18 @@ class NativeRoute:
             ns = None
             if self.assemble_call is not None and sys.direct and sys.n_con == 0 and sys.n > 0:
                 comp = np.argmax(sys.Qa, axis=0)  # the global axis of each active basis column
-                ns = linalg.newton_system(sys.n, sys.drive, 0 if sys.s.drive_kind == "rotation" else 1,
-                                          sys.free, sys.block_pos, comp, np.asarray(sys.s.drive_axis, dtype=float),
-                                          sys.scale, sys.scale_free, pattern=sys.pattern())
+                ns = linalg.newton_system(
+                    sys.n,
+                    sys.drive,
+                    0 if sys.s.drive_kind == "rotation" else 1,
+                    sys.free,
+                    sys.block_pos,
+                    comp,
+                    np.asarray(sys.s.drive_axis, dtype=float),
+                    sys.scale,
+                    sys.scale_free,
+                    pattern=sys.pattern(),
+                )
             self._newton = ns
         return self._newton
 
@@ -879,30 +1024,60 @@ class NativeRoute:
             fn, end_master, end_node, dofs, dofs_full, flat = self.assemble_call
             upd, rot_update, act, moving, rin, rout = self.update_call
             nm, nmov = len(s.master_names), len(sys._rot_masters)
-            keep = [np.ascontiguousarray(s.node_master, dtype=np.int64),
-                    np.ascontiguousarray(s.node_offset, dtype=np.float64),
-                    np.zeros((len(s.node_master), 3)),  # the rotated offsets
-                    np.ascontiguousarray(sys._chart_flat, dtype=np.int64),
-                    np.ascontiguousarray(sys._chart_src, dtype=np.int64),
-                    np.ascontiguousarray(sys._chart_sign, dtype=np.float64),
-                    np.zeros(N * N),  # the chart matrix: its fixed entries rewritten per evaluation, the rest 0
-                    np.zeros((nmov, 18)), np.zeros((nmov, 4)),  # the logarithm kernel's input and output
-                    np.ascontiguousarray(s.master_pos, dtype=np.float64),
-                    np.ascontiguousarray(s.drive_axis, dtype=np.float64)]
+            keep = [
+                np.ascontiguousarray(s.node_master, dtype=np.int64),
+                np.ascontiguousarray(s.node_offset, dtype=np.float64),
+                np.zeros((len(s.node_master), 3)),  # the rotated offsets
+                np.ascontiguousarray(sys._chart_flat, dtype=np.int64),
+                np.ascontiguousarray(sys._chart_src, dtype=np.int64),
+                np.ascontiguousarray(sys._chart_sign, dtype=np.float64),
+                np.zeros(N * N),  # the chart matrix: its fixed entries rewritten per evaluation, the rest 0
+                np.zeros((nmov, 18)),
+                np.zeros((nmov, 4)),  # the logarithm kernel's input and output
+                np.ascontiguousarray(s.master_pos, dtype=np.float64),
+                np.ascontiguousarray(s.drive_axis, dtype=np.float64),
+            ]
             at = [a.ctypes.data for a in keep]
             self._keep["point"] = keep
             self._parts = {
-                "assemble": ctypes.cast(lib.assemble, ctypes.c_void_p).value, "kernel": sys.beam_kernel.address,
-                "ne": s.n_beams, "n_in": sys.beam_kernel.n_in, "n_out": sys.beam_kernel.n_out,
-                "end_master": end_master, "end_node": end_node, "kernel_in": self.beam_in_at, "dofs": dofs,
-                "dofs_full": dofs_full, "flat": flat, "n_ext": N, "n_full": sys.n_full,
-                "node_master": at[0], "node_offset": at[1], "nodes": len(s.node_master), "offsets": at[2],
-                "update": ctypes.cast(lib.update_state, ctypes.c_void_p).value, "rot_update": rot_update,
-                "masters": nm, "act": act, "moving": moving, "nmov": nmov, "rin": rin, "rout": rout,
-                "nchart": len(sys._chart_src), "chart_flat": at[3], "chart_src": at[4], "chart_sign": at[5],
-                "chart": at[6], "rot_log": sys._rot_log.address, "log_in": at[7], "log_out": at[8],
-                "drive_master": s.drive_master, "kind": 0 if s.drive_kind == "rotation" else 1,
-                "master_pos": at[9], "axis": at[10], "n_act": sys.n,
+                "assemble": ctypes.cast(lib.assemble, ctypes.c_void_p).value,
+                "kernel": sys.beam_kernel.address,
+                "ne": s.n_beams,
+                "n_in": sys.beam_kernel.n_in,
+                "n_out": sys.beam_kernel.n_out,
+                "end_master": end_master,
+                "end_node": end_node,
+                "kernel_in": self.beam_in_at,
+                "dofs": dofs,
+                "dofs_full": dofs_full,
+                "flat": flat,
+                "n_ext": N,
+                "n_full": sys.n_full,
+                "node_master": at[0],
+                "node_offset": at[1],
+                "nodes": len(s.node_master),
+                "offsets": at[2],
+                "update": ctypes.cast(lib.update_state, ctypes.c_void_p).value,
+                "rot_update": rot_update,
+                "masters": nm,
+                "act": act,
+                "moving": moving,
+                "nmov": nmov,
+                "rin": rin,
+                "rout": rout,
+                "nchart": len(sys._chart_src),
+                "chart_flat": at[3],
+                "chart_src": at[4],
+                "chart_sign": at[5],
+                "chart": at[6],
+                "rot_log": sys._rot_log.address,
+                "log_in": at[7],
+                "log_out": at[8],
+                "drive_master": s.drive_master,
+                "kind": 0 if s.drive_kind == "rotation" else 1,
+                "master_pos": at[9],
+                "axis": at[10],
+                "n_act": sys.n,
             }
         return self._parts
 
@@ -913,6 +1088,12 @@ class NativeRoute:
         N, n, n_full, nb = sys.N, sys.n, sys.n_full, sys.s.n_beams
         no = nb * sys.beam_kernel.n_out
         g_full = buf[no + N : no + N + n_full]
-        return Assembled(buf[no : no + n], buf[no + N + n_full :].reshape(N, N)[:n, :n], np.zeros(0),
-                         np.zeros((0, n)), buf[:no].reshape(nb, -1)[:, 156:162], np.zeros(0),
-                         lambda: sys.chart_correction(g_full))
+        return Assembled(
+            buf[no : no + n],
+            buf[no + N + n_full :].reshape(N, N)[:n, :n],
+            np.zeros(0),
+            np.zeros((0, n)),
+            buf[:no].reshape(nb, -1)[:, 156:162],
+            np.zeros(0),
+            lambda: sys.chart_correction(g_full),
+        )

@@ -29,9 +29,18 @@ from .errors import MassUnderflowError, SceneError
 from .scene import Beam, RectangularSection
 from .structure import Structure
 
-__all__ = ["MassUnderflowError", "check_mass", "FreeMotion", "free_motions", "check_free_motions",
-           "stiff_axis_drives", "member_of_master", "MASS_FLOOR", "OMEGA2_CEILING",
-           "MECHANISM_MAX_COLUMNS"]
+__all__ = [
+    "MassUnderflowError",
+    "check_mass",
+    "FreeMotion",
+    "free_motions",
+    "check_free_motions",
+    "stiff_axis_drives",
+    "member_of_master",
+    "MASS_FLOOR",
+    "OMEGA2_CEILING",
+    "MECHANISM_MAX_COLUMNS",
+]
 
 #: Smallest segment mass or rotary inertia accepted: a thousand times the smallest normal double
 #: (2.2e-308); below it the Cholesky factor of the mass matrix loses every significant digit.
@@ -87,15 +96,21 @@ def check_mass(structure: Structure) -> None:
                 where,
                 f"mass underflow: element '{el.name}' has a segment mass or rotary inertia of {small:.3g} "
                 f"(double precision ends near 2.2e-308) from {what} with density {mat.density:.3g} kg/m^3; give "
-                "the section dimensions in metres (a leaf is typically 1e-5 to 1e-2 m thick)")
-        if not w2 < OMEGA2_CEILING and small >= MASS_FLOOR and DENSITY_PLAUSIBLE[0] <= mat.density <= DENSITY_PLAUSIBLE[1]:
+                "the section dimensions in metres (a leaf is typically 1e-5 to 1e-2 m thick)",
+            )
+        if (
+            not w2 < OMEGA2_CEILING
+            and small >= MASS_FLOOR
+            and DENSITY_PLAUSIBLE[0] <= mat.density <= DENSITY_PLAUSIBLE[1]
+        ):
             # a real solid's density and a resolvable mass: the modulus is what makes omega^2 overflow
             i = mat_index[mat.name]
             raise MassUnderflowError(
                 f"materials[{i}].E",
                 f"omega^2 overflow: Young's modulus {mat.E:.3g} of material '{mat.name}' over its density "
                 f"{mat.density:.3g} kg/m^3 gives element '{el.name}' an omega^2 of order {w2:.3g} 1/s^2, beyond "
-                "what a double holds; give E in Pa (steel: 2.1e11 Pa)")
+                "what a double holds; give E in Pa (steel: 2.1e11 Pa)",
+            )
         if small < MASS_FLOOR or not w2 < OMEGA2_CEILING:
             i = mat_index[mat.name]
             raise MassUnderflowError(
@@ -104,11 +119,15 @@ def check_mass(structure: Structure) -> None:
                 f"a segment mass or rotary inertia of {small:.3g} (double precision ends near 2.2e-308) and "
                 + (f"omega^2 of order {w2:.3g} 1/s^2" if np.isfinite(w2) else "an omega^2 that overflows")
                 + ", beyond what a double holds; give the density in the scene's mass unit per length unit "
-                "cubed (steel: 7800 kg/m^3)")
+                "cubed (steel: 7800 kg/m^3)",
+            )
     for i, b in enumerate(scene.bodies):
         if b.mass < MASS_FLOOR:
-            raise MassUnderflowError(f"bodies[{i}].mass", f"mass underflow: body '{b.name}' has mass "
-                                     f"{b.mass:.3g}, below what double precision resolves; give it in kg")
+            raise MassUnderflowError(
+                f"bodies[{i}].mass",
+                f"mass underflow: body '{b.name}' has mass "
+                f"{b.mass:.3g}, below what double precision resolves; give it in kg",
+            )
 
 
 def member_of_master(structure: Structure, master: str) -> str:
@@ -171,10 +190,10 @@ def free_motions(structure: Structure) -> list[FreeMotion]:
         if any(anchored[i] for i in comp):
             continue
         loose |= comp
-        els = sorted({member_names[int(e)] for e, nd in zip(s.beam_member, s.beam_nodes)
-                      if s.node_master[nd[0]] in comp}
-                     | {member_names[int(e)] for e, nd in zip(s.truss_member, s.truss_nodes)
-                        if s.node_master[nd[0]] in comp})
+        els = sorted(
+            {member_names[int(e)] for e, nd in zip(s.beam_member, s.beam_nodes) if s.node_master[nd[0]] in comp}
+            | {member_names[int(e)] for e, nd in zip(s.truss_member, s.truss_nodes) if s.node_master[nd[0]] in comp}
+        )
         names = sorted({member_of_master(s, s.master_names[i]) for i in comp if "#" not in s.master_names[i]})
         out.append(FreeMotion("unconnected", tuple(els), tuple(names), 6))
     rows = [(0, i, k) for i in range(s.n_beams) for k in range(6)] + [(1, i, 0) for i in range(len(s.truss_nodes))]
@@ -201,10 +220,18 @@ def free_motions(structure: Structure) -> list[FreeMotion]:
         size[s.master_names.index(m)] = max(size[s.master_names.index(m)], float(np.abs(null[j]).max()))
     moving = [i for i in range(nm) if size[i] > 1e-6]
     names = sorted({member_of_master(s, s.master_names[i]) for i in moving})
-    els = sorted({member_names[int(e)] for e, nd in zip(s.beam_member, s.beam_nodes)
-                  if {int(s.node_master[nd[0]]), int(s.node_master[nd[1]])} & set(moving)}
-                 | {member_names[int(e)] for e, nd in zip(s.truss_member, s.truss_nodes)
-                    if {int(s.node_master[nd[0]]), int(s.node_master[nd[1]])} & set(moving)})
+    els = sorted(
+        {
+            member_names[int(e)]
+            for e, nd in zip(s.beam_member, s.beam_nodes)
+            if {int(s.node_master[nd[0]]), int(s.node_master[nd[1]])} & set(moving)
+        }
+        | {
+            member_names[int(e)]
+            for e, nd in zip(s.truss_member, s.truss_nodes)
+            if {int(s.node_master[nd[0]]), int(s.node_master[nd[1]])} & set(moving)
+        }
+    )
     out.append(FreeMotion("mechanism", tuple(els), tuple(names), int(null.shape[1])))
     return out
 
@@ -224,19 +251,24 @@ def check_free_motions(structure: Structure) -> None:
     msgs = []
     for f in found:
         if f.kind == "unconnected":
-            part = (f"element{'s' if len(f.elements) > 1 else ''} {', '.join(repr(e) for e in f.elements)} "
-                    f"(nodes {', '.join(repr(n) for n in f.nodes)})" if f.elements
-                    else ", ".join(repr(n) for n in f.nodes))
+            part = (
+                f"element{'s' if len(f.elements) > 1 else ''} {', '.join(repr(e) for e in f.elements)} "
+                f"(nodes {', '.join(repr(n) for n in f.nodes)})"
+                if f.elements
+                else ", ".join(repr(n) for n in f.nodes)
+            )
             msgs.append(
                 f"{part} {'are' if len(f.elements) > 1 else 'is'} not connected to any support or to the driven "
                 "part: nothing holds it (6 free rigid-body motions); connect it to the structure, support it, "
-                "or remove it")
+                "or remove it"
+            )
         else:
             msgs.append(
                 f"{f.count} free motion{'s' if f.count > 1 else ''} beyond the drive (a mechanism: "
                 f"{', '.join(repr(n) for n in f.nodes)} move{'s' if len(f.nodes) == 1 else ''} without deforming "
                 f"any element{' of ' + ', '.join(repr(e) for e in f.elements) if f.elements else ''}); support "
-                "the moving parts or add elements that hold them ('flexopt diagnose' lists the motions)")
+                "the moving parts or add elements that hold them ('flexopt diagnose' lists the motions)"
+            )
     raise SceneError(field, "; ".join(msgs))
 
 
@@ -280,7 +312,9 @@ def stiff_axis_drives(structure: Structure) -> list[str]:
         y_new = (y_new if y_new[np.argmax(np.abs(y_new))] > 0 else -y_new) + 0.0  # + 0.0: no "-0"
         fmt = "(" + ", ".join(f"{v:.4g}" for v in y_new) + ")"
         swap = " or swap its width and thickness" if isinstance(el.section, RectangularSection) else ""
-        out.append(f"the drive bends beam '{el.name}' about its stiff section axis (bending stiffness "
-                   f"{k_b / k_p:.3g} times that about the other axis), so it buckles laterally "
-                   f"(lateral-torsional buckling); set elements[{ie}].y_axis to {fmt}{swap}")
+        out.append(
+            f"the drive bends beam '{el.name}' about its stiff section axis (bending stiffness "
+            f"{k_b / k_p:.3g} times that about the other axis), so it buckles laterally "
+            f"(lateral-torsional buckling); set elements[{ie}].y_axis to {fmt}{swap}"
+        )
     return out

@@ -55,10 +55,31 @@ from .results import FrequencyCurve, ResultWarning
 from .scene import Beam, RectangularSection, Scene
 
 __all__ = [
-    "SLENDER_MIN", "PLATE_MAX", "SHEAR_NOTICE", "KAPPA", "MESH_RTOL", "ALLOWABLE_OVER_E_MAX", "WAVE_SPEED",
-    "G_OVER_E", "EXTENT_MAX", "RADIAN_RTOL", "STRAIN_MAX", "STRICT_KINDS", "SI_UNITS",
-    "stress_warnings", "strain_warnings", "slenderness_warnings", "mesh_warnings", "units_warnings", "scene_warnings",
-    "curve_warnings", "scene_hash", "input_units", "provenance", "annotate_curve", "annotate_diagnosis",
+    "SLENDER_MIN",
+    "PLATE_MAX",
+    "SHEAR_NOTICE",
+    "KAPPA",
+    "MESH_RTOL",
+    "ALLOWABLE_OVER_E_MAX",
+    "WAVE_SPEED",
+    "G_OVER_E",
+    "EXTENT_MAX",
+    "RADIAN_RTOL",
+    "STRAIN_MAX",
+    "STRICT_KINDS",
+    "SI_UNITS",
+    "stress_warnings",
+    "strain_warnings",
+    "slenderness_warnings",
+    "mesh_warnings",
+    "units_warnings",
+    "scene_warnings",
+    "curve_warnings",
+    "scene_hash",
+    "input_units",
+    "provenance",
+    "annotate_curve",
+    "annotate_diagnosis",
 ]
 
 SLENDER_MIN = 10.0  # L / h below this: outside Euler-Bernoulli theory (shear deformation)
@@ -119,8 +140,13 @@ def stress_warnings(curve: FrequencyCurve) -> list[ResultWarning]:
     out: list[ResultWarning] = []
     if not curve.max_von_mises:
         if len(curve.stroke):
-            out.append(ResultWarning("notice", f"stresses not computed by method '{curve.method}': nothing was "
-                                     "checked against the allowable stress; run method 'exact' to check them"))
+            out.append(
+                ResultWarning(
+                    "notice",
+                    f"stresses not computed by method '{curve.method}': nothing was "
+                    "checked against the allowable stress; run method 'exact' to check them",
+                )
+            )
         return out
     s = np.asarray(curve.stroke, dtype=float)
     unit = curve.stroke_unit
@@ -130,20 +156,31 @@ def stress_warnings(curve: FrequencyCurve) -> list[ResultWarning]:
         if allow is None or not len(vm):
             continue
         if np.isnan(vm).all():
-            out.append(ResultWarning("notice", f"{member}: stress not checked (its section has no fibre distances "
-                                     "cy, cz); give them to check the allowable stress", element=member))
+            out.append(
+                ResultWarning(
+                    "notice",
+                    f"{member}: stress not checked (its section has no fibre distances "
+                    "cy, cz); give them to check the allowable stress",
+                    element=member,
+                )
+            )
             continue
         over = np.nan_to_num(vm, nan=-np.inf) > allow
         for i, j in _runs(over):
             a = float(s[i]) if i == 0 else _crossing(s, vm, i - 1, i, allow)
             b = float(s[j]) if j == len(s) - 1 else _crossing(s, vm, j, j + 1, allow)
-            peak = float(np.nanmax(vm[i:j + 1]))
-            out.append(ResultWarning(
-                "stress",
-                f"{member}: von Mises stress reaches {peak / 1e6:.4g} MPa, {peak / allow:.3g} times its allowable "
-                f"{allow / 1e6:.4g} MPa, for stroke {a:.4g} to {b:.4g} {unit}; reduce the stroke or the "
-                "thickness, or use a material with a higher allowable stress",
-                element=member, stroke_range=(a, b), value=peak / allow))
+            peak = float(np.nanmax(vm[i : j + 1]))
+            out.append(
+                ResultWarning(
+                    "stress",
+                    f"{member}: von Mises stress reaches {peak / 1e6:.4g} MPa, {peak / allow:.3g} times its allowable "
+                    f"{allow / 1e6:.4g} MPa, for stroke {a:.4g} to {b:.4g} {unit}; reduce the stroke or the "
+                    "thickness, or use a material with a higher allowable stress",
+                    element=member,
+                    stroke_range=(a, b),
+                    value=peak / allow,
+                )
+            )
     return out
 
 
@@ -183,14 +220,19 @@ def strain_warnings(curve: FrequencyCurve, scene: Scene) -> list[ResultWarning]:
         for i, j in _runs(over):
             a = float(s[i]) if i == 0 else _crossing(s, eps, i - 1, i, STRAIN_MAX)
             b = float(s[j]) if j == len(s) - 1 else _crossing(s, eps, j, j + 1, STRAIN_MAX)
-            peak = float(np.nanmax(eps[i:j + 1]))
-            out.append(ResultWarning(
-                "validity",
-                f"{member}: strain reaches {100 * peak:.3g} % (von Mises stress / E) for stroke {a:.4g} to {b:.4g} "
-                f"{unit}, beyond the {100 * STRAIN_MAX:g} % to which this small-strain beam holds (and beyond the "
-                "elastic range of metals): the frequencies there are outside the model; reduce the stroke or "
-                "lengthen the member",
-                element=member, stroke_range=(a, b), value=peak))
+            peak = float(np.nanmax(eps[i : j + 1]))
+            out.append(
+                ResultWarning(
+                    "validity",
+                    f"{member}: strain reaches {100 * peak:.3g} % (von Mises stress / E) for stroke {a:.4g} to {b:.4g} "
+                    f"{unit}, beyond the {100 * STRAIN_MAX:g} % to which this small-strain beam holds (and beyond the "
+                    "elastic range of metals): the frequencies there are outside the model; reduce the stroke or "
+                    "lengthen the member",
+                    element=member,
+                    stroke_range=(a, b),
+                    value=peak,
+                )
+            )
     return out
 
 
@@ -237,33 +279,45 @@ def slenderness_warnings(scene: Scene) -> list[ResultWarning]:
         ratio = mat.E / (KAPPA * mat.G)
         if L / h < SLENDER_MIN:
             share = ratio * (h / L) ** 2
-            out.append(ResultWarning(
-                "validity",
-                f"{e.name}: L/t = {L / h:.3g} (t = {1e3 * h:.3g} mm, its thinner section depth) is below "
-                f"{SLENDER_MIN:g}, outside the beam theory used here (Euler-Bernoulli): shear would add "
-                f"{100 * share:.3g} % to its bending compliance (Timoshenko); "
-                "make the member longer or thinner, or check it with a solid or shell model",
-                element=e.name, value=L / h))
+            out.append(
+                ResultWarning(
+                    "validity",
+                    f"{e.name}: L/t = {L / h:.3g} (t = {1e3 * h:.3g} mm, its thinner section depth) is below "
+                    f"{SLENDER_MIN:g}, outside the beam theory used here (Euler-Bernoulli): shear would add "
+                    f"{100 * share:.3g} % to its bending compliance (Timoshenko); "
+                    "make the member longer or thinner, or check it with a solid or shell model",
+                    element=e.name,
+                    value=L / h,
+                )
+            )
         if L / w < PLATE_MAX:
             nu = mat.E / (2 * mat.G) - 1.0
             factor = 1.0 / (1.0 - nu**2) if -1.0 < nu < 1.0 else float("nan")
-            out.append(ResultWarning(
-                "validity",
-                f"{e.name}: L/w = {L / w:.3g} (w = {1e3 * w:.3g} mm, its wider section depth) is below "
-                f"{PLATE_MAX:g}: wider than long, a plate rather than a beam "
-                f"(bending stiffness up to {factor:.3g} times the beam's, clamps restrain anticlastic "
-                "curvature); make it narrower or check it with a plate or shell model",
-                element=e.name, value=L / w))
+            out.append(
+                ResultWarning(
+                    "validity",
+                    f"{e.name}: L/w = {L / w:.3g} (w = {1e3 * w:.3g} mm, its wider section depth) is below "
+                    f"{PLATE_MAX:g}: wider than long, a plate rather than a beam "
+                    f"(bending stiffness up to {factor:.3g} times the beam's, clamps restrain anticlastic "
+                    "curvature); make it narrower or check it with a plate or shell model",
+                    element=e.name,
+                    value=L / w,
+                )
+            )
         elif ratio * (w / L) ** 2 > SHEAR_NOTICE:
             share = ratio * (w / L) ** 2
-            out.append(ResultWarning(
-                "notice",
-                f"{e.name}: L/w = {L / w:.3g} (w = {1e3 * w:.3g} mm): shear, which this beam neglects, would add "
-                f"{100 * share:.3g} % to "
-                f"its compliance across the width (Timoshenko, clamped-guided): support stiffness across the "
-                f"width is overestimated and modes bending it about its stiff axis read up to "
-                f"{100 * (math.sqrt(1 + share) - 1):.3g} % high",
-                element=e.name, value=share))
+            out.append(
+                ResultWarning(
+                    "notice",
+                    f"{e.name}: L/w = {L / w:.3g} (w = {1e3 * w:.3g} mm): shear, which this beam neglects, would add "
+                    f"{100 * share:.3g} % to "
+                    f"its compliance across the width (Timoshenko, clamped-guided): support stiffness across the "
+                    f"width is overestimated and modes bending it about its stiff axis read up to "
+                    f"{100 * (math.sqrt(1 + share) - 1):.3g} % high",
+                    element=e.name,
+                    value=share,
+                )
+            )
     return out
 
 
@@ -273,9 +327,14 @@ def mesh_warnings(curve: FrequencyCurve, rtol: float = MESH_RTOL) -> list[Result
     err = curve.mesh_error
     if err is None or not np.isfinite(err) or abs(err) <= rtol:
         return []
-    return [ResultWarning(
-        "mesh", f"the first parasitic frequency is estimated to be {100 * abs(err):.2g} % from its converged-mesh "
-        f"value (limit {100 * rtol:g} %); raise the members' segments", value=float(abs(err)))]
+    return [
+        ResultWarning(
+            "mesh",
+            f"the first parasitic frequency is estimated to be {100 * abs(err):.2g} % from its converged-mesh "
+            f"value (limit {100 * rtol:g} %); raise the members' segments",
+            value=float(abs(err)),
+        )
+    ]
 
 
 # ------------------------------------------------------------------------------------------------ units
@@ -303,30 +362,52 @@ def units_warnings(scene: Scene) -> list[ResultWarning]:
     out: list[ResultWarning] = []
     for m in scene.materials:
         if m.allowable_stress > ALLOWABLE_OVER_E_MAX * m.E:
-            out.append(ResultWarning(
-                "units", f"material '{m.name}': allowable stress {m.allowable_stress:.4g} Pa is "
-                f"{m.allowable_stress / m.E:.3g} times E = {m.E:.4g} Pa; E and the allowable stress look as if "
-                "given in different units (E in MPa?); give both in Pa or add a units block",
-                value=m.allowable_stress / m.E))
+            out.append(
+                ResultWarning(
+                    "units",
+                    f"material '{m.name}': allowable stress {m.allowable_stress:.4g} Pa is "
+                    f"{m.allowable_stress / m.E:.3g} times E = {m.E:.4g} Pa; E and the allowable stress look as if "
+                    "given in different units (E in MPa?); give both in Pa or add a units block",
+                    value=m.allowable_stress / m.E,
+                )
+            )
         c = math.sqrt(m.E / m.density)
         if not WAVE_SPEED[0] <= c <= WAVE_SPEED[1]:
             read = input_units(scene)
-            how = ("E [Pa] and density [kg/m^3] look as if given in other units; fix them or add a units block"
-                   if read is None else f"the scene's E was read in {read['stress']} and its density in "
-                   f"{read['density']}; give them in those units or name theirs in the units block")
-            out.append(ResultWarning(
-                "units", f"material '{m.name}': sqrt(E / density) = {c:.4g} m/s is outside the {WAVE_SPEED[0]:g} "
-                f"to {WAVE_SPEED[1]:g} m/s of solids; {how}", value=c))
+            how = (
+                "E [Pa] and density [kg/m^3] look as if given in other units; fix them or add a units block"
+                if read is None
+                else f"the scene's E was read in {read['stress']} and its density in "
+                f"{read['density']}; give them in those units or name theirs in the units block"
+            )
+            out.append(
+                ResultWarning(
+                    "units",
+                    f"material '{m.name}': sqrt(E / density) = {c:.4g} m/s is outside the {WAVE_SPEED[0]:g} "
+                    f"to {WAVE_SPEED[1]:g} m/s of solids; {how}",
+                    value=c,
+                )
+            )
         if not G_OVER_E[0] <= m.G / m.E <= G_OVER_E[1]:
-            out.append(ResultWarning(
-                "units", f"material '{m.name}': G / E = {m.G / m.E:.3g} (isotropic solids: 1/3 to 1/2); E and G "
-                "look as if given in different units", value=m.G / m.E))
+            out.append(
+                ResultWarning(
+                    "units",
+                    f"material '{m.name}': G / E = {m.G / m.E:.3g} (isotropic solids: 1/3 to 1/2); E and G "
+                    "look as if given in different units",
+                    value=m.G / m.E,
+                )
+            )
     pos = np.array([n.position for n in scene.nodes], dtype=float)
     extent = float(np.ptp(pos, axis=0).max())
     if extent > EXTENT_MAX:
-        out.append(ResultWarning(
-            "units", f"the scene spans {extent:.4g} m; lengths look as if given in mm; give them in m or add "
-            "\"units\": {\"length\": \"mm\"}", value=extent))
+        out.append(
+            ResultWarning(
+                "units",
+                f"the scene spans {extent:.4g} m; lengths look as if given in mm; give them in m or add "
+                '"units": {"length": "mm"}',
+                value=extent,
+            )
+        )
     st = scene.stroke
     if st is not None:
         ends = [x for x in (st.start, st.stop) if x is not None]
@@ -334,19 +415,33 @@ def units_warnings(scene: Scene) -> list[ResultWarning]:
             odd = [x for x in ends if _radian_like(x)]
             if odd:
                 x = max(odd, key=abs)
-                out.append(ResultWarning(
-                    "units", f"stroke {x:g} deg is {math.degrees(x):.4g} deg if meant in radians; if so, set "
-                    "stroke.unit to 'rad' (or give the stroke in degrees)", value=x))
+                out.append(
+                    ResultWarning(
+                        "units",
+                        f"stroke {x:g} deg is {math.degrees(x):.4g} deg if meant in radians; if so, set "
+                        "stroke.unit to 'rad' (or give the stroke in degrees)",
+                        value=x,
+                    )
+                )
         elif st.kind == "rotation" and any(abs(x) > 2 * math.pi for x in ends):
             x = max(ends, key=abs)
-            out.append(ResultWarning(
-                "units", f"stroke {x:g} rad is more than a turn; if meant in degrees, set stroke.unit to 'deg'",
-                value=x))
+            out.append(
+                ResultWarning(
+                    "units",
+                    f"stroke {x:g} rad is more than a turn; if meant in degrees, set stroke.unit to 'deg'",
+                    value=x,
+                )
+            )
         elif st.kind == "translation" and ends and max(abs(x) for x in ends) > extent:
             x = max(ends, key=abs)
-            out.append(ResultWarning(
-                "units", f"stroke {x:g} m is larger than the scene ({extent:.4g} m); give it in the scene's length "
-                "unit (m, or the units block's)", value=x))
+            out.append(
+                ResultWarning(
+                    "units",
+                    f"stroke {x:g} m is larger than the scene ({extent:.4g} m); give it in the scene's length "
+                    "unit (m, or the units block's)",
+                    value=x,
+                )
+            )
     return out
 
 
@@ -407,8 +502,13 @@ def input_units(scene: Scene) -> dict[str, str] | None:
 def provenance(scene: Scene, method: str, settings: dict[str, Any]) -> dict[str, Any]:
     """What produced a result: flexopt version, scene hash (:func:`scene_hash`), method, solver settings,
     and the units the scene file was written in (:func:`input_units`) when it had a units block."""
-    out = {"flexopt_version": _version(), "scene_sha256": scene_hash(scene), "method": method,
-           "settings": settings, "units": SI_UNITS}
+    out = {
+        "flexopt_version": _version(),
+        "scene_sha256": scene_hash(scene),
+        "method": method,
+        "settings": settings,
+        "units": SI_UNITS,
+    }
     read = input_units(scene)
     if read is not None:
         out["input_units"] = read
@@ -452,15 +552,21 @@ def annotate_curve(curve: FrequencyCurve, scene: Scene, options: Any = None) -> 
         "segments": {e.name: e.segments for e in scene.elements},
         **{k: v for k, v in curve.solver.items() if k in ("tol", "auto_tolerance")},
     }
-    prov = {**provenance(scene, curve.method, settings), **{k: v for k, v in curve.provenance.items()
-                                                            if k not in ("method", "settings")}}
+    prov = {
+        **provenance(scene, curve.method, settings),
+        **{k: v for k, v in curve.provenance.items() if k not in ("method", "settings")},
+    }
     conv = {**curve.conventions, "units": f"{SI_UNITS}; stroke in {curve.stroke_unit}"}
-    return replace(curve, warnings=_merge(curve.warnings, curve_warnings(curve, scene)), provenance=prov,
-                   conventions=conv)
+    return replace(
+        curve, warnings=_merge(curve.warnings, curve_warnings(curve, scene)), provenance=prov, conventions=conv
+    )
 
 
 def annotate_diagnosis(diag: Any, scene: Scene, settings: dict[str, Any]) -> Any:
     """An exact-constraint diagnosis with the scene's checks and its provenance attached (idempotent)."""
     method = "exact-constraint " + ("(kinematic idealisation)" if diag.kinematic else "(declared rigid deformations)")
-    return replace(diag, warnings=_merge(tuple(diag.warnings), scene_warnings(scene)),
-                   provenance=provenance(scene, method, settings))
+    return replace(
+        diag,
+        warnings=_merge(tuple(diag.warnings), scene_warnings(scene)),
+        provenance=provenance(scene, method, settings),
+    )

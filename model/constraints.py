@@ -56,8 +56,19 @@ from .results import ResultWarning
 from .scene import Beam, GeneralSection, RectangularSection, Truss, expand_modes
 from .structure import Structure
 
-__all__ = ["ConstraintDiagnosis", "kinematic_rigid_set", "partition", "split_label", "columns", "jacobian_rows",
-           "sign_fix", "deformation_label", "RANK_RTOL", "NEAR_RTOL", "DEFORMATION_NAMES"]
+__all__ = [
+    "ConstraintDiagnosis",
+    "kinematic_rigid_set",
+    "partition",
+    "split_label",
+    "columns",
+    "jacobian_rows",
+    "sign_fix",
+    "deformation_label",
+    "RANK_RTOL",
+    "NEAR_RTOL",
+    "DEFORMATION_NAMES",
+]
 
 RANK_RTOL = 1e-8
 NEAR_RTOL = 1e-4
@@ -225,11 +236,15 @@ class ConstraintDiagnosis:
         ]
         lines += [f"note: {n}" for n in self.notes]
         if self.rank:
-            lines.append(f"smallest non-zero singular value {self.smallest_nonzero_singular_value:.4g}, "
-                         f"condition number {self.condition_number:.4g} (L_c = {self.characteristic_length:.4g})")
+            lines.append(
+                f"smallest non-zero singular value {self.smallest_nonzero_singular_value:.4g}, "
+                f"condition number {self.condition_number:.4g} (L_c = {self.characteristic_length:.4g})"
+            )
             if self.almost_singular:
-                lines.append("warning: almost singular: a small imperfection could make the design over- or "
-                             "underconstrained; constraint forces grow as 1/sigma_min")
+                lines.append(
+                    "warning: almost singular: a small imperfection could make the design over- or "
+                    "underconstrained; constraint forces grow as 1/sigma_min"
+                )
         for i, mode in enumerate(self.kinematic_modes):
             lines.append(f"kinematic mode {i + 1} (free motion):")
             for name, vel in mode.items():
@@ -352,8 +367,11 @@ def columns(s: Structure) -> tuple[np.ndarray, list[str], list[str], np.ndarray]
                     d = s.drive_basis[:, k]
                     t[start : start + 3] = d
                     ax = [j for j in range(3) if abs(abs(d[j]) - 1.0) < 1e-14]
-                    lab = ("-" if ax and d[ax[0]] < 0 else "") + _AXES[b + ax[0]] if ax else \
-                        ("u" if b == 0 else "r") + "(" + ",".join(f"{c:.3g}" for c in d) + ")"
+                    lab = (
+                        ("-" if ax and d[ax[0]] < 0 else "") + _AXES[b + ax[0]]
+                        if ax
+                        else ("u" if b == 0 else "r") + "(" + ",".join(f"{c:.3g}" for c in d) + ")"
+                    )
                 else:
                     t[dof] = 1.0
                     lab = _AXES[b + k]
@@ -376,8 +394,18 @@ def jacobian_rows(s: Structure, X: np.ndarray, R: np.ndarray, rows: list[tuple[i
     De_b = De_t = None
     if s.n_beams:
         p, q = s.beam_nodes[:, 0], s.beam_nodes[:, 1]
-        a = np.hstack([xn[p], Rn[p].transpose(0, 2, 1).reshape(-1, 9), r[p], xn[q],
-                       Rn[q].transpose(0, 2, 1).reshape(-1, 9), r[q], s.beam_const, np.zeros((s.n_beams, 6))])
+        a = np.hstack(
+            [
+                xn[p],
+                Rn[p].transpose(0, 2, 1).reshape(-1, 9),
+                r[p],
+                xn[q],
+                Rn[q].transpose(0, 2, 1).reshape(-1, 9),
+                r[q],
+                s.beam_const,
+                np.zeros((s.n_beams, 6)),
+            ]
+        )
         out = np.asarray(compiled(beam_spec()[0])(a))
         De_b = out[:, 162:234].reshape(-1, 12, 6)  # [elem, col, row] (column-major 6 x 12)
     if len(s.truss_nodes):
@@ -388,8 +416,18 @@ def jacobian_rows(s: Structure, X: np.ndarray, R: np.ndarray, rows: list[tuple[i
     De_j = None
     if len(s.joint_nodes):
         p, q = s.joint_nodes[:, 0], s.joint_nodes[:, 1]
-        a = np.hstack([xn[p], Rn[p].transpose(0, 2, 1).reshape(-1, 9), r[p], xn[q],
-                       Rn[q].transpose(0, 2, 1).reshape(-1, 9), r[q], s.joint_const, np.zeros((len(p), 6))])
+        a = np.hstack(
+            [
+                xn[p],
+                Rn[p].transpose(0, 2, 1).reshape(-1, 9),
+                r[p],
+                xn[q],
+                Rn[q].transpose(0, 2, 1).reshape(-1, 9),
+                r[q],
+                s.joint_const,
+                np.zeros((len(p), 6)),
+            ]
+        )
         De_j = np.asarray(compiled(joint_spec()[0])(a))[:, 162:234].reshape(-1, 12, 6)
     for i, (kind, el, k) in enumerate(rows):
         nodes = (s.beam_nodes, s.truss_nodes, s.joint_nodes)[kind][el]

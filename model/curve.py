@@ -67,8 +67,9 @@ class Analysis(MeshAnalysis):
             return None
         return self.second
 
-    def _with_estimate(self, curve: FrequencyCurve, strokes: np.ndarray, fine: dict[float, float] | None,
-                       estimate: bool, how: str) -> FrequencyCurve:
+    def _with_estimate(
+        self, curve: FrequencyCurve, strokes: np.ndarray, fine: dict[float, float] | None, estimate: bool, how: str
+    ) -> FrequencyCurve:
         """``curve`` with its mesh estimate (when ``estimate``), the mesh convention and its checks."""
         t0 = time.perf_counter()
         err = None
@@ -77,21 +78,30 @@ class Analysis(MeshAnalysis):
             err = estimate_mesh_error(self, second, strokes, fine)
         if second is not None:
             other = f"{second.ratio:g} times" if second.refined else "half"
-            mesh = (f"mesh_error: Richardson estimate (order 2) from the same analysis on a mesh with {other} the "
-                    f"segments per beam, at a few stroke points (model.mesh){how}")
+            mesh = (
+                f"mesh_error: Richardson estimate (order 2) from the same analysis on a mesh with {other} the "
+                f"segments per beam, at a few stroke points (model.mesh){how}"
+            )
         else:
             mesh = "mesh_error: " + ((self.no_estimate or "") if estimate else "not estimated (asked not to)")
         mesh += f"; {self.auto_note}" if self.auto_note else ""
         seconds = curve.solver.get("seconds", 0.0) + time.perf_counter() - t0  # the curve's time includes it
-        curve = replace(curve, mesh_error=err, conventions={**curve.conventions, "mesh": mesh},
-                        solver={**curve.solver, "seconds": seconds})
+        curve = replace(
+            curve,
+            mesh_error=err,
+            conventions={**curve.conventions, "mesh": mesh},
+            solver={**curve.solver, "seconds": seconds},
+        )
         return annotate_curve(curve, self.scene, self.options)  # warnings and provenance (model.checks)
 
     @limited()  # one BLAS thread while it computes (model.threads)
     def frequency_curve(
-        self, stroke: np.ndarray | None = None, progress: Callable[[int, int], None] | None = None,
+        self,
+        stroke: np.ndarray | None = None,
+        progress: Callable[[int, int], None] | None = None,
         visit: Callable[[Equilibrium, Modes, list[str]], None] | None = None,
-        mesh_error: bool | None = None, mirror: bool = True,
+        mesh_error: bool | None = None,
+        mirror: bool = True,
     ) -> FrequencyCurve:
         """The exact frequency curve at ``stroke`` (stroke unit; default: the scene's stroke grid) with its
         mesh estimate, its checks' warnings and its provenance.
@@ -106,8 +116,7 @@ class Analysis(MeshAnalysis):
         want = mesh_error if mesh_error is not None else visit is None
         return self._with_estimate(curve, np.array(sorted(solved)), solved, want, "")
 
-    def method_curve(self, method: str, tolerance: float = 0.01, stroke: np.ndarray | None = None
-                     ) -> FrequencyCurve:
+    def method_curve(self, method: str, tolerance: float = 0.01, stroke: np.ndarray | None = None) -> FrequencyCurve:
         """The curve by ``method`` (:func:`model.methods.frequency_curve`) with the mesh estimate of the
         exact curve of this mesh: the estimate's points solved exactly on both meshes, so it is the exact
         curve's (to the Newton tolerance) whatever the method's own error. An exact curve (``exact``, or a
@@ -126,15 +135,17 @@ class Analysis(MeshAnalysis):
 
 
 @limited()
-def frequency_curve(scene: Scene, stroke: np.ndarray | None = None,
-                    progress: Callable[[int, int], None] | None = None) -> FrequencyCurve:
+def frequency_curve(
+    scene: Scene, stroke: np.ndarray | None = None, progress: Callable[[int, int], None] | None = None
+) -> FrequencyCurve:
     """Exact stroke-dependent natural frequencies of ``scene`` (see :class:`Analysis`)."""
     return Analysis(scene).frequency_curve(stroke, progress)
 
 
 @limited()
-def curve_with_method(analysis: Analysis | Scene, method: str, tolerance: float = 0.01,
-                      stroke: np.ndarray | None = None) -> FrequencyCurve:
+def curve_with_method(
+    analysis: Analysis | Scene, method: str, tolerance: float = 0.01, stroke: np.ndarray | None = None
+) -> FrequencyCurve:
     """The curve of ``analysis`` (or of a scene, through :class:`Analysis`) by ``method`` (one of
     :data:`model.methods.METHODS`) with the exact mesh's estimate (:meth:`Analysis.method_curve`)."""
     an = analysis if isinstance(analysis, Analysis) else Analysis(analysis)

@@ -22,8 +22,29 @@ from .methods.taylor import (
     taylor_curve,
 )
 
-__all__ = ["METHODS", "AUTO_ORDER", "CLUSTER_GAP", "ModalDerivatives", "modal_derivatives",
-           "hessian_second_derivative", "mass_derivatives", "frequency_curve", "curve_with_method",
-           "estimate_error", "eigen_curve", "taylor_curve"]
-_PRIVATE = (_curve_from, _first_parasitic, _hz, _manifold_state, _reduced_basis, _clusters, _eq_at, _prepare,
-            _Prepared, _to_reference_chart)  # re-exported for tests and older callers
+__all__ = [
+    "METHODS",
+    "AUTO_ORDER",
+    "CLUSTER_GAP",
+    "ModalDerivatives",
+    "modal_derivatives",
+    "hessian_second_derivative",
+    "mass_derivatives",
+    "frequency_curve",
+    "curve_with_method",
+    "estimate_error",
+    "eigen_curve",
+    "taylor_curve",
+]
+_PRIVATE = (
+    _curve_from,
+    _first_parasitic,
+    _hz,
+    _manifold_state,
+    _reduced_basis,
+    _clusters,
+    _eq_at,
+    _prepare,
+    _Prepared,
+    _to_reference_chart,
+)  # re-exported for tests and older callers

@@ -54,8 +54,14 @@ from .statics import Equilibrium
 from .structure import Structure
 from .templates import TEMPLATES, template
 
-__all__ = ["DesignScene", "trace_template", "StructureDerivative", "structure_derivative", "PointSensitivity",
-           "point_sensitivity"]
+__all__ = [
+    "DesignScene",
+    "trace_template",
+    "StructureDerivative",
+    "structure_derivative",
+    "PointSensitivity",
+    "point_sensitivity",
+]
 
 
 # ----------------------------------------------------------------------------- 1. template -> scene
@@ -108,8 +114,9 @@ def trace_template(name: str, params: dict, design: Sequence[str]) -> DesignScen
     full.update(params)
     for k in design:
         if k not in full:
-            raise FlexoptError(f"design.{k}: template '{name}' has no parameter '{k}'; "
-                               f"its parameters are {sorted(full)}")
+            raise FlexoptError(
+                f"design.{k}: template '{name}' has no parameter '{k}'; its parameters are {sorted(full)}"
+            )
     sym = ca.SX.sym("p", len(design))
     traced = dict(full)
     for i, k in enumerate(design):
@@ -117,8 +124,11 @@ def trace_template(name: str, params: dict, design: Sequence[str]) -> DesignScen
     leaves: list = []
     _leaves(fn(traced), leaves)
     values = np.array([float(full[k]) for k in design])
-    J = ca.Function("dscene", [sym], [ca.jacobian(ca.vertcat(*[ca.SX(v) for v in leaves]), sym)])(
-        values).full().reshape(len(leaves), len(design))
+    J = (
+        ca.Function("dscene", [sym], [ca.jacobian(ca.vertcat(*[ca.SX(v) for v in leaves]), sym)])(values)
+        .full()
+        .reshape(len(leaves), len(design))
+    )
     numeric = fn(full)
     dscene = tuple(_rebuild(numeric, iter(J[:, j])) for j in range(len(design)))
     return DesignScene(name, tuple(design), values, full, scene, numeric, dscene)
@@ -140,21 +150,27 @@ class StructureDerivative:
 
 
 def _check_scope(s: Structure) -> None:
-    bad = [e.name for e in s.scene.elements
-           if not (isinstance(e, Beam) and isinstance(e.section, RectangularSection))]
+    bad = [e.name for e in s.scene.elements if not (isinstance(e, Beam) and isinstance(e.section, RectangularSection))]
     if bad or len(s.constraints):
-        what = (f"elements {bad} are not beams with rectangular sections" if bad
-                else "some deformations are rigid (multipliers)")
-        raise FlexoptError(f"design sensitivities cover beams with rectangular sections and rigid bodies "
-                           f"without rigid deformations; in scene '{s.scene.name}' {what}: optimise a "
-                           "family built from rectangular leaves and bodies")
+        what = (
+            f"elements {bad} are not beams with rectangular sections"
+            if bad
+            else "some deformations are rigid (multipliers)"
+        )
+        raise FlexoptError(
+            f"design sensitivities cover beams with rectangular sections and rigid bodies "
+            f"without rigid deformations; in scene '{s.scene.name}' {what}: optimise a "
+            "family built from rectangular leaves and bodies"
+        )
     from .loads import has_loads
 
     if has_loads(s.scene):
         # the loads' gradient changes with the design (gravity with each segment's mass, a force with its
         # point's offset), which the implicit-function step below does not include yet
-        raise FlexoptError(f"design sensitivities do not include loads or gravity yet; scene '{s.scene.name}' has "
-                           "them: optimise without 'loads' and 'gravity', or check the design by frequency curves")
+        raise FlexoptError(
+            f"design sensitivities do not include loads or gravity yet; scene '{s.scene.name}' has "
+            "them: optimise without 'loads' and 'gravity', or check the design by frequency curves"
+        )
 
 
 def _segment_input(scene_dict: dict, ie: int, pos: dict, mats: dict) -> tuple[np.ndarray, float, str]:
@@ -162,8 +178,14 @@ def _segment_input(scene_dict: dict, ie: int, pos: dict, mats: dict) -> tuple[np
     sec = el["section"]
     m = mats[el["material"]]
     p, q = el["nodes"]
-    x = np.concatenate([pos[p], pos[q], np.asarray(el["y_axis"], float),
-                        [sec["width"], sec["thickness"], m["E"], m["G"], m["density"]]]).astype(float)
+    x = np.concatenate(
+        [
+            pos[p],
+            pos[q],
+            np.asarray(el["y_axis"], float),
+            [sec["width"], sec["thickness"], m["E"], m["G"], m["density"]],
+        ]
+    ).astype(float)
     return x, float(el.get("segments", 1)), sec.get("warping", "free")
 
 
@@ -192,7 +214,7 @@ def structure_derivative(s: Structure, scene_dict: dict, dscene: dict) -> Struct
     dmaster = np.zeros((nm, 3))
     dmass = np.zeros(nm)
     dJ = np.zeros((nm, 3, 3))
-    for i, (b, db) in enumerate(zip(bodies, dbodies)):
+    for i, db in enumerate(dbodies[: len(bodies)]):
         dmaster[i] = np.asarray(db["center_of_mass"], float)
         dmass[i] = float(db["mass"])
         dJ[i] = np.asarray(db["inertia"], float)
@@ -210,9 +232,14 @@ def structure_derivative(s: Structure, scene_dict: dict, dscene: dict) -> Struct
         el = dscene["elements"][ie]
         p, q = scene_dict["elements"][ie]["nodes"]
         dm = dmats[scene_dict["elements"][ie]["material"]]
-        dx = np.concatenate([dpos[p], dpos[q], np.asarray(el["y_axis"], float),
-                             [el["section"]["width"], el["section"]["thickness"], dm["E"], dm["G"],
-                              dm["density"]]]).astype(float)
+        dx = np.concatenate(
+            [
+                dpos[p],
+                dpos[q],
+                np.asarray(el["y_axis"], float),
+                [el["section"]["width"], el["section"]["thickness"], dm["E"], dm["G"], dm["density"]],
+            ]
+        ).astype(float)
         _, J = _el.beam_segment_design(warping)(x, n)
         d = np.asarray(J) @ dx
         dconst[rows, :15] = d[:15]
@@ -277,8 +304,9 @@ def _beam_inputs_change(fr: _Frame, u: np.ndarray, psi: np.ndarray, dr0: np.ndar
     return out
 
 
-def _jvp(fr: _Frame, da_state: np.ndarray, dconst: np.ndarray, hessian: bool = True
-         ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+def _jvp(
+    fr: _Frame, da_state: np.ndarray, dconst: np.ndarray, hessian: bool = True
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
     """Assembled ``dg`` (n), ``dH`` (n, n) and per-beam ``de`` (nb, 6) along a change of the beam inputs;
     with ``hessian=False`` only ``dg`` (the cheaper kernel), ``None`` for the others."""
     sys = fr.sys
@@ -304,8 +332,9 @@ def _mass_derivative(fr: _Frame, psi: np.ndarray, d: StructureDerivative) -> np.
     out = np.zeros(N * N)
     if s.n_beams:  # the cubic consistent mass (model.elements.beam_mass_spec), differentiated by CasADi
         nm = len(s.master_names)
-        da = np.hstack([_beam_inputs_change(fr, np.zeros((nm, 3)), psi, d.node_offset), d.beam_const,
-                        d.beam_mass[:, None]])
+        da = np.hstack(
+            [_beam_inputs_change(fr, np.zeros((nm, 3)), psi, d.node_offset), d.beam_const, d.beam_mass[:, None]]
+        )
         nc = _el.BEAM_STATE + _el.BEAM_CONST
         a = np.hstack([fr.beam_in[:, :nc], s.beam_mass[:, None]])
         blocks = compiled(_el.beam_mass_jvp_spec())(np.hstack([a, da]))
@@ -314,13 +343,19 @@ def _mass_derivative(fr: _Frame, psi: np.ndarray, d: StructureDerivative) -> np.
     diag = sys.pos[(6 * np.arange(nm)[:, None] + np.arange(3)).ravel()]
     np.add.at(out, diag * (N + 1), np.repeat(d.master_mass, 3))
     dRn = skew(psi[m]) @ Rm
-    dJn = (dRn @ s.node_rot_inertia @ Rm.transpose(0, 2, 1) + Rm @ d.node_rot_inertia @ Rm.transpose(0, 2, 1)
-           + Rm @ s.node_rot_inertia @ dRn.transpose(0, 2, 1))
+    dJn = (
+        dRn @ s.node_rot_inertia @ Rm.transpose(0, 2, 1)
+        + Rm @ d.node_rot_inertia @ Rm.transpose(0, 2, 1)
+        + Rm @ s.node_rot_inertia @ dRn.transpose(0, 2, 1)
+    )
     dJm = np.zeros((nm, 3, 3))
     np.add.at(dJm, m, dJn)
     dRb = skew(psi) @ st.R
-    dJm += (dRb @ s.master_inertia @ st.R.transpose(0, 2, 1) + st.R @ d.master_inertia @ st.R.transpose(0, 2, 1)
-            + st.R @ s.master_inertia @ dRb.transpose(0, 2, 1))
+    dJm += (
+        dRb @ s.master_inertia @ st.R.transpose(0, 2, 1)
+        + st.R @ d.master_inertia @ st.R.transpose(0, 2, 1)
+        + st.R @ s.master_inertia @ dRb.transpose(0, 2, 1)
+    )
     np.add.at(out, sys.rot_flat, dJm.ravel())
     out[(N - 1) * (N + 1)] = 0.0
     return sys.reduce_matrix(out.reshape(N, N))
@@ -348,8 +383,10 @@ def _bordered_lu(sys: System, eq: Equilibrium, A: np.ndarray) -> tuple:
         if not np.all(np.isfinite(lu[0])) or np.min(np.abs(np.diag(lu[0]))) == 0.0:
             raise np.linalg.LinAlgError("singular")
     except np.linalg.LinAlgError as exc:
-        raise FlexoptError(f"the tangent stiffness is singular at stroke {eq.stroke:.6g}: the equilibrium is at "
-                           "a limit point, where design derivatives do not exist; shorten the stroke") from exc
+        raise FlexoptError(
+            f"the tangent stiffness is singular at stroke {eq.stroke:.6g}: the equilibrium is at "
+            "a limit point, where design derivatives do not exist; shorten the stroke"
+        ) from exc
     return lu
 
 
@@ -364,8 +401,14 @@ def _eigen_clusters(lam: np.ndarray, cluster_gap: float) -> list[list[int]]:
     return groups
 
 
-def point_sensitivity(sys: System, eq: Equilibrium, modes: Modes, which: Sequence[int],
-                      dstructs: Sequence[StructureDerivative], cluster_gap: float = 1e-6) -> PointSensitivity:
+def point_sensitivity(
+    sys: System,
+    eq: Equilibrium,
+    modes: Modes,
+    which: Sequence[int],
+    dstructs: Sequence[StructureDerivative],
+    cluster_gap: float = 1e-6,
+) -> PointSensitivity:
     """Exact derivatives of the eigenvalues ``modes.omega2[which]`` (drive locked or free, as the scene says) and of the segment-end
     von Mises stresses at ``eq`` along each design direction (module docstring, steps 3-5).
 

@@ -34,14 +34,32 @@ rigid ones, so a rigid deformation is an exact constraint, not a penalty.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 
 import casadi as ca
 
-__all__ = ["KernelSpec", "beam_spec", "truss_spec", "BEAM_CONST", "TRUSS_CONST", "beam_input_jvp",
-           "beam_segment_design", "beam_von_mises", "beam_von_mises_squared", "rotation_update_spec",
-           "rotation_log_spec", "beam_mass_spec", "beam_mass_jvp_spec", "HERMITE_MASS", "point_load_spec",
-           "beam_gravity_spec", "POINT_LOAD_IN", "BEAM_GRAVITY_IN", "joint_spec", "JOINT_CONST"]
+__all__ = [
+    "KernelSpec",
+    "beam_spec",
+    "truss_spec",
+    "BEAM_CONST",
+    "TRUSS_CONST",
+    "beam_input_jvp",
+    "beam_segment_design",
+    "beam_von_mises",
+    "beam_von_mises_squared",
+    "rotation_update_spec",
+    "rotation_log_spec",
+    "beam_mass_spec",
+    "beam_mass_jvp_spec",
+    "HERMITE_MASS",
+    "point_load_spec",
+    "beam_gravity_spec",
+    "POINT_LOAD_IN",
+    "BEAM_GRAVITY_IN",
+    "joint_spec",
+    "JOINT_CONST",
+]
 
 # Layout of a beam's packed input vector.
 BEAM_STATE = 30  # xp(3) Rp(9, column-major) rp(3) xq(3) Rq(9) rq(3)
@@ -105,11 +123,7 @@ def _beam_deformations(xp, Rp, xq, Rq, l0, E0, ct) -> ca.SX:
     b4 = l0 * ca.dot(el, ezq)
     b5 = l0 * ca.dot(el, eyp)
     b6 = -l0 * ca.dot(el, eyq)
-    e1 = (
-        b1
-        + (2 * b3**2 + b3 * b4 + 2 * b4**2 + 2 * b5**2 + b5 * b6 + 2 * b6**2) / (30 * l0)
-        + ct * b2**2 / (2 * l0**3)
-    )
+    e1 = b1 + (2 * b3**2 + b3 * b4 + 2 * b4**2 + 2 * b5**2 + b5 * b6 + 2 * b6**2) / (30 * l0) + ct * b2**2 / (2 * l0**3)
     e2 = b2 + (-b3 * b6 + b4 * b5) / l0
     e3 = b3 + b2 * (b5 + b6) / (6 * l0)
     e4 = b4 - b2 * (b5 + b6) / (6 * l0)
@@ -130,8 +144,18 @@ def _beam_energy(e: ca.SX, k: ca.SX, mask: ca.SX, lam: ca.SX) -> ca.SX:
     return U + ca.dot(lam, (1 - mask) * e)
 
 
-def _finish(name: str, a: ca.SX, d: ca.SX, v: ca.SX, L: ca.SX, e: ca.SX, n_def: int, n_state: int,
-            n_const: int, dense: bool = False) -> tuple[KernelSpec, KernelSpec]:
+def _finish(
+    name: str,
+    a: ca.SX,
+    d: ca.SX,
+    v: ca.SX,
+    L: ca.SX,
+    e: ca.SX,
+    n_def: int,
+    n_state: int,
+    n_const: int,
+    dense: bool = False,
+) -> tuple[KernelSpec, KernelSpec]:
     g = ca.gradient(L, d)
     H = ca.jacobian(g, d)
     De = ca.jacobian(e, d)
@@ -165,7 +189,7 @@ def _beam_expr() -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
     return a, d, _beam_energy(e, k, mask, lam), e
 
 
-@lru_cache(maxsize=None)
+@cache
 def beam_spec() -> tuple[KernelSpec, KernelSpec]:
     """The spatial beam kernels (main input: state 30, const 21, lam 6; third-derivative input adds v 12)."""
     a, d, L, e = _beam_expr()
@@ -173,7 +197,7 @@ def beam_spec() -> tuple[KernelSpec, KernelSpec]:
     return _finish("flexopt_beam", a, d, v, L, e, 6, BEAM_STATE, BEAM_CONST)
 
 
-@lru_cache(maxsize=None)
+@cache
 def truss_spec() -> tuple[KernelSpec, KernelSpec]:
     """The truss kernels: elongation ``l - l0`` with stiffness ``EA/l0`` (state 12, const 3, lam 1; + v 12)."""
     a = ca.SX.sym("a", TRUSS_STATE + TRUSS_CONST + 1)
@@ -210,12 +234,12 @@ def _d4(a: ca.SX, d: ca.SX, v: ca.SX, L: ca.SX, name: str) -> ca.Function:
     return ca.Function(name, [ca.vertcat(a, v)], [out])
 
 
-@lru_cache(maxsize=None)
+@cache
 def beam_d4() -> ca.Function:
     """Second directional derivative of a beam's Hessian, ``sum_kl d4L/(dxi_i dxi_j dxi_k dxi_l) v_k v_l``."""
     a = ca.SX.sym("a", BEAM_STATE + BEAM_CONST + 6)
     v, d = ca.SX.sym("v", 12), ca.SX.sym("d", 12)
-    s, c = a[: BEAM_STATE], a[BEAM_STATE : BEAM_STATE + BEAM_CONST]
+    s, c = a[:BEAM_STATE], a[BEAM_STATE : BEAM_STATE + BEAM_CONST]
     lam = a[BEAM_STATE + BEAM_CONST :]
     xp, Rp = _end4(s[0:3], ca.reshape(s[3:12], 3, 3), s[12:15], d[0:3], d[3:6])
     xq, Rq = _end4(s[15:18], ca.reshape(s[18:27], 3, 3), s[27:30], d[6:9], d[9:12])
@@ -223,12 +247,12 @@ def beam_d4() -> ca.Function:
     return _d4(a, d, v, _beam_energy(e, c[10:14], c[15:21], lam), "flexopt_beam_d4")
 
 
-@lru_cache(maxsize=None)
+@cache
 def truss_d4() -> ca.Function:
     """Second directional derivative of a truss's Hessian (see :func:`beam_d4`)."""
     a = ca.SX.sym("a", TRUSS_STATE + TRUSS_CONST + 1)
     v, d = ca.SX.sym("v", 12), ca.SX.sym("d", 12)
-    s, c = a[: TRUSS_STATE], a[TRUSS_STATE : TRUSS_STATE + TRUSS_CONST]
+    s, c = a[:TRUSS_STATE], a[TRUSS_STATE : TRUSS_STATE + TRUSS_CONST]
     lam = a[TRUSS_STATE + TRUSS_CONST]
     xp, _ = _end4(s[0:3], None, s[3:6], d[0:3], d[3:6])
     xq, _ = _end4(s[6:9], None, s[9:12], d[6:9], d[9:12])
@@ -239,7 +263,7 @@ def truss_d4() -> ca.Function:
 
 
 # ----------------------------------------------------------------- design sensitivities
-@lru_cache(maxsize=None)
+@cache
 def beam_input_jvp() -> ca.Function:
     """Directional derivative of a beam's ``g`` (12), ``H`` (144, column-major) and ``e`` (6) at ``d = 0``
     along a change ``da`` of its whole packed input (state, constants, multipliers).
@@ -257,7 +281,7 @@ def beam_input_jvp() -> ca.Function:
     return ca.Function("flexopt_beam_jvp", [ca.vertcat(a, da)], [dout])
 
 
-@lru_cache(maxsize=None)
+@cache
 def beam_input_jvp_gradient() -> ca.Function:
     """The ``dg`` part (12) of :func:`beam_input_jvp` alone: the implicit-function step of the design
     sensitivities needs only the gradient's change, and the Hessian's is most of that kernel's work. The
@@ -268,14 +292,14 @@ def beam_input_jvp_gradient() -> ca.Function:
     return ca.Function("flexopt_beam_jvp_g", [ca.vertcat(a, da)], [dout])
 
 
-@lru_cache(maxsize=None)
+@cache
 def beam_jvp_gradient_spec() -> KernelSpec:
     """:func:`beam_input_jvp_gradient` as a compiled kernel (input 114, output 12)."""
     f = beam_input_jvp_gradient()
     return KernelSpec("flexopt_beam_jvp_g", f, f.size1_in(0), f.size1_out(0), 6, BEAM_STATE, BEAM_CONST)
 
 
-@lru_cache(maxsize=None)
+@cache
 def beam_jvp_spec() -> KernelSpec:
     """:func:`beam_input_jvp` as a compiled kernel (input 114, output 162)."""
     f = beam_input_jvp()
@@ -289,7 +313,7 @@ SEGMENT_OUT = 15 + 1 + 9 + 7
 SEGMENT_IN = 14
 
 
-@lru_cache(maxsize=None)
+@cache
 def beam_segment_design(warping: str) -> ca.Function:
     """Constants of a rectangular beam segment and their exact Jacobian with respect to the member's
     geometry, section and material: ``[x (14), n] -> [out (32), d out / d x (32 x 14)]``.
@@ -304,15 +328,28 @@ def beam_segment_design(warping: str) -> ca.Function:
     p, q, y = x[0:3], x[3:6], x[6:9]
     w, t, E, G, rho = x[9], x[10], x[11], x[12], x[13]
     props = rectangular_properties(w, t, warping)
-    seg = beam_segment([p[i] for i in range(3)], [q[i] for i in range(3)], [y[i] for i in range(3)], props,
-                       E, G, rho, n)
+    seg = beam_segment(
+        [p[i] for i in range(3)], [q[i] for i in range(3)], [y[i] for i in range(3)], props, E, G, rho, n
+    )
     E0 = seg["E0"]
     rot = seg["rot"]
     out = ca.vertcat(
-        seg["l0"], *[E0[i][j] for j in range(3) for i in range(3)],
-        seg["k1"], seg["k2"], seg["ky"], seg["kz"], props.ct, seg["mass"],
+        seg["l0"],
+        *[E0[i][j] for j in range(3) for i in range(3)],
+        seg["k1"],
+        seg["k2"],
+        seg["ky"],
+        seg["kz"],
+        props.ct,
+        seg["mass"],
         *[rot[i][j] for j in range(3) for i in range(3)],
-        props.A, props.Iy, props.Iz, props.cy, props.cz, props.tau_per_torque, seg["l0"],
+        props.A,
+        props.Iy,
+        props.Iz,
+        props.cy,
+        props.cz,
+        props.tau_per_torque,
+        seg["l0"],
     )
     assert out.numel() == SEGMENT_OUT
     return ca.Function("flexopt_segment_" + warping, [x, n], [out, ca.jacobian(out, x)])
@@ -323,8 +360,10 @@ def _von_mises_squared_expr() -> tuple[ca.SX, ca.SX]:
     sig, (A, Iy, Iz, cy, cz, tau, l0) = z[0:6], [z[6 + i] for i in range(7)]
     N = ca.fabs(sig[0]) / A
     T = ca.fabs(l0 * sig[1]) * tau
-    ends = [(N + ca.fabs(l0 * sig[iy]) * cz / Iy + ca.fabs(l0 * sig[iz]) * cy / Iz) ** 2 + 3 * T**2
-            for iy, iz in ((2, 4), (3, 5))]
+    ends = [
+        (N + ca.fabs(l0 * sig[iy]) * cz / Iy + ca.fabs(l0 * sig[iz]) * cy / Iz) ** 2 + 3 * T**2
+        for iy, iz in ((2, 4), (3, 5))
+    ]
     return z, ca.vertcat(*ends)
 
 
@@ -333,7 +372,7 @@ def _von_mises_expr() -> tuple[ca.SX, ca.SX]:
     return z, ca.sqrt(vm2)
 
 
-@lru_cache(maxsize=None)
+@cache
 def beam_von_mises() -> ca.Function:
     """Von Mises bound at both ends of a beam segment from its generalised stresses and section data.
 
@@ -346,7 +385,7 @@ def beam_von_mises() -> ca.Function:
     return ca.Function("flexopt_von_mises", [z], [vm, ca.jacobian(vm, z)])
 
 
-@lru_cache(maxsize=None)
+@cache
 def beam_von_mises_squared() -> ca.Function:
     """The square of :func:`beam_von_mises` at both segment ends and its Jacobian (2 x 13).
 
@@ -358,7 +397,7 @@ def beam_von_mises_squared() -> ca.Function:
     return ca.Function("flexopt_von_mises_squared", [z], [vm2, ca.jacobian(vm2, z)])
 
 
-@lru_cache(maxsize=None)
+@cache
 def von_mises_spec() -> KernelSpec:
     """The values of :func:`beam_von_mises` as a compiled kernel (the curve evaluates it at every point)."""
     z, vm = _von_mises_expr()
@@ -366,7 +405,7 @@ def von_mises_spec() -> KernelSpec:
 
 
 # ------------------------------------------------------------ rotation kernels (numeric use only)
-@lru_cache(maxsize=None)
+@cache
 def rotation_update_spec() -> KernelSpec:
     """``R_new = exp(skew(psi)) R`` per master: input ``[psi (3), R (9, column-major)]``, output R_new (9).
 
@@ -390,7 +429,7 @@ def rotation_update_spec() -> KernelSpec:
     return KernelSpec("flexopt_rot_update", f, 12, 9, 0, 12, 0)
 
 
-@lru_cache(maxsize=None)
+@cache
 def rotation_log_spec() -> KernelSpec:
     """``psi = log(R Rb^T)`` per master: input ``[R (9), Rb (9)]`` (column-major), output ``[psi (3),
     angle (1)]``.
@@ -417,10 +456,12 @@ def rotation_log_spec() -> KernelSpec:
 #: Integrals ``C_ab = int_0^1 H_a H_b dxi`` of the cubic Hermite shape functions ``H1 = 1 - 3 xi^2 + 2 xi^3``,
 #: ``H2 = xi - 2 xi^2 + xi^3``, ``H3 = 3 xi^2 - 2 xi^3``, ``H4 = xi^3 - xi^2`` (times 420: Przemieniecki's
 #: 156, 22, 54, -13, 4, 13, -3 pattern, Theory of Matrix Structural Analysis, 1968, ch. 11).
-HERMITE_MASS = [[156.0, 22.0, 54.0, -13.0],
-                [22.0, 4.0, 13.0, -3.0],
-                [54.0, 13.0, 156.0, -22.0],
-                [-13.0, -3.0, -22.0, 4.0]]
+HERMITE_MASS = [
+    [156.0, 22.0, 54.0, -13.0],
+    [22.0, 4.0, 13.0, -3.0],
+    [54.0, 13.0, 156.0, -22.0],
+    [-13.0, -3.0, -22.0, 4.0],
+]
 #: Input of :func:`beam_mass_spec`: the beam's state (30) and constants (21), then its mass ``rho A l0``.
 BEAM_MASS_IN = BEAM_STATE + BEAM_CONST + 1
 
@@ -435,8 +476,12 @@ def _beam_mass_expr() -> tuple[ca.SX, ca.SX]:
     l0, E0 = c[0], ca.reshape(c[1:10], 3, 3)
     tp, tq = Rp @ E0[:, 0], Rq @ E0[:, 0]
     Z, I3 = ca.SX.zeros(3, 3), ca.SX.eye(3)
-    B = [ca.horzcat(I3, -_skew(rp), Z, Z), ca.horzcat(Z, -l0 * _skew(tp), Z, Z),
-         ca.horzcat(Z, Z, I3, -_skew(rq)), ca.horzcat(Z, Z, Z, -l0 * _skew(tq))]
+    B = [
+        ca.horzcat(I3, -_skew(rp), Z, Z),
+        ca.horzcat(Z, -l0 * _skew(tp), Z, Z),
+        ca.horzcat(Z, Z, I3, -_skew(rq)),
+        ca.horzcat(Z, Z, Z, -l0 * _skew(tq)),
+    ]
     M = ca.SX.zeros(12, 12)
     for i in range(4):
         for j in range(4):
@@ -452,7 +497,7 @@ def _beam_mass_expr() -> tuple[ca.SX, ca.SX]:
     return a, M
 
 
-@lru_cache(maxsize=None)
+@cache
 def beam_mass_spec() -> KernelSpec:
     """Consistent translational mass of a beam segment for the cubic (Hermite) shape of its centre line.
 
@@ -491,7 +536,7 @@ def beam_mass_spec() -> KernelSpec:
     return KernelSpec("flexopt_beam_mass", f, BEAM_MASS_IN, 144, 6, BEAM_STATE, BEAM_CONST)
 
 
-@lru_cache(maxsize=None)
+@cache
 def beam_mass_jvp_spec() -> KernelSpec:
     """Directional derivative of :func:`beam_mass_spec`'s output along a change ``da`` of its whole input:
     ``[a, da]`` (2 x :data:`BEAM_MASS_IN`) -> ``dM`` (144, column-major); for design sensitivities."""
@@ -512,12 +557,14 @@ def _load_finish(name: str, a: ca.SX, d: ca.SX, V: ca.SX, n_in: int) -> KernelSp
     """A load potential's gradient and Hessian at ``d = 0`` (``[g, H column-major]``) as a kernel."""
     g = ca.gradient(V, d)
     H = ca.jacobian(g, d)
-    out = ca.densify(ca.substitute(ca.vertcat(g, ca.vec(H)), d, ca.DM.zeros(d.numel())))  # dense: the batch wrapper writes every entry
+    out = ca.densify(
+        ca.substitute(ca.vertcat(g, ca.vec(H)), d, ca.DM.zeros(d.numel()))
+    )  # dense: the batch wrapper writes every entry
     f = ca.Function(name, [a], [out], ["a"], ["out"])
     return KernelSpec(name, f, n_in, out.numel(), 0, n_in, 0)
 
 
-@lru_cache(maxsize=None)
+@cache
 def point_load_spec() -> KernelSpec:
     """A dead force ``F`` on a point carried by a master at offset ``r``: the potential ``V = -F . x(d)``
     with ``x(d) = x* + u + (exp(psi) - I) r`` (the element chart, module docstring), so ``g = -[F, r x F]``
@@ -529,7 +576,7 @@ def point_load_spec() -> KernelSpec:
     return _load_finish("flexopt_point_load", a, d, -ca.dot(a[3:6], x), POINT_LOAD_IN)
 
 
-@lru_cache(maxsize=None)
+@cache
 def beam_gravity_spec() -> KernelSpec:
     """Gravity on a beam segment, consistent with its mass (:func:`beam_mass_spec`): the potential of the
     weight of the cubic (Hermite) centre line, ``V = -m g . int_0^1 x(xi) dxi = -m g . (x_p / 2 + l0 t_p / 12
@@ -539,8 +586,8 @@ def beam_gravity_spec() -> KernelSpec:
     g (3)]``; output ``[g (12), H (144, column-major)]``."""
     a = ca.SX.sym("a", BEAM_GRAVITY_IN)
     d = ca.SX.sym("d", 12)
-    s, c = a[:BEAM_STATE], a[BEAM_STATE: BEAM_STATE + BEAM_CONST]
-    m, grav = a[BEAM_STATE + BEAM_CONST], a[BEAM_STATE + BEAM_CONST + 1:]
+    s, c = a[:BEAM_STATE], a[BEAM_STATE : BEAM_STATE + BEAM_CONST]
+    m, grav = a[BEAM_STATE + BEAM_CONST], a[BEAM_STATE + BEAM_CONST + 1 :]
     xp, Rp = _end(s[0:3], ca.reshape(s[3:12], 3, 3), s[12:15], d[0:3], d[3:6])
     xq, Rq = _end(s[15:18], ca.reshape(s[18:27], 3, 3), s[27:30], d[6:9], d[9:12])
     l0, E0 = c[0], ca.reshape(c[1:10], 3, 3)
@@ -571,7 +618,7 @@ def _joint_coordinates(xp, Rp, xq, Rq, d0, B) -> ca.SX:
     return -ca.vertcat(-d, s_a, s_1, s_2)  # rotations of q relative to p: positive about a, b1, b2
 
 
-@lru_cache(maxsize=None)
+@cache
 def joint_spec() -> tuple[KernelSpec, KernelSpec]:
     """An ideal joint between two nodes: its rigid joint coordinates are exact constraints (multipliers), its
     free ones carry no energy. A hinge (revolute) leaves the rotation about its axis free (mask ``[0, 0, 0, 1,
@@ -581,8 +628,8 @@ def joint_spec() -> tuple[KernelSpec, KernelSpec]:
     a = ca.SX.sym("a", BEAM_STATE + JOINT_CONST + 6)
     d = ca.SX.sym("d", 12)
     v = ca.SX.sym("v", 12)
-    s, c = a[:BEAM_STATE], a[BEAM_STATE: BEAM_STATE + JOINT_CONST]
-    lam = a[BEAM_STATE + JOINT_CONST:]
+    s, c = a[:BEAM_STATE], a[BEAM_STATE : BEAM_STATE + JOINT_CONST]
+    lam = a[BEAM_STATE + JOINT_CONST :]
     xp, Rp = _end(s[0:3], ca.reshape(s[3:12], 3, 3), s[12:15], d[0:3], d[3:6])
     xq, Rq = _end(s[15:18], ca.reshape(s[18:27], 3, 3), s[27:30], d[6:9], d[9:12])
     e = _joint_coordinates(xp, Rp, xq, Rq, c[0:3], ca.reshape(c[3:12], 3, 3))

@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import functools
-
 import json
-from pathlib import Path
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 from pydantic import ValidationError
@@ -27,8 +26,24 @@ def _field_names() -> list[str]:
     """Every field name of the scene's models (for "did you mean" on a misspelt field)."""
     from . import scene as sc
 
-    models = (sc.Material, sc.Node, sc.RectangularSection, sc.GeneralSection, sc.Beam, sc.Truss, sc.RigidBody,
-              sc.Support, sc.Stroke, sc.SupportDirections, sc.Units, sc.Load, sc.LoadRamp, sc.LoadTable, sc.Joint, sc.Scene)
+    models = (
+        sc.Material,
+        sc.Node,
+        sc.RectangularSection,
+        sc.GeneralSection,
+        sc.Beam,
+        sc.Truss,
+        sc.RigidBody,
+        sc.Support,
+        sc.Stroke,
+        sc.SupportDirections,
+        sc.Units,
+        sc.Load,
+        sc.LoadRamp,
+        sc.LoadTable,
+        sc.Joint,
+        sc.Scene,
+    )
     return sorted({f for m in models for f in m.model_fields})
 
 
@@ -43,9 +58,16 @@ def clean_errors(errors: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
     out = []
     budget = SUGGEST_BUDGET  # one bound on the suggestions' work for all the errors (issue 29 item 3)
     for e in errors:
-        loc = tuple(p for i, p in enumerate(e["loc"])
-                    if not (isinstance(p, str) and p in _UNION_TAGS and i > 0
-                             and (isinstance(e["loc"][i - 1], int) or e["loc"][i - 1] == "section")))
+        loc = tuple(
+            p
+            for i, p in enumerate(e["loc"])
+            if not (
+                isinstance(p, str)
+                and p in _UNION_TAGS
+                and i > 0
+                and (isinstance(e["loc"][i - 1], int) or e["loc"][i - 1] == "section")
+            )
+        )
         e = {**e, "loc": loc}
         if e["type"] == "extra_forbidden" and loc and isinstance(loc[-1], str):
             e["type"] = "value_error"  # the message is final: later formatters keep it
@@ -55,8 +77,14 @@ def clean_errors(errors: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
             e["msg"] = f"unknown field{hint}; remove it or check its spelling"
         out.append(e)
     locs = [e["loc"] for e in out]
-    return [e for e in out if not (e["type"] == "too_short" and any(
-        len(other) > len(e["loc"]) and other[:len(e["loc"])] == e["loc"] for other in locs))]
+    return [
+        e
+        for e in out
+        if not (
+            e["type"] == "too_short"
+            and any(len(other) > len(e["loc"]) and other[: len(e["loc"])] == e["loc"] for other in locs)
+        )
+    ]
 
 
 def format_validation_error(exc: ValidationError) -> str:
@@ -109,8 +137,9 @@ def _tables(p: Path, text: str) -> Any:
         try:
             import yaml
         except ImportError:
-            raise SceneError("scene", f"'{p}' is YAML, which needs PyYAML (pip install pyyaml); or write it as "
-                             "JSON") from None
+            raise SceneError(
+                "scene", f"'{p}' is YAML, which needs PyYAML (pip install pyyaml); or write it as JSON"
+            ) from None
         try:
             return yaml.safe_load(text)
         except yaml.YAMLError as exc:
@@ -118,28 +147,40 @@ def _tables(p: Path, text: str) -> Any:
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
-        raise SceneError("scene", f"'{p}' is not valid JSON (line {exc.lineno}, column {exc.colno}: "
-                         f"{exc.msg})") from None
+        raise SceneError(
+            "scene", f"'{p}' is not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})"
+        ) from None
 
 
 def _spacar_light(data: Any, name: str) -> Any:
     from .spacar import spacar_light
 
     if not isinstance(data, dict) or not {"nodes", "elements", "eprops"} <= set(data):
-        raise SceneError("scene", "a SPACAR Light tables file has 'nodes', 'elements', 'nprops' and 'eprops' "
-                         "(and optionally 'opt')")
+        raise SceneError(
+            "scene", "a SPACAR Light tables file has 'nodes', 'elements', 'nprops' and 'eprops' (and optionally 'opt')"
+        )
     bad = sorted(set(data) - {"nodes", "elements", "nprops", "eprops", "opt", "name"})
     if bad:
-        raise SceneError("scene", f"unknown SPACAR Light tables {bad}; the tables are nodes, elements, nprops, "
-                         "eprops, opt")
+        raise SceneError(
+            "scene", f"unknown SPACAR Light tables {bad}; the tables are nodes, elements, nprops, eprops, opt"
+        )
     try:
-        return spacar_light(data["nodes"], data["elements"], data.get("nprops") or [], data["eprops"],
-                            data.get("opt"), data.get("name", name))
+        return spacar_light(
+            data["nodes"],
+            data["elements"],
+            data.get("nprops") or [],
+            data["eprops"],
+            data.get("opt"),
+            data.get("name", name),
+        )
     except (TypeError, ValueError) as exc:
         if isinstance(exc, SceneError):
             raise
-        raise SceneError("scene", f"malformed SPACAR Light tables: {exc}; nodes is n x 3 numbers, elements "
-                         "n x 2 node numbers, nprops and eprops lists of objects") from None
+        raise SceneError(
+            "scene",
+            f"malformed SPACAR Light tables: {exc}; nodes is n x 3 numbers, elements "
+            "n x 2 node numbers, nprops and eprops lists of objects",
+        ) from None
 
 
 def load_scene(path: str | Path) -> Scene:
@@ -154,8 +195,9 @@ def load_scene(path: str | Path) -> Scene:
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise SceneError("scene", f"'{p}' is not valid JSON (line {exc.lineno}, column {exc.colno}: "
-                         f"{exc.msg})") from None
+        raise SceneError(
+            "scene", f"'{p}' is not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})"
+        ) from None
     if isinstance(data, dict) and "eprops" in data:  # SPACAR Light's tables (model.spacar.spacar_light)
         return scene_from_dict(_spacar_light(data, p.stem).scene)
     return scene_from_dict(data)

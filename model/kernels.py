@@ -37,8 +37,19 @@ import numpy as np
 from .elements import KernelSpec
 from .errors import KernelBuildError
 
-__all__ = ["CompiledKernel", "compiled", "cache_dir", "shared_library", "native_source", "native_library",
-           "native_files", "c_enum", "batch_definitions", "KernelPerformanceWarning", "FLAGS"]
+__all__ = [
+    "CompiledKernel",
+    "compiled",
+    "cache_dir",
+    "shared_library",
+    "native_source",
+    "native_library",
+    "native_files",
+    "c_enum",
+    "batch_definitions",
+    "KernelPerformanceWarning",
+    "FLAGS",
+]
 
 
 class KernelPerformanceWarning(UserWarning):
@@ -133,8 +144,16 @@ def batch_definitions(spec: KernelSpec) -> tuple[tuple[str, object], ...]:
     name, the batch entry's name, the row sizes and CasADi's work sizes."""
     f = spec.function
     name = f.name()
-    return (("KERNEL", name), ("BATCH", name + "_batch"), ("N_IN", spec.n_in), ("N_OUT", spec.n_out),
-            ("SZ_ARG", max(f.sz_arg(), 1)), ("SZ_RES", max(f.sz_res(), 1)), ("SZ_IW", f.sz_iw()), ("SZ_W", f.sz_w()))
+    return (
+        ("KERNEL", name),
+        ("BATCH", name + "_batch"),
+        ("N_IN", spec.n_in),
+        ("N_OUT", spec.n_out),
+        ("SZ_ARG", max(f.sz_arg(), 1)),
+        ("SZ_RES", max(f.sz_res(), 1)),
+        ("SZ_IW", f.sz_iw()),
+        ("SZ_W", f.sz_w()),
+    )
 
 
 class CompiledKernel:

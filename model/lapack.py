@@ -20,8 +20,21 @@ __all__ = ["Routines", "routines", "NAMES"]
 
 #: The routines the compiled drivers call, in the order of their pointer table (model/native/linalg.c indexes it
 #: by an enum of these names, :func:`model.linalg.source_definitions`).
-NAMES = ("dpotrf", "dtrsm", "dsygst", "dsytrd", "dstemr", "dormtr", "dtrtrs", "dgetrf", "dgetrs", "dgbtrf", "dgbtrs",
-         "dpbtrf", "dgemv")
+NAMES = (
+    "dpotrf",
+    "dtrsm",
+    "dsygst",
+    "dsytrd",
+    "dstemr",
+    "dormtr",
+    "dtrtrs",
+    "dgetrf",
+    "dgetrs",
+    "dgbtrf",
+    "dgbtrs",
+    "dpbtrf",
+    "dgemv",
+)
 _BLAS = {"dtrsm", "dgemv"}
 
 
@@ -70,9 +83,14 @@ def _from_numpy() -> Routines | None:
             except AttributeError:
                 continue
             if _works(gesv, ctypes.c_longlong):
-                return Routines(f"numpy's OpenBLAS ({os.path.basename(path)})", "long long", addr,
-                                lambda nm, lib=lib, pattern=pattern:
-                                ctypes.cast(getattr(lib, pattern.format(nm)), ctypes.c_void_p).value)
+                return Routines(
+                    f"numpy's OpenBLAS ({os.path.basename(path)})",
+                    "long long",
+                    addr,
+                    lambda nm, lib=lib, pattern=pattern: (
+                        ctypes.cast(getattr(lib, pattern.format(nm)), ctypes.c_void_p).value
+                    ),
+                )
     return None
 
 

@@ -54,8 +54,17 @@ from .errors import KernelBuildError
 from .kernels import c_enum, native_library
 from .lapack import NAMES, routines
 
-__all__ = ["lowest_pairs", "lowest_pairs_banded", "BandedPencil", "solve", "newton", "NewtonSystem", "available",
-           "build", "band_order"]
+__all__ = [
+    "lowest_pairs",
+    "lowest_pairs_banded",
+    "BandedPencil",
+    "solve",
+    "newton",
+    "NewtonSystem",
+    "available",
+    "build",
+    "band_order",
+]
 
 #: Up to this order ``C = L^-1 M_s L^-T`` is formed by two triangular solves (BLAS dtrsm), above it by
 #: LAPACK dsygst (half the flops): whole eigen solve measured 324 vs 384 us at n = 59, even at n = 89-119
@@ -122,15 +131,19 @@ def _workspace(n: int, drv: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     ws = cache.get(key)
     if ws is None:  # kept per order: no allocation (nor page faults) per call
         lib, _, int_dtype = drv
-        arrays = (np.empty(lib.work_doubles(n)), np.empty(lib.work_ints(n), dtype=int_dtype),
-                  np.empty(max(n, 1), dtype=int_dtype))
+        arrays = (
+            np.empty(lib.work_doubles(n)),
+            np.empty(lib.work_ints(n), dtype=int_dtype),
+            np.empty(max(n, 1), dtype=int_dtype),
+        )
         # their addresses, taken once (``.ctypes.data`` costs about 1.5 us a call); the arrays stay referenced
         ws = cache[key] = (*(a.ctypes.data for a in arrays), arrays)
     return ws
 
 
-def lowest_pairs(K: np.ndarray, M: np.ndarray, k: int, refine: bool = True,
-                 driver: tuple | None = None) -> tuple[np.ndarray, np.ndarray] | None | bool:
+def lowest_pairs(
+    K: np.ndarray, M: np.ndarray, k: int, refine: bool = True, driver: tuple | None = None
+) -> tuple[np.ndarray, np.ndarray] | None | bool:
     """The ``k`` lowest eigenpairs ``(lambda, phi)`` of ``K phi = lambda M phi`` through ``K``.
 
     Returns ``None`` when the driver is not available (no C compiler), ``False`` when ``K`` is not positive
@@ -146,8 +159,19 @@ def lowest_pairs(K: np.ndarray, M: np.ndarray, k: int, refine: bool = True,
     K, M, lam, X = _pencil(K, M, k)
     n = K.shape[0]
     work, iwork, _, _ = _workspace(n, drv)
-    status = lib.lowest_pairs(n, k, TRSM_MAX, K.ctypes.data, M.ctypes.data, lam.ctypes.data, X.ctypes.data,
-                              table.table, work, iwork, int(refine))
+    status = lib.lowest_pairs(
+        n,
+        k,
+        TRSM_MAX,
+        K.ctypes.data,
+        M.ctypes.data,
+        lam.ctypes.data,
+        X.ctypes.data,
+        table.table,
+        work,
+        iwork,
+        int(refine),
+    )
     return _pairs(status, lam, X)  # None on a LAPACK failure: the scipy route decides what is wrong
 
 
@@ -207,8 +231,16 @@ class BandedPencil:
         self.dp = np.array([LANCZOS_TOL, STURM_GAP])
         self.at = [a.ctypes.data for a in (self.ip, self.dp, self.perm, self.ro, self.co)]
 
-    def solve(self, K: np.ndarray, M: np.ndarray, k: int, X: np.ndarray, xo_at: int, refine: bool = True,
-              hint: tuple[int, int] | None = None) -> tuple[np.ndarray | None | bool, tuple[int, int] | None]:
+    def solve(
+        self,
+        K: np.ndarray,
+        M: np.ndarray,
+        k: int,
+        X: np.ndarray,
+        xo_at: int,
+        refine: bool = True,
+        hint: tuple[int, int] | None = None,
+    ) -> tuple[np.ndarray | None | bool, tuple[int, int] | None]:
         """The ``k`` lowest eigenvalues and vectors (written to the rows ``xo`` of ``X``, n_rows x k, C-contiguous)
         of the free block of ``K``, ``M`` (C-contiguous float64, row stride ``ld``): ``(lam, (steps, run))``,
         the second the ``hint`` for the next solve (:func:`lanczos_first_check`); ``lam`` None or False as
@@ -229,8 +261,21 @@ class BandedPencil:
         ip[0], ip[1], ip[2], ip[3], ip[4], ip[5] = n, k, kd, LANCZOS_STEPS, int(refine), first
         lam = np.empty(k)
         a = self.at
-        status = lib.lanczos_pairs(a[0], a[1], a[2], a[3], a[4], xo_at, K.ctypes.data, M.ctypes.data,
-                                   lam.ctypes.data, X.ctypes.data, table.table, buf[0], iwork)
+        status = lib.lanczos_pairs(
+            a[0],
+            a[1],
+            a[2],
+            a[3],
+            a[4],
+            xo_at,
+            K.ctypes.data,
+            M.ctypes.data,
+            lam.ctypes.data,
+            X.ctypes.data,
+            table.table,
+            buf[0],
+            iwork,
+        )
         if status != 0:
             return (False if status == 1 else None), None
         steps = int(ip[6])
@@ -241,8 +286,9 @@ class BandedPencil:
         return lam, (steps, run)
 
 
-def lowest_pairs_banded(K: np.ndarray, M: np.ndarray, k: int, perm: np.ndarray, kd: int,
-                        refine: bool = True) -> tuple[np.ndarray, np.ndarray] | None | bool:
+def lowest_pairs_banded(
+    K: np.ndarray, M: np.ndarray, k: int, perm: np.ndarray, kd: int, refine: bool = True
+) -> tuple[np.ndarray, np.ndarray] | None | bool:
     """:func:`lowest_pairs` for a pencil whose nonzeros lie within ``kd`` of the diagonal in the order
     ``perm`` (:func:`band_order`), by Lanczos on the banded Cholesky factor (C ``lanczos_pairs``: its
     docstring says how it is checked). The same returns, and ``None`` also when Lanczos did not converge or
@@ -267,8 +313,13 @@ def solve(A: np.ndarray, B: np.ndarray) -> int | None:
         return None
     lib, table, _ = drv
     n = A.shape[0]
-    if not (A.flags.c_contiguous and A.dtype == np.float64 and B.dtype == np.float64
-            and (B.flags.f_contiguous or B.ndim == 1) and B.shape[0] == n):
+    if not (
+        A.flags.c_contiguous
+        and A.dtype == np.float64
+        and B.dtype == np.float64
+        and (B.flags.f_contiguous or B.ndim == 1)
+        and B.shape[0] == n
+    ):
         raise ValueError("solve needs a C-contiguous float64 A and a Fortran-ordered float64 B of matching rows")
     if n == 0:
         return 0
@@ -372,9 +423,21 @@ class NewtonSystem:
     leaf's dense LU cost 0.7 ms of a 1.1 ms Newton iteration. None, or ``banded=False``: dense LU only (the
     same numbers as the numpy route, bit for bit)."""
 
-    def __init__(self, n: int, drive: int, kind: int, free: np.ndarray, block_pos: np.ndarray,
-                 block_comp: np.ndarray, axis: np.ndarray, scale: np.ndarray, scale_free: np.ndarray,
-                 drv: tuple, pattern: np.ndarray | None = None, banded: bool = True) -> None:
+    def __init__(
+        self,
+        n: int,
+        drive: int,
+        kind: int,
+        free: np.ndarray,
+        block_pos: np.ndarray,
+        block_comp: np.ndarray,
+        axis: np.ndarray,
+        scale: np.ndarray,
+        scale_free: np.ndarray,
+        drv: tuple,
+        pattern: np.ndarray | None = None,
+        banded: bool = True,
+    ) -> None:
         self.n, self.drv = n, drv
         int_dtype = drv[2]
         self.bands: dict[str, tuple[int, int] | None] = {"reduced": None, "bordered": None}
@@ -394,8 +457,9 @@ class NewtonSystem:
                     band = [kl, ku, *perm]
                     self.bands[form] = (kl, ku)
             orders.append(band)
-        self.ip = np.concatenate([[n, 0, drive, kind, len(block_pos)], free, block_pos, block_comp,
-                                  *orders]).astype(np.int64)
+        self.ip = np.concatenate([[n, 0, drive, kind, len(block_pos)], free, block_pos, block_comp, *orders]).astype(
+            np.int64
+        )
         self.dp = np.concatenate([axis, [0.0, 0.0, 0.0], scale, scale_free]).astype(np.float64)
         self.J = np.empty(max(n * n, 1))
         self.b = np.empty(5 * max(n, 1))
@@ -405,8 +469,16 @@ class NewtonSystem:
         self.ptr = [a.ctypes.data for a in (self.ip, self.dp, self.J, self.b, self.ipiv, self.sc, self.eye)]
 
 
-def newton(ns: NewtonSystem, H: np.ndarray, C: np.ndarray | None, g: np.ndarray, Rd: np.ndarray | None,
-           near: float, s_target: float, dval: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def newton(
+    ns: NewtonSystem,
+    H: np.ndarray,
+    C: np.ndarray | None,
+    g: np.ndarray,
+    Rd: np.ndarray | None,
+    near: float,
+    s_target: float,
+    dval: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One Newton system in C: ``(dxi, tan, [dval, inc, res, finite, info, reduced])``. ``H`` and ``C``: n x n
     views with a common row stride (``C`` may be None), ``g`` contiguous, ``Rd`` the driven master's rotation
     (None for a translation drive, whose ``dval`` is given)."""
@@ -420,8 +492,21 @@ def newton(ns: NewtonSystem, H: np.ndarray, C: np.ndarray | None, g: np.ndarray,
     dxi, tan = np.empty(n), np.empty(n)
     ip, dp, J, b, ipiv, sc, eye = ns.ptr
     R = eye if Rd is None else np.ascontiguousarray(Rd, dtype=np.float64).ctypes.data
-    lib.newton(ip, dp, H.ctypes.data, None if C is None else C.ctypes.data, g.ctypes.data, R, J, b, ipiv,
-               table.table, dxi.ctypes.data, tan.ctypes.data, sc)
+    lib.newton(
+        ip,
+        dp,
+        H.ctypes.data,
+        None if C is None else C.ctypes.data,
+        g.ctypes.data,
+        R,
+        J,
+        b,
+        ipiv,
+        table.table,
+        dxi.ctypes.data,
+        tan.ctypes.data,
+        sc,
+    )
     return dxi, tan, ns.sc.copy()
 
 

@@ -29,8 +29,20 @@ from .threads import limited
 __all__ = ["StateSpace", "frequency_response", "state_space"]
 
 _FORCE = {"fx": (0, 0), "fy": (0, 1), "fz": (0, 2), "mx": (1, 0), "my": (1, 1), "mz": (1, 2)}
-_OUTPUT = {"x": (0, 0, 0), "y": (0, 0, 1), "z": (0, 0, 2), "rx": (0, 1, 0), "ry": (0, 1, 1), "rz": (0, 1, 2),
-           "vx": (1, 0, 0), "vy": (1, 0, 1), "vz": (1, 0, 2), "wx": (1, 1, 0), "wy": (1, 1, 1), "wz": (1, 1, 2)}
+_OUTPUT = {
+    "x": (0, 0, 0),
+    "y": (0, 0, 1),
+    "z": (0, 0, 2),
+    "rx": (0, 1, 0),
+    "ry": (0, 1, 1),
+    "rz": (0, 1, 2),
+    "vx": (1, 0, 0),
+    "vy": (1, 0, 1),
+    "vz": (1, 0, 2),
+    "wx": (1, 1, 0),
+    "wy": (1, 1, 1),
+    "wz": (1, 1, 2),
+}
 
 
 @dataclass
@@ -50,10 +62,19 @@ class StateSpace:
 
     def to_dict(self) -> dict:
         """JSON-ready: the matrices as nested lists, labels, the modes' frequencies and the conventions."""
-        return {"A": self.A.tolist(), "B": self.B.tolist(), "C": self.C.tolist(), "D": self.D.tolist(),
-                "inputs": self.inputs, "outputs": self.outputs, "stroke": self.stroke,
-                "frequencies_hz": self.frequencies_hz.tolist(), "damping": self.damping, "units": self.units,
-                "state": "modal displacements (first half) and velocities (second half), mass-normalised modes"}
+        return {
+            "A": self.A.tolist(),
+            "B": self.B.tolist(),
+            "C": self.C.tolist(),
+            "D": self.D.tolist(),
+            "inputs": self.inputs,
+            "outputs": self.outputs,
+            "stroke": self.stroke,
+            "frequencies_hz": self.frequencies_hz.tolist(),
+            "damping": self.damping,
+            "units": self.units,
+            "state": "modal displacements (first half) and velocities (second half), mass-normalised modes",
+        }
 
     def static_gain(self) -> np.ndarray:
         """``D - C A^-1 B`` (no, ni): the response to a constant input."""
@@ -69,20 +90,30 @@ def _point(s, name: str, what: str) -> tuple[int, np.ndarray]:
         return s.master_names.index(name), np.zeros(3)
     from .scene import did_you_mean
 
-    raise SceneError(what, f"unknown node or body '{name}'{did_you_mean(name, list(s.node_names) + list(s.master_names))}")
+    raise SceneError(
+        what, f"unknown node or body '{name}'{did_you_mean(name, list(s.node_names) + list(s.master_names))}"
+    )
 
 
 def _split(spec: str, table: dict, what: str) -> tuple[str, tuple]:
     name, _, comp = spec.rpartition(".")
     if not name or comp not in table:
-        raise SceneError(what, f"'{spec}' is not NAME.COMPONENT with a component among {', '.join(table)}, "
-                         f"e.g. 'tip.{next(iter(table))}'")
+        raise SceneError(
+            what,
+            f"'{spec}' is not NAME.COMPONENT with a component among {', '.join(table)}, e.g. 'tip.{next(iter(table))}'",
+        )
     return name, table[comp]
 
 
 @limited()  # one BLAS thread while it computes (model.threads)
-def state_space(scene: Scene, at_stroke: float, inputs: list[str], outputs: list[str], damping: float = 0.01,
-                modes: int | None = None) -> StateSpace:
+def state_space(
+    scene: Scene,
+    at_stroke: float,
+    inputs: list[str],
+    outputs: list[str],
+    damping: float = 0.01,
+    modes: int | None = None,
+) -> StateSpace:
     """The linearised model of ``scene`` at ``at_stroke`` (stroke unit; see the module docstring).
 
     ``modes``: how many of the lowest modes to keep (default all: the static gain is then the compliance).
@@ -105,18 +136,25 @@ def state_space(scene: Scene, at_stroke: float, inputs: list[str], outputs: list
     targets = np.linspace(0.0, target, 9)[1:] if target != 0 else np.array([0.0])
     fail = walk(sys, targets, an.options, lambda eq: got.append(eq))
     if fail is not None or not got:
-        raise EquilibriumError(f"no equilibrium at stroke {at_stroke:g}: {fail.message if fail else ''}",
-                               stroke=at_stroke, last_converged=float("nan"),
-                               reason=fail.reason if fail else "divergence")
+        raise EquilibriumError(
+            f"no equilibrium at stroke {at_stroke:g}: {fail.message if fail else ''}",
+            stroke=at_stroke,
+            last_converged=float("nan"),
+            reason=fail.reason if fail else "divergence",
+        )
     eq = got[-1]
     locked = scene.stroke.drive == "locked"
     available = (len(sys.free) if locked else sys.n) - sys.n_con
     k = available if modes is None else min(int(modes), available)
     md = modes_at(sys, eq, k, scene.stroke.drive)
     if np.any(md.omega2 <= 0):
-        raise EquilibriumError(f"the equilibrium at stroke {at_stroke:g} is not stable (lowest omega^2 "
-                               f"{md.omega2.min():.3g}): a linearised model about it does not settle",
-                               stroke=at_stroke, last_converged=float("nan"), reason="unstable")
+        raise EquilibriumError(
+            f"the equilibrium at stroke {at_stroke:g} is not stable (lowest omega^2 "
+            f"{md.omega2.min():.3g}): a linearised model about it does not settle",
+            stroke=at_stroke,
+            last_converged=float("nan"),
+            reason="unstable",
+        )
     Phi, w = md.phi, np.sqrt(md.omega2)
     R = eq.state.R
 
@@ -129,10 +167,10 @@ def state_space(scene: Scene, at_stroke: float, inputs: list[str], outputs: list
         d = np.eye(3)[axis]
         g = np.zeros(sys.n_full)
         if kind == 0:  # a translation of (a force at) the point: u + psi x r (its work conjugate: f, r x f)
-            g[6 * m: 6 * m + 3] = d
-            g[6 * m + 3: 6 * m + 6] = np.cross(r, d)
+            g[6 * m : 6 * m + 3] = d
+            g[6 * m + 3 : 6 * m + 6] = np.cross(r, d)
         else:  # a rotation (a moment): psi
-            g[6 * m + 3: 6 * m + 6] = d
+            g[6 * m + 3 : 6 * m + 6] = d
         return sys.from_global(g), rate
 
     Bf = np.column_stack([covector(u, _FORCE, "inputs")[0] for u in inputs])
@@ -140,12 +178,29 @@ def state_space(scene: Scene, at_stroke: float, inputs: list[str], outputs: list
     nk = len(w)
     A = np.block([[np.zeros((nk, nk)), np.eye(nk)], [-np.diag(w**2), -2 * damping * np.diag(w)]])
     B = np.vstack([np.zeros((nk, len(inputs))), Phi.T @ Bf])
-    C = np.vstack([np.concatenate([c @ Phi, np.zeros(nk)]) if rate == 0 else np.concatenate([np.zeros(nk), c @ Phi])
-                   for c, rate in rows])
-    units = {"inputs": "N (forces), N m (moments), global axes", "outputs": "m, rad, m/s, rad/s (global axes, "
-             "about the equilibrium)", "time": "s"}
-    return StateSpace(A, B, C, np.zeros((len(outputs), len(inputs))), list(inputs), list(outputs), float(at_stroke),
-                      w / (2 * np.pi), float(damping), units)
+    C = np.vstack(
+        [
+            np.concatenate([c @ Phi, np.zeros(nk)]) if rate == 0 else np.concatenate([np.zeros(nk), c @ Phi])
+            for c, rate in rows
+        ]
+    )
+    units = {
+        "inputs": "N (forces), N m (moments), global axes",
+        "outputs": "m, rad, m/s, rad/s (global axes, about the equilibrium)",
+        "time": "s",
+    }
+    return StateSpace(
+        A,
+        B,
+        C,
+        np.zeros((len(outputs), len(inputs))),
+        list(inputs),
+        list(outputs),
+        float(at_stroke),
+        w / (2 * np.pi),
+        float(damping),
+        units,
+    )
 
 
 @limited()  # one BLAS thread while it computes (model.threads)

@@ -38,14 +38,16 @@ def has_loads(scene: Scene) -> bool:
 class LoadSet:
     """The loads of one structure in the numbering of its System (see :meth:`add`)."""
 
-    def __init__(self, s: Structure, pos: np.ndarray, beam_dofs: np.ndarray, beam_flat: np.ndarray,
-                 N: int) -> None:
+    def __init__(self, s: Structure, pos: np.ndarray, beam_dofs: np.ndarray, beam_flat: np.ndarray, N: int) -> None:
         scene = s.scene
         self.s, self.N = s, N
         node_index = {n: i for i, n in enumerate(s.node_names)}
         body_index = {n: i for i, n in enumerate(s.master_names)}  # bodies are the first masters
-        self._unit = (lambda v: np.degrees(v)) if (scene.stroke is not None and scene.stroke.resolved_unit == "deg") \
+        self._unit = (
+            (lambda v: np.degrees(v))
+            if (scene.stroke is not None and scene.stroke.resolved_unit == "deg")
             else (lambda v: v)
+        )
         st = scene.stroke
         vals = st.values() if st is not None else np.zeros(2)
         self._first, self._last = float(vals[0]), float(vals[-1])
@@ -103,8 +105,16 @@ class LoadSet:
                 out[k] = ld.value(v, self._first, self._last)
         return out
 
-    def add(self, R: np.ndarray, beam_in: np.ndarray | None, stroke: float, scale: float,
-            g: np.ndarray, g_full: np.ndarray, Hflat: np.ndarray) -> None:
+    def add(
+        self,
+        R: np.ndarray,
+        beam_in: np.ndarray | None,
+        stroke: float,
+        scale: float,
+        g: np.ndarray,
+        g_full: np.ndarray,
+        Hflat: np.ndarray,
+    ) -> None:
         """Add the loads' gradient and Hessian at a state to the extended ``g`` (N), ``g_full`` (all masters'
         DOFs) and ``Hflat`` (N * N). ``R`` the masters' rotations (nm, 3, 3); ``beam_in`` the beam kernels'
         filled inputs (state and constants first)."""
@@ -128,15 +138,17 @@ class LoadSet:
     def gradient_rate(self, R: np.ndarray, stroke: float, scale: float) -> np.ndarray | None:
         """``d g / d s`` (extended numbering, N) of the loads given per stroke point at ``stroke``, or None
         when every load is constant (linear in the force: the point kernel at the forces' rates)."""
-        if self.point_kernel is None or not any(not isinstance(ld, np.ndarray) and ld.force is None
-                                                for ld in self.loads):
+        if self.point_kernel is None or not any(
+            not isinstance(ld, np.ndarray) and ld.force is None for ld in self.loads
+        ):
             return None
         r = np.einsum("kij,kj->ki", R[self.masters], self.offsets)
         out = self.point_kernel(np.hstack([r, scale * self.forces(stroke, rate=True)]))
         return np.bincount(self.dofs.ravel(), out[:, :6].ravel(), minlength=self.N)
 
-    def potential(self, x_nodes: np.ndarray, X: np.ndarray, R: np.ndarray, beam_in: np.ndarray | None,
-                  stroke: float, scale: float) -> float:
+    def potential(
+        self, x_nodes: np.ndarray, X: np.ndarray, R: np.ndarray, beam_in: np.ndarray | None, stroke: float, scale: float
+    ) -> float:
         """The loads' potential ``V`` at a state (for checks: its gradient is what :meth:`add` adds)."""
         V = 0.0
         if len(self.loads):

@@ -58,8 +58,19 @@ from .scene import AUTO_START, Beam, Scene
 from .statics import NewtonOptions, WalkFailure, solve_point, walk
 from .structure import MAX_DOFS
 
-__all__ = ["mesh_error", "coarsened", "refined", "second_mesh", "SecondMesh", "resolve_auto_segments", "AUTO_START",
-           "AUTO_MAX", "ESTIMATE_POINTS", "ORDER", "COARSE_MIN"]
+__all__ = [
+    "mesh_error",
+    "coarsened",
+    "refined",
+    "second_mesh",
+    "SecondMesh",
+    "resolve_auto_segments",
+    "AUTO_START",
+    "AUTO_MAX",
+    "ESTIMATE_POINTS",
+    "ORDER",
+    "COARSE_MIN",
+]
 
 #: Stroke points per side (besides the reference) at which the coarse meshes are solved.
 ESTIMATE_POINTS = 4
@@ -128,8 +139,7 @@ def _estimate_points(strokes: np.ndarray) -> list[np.ndarray]:
 def refined(scene: Scene, factor: int) -> Scene:
     """``scene`` with every beam at ``factor`` times its segments (an unvalidated copy, as
     :func:`coarsened`)."""
-    els = [e.model_copy(update={"segments": e.segments * factor}) if isinstance(e, Beam) else e
-           for e in scene.elements]
+    els = [e.model_copy(update={"segments": e.segments * factor}) if isinstance(e, Beam) else e for e in scene.elements]
     return scene.model_copy(update={"elements": tuple(els)})
 
 
@@ -156,8 +166,9 @@ def second_mesh(scene: Scene, options: NewtonOptions | None) -> SecondMesh | Non
     return SecondMesh(MeshAnalysis(refined(scene, REFINE), options), float(REFINE), True)
 
 
-def mesh_error(an: MeshAnalysis, second: SecondMesh, strokes: np.ndarray, fine: dict[float, float] | None = None
-               ) -> float | None:
+def mesh_error(
+    an: MeshAnalysis, second: SecondMesh, strokes: np.ndarray, fine: dict[float, float] | None = None
+) -> float | None:
     """Estimated relative discretisation error of the first parasitic frequency of ``an``'s curve (see the
     module docstring). ``second`` is the same analysis on the other mesh (:func:`second_mesh`; the caller
     builds it once and reuses it: model.curve); ``strokes`` are the curve's stroke values (internal
@@ -228,5 +239,7 @@ def resolve_auto_segments(scene: Scene, options: NewtonOptions | None = None) ->
     sc, n = chosen
     names = ", ".join(scene.elements[i].name for i in auto)
     met = "within" if est <= tol else "NOT within"
-    return sc, (f"segments 'auto': {n} per beam for {names} (estimated discretisation error {est:.2g}, {met} "
-                f"mesh_tolerance {tol:g})")
+    return sc, (
+        f"segments 'auto': {n} per beam for {names} (estimated discretisation error {est:.2g}, {met} "
+        f"mesh_tolerance {tol:g})"
+    )

@@ -20,9 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import linalg as _linalg
-from .linalg import TRSM_MAX as _TRSM_MAX
 from .assembly import System
 from .errors import FlexoptError
+from .linalg import TRSM_MAX as _TRSM_MAX
 from .statics import Equilibrium
 
 _ABSTOL = 2.0 * float(np.finfo(float).tiny)
@@ -47,8 +47,9 @@ class Modes:
         return np.sign(self.omega2) * np.sqrt(np.abs(self.omega2)) / (2 * np.pi)
 
 
-def _lowest_pairs(K: np.ndarray, M: np.ndarray, k: int,
-                  band: tuple[np.ndarray, int] | None = None) -> tuple[np.ndarray | None, np.ndarray | None]:
+def _lowest_pairs(
+    K: np.ndarray, M: np.ndarray, k: int, band: tuple[np.ndarray, int] | None = None
+) -> tuple[np.ndarray | None, np.ndarray | None]:
     """The ``k`` lowest eigenpairs of ``K phi = lambda M phi`` solved *through K*; ``(None, None)`` if ``K``
     is not positive definite.
 
@@ -88,12 +89,14 @@ def _lowest_pairs(K: np.ndarray, M: np.ndarray, k: int,
         return None, None
     n = K.shape[0]
     if n <= _TRSM_MAX:  # two BLAS-3 triangular solves: faster than LAPACK's unblocked dsygs2 on small n
-        C = blas.dtrsm(1.0, L, blas.dtrsm(1.0, L, Ms, side=0, lower=1, overwrite_b=1), side=1, lower=1,
-                       trans_a=1, overwrite_b=1)
+        C = blas.dtrsm(
+            1.0, L, blas.dtrsm(1.0, L, Ms, side=0, lower=1, overwrite_b=1), side=1, lower=1, trans_a=1, overwrite_b=1
+        )
     else:
         C, info = lapack.dsygst(Ms, L, itype=1, lower=1, overwrite_a=1)
-    mu, Y, _, _, info = lapack.dsyevx(C, compute_v=1, range="I", il=n - k + 1, iu=n, lower=1, abstol=_ABSTOL,
-                                      overwrite_a=1)
+    mu, Y, _, _, info = lapack.dsyevx(
+        C, compute_v=1, range="I", il=n - k + 1, iu=n, lower=1, abstol=_ABSTOL, overwrite_a=1
+    )
     if info != 0 or not np.all(mu[:k] > 0):
         return None, None
     mu, Y = mu[:k][::-1], Y[:, :k][:, ::-1]
@@ -112,8 +115,7 @@ def _lowest_pairs_through_m(K: np.ndarray, M: np.ndarray, k: int) -> tuple[np.nd
     """
     from scipy.linalg import lapack
 
-    w, V, _, _, info = lapack.dsygvx(K.T, M.T, itype=1, jobz="V", range="I", il=1, iu=k, uplo="L",
-                                     abstol=_ABSTOL)
+    w, V, _, _, info = lapack.dsygvx(K.T, M.T, itype=1, jobz="V", range="I", il=1, iu=k, uplo="L", abstol=_ABSTOL)
     return w[:k], V[:, :k], info
 
 
@@ -164,12 +166,15 @@ def modes_at(sys: System, eq: Equilibrium, k: int, drive: str = "locked", near: 
         if info > K.shape[0]:  # LAPACK: the leading minor of order info - n of M is not positive definite
             bad = [s.dof_label(int(sys.act_full[d])) for d in dofs[np.diag(Mf) <= 0][:5]]
             raise FlexoptError(
-                "the mass matrix is singular" + (f" (no mass on {', '.join(bad)})" if bad else "")
+                "the mass matrix is singular"
+                + (f" (no mass on {', '.join(bad)})" if bad else "")
                 + "; give every moving body mass and inertia or attach it to beams"
             )
         if info != 0:
-            raise FlexoptError(f"the eigen solver did not converge (LAPACK dsygvx info {info}); the stiffness "
-                               "matrix may contain non-finite values: check the scene's dimensions")
+            raise FlexoptError(
+                f"the eigen solver did not converge (LAPACK dsygvx info {info}); the stiffness "
+                "matrix may contain non-finite values: check the scene's dimensions"
+            )
     w, V = w[:k], V[:, :k]
     phi = np.zeros((sys.n, k))
     phi[dofs] = V if Z is None else Z @ V

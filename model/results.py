@@ -31,9 +31,13 @@ class ResultWarning:
 
     def to_dict(self) -> dict:
         """A JSON-ready dict."""
-        return {"kind": self.kind, "message": self.message, "element": self.element,
-                "stroke_range": None if self.stroke_range is None else [float(x) for x in self.stroke_range],
-                "value": None if self.value is None or not np.isfinite(self.value) else float(self.value)}
+        return {
+            "kind": self.kind,
+            "message": self.message,
+            "element": self.element,
+            "stroke_range": None if self.stroke_range is None else [float(x) for x in self.stroke_range],
+            "value": None if self.value is None or not np.isfinite(self.value) else float(self.value),
+        }
 
 
 @dataclass(frozen=True)
@@ -76,6 +80,7 @@ class FrequencyCurve:
 
     def to_dict(self) -> dict:
         """A JSON-ready dict (lists instead of arrays)."""
+
         def clean(a: np.ndarray) -> list:
             return [None if not np.isfinite(v) else float(v) for v in np.ravel(a)]
 
@@ -97,7 +102,8 @@ class FrequencyCurve:
             "conventions": dict(self.conventions),
             "solver": dict(self.solver),
             "warnings": [w.to_dict() for w in self.warnings],
-            "mesh_error": None if self.mesh_error is None or not np.isfinite(self.mesh_error)
+            "mesh_error": None
+            if self.mesh_error is None or not np.isfinite(self.mesh_error)
             else float(self.mesh_error),
             "provenance": dict(self.provenance),
         }
@@ -112,13 +118,25 @@ class FrequencyCurve:
         w = csv.writer(buf)
         k = self.modes_hz.shape[1]
         members = list(self.max_von_mises)
-        w.writerow([f"stroke_{self.stroke_unit}", "parasitic_hz", *[f"mode{i + 1}_hz" for i in range(k)],
-                    f"drive_reaction_{self.drive_reaction_unit.replace(' ', '')}",
-                    *[f"von_mises_{m}_Pa" for m in members]])
+        w.writerow(
+            [
+                f"stroke_{self.stroke_unit}",
+                "parasitic_hz",
+                *[f"mode{i + 1}_hz" for i in range(k)],
+                f"drive_reaction_{self.drive_reaction_unit.replace(' ', '')}",
+                *[f"von_mises_{m}_Pa" for m in members],
+            ]
+        )
         for i in range(len(self.stroke)):
-            w.writerow([f"{self.stroke[i]:.10g}", f"{self.parasitic_hz[i]:.10g}",
-                        *[f"{v:.10g}" for v in self.modes_hz[i]], f"{self.drive_reaction[i]:.10g}",
-                        *[f"{self.max_von_mises[m][i]:.10g}" for m in members]])
+            w.writerow(
+                [
+                    f"{self.stroke[i]:.10g}",
+                    f"{self.parasitic_hz[i]:.10g}",
+                    *[f"{v:.10g}" for v in self.modes_hz[i]],
+                    f"{self.drive_reaction[i]:.10g}",
+                    *[f"{self.max_von_mises[m][i]:.10g}" for m in members],
+                ]
+            )
         return buf.getvalue()
 
     def table(self) -> str:
@@ -128,8 +146,11 @@ class FrequencyCurve:
         ran = self.solver.get("auto_method")
         method = f"method '{ran}' (chosen by auto)" if ran else f"method '{self.method}'"
         reaction = f"reaction [{self.drive_reaction_unit}]"
-        head = f"{'stroke [' + self.stroke_unit + ']':>14} {'parasitic Hz':>13} " + " ".join(
-            f"{'mode ' + str(i + 1):>10}" for i in range(k)) + f" {reaction:>14} {'max VM [MPa]':>13}"
+        head = (
+            f"{'stroke [' + self.stroke_unit + ']':>14} {'parasitic Hz':>13} "
+            + " ".join(f"{'mode ' + str(i + 1):>10}" for i in range(k))
+            + f" {reaction:>14} {'max VM [MPa]':>13}"
+        )
         lines = [f"# scene '{self.scene}', {method}; modes by frequency at stroke 0, tracked along the stroke", head]
         for i in range(len(self.stroke)):
             vm = max((v[i] for v in self.max_von_mises.values()), default=float("nan"))
@@ -150,8 +171,10 @@ class FrequencyCurve:
         span = f"{par.min():.4g}..{par.max():.4g} Hz" if par.size else "none"
         rng = f"{self.stroke[0]:.4g}..{self.stroke[-1]:.4g} {self.stroke_unit}" if len(self.stroke) else "empty"
         mesh = "" if self.mesh_error is None else f", mesh_error {self.mesh_error:.2g}"
-        return (f"{len(self.stroke)} points over {rng}, first parasitic {span}, {self.status}"
-                f"{mesh}, {len(self.warnings)} warning{'s' * (len(self.warnings) != 1)}")
+        return (
+            f"{len(self.stroke)} points over {rng}, first parasitic {span}, {self.status}"
+            f"{mesh}, {len(self.warnings)} warning{'s' * (len(self.warnings) != 1)}"
+        )
 
     def __repr__(self) -> str:
         """One line: scene, method, range, the first parasitic frequency's span, status (not the arrays)."""
@@ -163,18 +186,27 @@ class FrequencyCurve:
         e = html.escape
         n = len(self.stroke)
         rows = sorted(set(np.linspace(0, n - 1, min(n, 11)).round().astype(int))) if n else []
-        head = "".join(f"<th>{e(h)}</th>" for h in
-                       (f"stroke [{self.stroke_unit}]", "first parasitic [Hz]",
-                        f"drive reaction [{self.drive_reaction_unit}]"))
+        head = "".join(
+            f"<th>{e(h)}</th>"
+            for h in (
+                f"stroke [{self.stroke_unit}]",
+                "first parasitic [Hz]",
+                f"drive reaction [{self.drive_reaction_unit}]",
+            )
+        )
         body = "".join(
             f"<tr><td>{self.stroke[i]:.4g}</td><td>{self.parasitic_hz[i]:.5g}</td>"
-            f"<td>{self.drive_reaction[i]:.4g}</td></tr>" for i in rows)
+            f"<td>{self.drive_reaction[i]:.4g}</td></tr>"
+            for i in rows
+        )
         warns = "".join(f"<li><b>{e(w.kind)}</b>: {e(w.message)}</li>" for w in self.warnings)
         fails = "".join(f"<li><b>truncated</b>: {e(f.message)}</li>" for f in self.failures)
         notes = f"<ul>{fails}{warns}</ul>" if warns or fails else ""
-        return (f"<div><p><b>FrequencyCurve</b> <code>{e(self.scene)}</code>, method <code>{e(self.method)}"
-                f"</code>: {e(self._summary())}</p>{notes}<table><thead><tr>{head}</tr></thead>"
-                f"<tbody>{body}</tbody></table></div>")
+        return (
+            f"<div><p><b>FrequencyCurve</b> <code>{e(self.scene)}</code>, method <code>{e(self.method)}"
+            f"</code>: {e(self._summary())}</p>{notes}<table><thead><tr>{head}</tr></thead>"
+            f"<tbody>{body}</tbody></table></div>"
+        )
 
     def to_dataframe(self):  # noqa: ANN201 - pandas is optional, so no annotation names it
         """The curve as a pandas DataFrame indexed by stroke: the first parasitic frequency, every tracked

@@ -43,8 +43,12 @@ def log_so3(R: np.ndarray) -> np.ndarray:
     diag = np.stack([1.0 + tr, 1.0 + 2 * d0 - tr, 1.0 + 2 * d1 - tr, 1.0 + 2 * d2 - tr], axis=1)
     big = 0.5 * np.sqrt(np.maximum(diag[np.arange(len(A)), k], 1e-300))
     f = 0.25 / big
-    rows = (np.stack([big, s21 * f, s02 * f, s10 * f], 1), np.stack([s21 * f, big, p10 * f, p20 * f], 1),
-            np.stack([s02 * f, p10 * f, big, p21 * f], 1), np.stack([s10 * f, p20 * f, p21 * f, big], 1))
+    rows = (
+        np.stack([big, s21 * f, s02 * f, s10 * f], 1),
+        np.stack([s21 * f, big, p10 * f, p20 * f], 1),
+        np.stack([s02 * f, p10 * f, big, p21 * f], 1),
+        np.stack([s10 * f, p20 * f, p21 * f, big], 1),
+    )
     for j in range(4):
         sel = k == j
         q[sel] = rows[j][sel]
@@ -102,8 +106,13 @@ def twist_gradient(R: np.ndarray, axis: np.ndarray) -> np.ndarray:
     a0, a1, a2 = axis.tolist()
     va = x * a0 + y * a1 + z * a2
     d = w * w + va * va
-    return np.array([
-        w * (w * a0 + y * a2 - z * a1) + va * x,
-        w * (w * a1 + z * a0 - x * a2) + va * y,
-        w * (w * a2 + x * a1 - y * a0) + va * z,
-    ]) / d
+    return (
+        np.array(
+            [
+                w * (w * a0 + y * a2 - z * a1) + va * x,
+                w * (w * a1 + z * a0 - x * a2) + va * y,
+                w * (w * a2 + x * a1 - y * a0) + va * z,
+            ]
+        )
+        / d
+    )

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import difflib
 import math
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import (
@@ -139,7 +139,7 @@ class GeneralSection(_Strict):
     )
 
 
-Section = Annotated[Union[RectangularSection, GeneralSection], Field(discriminator="kind")]
+Section = Annotated[RectangularSection | GeneralSection, Field(discriminator="kind")]
 
 
 class Beam(_Strict):
@@ -155,8 +155,10 @@ class Beam(_Strict):
         "its part perpendicular to the beam axis is used, so it must not be parallel to the beam"
     )
     segments: Annotated[int, Field(ge=1, le=1000)] | Literal["auto"] = Field(
-        1, description="number of beam elements along the member, or 'auto': refined until the estimated "
-        "discretisation error of the curve is within the scene's mesh_tolerance (model.mesh)")
+        1,
+        description="number of beam elements along the member, or 'auto': refined until the estimated "
+        "discretisation error of the curve is within the scene's mesh_tolerance (model.mesh)",
+    )
 
     @field_validator("segments", mode="before")
     @classmethod
@@ -167,9 +169,12 @@ class Beam(_Strict):
         if isinstance(v, float) and v.is_integer() and 1 <= v <= 1000:
             return int(v)
         if isinstance(v, (int, float)) and not isinstance(v, bool):
-            raise ValueError(f"segments must be greater than or equal to 1 and less than or equal to 1000 "
-                             f"(a whole number) or 'auto', got {v!r}")
+            raise ValueError(
+                f"segments must be greater than or equal to 1 and less than or equal to 1000 "
+                f"(a whole number) or 'auto', got {v!r}"
+            )
         raise ValueError(f"segments must be a whole number from 1 to 1000 or 'auto', got {v!r}")
+
     rigid: tuple[DeformationName, ...] = Field(
         (),
         description="deformation modes held rigid (zero), e.g. ['elongation'] for a wire flexure, "
@@ -198,20 +203,23 @@ class Truss(_Strict):
     material: Name
     area: Pos = Field(description="cross-section area [m^2]")
     segments: int = Field(
-        1, ge=1, le=1, description="always 1: a truss has no bending stiffness, so interior nodes would be "
-        "free mechanisms"
+        1,
+        ge=1,
+        le=1,
+        description="always 1: a truss has no bending stiffness, so interior nodes would be free mechanisms",
     )
     rigid: tuple[Literal["elongation", "eps1"], ...] = Field((), description="['elongation'] for a rigid bar")
     generalised: tuple[Literal["elongation", "eps1"], ...] = Field(
-        (), description="['elongation'] to take the elongation as a generalised coordinate e(m) in the "
-        "exact-constraint diagnosis"
+        (),
+        description="['elongation'] to take the elongation as a generalised coordinate e(m) in the "
+        "exact-constraint diagnosis",
     )
     kinematic_rigid: tuple[Literal["elongation", "eps1"], ...] | None = Field(
         None, description="rigid deformations in a kinematic diagnosis (default: the elongation is rigid)"
     )
 
 
-Element = Annotated[Union[Beam, Truss], Field(discriminator="kind")]
+Element = Annotated[Beam | Truss, Field(discriminator="kind")]
 
 
 class RigidBody(_Strict):
@@ -237,9 +245,7 @@ class RigidBody(_Strict):
             raise ValueError("inertia tensor must be positive semidefinite; fix the principal moments")
         a, b, c = sorted(w)
         if c > a + b + tol * 10:
-            raise ValueError(
-                "inertia tensor violates the triangle inequality (I1 <= I2 + I3); no real body has it"
-            )
+            raise ValueError("inertia tensor violates the triangle inequality (I1 <= I2 + I3); no real body has it")
         return v
 
 
@@ -256,7 +262,7 @@ class Support(_Strict):
     )
 
     @model_validator(mode="after")
-    def _one_target(self) -> "Support":
+    def _one_target(self) -> Support:
         if (self.node is None) == (self.body is None):
             raise ValueError("give exactly one of 'node' or 'body'")
         if not self.dofs:
@@ -281,15 +287,16 @@ class Stroke(_Strict):
     stop: Real | None = Field(None, description="last stroke value (default +45 deg for rotations)")
     points: int = Field(91, ge=2, le=100001, description="number of stroke points")
     unit: Literal["deg", "rad", "m"] | None = Field(
-        None, description="stroke unit: deg (default) or rad for rotations, m for translations (written in the "
-        "units block's length unit, if any, and converted to m)"
+        None,
+        description="stroke unit: deg (default) or rad for rotations, m for translations (written in the "
+        "units block's length unit, if any, and converted to m)",
     )
     drive: Literal["locked", "free"] = Field(
         "locked", description="eigen analysis with the actuator holding the drive (locked) or not (free)"
     )
 
     @model_validator(mode="after")
-    def _consistent(self) -> "Stroke":
+    def _consistent(self) -> Stroke:
         if (self.node is None) == (self.body is None):
             raise ValueError("give exactly one of 'node' or 'body' as the driven target")
         if not np.linalg.norm(self.axis) > 0:
@@ -337,12 +344,14 @@ class Joint(_Strict):
     axis: Vec3 = Field(description="joint axis in global axes at the reference (normalised internally)")
 
     @model_validator(mode="after")
-    def _axis(self) -> "Joint":
+    def _axis(self) -> Joint:
         if not np.linalg.norm(self.axis) > 0:
             raise ValueError("axis is the zero vector; give the joint's axis, e.g. [0, 0, 1]")
         if self.nodes[0] == self.nodes[1]:
-            raise ValueError(f"joint '{self.name}' connects node '{self.nodes[0]}' to itself; give two nodes "
-                             "(they may share a position)")
+            raise ValueError(
+                f"joint '{self.name}' connects node '{self.nodes[0]}' to itself; give two nodes "
+                "(they may share a position)"
+            )
         return self
 
 
@@ -364,8 +373,10 @@ class LoadTable(_Strict):
     @model_validator(mode="after")
     def _consistent(self) -> LoadTable:
         if len(self.stroke) != len(self.force):
-            raise ValueError(f"the table has {len(self.stroke)} stroke values and {len(self.force)} forces; "
-                             "give one force per stroke value")
+            raise ValueError(
+                f"the table has {len(self.stroke)} stroke values and {len(self.force)} forces; "
+                "give one force per stroke value"
+            )
         if not all(b > a for a, b in zip(self.stroke[:-1], self.stroke[1:])):
             raise ValueError("table stroke values must increase strictly; sort them")
         return self
@@ -383,8 +394,11 @@ class Load(_Strict):
     name: Name | None = Field(None, description="optional label")
     node: Name | None = Field(None, description="loaded node")
     body: Name | None = Field(None, description="loaded body")
-    point: Vec3 | None = Field(None, description="point of application on the body at the reference "
-                               "configuration [m] (default: its centre of mass); body loads only")
+    point: Vec3 | None = Field(
+        None,
+        description="point of application on the body at the reference "
+        "configuration [m] (default: its centre of mass); body loads only",
+    )
     force: Vec3 | None = Field(None, description="constant (dead) force [N], global axes")
     ramp: LoadRamp | None = Field(None, description="force varying linearly with the stroke")
     table: LoadTable | None = Field(None, description="force given per stroke value")
@@ -440,8 +454,10 @@ class SupportDirections(_Strict):
         """A zero vector names no direction (it was accepted, and every mode then read as non-parasitic)."""
         for i, d in enumerate(dirs):
             if not math.hypot(*d) > 0:
-                raise ValueError(f"direction {i} is the zero vector, which names no direction: give a direction "
-                                 "such as [0, 1, 0], or remove it")
+                raise ValueError(
+                    f"direction {i} is the zero vector, which names no direction: give a direction "
+                    "such as [0, 1, 0], or remove it"
+                )
         return dirs
 
 
@@ -451,19 +467,22 @@ class Units(_Strict):
     Converted to SI when the scene is validated (:func:`model.units.scene_to_si`); results are always SI.
     """
 
-    length: str | None = Field(None, description="unit of lengths, e.g. 'mm' (positions, sections, a "
-                               "translation stroke); default m")
-    mass: str | None = Field(None, description="unit of masses, e.g. 'tonne' or 'g' (inertia: mass length^2); "
-                             "default kg")
-    force: str | None = Field(None, description="unit of force, e.g. 'N'; only sets the default stress unit "
-                              "(force / length^2); default N")
-    stress: str | None = Field(None, description="unit of E, G and the allowable stress, e.g. 'MPa' or 'GPa'; "
-                               "default force / length^2")
-    density: str | None = Field(None, description="unit of density, e.g. 'kg/m^3' or 'g/cm^3'; default "
-                                "mass / length^3")
+    length: str | None = Field(
+        None, description="unit of lengths, e.g. 'mm' (positions, sections, a translation stroke); default m"
+    )
+    mass: str | None = Field(
+        None, description="unit of masses, e.g. 'tonne' or 'g' (inertia: mass length^2); default kg"
+    )
+    force: str | None = Field(
+        None, description="unit of force, e.g. 'N'; only sets the default stress unit (force / length^2); default N"
+    )
+    stress: str | None = Field(
+        None, description="unit of E, G and the allowable stress, e.g. 'MPa' or 'GPa'; default force / length^2"
+    )
+    density: str | None = Field(None, description="unit of density, e.g. 'kg/m^3' or 'g/cm^3'; default mass / length^3")
 
     @model_validator(mode="after")
-    def _readable(self) -> "Units":
+    def _readable(self) -> Units:
         from .units import UnitsError, check_unit
 
         errors = []
@@ -501,18 +520,25 @@ class Scene(_Strict):
         "its compliant deformations (see Beam.kinematic_rigid); dynamic analyses ignore it",
     )
     mesh_tolerance: float = Field(
-        1e-3, gt=0, le=0.5, allow_inf_nan=False,
+        1e-3,
+        gt=0,
+        le=0.5,
+        allow_inf_nan=False,
         description="relative discretisation error of the first parasitic frequency aimed at by beams with "
-        "segments 'auto' (model.mesh)")
+        "segments 'auto' (model.mesh)",
+    )
     support_directions: SupportDirections | None = None
     modes: int = Field(6, ge=1, le=50, description="number of modes reported per stroke point")
     gravity: Vec3 | None = Field(
-        None, description="gravitational acceleration [m/s^2] acting on the mass of every element and body, "
-        "e.g. [0, 0, -9.81]; default none")
+        None,
+        description="gravitational acceleration [m/s^2] acting on the mass of every element and body, "
+        "e.g. [0, 0, -9.81]; default none",
+    )
     loads: tuple[Load, ...] = Field((), description="external forces on nodes or bodies (model.loads)")
     joints: tuple[Joint, ...] = Field((), description="ideal joints (hinges, sliders) between nodes")
     units: Units | None = Field(
-        None, exclude=True,
+        None,
+        exclude=True,
         description="units the numbers above are written in (default SI); converted to SI on reading, so the "
         "validated scene, its dumps and every result are SI",
     )
@@ -543,7 +569,7 @@ class Scene(_Strict):
         return data
 
     @model_validator(mode="after")
-    def _references(self) -> "Scene":
+    def _references(self) -> Scene:
         """Cross-references and geometry, one table of checks (:class:`_ReferenceCheck`): every error found,
         joined in one message."""
         errors = _ReferenceCheck(self).errors()
@@ -559,8 +585,11 @@ class _ReferenceCheck:
     def __init__(self, scene: Scene) -> None:
         self.scene = scene
         self.out: list[str] = []
-        self.names_of = {"node": [n.name for n in scene.nodes], "body": [b.name for b in scene.bodies],
-                         "material": [m.name for m in scene.materials]}
+        self.names_of = {
+            "node": [n.name for n in scene.nodes],
+            "body": [b.name for b in scene.bodies],
+            "material": [m.name for m in scene.materials],
+        }
         self.carrier: dict[str, str] = {}
         self.supported: dict[str, set[str]] = {}
         self.grounded: set[str] = set()
@@ -695,9 +724,7 @@ class _ReferenceCheck:
             if st.body not in self.bodies:
                 errors.append(f"stroke.body: {self.unknown('body', st.body)}")
             elif st.body in self.grounded:
-                errors.append(
-                    f"stroke.body: body '{st.body}' is grounded by a support; drive a moving body instead"
-                )
+                errors.append(f"stroke.body: body '{st.body}' is grounded by a support; drive a moving body instead")
 
     def check_joints(self) -> None:
         names = {e.name for e in self.scene.elements}
@@ -710,8 +737,10 @@ class _ReferenceCheck:
             names.add(j.name)
             a, b = (self.carrier.get(n) for n in j.nodes)
             if a is not None and a == b:
-                self.out.append(f"joints[{i}].nodes: both nodes of joint '{j.name}' are carried by body '{a}', "
-                                "which holds them rigidly; join nodes of different parts")
+                self.out.append(
+                    f"joints[{i}].nodes: both nodes of joint '{j.name}' are carried by body '{a}', "
+                    "which holds them rigidly; join nodes of different parts"
+                )
 
     def check_loads(self) -> None:
         st = self.scene.stroke
@@ -726,7 +755,8 @@ class _ReferenceCheck:
                     self.out.append(
                         f"loads[{i}].table.stroke: the table covers {ld.table.stroke[0]:g} to "
                         f"{ld.table.stroke[-1]:g} but the analysis visits {lo:g} to {hi:g} (the stroke range "
-                        "and 0, where continuation starts); extend the table")
+                        "and 0, where continuation starts); extend the table"
+                    )
             if (ld.ramp is not None or ld.table is not None) and st is None:
                 self.out.append(f"loads[{i}]: a ramp or table load needs a stroke; give a constant 'force'")
 

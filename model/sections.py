@@ -12,8 +12,14 @@ import casadi as ca
 
 from .scene import GeneralSection, RectangularSection
 
-__all__ = ["SectionProperties", "section_properties", "rectangular_properties", "rect_torsion_constant",
-           "warping_factor", "beam_segment"]
+__all__ = [
+    "SectionProperties",
+    "section_properties",
+    "rectangular_properties",
+    "rect_torsion_constant",
+    "warping_factor",
+    "beam_segment",
+]
 
 
 @dataclass(frozen=True)
@@ -89,8 +95,16 @@ def rectangular_properties(w, t, warping: str = "free") -> SectionProperties:
     # Max shear stress of a rectangle in torsion: T b / J with b the short side for thin sections
     # (Roark Table 10.7 case 4, thin-wall limit); conservative for stubby rectangles.
     return SectionProperties(
-        A=A, Iy=Iy, Iz=Iz, J=J, ct=(Iy + Iz) / A, Iw=Iw, cy=w / 2.0, cz=t / 2.0,
-        tau_per_torque=ca.fmin(w, t) / J, warping=warping,
+        A=A,
+        Iy=Iy,
+        Iz=Iz,
+        J=J,
+        ct=(Iy + Iz) / A,
+        Iw=Iw,
+        cy=w / 2.0,
+        cz=t / 2.0,
+        tau_per_torque=ca.fmin(w, t) / J,
+        warping=warping,
     )
 
 
@@ -100,7 +114,14 @@ def section_properties(section: RectangularSection | GeneralSection) -> SectionP
         return rectangular_properties(section.width, section.thickness, section.warping)
     s = section
     return SectionProperties(
-        A=s.A, Iy=s.Iy, Iz=s.Iz, J=s.J, ct=(s.Iy + s.Iz) / s.A, Iw=0.0, cy=s.cy, cz=s.cz,
+        A=s.A,
+        Iy=s.Iy,
+        Iz=s.Iz,
+        J=s.J,
+        ct=(s.Iy + s.Iz) / s.A,
+        Iw=0.0,
+        cy=s.cy,
+        cz=s.cz,
         tau_per_torque=s.torsion_stress_factor,
     )
 
@@ -137,7 +158,18 @@ def beam_segment(p, q, y_axis, props: SectionProperties, E, G, density, n) -> di
     GJ = G * props.J * warping_factor(E, G, props, L, props.warping)
     Ix = props.Iy + props.Iz
     diag = (Ix, props.Iy, props.Iz)
-    rot = [[density * l0 / 2.0 * sum(E0[i][k] * diag[k] * E0[j][k] for k in range(3)) for j in range(3)]
-           for i in range(3)]
-    return dict(L=L, l0=l0, E0=E0, k1=E * props.A / l0, k2=GJ / l0**3, ky=E * props.Iy / l0**3,
-                kz=E * props.Iz / l0**3, ct=props.ct, mass=density * props.A * l0, rot=rot)
+    rot = [
+        [density * l0 / 2.0 * sum(E0[i][k] * diag[k] * E0[j][k] for k in range(3)) for j in range(3)] for i in range(3)
+    ]
+    return dict(
+        L=L,
+        l0=l0,
+        E0=E0,
+        k1=E * props.A / l0,
+        k2=GJ / l0**3,
+        ky=E * props.Iy / l0**3,
+        kz=E * props.Iz / l0**3,
+        ct=props.ct,
+        mass=density * props.A * l0,
+        rot=rot,
+    )

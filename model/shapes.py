@@ -41,8 +41,10 @@ __all__ = ["ModeShape", "Configuration", "Shapes", "shapes_at", "shapes_along", 
 #: Smallest drawn box edge of a body, relative to the structure's length scale.
 BODY_MIN_SIZE = 0.06
 
-STRESS_CONVENTION = ("largest von Mises stress of each member at this stroke [Pa] (ends of every beam segment, "
-                     "the bound of model.elements.beam_von_mises); utilisation = stress / allowable")
+STRESS_CONVENTION = (
+    "largest von Mises stress of each member at this stroke [Pa] (ends of every beam segment, "
+    "the bound of model.elements.beam_von_mises); utilisation = stress / allowable"
+)
 
 
 @dataclass(frozen=True)
@@ -95,8 +97,9 @@ class Shapes:
     def to_dict(self) -> dict:
         """A JSON-ready dict: ``stroke``, ``nodes`` (name -> position [m]), ``modes`` (list of ``hz``,
         ``label``, ``translation`` and ``rotation``: node -> [3]) and the drawing data."""
-        out = configuration_dict(self.node_names, list(self.bodies), self.members, self.allowable_stress,
-                                 self.configuration)
+        out = configuration_dict(
+            self.node_names, list(self.bodies), self.members, self.allowable_stress, self.configuration
+        )
         names = self.node_names
         out = {
             "scene": self.scene,
@@ -105,9 +108,15 @@ class Shapes:
             **out,
             "members": {k: dict(v) for k, v in self.members.items()},
             "bodies": {k: {**v, **out["bodies"][k]} for k, v in self.bodies.items()},
-            "modes": [{"hz": _f(m.hz), "label": m.label,
-                       "translation": {n: _vec(v) for n, v in zip(names, m.translation)},
-                       "rotation": {n: _vec(v) for n, v in zip(names, m.rotation)}} for m in self.modes],
+            "modes": [
+                {
+                    "hz": _f(m.hz),
+                    "label": m.label,
+                    "translation": {n: _vec(v) for n, v in zip(names, m.translation)},
+                    "rotation": {n: _vec(v) for n, v in zip(names, m.rotation)},
+                }
+                for m in self.modes
+            ],
             "warnings": [w.to_dict() for w in self.warnings],
             "conventions": dict(self.conventions),
             "provenance": dict(self.provenance),
@@ -123,21 +132,27 @@ def _vec(v: np.ndarray) -> list[float]:
     return [float(x) for x in v]
 
 
-def configuration_dict(node_names: Sequence[str], body_names: Sequence[str], members: dict[str, dict],
-                       allowable: dict[str, float], c: Configuration) -> dict:
+def configuration_dict(
+    node_names: Sequence[str],
+    body_names: Sequence[str],
+    members: dict[str, dict],
+    allowable: dict[str, float],
+    c: Configuration,
+) -> dict:
     """The wire form of one deflected configuration (also one entry of a curve's ``shapes``)."""
     util = {}
     for i, name in enumerate(members):
         vm = float(c.von_mises[i])
         a = allowable.get(name)
-        util[name] = {"von_mises": _f(vm), "allowable": a,
-                      "utilisation": _f(vm / a) if a else None}
+        util[name] = {"von_mises": _f(vm), "allowable": a, "utilisation": _f(vm / a) if a else None}
     return {
         "stroke": float(c.stroke),
         "nodes": {n: _vec(p) for n, p in zip(node_names, c.positions)},
         "orientations": {n: _vec(v) for n, v in zip(node_names, log_so3(c.orientations))},
-        "bodies": {b: {"position": _vec(c.body_positions[i]), "orientation": _vec(log_so3(c.body_orientations[i]))}
-                   for i, b in enumerate(body_names)},
+        "bodies": {
+            b: {"position": _vec(c.body_positions[i]), "orientation": _vec(log_so3(c.body_orientations[i]))}
+            for i, b in enumerate(body_names)
+        },
         "drive_reaction": _f(c.drive_reaction),
         "stress": util,
     }
@@ -162,8 +177,7 @@ def _geometry(an: MeshAnalysis) -> tuple[dict[str, dict], dict[str, dict]]:
             y_axis = _vec(y / np.linalg.norm(y))
             if isinstance(el.section, RectangularSection):
                 width, thickness = float(el.section.width), float(el.section.thickness)
-        members[el.name] = {"kind": el.kind, "nodes": chain, "width": width, "thickness": thickness,
-                            "y_axis": y_axis}
+        members[el.name] = {"kind": el.kind, "nodes": chain, "width": width, "thickness": thickness, "y_axis": y_axis}
     bodies: dict[str, dict] = {}
     for b in scene.bodies:
         com = np.array(b.center_of_mass, dtype=float)
@@ -179,9 +193,15 @@ def _configuration(an: MeshAnalysis, eq: Equilibrium, stroke: float) -> Configur
     s, sys = an.structure, an.system
     x, R, _ = sys.node_states(eq.state)
     nbd = len(s.scene.bodies)  # bodies are the first masters (model.structure)
-    return Configuration(stroke=stroke, positions=x, orientations=R, body_positions=eq.state.X[:nbd].copy(),
-                         body_orientations=eq.state.R[:nbd].copy(), drive_reaction=eq.drive_reaction,
-                         von_mises=von_mises(s, sys, eq))
+    return Configuration(
+        stroke=stroke,
+        positions=x,
+        orientations=R,
+        body_positions=eq.state.X[:nbd].copy(),
+        body_orientations=eq.state.R[:nbd].copy(),
+        drive_reaction=eq.drive_reaction,
+        von_mises=von_mises(s, sys, eq),
+    )
 
 
 def _mode_shapes(an: MeshAnalysis, eq: Equilibrium, modes: Modes, labels: list[str], k: int) -> tuple[ModeShape, ...]:
@@ -193,8 +213,9 @@ def _mode_shapes(an: MeshAnalysis, eq: Equilibrium, modes: Modes, labels: list[s
     for j in range(min(k, modes.phi.shape[1])):
         v = sys.to_global(modes.phi[:, j]).reshape(-1, 6)  # (nm, 6) master (u, psi), global axes
         u, psi = v[m, :3], v[m, 3:]
-        out.append(ModeShape(hz=float(hz[j]), label=str(labels[j]), translation=u + np.cross(psi, r),
-                             rotation=psi.copy()))
+        out.append(
+            ModeShape(hz=float(hz[j]), label=str(labels[j]), translation=u + np.cross(psi, r), rotation=psi.copy())
+        )
     return tuple(out)
 
 
@@ -239,8 +260,10 @@ def shapes_along(an: MeshAnalysis, stroke: Sequence[float], modes: bool = True, 
     missing = [v for v in values if float(spec.to_internal(v)) not in found]
     if missing and strict:
         why = "; ".join(f.message for f in curve.failures) or "no equilibrium found"
-        raise FlexoptError(f"no stable equilibrium at stroke {missing[0]:.6g} {spec.resolved_unit}: {why}; "
-                           "choose a stroke inside the curve's range")
+        raise FlexoptError(
+            f"no stable equilibrium at stroke {missing[0]:.6g} {spec.resolved_unit}: {why}; "
+            "choose a stroke inside the curve's range"
+        )
     members, bodies = _geometry(an)
     mats = {mt.name: mt for mt in s.scene.materials}
     allow = {e.name: float(mats[e.material].allowable_stress) for e in s.scene.elements}
@@ -248,12 +271,13 @@ def shapes_along(an: MeshAnalysis, stroke: Sequence[float], modes: bool = True, 
         "positions": "node positions and body centres of mass at the deflected equilibrium [m], global axes",
         "orientations": "rotation vectors (axis times angle) [rad] from the reference orientation",
         "modes": "mass normalised over the model's DOFs, phi^T M phi = 1 with M in kg and kg m^2 at the "
-                 "deflected state; translation in m, rotation (spatial rotation vector) in rad per unit modal "
-                 "coordinate; sign arbitrary; branch order of the frequency curve",
+        "deflected state; translation in m, rotation (spatial rotation vector) in rad per unit modal "
+        "coordinate; sign arbitrary; branch order of the frequency curve",
         "bodies": "drawn as the box bounding the body's nodes and centre of mass (a drawing aid)",
         "stress": STRESS_CONVENTION,
         **{k: v for k, v in curve.conventions.items() if k in ("drive", "drive_in_eigen_analysis", "parasitic")},
     }
+
     # every check comes with the curve (model.checks, one stress check for curves and shapes alike): each
     # point keeps the scene-wide warnings and the stress ranges it lies in
     def applies(w: ResultWarning, stroke: float) -> bool:
@@ -262,11 +286,22 @@ def shapes_along(an: MeshAnalysis, stroke: Sequence[float], modes: bool = True, 
     out = []
     for key in sorted(found):
         c, ms = found[key]
-        out.append(Shapes(scene=s.scene.name, stroke_unit=spec.resolved_unit, stroke_kind=spec.kind,
-                          node_names=s.node_names, members=members, bodies=bodies, allowable_stress=allow,
-                          configuration=c, modes=ms,
-                          warnings=tuple(w for w in curve.warnings if applies(w, c.stroke)),
-                          conventions=conventions, provenance=dict(curve.provenance)))
+        out.append(
+            Shapes(
+                scene=s.scene.name,
+                stroke_unit=spec.resolved_unit,
+                stroke_kind=spec.kind,
+                node_names=s.node_names,
+                members=members,
+                bodies=bodies,
+                allowable_stress=allow,
+                configuration=c,
+                modes=ms,
+                warnings=tuple(w for w in curve.warnings if applies(w, c.stroke)),
+                conventions=conventions,
+                provenance=dict(curve.provenance),
+            )
+        )
     return out
 
 

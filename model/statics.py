@@ -24,6 +24,7 @@ import ctypes
 from dataclasses import dataclass, field
 
 import numpy as np
+
 from . import linalg
 from .assembly import Assembled, State, System
 from .kernels import c_enum
@@ -76,8 +77,7 @@ class StepFailure(Exception):
     """Newton did not converge from a predictor (internal; continuation halves the step)."""
 
 
-def _scaled_residual(sys: System, ev: Assembled, dval: float, s_target: float, lam: np.ndarray | None = None
-                     ) -> float:
+def _scaled_residual(sys: System, ev: Assembled, dval: float, s_target: float, lam: np.ndarray | None = None) -> float:
     """Largest Jacobi-scaled residual: |g_i| / (|H_ii| l_i), the drive mismatch and rigid deformations.
 
     With loads (model.loads) the denominator is ``|H_ii| l_i + |p_i| + sum_k |G_ki lam_k|``, ``p`` the loads'
@@ -110,8 +110,9 @@ def _solve(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, int]:
     return b, info
 
 
-def _newton_step(sys: System, ev: Assembled, dd: np.ndarray, rhs_drive: float) -> tuple[np.ndarray, np.ndarray,
-                                                                                      np.ndarray, np.ndarray]:
+def _newton_step(
+    sys: System, ev: Assembled, dd: np.ndarray, rhs_drive: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Solve the Newton system for the correction and the path tangent.
 
     The Jacobian of the free rows is ``H + chart`` (the Hessian plus ``-1/2 skew(g)`` on rotation blocks,
@@ -166,8 +167,9 @@ def _compiled_step(sys: System, ns, ev: Assembled, st: State, s_target: float, n
     """:func:`_newton_step`, the drive and :func:`_scaled_residual` in one C call; raises like them."""
     rotation = sys.s.drive_kind == "rotation"
     dval = 0.0 if rotation else sys.drive_value(st, near=near)
-    dxi, tan, sc = linalg.newton(ns, ev.H, ev.chart, ev.g, st.R[sys.s.drive_master] if rotation else None, near,
-                                 s_target, dval)
+    dxi, tan, sc = linalg.newton(
+        ns, ev.H, ev.chart, ev.g, st.R[sys.s.drive_master] if rotation else None, near, s_target, dval
+    )
     if sc[3] != 1.0:
         raise StepFailure("non-finite residual")
     if sc[4] > 0:
@@ -192,12 +194,59 @@ def _compiled_step(sys: System, ns, ev: Assembled, st: State, s_target: float, n
 #: kernel reported an error, 3 non-finite residual, 4 singular (LAPACK info, reduced form), 5 non-finite
 #: increment, 6 diverging (inc), 7 not converging (inc, the one two iterations before), 8 no convergence
 #: (inc, res), 9 the predictor met a relative rotation near pi (the caller predicts in Python).
-LOOP_SLOTS = ("assemble", "kernel", "ne", "n_in", "n_out", "end_master", "end_node", "kernel_in", "dofs",
-              "dofs_full", "flat", "n_ext", "n_full", "node_master", "node_offset", "nodes", "offsets", "update",
-              "rot_update", "masters", "act", "moving", "nmov", "rin", "rout", "nchart", "chart_flat", "chart_src",
-              "chart_sign", "chart", "rot_log", "log_in", "log_out", "drive_master", "kind", "master_pos", "axis",
-              "n_act", "newton", "ip", "dp", "j_work", "b_work", "ipiv", "fp", "sc", "eye", "x_work", "r_work", "dxi",
-              "step")
+LOOP_SLOTS = (
+    "assemble",
+    "kernel",
+    "ne",
+    "n_in",
+    "n_out",
+    "end_master",
+    "end_node",
+    "kernel_in",
+    "dofs",
+    "dofs_full",
+    "flat",
+    "n_ext",
+    "n_full",
+    "node_master",
+    "node_offset",
+    "nodes",
+    "offsets",
+    "update",
+    "rot_update",
+    "masters",
+    "act",
+    "moving",
+    "nmov",
+    "rin",
+    "rout",
+    "nchart",
+    "chart_flat",
+    "chart_src",
+    "chart_sign",
+    "chart",
+    "rot_log",
+    "log_in",
+    "log_out",
+    "drive_master",
+    "kind",
+    "master_pos",
+    "axis",
+    "n_act",
+    "newton",
+    "ip",
+    "dp",
+    "j_work",
+    "b_work",
+    "ipiv",
+    "fp",
+    "sc",
+    "eye",
+    "x_work",
+    "r_work",
+    "dxi",
+    "step",
+)
 #: The most Newton iterations the compiled loop keeps increments for (``LOOP_MAX_ITER`` of its source, defined
 #: from this): options asking for more take the Python loop.
 _LOOP_MAX_ITER = 62
@@ -231,7 +280,7 @@ def _loop_function():
 class _PointLoop:
     """One system's compiled Newton loop (model/native/newton_point.c): its slots, work arrays and their addresses."""
 
-    def __init__(self, sys: System, ns: "linalg.NewtonSystem", fn) -> None:
+    def __init__(self, sys: System, ns: linalg.NewtonSystem, fn) -> None:
         import ctypes
 
         parts = dict(sys.native.point_parts())
@@ -239,9 +288,18 @@ class _PointLoop:
         lib, table, _ = ns.drv
         self.work = [np.empty(6 * nm), np.empty(18 * nm), np.empty(max(n, 1)), np.empty(max(n, 1))]
         ip, dp, J, b, ipiv, sc, eye = ns.ptr
-        parts.update(newton=ctypes.cast(lib.newton, ctypes.c_void_p).value, ip=ip, dp=dp, j_work=J, b_work=b,
-                     ipiv=ipiv, fp=ctypes.addressof(table.table), sc=sc, eye=eye,
-                     **dict(zip(("x_work", "r_work", "dxi", "step"), (a.ctypes.data for a in self.work))))
+        parts.update(
+            newton=ctypes.cast(lib.newton, ctypes.c_void_p).value,
+            ip=ip,
+            dp=dp,
+            j_work=J,
+            b_work=b,
+            ipiv=ipiv,
+            fp=ctypes.addressof(table.table),
+            sc=sc,
+            eye=eye,
+            **dict(zip(("x_work", "r_work", "dxi", "step"), (a.ctypes.data for a in self.work))),
+        )
         if set(parts) != set(LOOP_SLOTS):
             raise ValueError(f"the loop's context has slots {sorted(set(parts) ^ set(LOOP_SLOTS))} on one side only")
         self.ctx = np.array([parts[k] for k in LOOP_SLOTS], dtype=np.int64)
@@ -252,8 +310,17 @@ class _PointLoop:
         N, no = parts["n_ext"], parts["ne"] * parts["n_out"]
         self.nm, self.n, self.size = nm, n, 12 * nm + n + 8 + no + N + parts["n_full"] + N * N
 
-    def solve(self, X0: int, R0: int, s_target: float, opts: NewtonOptions, near: float,
-              pred: tuple[int, int, int, int, int] | None = None, ds: float = 0.0, h: float = 0.0) -> Equilibrium:
+    def solve(
+        self,
+        X0: int,
+        R0: int,
+        s_target: float,
+        opts: NewtonOptions,
+        near: float,
+        pred: tuple[int, int, int, int, int] | None = None,
+        ds: float = 0.0,
+        h: float = 0.0,
+    ) -> Equilibrium:
         """Newton from the state at addresses ``X0``, ``R0`` (or from the predictor's state off it, ``pred``: the
         addresses of newton_point.c's predictor) to the equilibrium at ``s_target``; raises as
         :func:`solve_point` does."""
@@ -271,10 +338,17 @@ class _PointLoop:
             raise _loop_failure(self, int(status), info, opts)
         st = State(out[: 3 * nm].reshape(nm, 3), out[3 * nm : 12 * nm].reshape(nm, 3, 3), np.zeros(0))
         sys = self.sys
-        return Equilibrium(stroke=s_target, state=st, ev=sys.native.assembled_at(out[12 * nm + n + 8 :]),
-                           free=sys.free, tangent=out[12 * nm : 12 * nm + n], iterations=int(info[1]), residual=float(info[4]),
-                           increment=float(info[3]),
-                           extra={"drive_dof": sys.drive, "dlam_ds": np.zeros(0), "at": at})
+        return Equilibrium(
+            stroke=s_target,
+            state=st,
+            ev=sys.native.assembled_at(out[12 * nm + n + 8 :]),
+            free=sys.free,
+            tangent=out[12 * nm : 12 * nm + n],
+            iterations=int(info[1]),
+            residual=float(info[4]),
+            increment=float(info[3]),
+            extra={"drive_dof": sys.drive, "dlam_ds": np.zeros(0), "at": at},
+        )
 
 
 def _loop_failure(pl: _PointLoop, status: int, info: np.ndarray, opts: NewtonOptions) -> Exception:
@@ -325,8 +399,15 @@ def _point_loop(sys: System, opts: NewtonOptions) -> _PointLoop | None:
     return native.point_loop
 
 
-def _advance(sys: System, cur: Equilibrium, ds: float, prev: Equilibrium | None, curvature: np.ndarray | None,
-             s_new: float, opts: NewtonOptions) -> Equilibrium:
+def _advance(
+    sys: System,
+    cur: Equilibrium,
+    ds: float,
+    prev: Equilibrium | None,
+    curvature: np.ndarray | None,
+    s_new: float,
+    opts: NewtonOptions,
+) -> Equilibrium:
     """``solve_point(sys, predict(sys, cur, ds, prev, curvature), s_new, opts, cur.stroke)``, predictor and
     Newton in one C call where the compiled loop applies and both points came from it (their arrays' addresses
     are known); the same numbers either way."""
@@ -343,8 +424,9 @@ def _advance(sys: System, cur: Equilibrium, ds: float, prev: Equilibrium | None,
                 curvature = np.ascontiguousarray(curvature, dtype=np.float64)
             pred = (at + 12 * nm8, 0 if curvature is None else curvature.ctypes.data, 0, 0, 0)
         try:
-            return pl.solve(at, at + 3 * nm8, s_new, opts, cur.stroke, pred, ds, cur.stroke - prev.stroke if cubic
-                            else 0.0)
+            return pl.solve(
+                at, at + 3 * nm8, s_new, opts, cur.stroke, pred, ds, cur.stroke - prev.stroke if cubic else 0.0
+            )
         except _NearPi:
             pass  # a relative rotation near pi: the quaternion route of System.difference, in Python
     return solve_point(sys, predict(sys, cur, ds, prev, curvature), s_new, opts, cur.stroke)
@@ -401,8 +483,15 @@ def solve_point(
         stalled = bool(incs) and inc > 0.25 * incs[-1]
         if res <= opts.tol and (inc <= opts.polish or (inc <= opts.tol and stalled)):
             return Equilibrium(
-                stroke=s_target, state=st, ev=ev, free=sys.free, tangent=tan, iterations=it,
-                residual=res, increment=inc, extra={"drive_dof": sys.drive, "dlam_ds": dlam_ds},
+                stroke=s_target,
+                state=st,
+                ev=ev,
+                free=sys.free,
+                tangent=tan,
+                iterations=it,
+                residual=res,
+                increment=inc,
+                extra={"drive_dof": sys.drive, "dlam_ds": dlam_ds},
             )
         if it > 2 and inc > 1e3 * opts.tol and inc > 0.5:
             raise StepFailure(f"diverging (increment {inc:.3g})")
@@ -437,8 +526,17 @@ def _pbsv(ab: np.ndarray, b: np.ndarray) -> np.ndarray | None:
     x = np.array(b, dtype=np.float64, order="F")
     kd1, n = A.shape
     n_, kd_, one, ldab, info = I(n), I(kd1 - 1), I(1), I(kd1), I(0)
-    fn(b"U", ctypes.byref(n_), ctypes.byref(kd_), ctypes.byref(one), A.ctypes.data, ctypes.byref(ldab),
-       x.ctypes.data, ctypes.byref(n_), ctypes.byref(info))
+    fn(
+        b"U",
+        ctypes.byref(n_),
+        ctypes.byref(kd_),
+        ctypes.byref(one),
+        A.ctypes.data,
+        ctypes.byref(ldab),
+        x.ctypes.data,
+        ctypes.byref(n_),
+        ctypes.byref(info),
+    )
     return x if info.value == 0 else None
 
 
@@ -486,8 +584,10 @@ def reference_equilibrium(sys: System, opts: NewtonOptions) -> Equilibrium:
                 halvings += 1
                 h /= 2
                 if halvings > opts.max_halvings:
-                    raise StepFailure(f"the loads could not be applied beyond {lam:.4g} of their value at stroke "
-                                      f"0 ({exc}): a limit load (buckling or snap-through under the loads)") from exc
+                    raise StepFailure(
+                        f"the loads could not be applied beyond {lam:.4g} of their value at stroke "
+                        f"0 ({exc}): a limit load (buckling or snap-through under the loads)"
+                    ) from exc
     finally:
         sys.load_scale = 1.0
     return cur
@@ -539,8 +639,9 @@ def path_curvature(sys: System, eq: Equilibrium) -> np.ndarray:
     return out
 
 
-def predict(sys: System, eq: Equilibrium, ds: float, prev: Equilibrium | None,
-            curvature: np.ndarray | None = None) -> State:
+def predict(
+    sys: System, eq: Equilibrium, ds: float, prev: Equilibrium | None, curvature: np.ndarray | None = None
+) -> State:
     """Predictor from a converged point ``eq`` to the stroke ``eq.stroke + ds``.
 
     With a previous point, the cubic Hermite extrapolation through both points and both tangents
@@ -573,8 +674,15 @@ class WalkFailure:
     message: str
 
 
-def walk(sys: System, targets: np.ndarray, opts: NewtonOptions, accept,
-         start: Equilibrium | None = None, on_step=None, curvature: np.ndarray | None = None) -> WalkFailure | None:
+def walk(
+    sys: System,
+    targets: np.ndarray,
+    opts: NewtonOptions,
+    accept,
+    start: Equilibrium | None = None,
+    on_step=None,
+    curvature: np.ndarray | None = None,
+) -> WalkFailure | None:
     """Continue from the reference through ``targets`` (internal units, monotone away from 0).
 
     ``start`` is the equilibrium at stroke 0 when the caller has it already; ``on_step(eq)``, when given,
@@ -603,7 +711,9 @@ def walk(sys: System, targets: np.ndarray, opts: NewtonOptions, accept,
                 h /= 2.0
                 if halvings > opts.max_halvings:
                     return WalkFailure(
-                        "divergence", cur.stroke + 2 * h, cur.stroke,
+                        "divergence",
+                        cur.stroke + 2 * h,
+                        cur.stroke,
                         f"no equilibrium found beyond stroke {cur.stroke:.6g}: Newton failed with steps down "
                         f"to {abs(2 * h):.3g} ({exc}); a limit point, snap-through or loss of equilibrium",
                     )

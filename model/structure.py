@@ -141,8 +141,11 @@ class _Mesh:
 
 def _masters(scene: Scene, pos0: dict[str, np.ndarray], carrier: dict[str, str]) -> _Mesh:
     """Masters: bodies first (at their centre of mass), then the free nodes; every scene node added."""
-    mesh = _Mesh([b.name for b in scene.bodies], [np.array(b.center_of_mass, dtype=float) for b in scene.bodies],
-                 {b.name: i for i, b in enumerate(scene.bodies)})
+    mesh = _Mesh(
+        [b.name for b in scene.bodies],
+        [np.array(b.center_of_mass, dtype=float) for b in scene.bodies],
+        {b.name: i for i, b in enumerate(scene.bodies)},
+    )
     for n in scene.nodes:
         mesh.add_node(n.name, pos0[n.name], carrier.get(n.name))
     return mesh
@@ -152,9 +155,15 @@ def _truss_row(el: Truss, ie: int, mat, mesh: _Mesh, pos0: dict[str, np.ndarray]
     """The kernel table row of truss ``el`` (scene element ``ie``)."""
     p_name, q_name = el.nodes
     L = float(np.linalg.norm(pos0[q_name] - pos0[p_name]))
-    return dict(nodes=(mesh.node_index[p_name], mesh.node_index[q_name]), member=ie, l0=L,
-                k1=mat.E * el.area / L, mask=0.0 if el.rigid else 1.0, area=el.area,
-                mass=mat.density * el.area * L)
+    return dict(
+        nodes=(mesh.node_index[p_name], mesh.node_index[q_name]),
+        member=ie,
+        l0=L,
+        k1=mat.E * el.area / L,
+        mask=0.0 if el.rigid else 1.0,
+        area=el.area,
+        mass=mat.density * el.area * L,
+    )
 
 
 def _beam_rows(el: Beam, ie: int, mat, props, mesh: _Mesh, pos0: dict[str, np.ndarray]) -> list[dict]:  # noqa: ANN001
@@ -184,12 +193,15 @@ def _beam_rows(el: Beam, ie: int, mat, props, mesh: _Mesh, pos0: dict[str, np.nd
     nan = float("nan")
     stress = [props.A, props.Iy, props.Iz, props.cy or nan, props.cz or nan, props.tau_per_torque or nan, l0]
     rot = np.array(seg["rot"], dtype=float)
-    return [dict(nodes=(a_, b_), member=ie, const=const, S=S, mask=mask, stress=stress, mass=float(seg["mass"]),
-                 rot=rot) for a_, b_ in zip(chain[:-1], chain[1:])]
+    return [
+        dict(nodes=(a_, b_), member=ie, const=const, S=S, mask=mask, stress=stress, mass=float(seg["mass"]), rot=rot)
+        for a_, b_ in zip(chain[:-1], chain[1:])
+    ]
 
 
-def _elements(scene: Scene, mesh: _Mesh, pos0: dict[str, np.ndarray], carrier: dict[str, str]
-              ) -> tuple[list[dict], list[dict], list[str]]:
+def _elements(
+    scene: Scene, mesh: _Mesh, pos0: dict[str, np.ndarray], carrier: dict[str, str]
+) -> tuple[list[dict], list[dict], list[str]]:
     """The meshed beam and truss rows and each member's torsion assumption; refuses a node that is connected
     to nothing."""
     mats = {m.name: m for m in scene.materials}
@@ -235,29 +247,35 @@ def _active(scene: Scene, mesh: _Mesh, rot_used: np.ndarray, carrier: dict[str, 
     return active
 
 
-def _drive(scene: Scene, mesh: _Mesh, active: np.ndarray, rot_used: np.ndarray
-           ) -> tuple[int, np.ndarray, int, np.ndarray, str]:
+def _drive(
+    scene: Scene, mesh: _Mesh, active: np.ndarray, rot_used: np.ndarray
+) -> tuple[int, np.ndarray, int, np.ndarray, str]:
     """The drive: master, axis, DOF, basis of its block (first column the axis) and kind; frees the drive
     block's DOFs in that basis (``active`` is updated)."""
     st = scene.stroke
     if st is None:
         # no drive (a structure for exact-constraint diagnosis only): System refuses it with a clear error
         return -1, np.zeros(3), -1, np.eye(3), "none"
-    drive_master = (mesh.body_index[st.body] if st.body is not None
-                    else int(mesh.node_master[mesh.node_index[st.node]]))
+    drive_master = mesh.body_index[st.body] if st.body is not None else int(mesh.node_master[mesh.node_index[st.node]])
     axis = _unit(st.axis)
     drive_dof = 6 * drive_master + (3 if st.kind == "rotation" else 0)
     if st.kind == "rotation" and not rot_used[drive_master]:
-        raise SceneError("stroke.node", f"node '{st.node}' has no rotational stiffness (it joins only "
-                         "trusses); drive it in translation or attach it to a beam")
+        raise SceneError(
+            "stroke.node",
+            f"node '{st.node}' has no rotational stiffness (it joins only "
+            "trusses); drive it in translation or attach it to a beam",
+        )
     blk = np.arange(drive_dof, drive_dof + 3)
     fixed_dirs = [np.eye(3)[k] for k in range(3) if not active[blk[k]]]
     if fixed_dirs:
         # partially supported driven node: the basis keeps the supported coordinate directions, so the
         # drive axis must be perpendicular to them (the scene validator already refuses a parallel one)
         if any(abs(f @ axis) > 1e-12 for f in fixed_dirs):
-            raise SceneError("stroke.axis", "the drive axis is not perpendicular to the supported "
-                             "coordinates of the driven node; align it with a free coordinate axis")
+            raise SceneError(
+                "stroke.axis",
+                "the drive axis is not perpendicular to the supported "
+                "coordinates of the driven node; align it with a free coordinate axis",
+            )
         f0 = fixed_dirs[0]
         basis = np.column_stack([axis, f0, np.cross(axis, f0)])
         active[blk] = [True, False, len(fixed_dirs) < 2]
@@ -313,6 +331,7 @@ def _joints(scene: Scene, node_index: dict[str, int], pos0: dict[str, np.ndarray
 
 def _element_tables(beam_rows: list[dict], truss_rows: list[dict]) -> dict[str, np.ndarray]:
     """The Structure's beam and truss arrays from the rows."""
+
     def arr(rows, key, shape):  # noqa: ANN001, ANN202
         return np.array([r[key] for r in rows], dtype=float).reshape(shape) if rows else np.zeros(shape)
 

@@ -93,8 +93,9 @@ def _node_map(c: np.ndarray, S: np.ndarray, X: dict[str, np.ndarray], scale: flo
     return {names[i]: names[int(j[i])] for i in range(len(names))}
 
 
-def _partners(scene: Scene, e: Element, f: Element, nmap: dict[str, str], S: np.ndarray,
-              X: dict[str, np.ndarray]) -> bool:
+def _partners(
+    scene: Scene, e: Element, f: Element, nmap: dict[str, str], S: np.ndarray, X: dict[str, np.ndarray]
+) -> bool:
     """Whether element ``f`` (on the mirrored nodes of ``e``) is the image of ``e``: the same kind and
     properties, and for a beam the mirrored section orientation."""
     mats = {m.name: m for m in scene.materials}
@@ -123,8 +124,7 @@ def _partners(scene: Scene, e: Element, f: Element, nmap: dict[str, str], S: np.
     return True
 
 
-def _element_map(scene: Scene, nmap: dict[str, str], S: np.ndarray, X: dict[str, np.ndarray]
-                 ) -> dict[str, str] | None:
+def _element_map(scene: Scene, nmap: dict[str, str], S: np.ndarray, X: dict[str, np.ndarray]) -> dict[str, str] | None:
     """Each element's partner of the same kind and properties on the mirrored nodes, or None."""
     by_nodes: dict[frozenset, list] = {}
     for e in scene.elements:
@@ -142,8 +142,7 @@ def _element_map(scene: Scene, nmap: dict[str, str], S: np.ndarray, X: dict[str,
     return emap
 
 
-def _body_map(scene: Scene, c: np.ndarray, S: np.ndarray, nmap: dict[str, str], scale: float
-              ) -> dict[str, str] | None:
+def _body_map(scene: Scene, c: np.ndarray, S: np.ndarray, nmap: dict[str, str], scale: float) -> dict[str, str] | None:
     """Each body's image: the same mass, mirrored centre of mass and inertia, the mirrored set of attached
     nodes; or None."""
     free_bodies = {b.name: b for b in scene.bodies}
@@ -155,8 +154,12 @@ def _body_map(scene: Scene, c: np.ndarray, S: np.ndarray, nmap: dict[str, str], 
         jscale = max(np.abs(J).max(), 1e-300)
         hit = None
         for f in free_bodies.values():
-            if (_close(f.mass, b.mass) and np.linalg.norm(np.asarray(f.center_of_mass, float) - com) <= TOL * scale
-                    and np.abs(np.asarray(f.inertia, float) - J).max() <= TOL * jscale and set(f.nodes) == nodes):
+            if (
+                _close(f.mass, b.mass)
+                and np.linalg.norm(np.asarray(f.center_of_mass, float) - com) <= TOL * scale
+                and np.abs(np.asarray(f.inertia, float) - J).max() <= TOL * jscale
+                and set(f.nodes) == nodes
+            ):
                 hit = f
                 break
         if hit is None:
@@ -169,6 +172,7 @@ def _body_map(scene: Scene, c: np.ndarray, S: np.ndarray, nmap: dict[str, str], 
 def _supports_map(scene: Scene, S: np.ndarray, nmap: dict[str, str], bmap: dict[str, str]) -> bool:
     """Whether every support has an image (the mirrored node or body with the mirrored set of fixed
     directions) and the declared support directions map onto themselves."""
+
     def fixed(sup) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
         idx = [_DOF[d] for d in sup.dofs]
         E = np.eye(3)
@@ -200,8 +204,9 @@ def _supports_map(scene: Scene, S: np.ndarray, nmap: dict[str, str], bmap: dict[
     return True
 
 
-def _check(scene: Scene, c: np.ndarray, S: np.ndarray, X: dict[str, np.ndarray], scale: float
-           ) -> tuple[dict, dict] | None:
+def _check(
+    scene: Scene, c: np.ndarray, S: np.ndarray, X: dict[str, np.ndarray], scale: float
+) -> tuple[dict, dict] | None:
     """The node and element maps of ``x -> c + S (x - c)`` (``S`` symmetric orthogonal) if it maps the scene
     onto itself (nodes, elements, bodies, supports, and the driven node or body onto itself), else None."""
     nmap = _node_map(c, S, X, scale)
@@ -306,8 +311,9 @@ def one_side(internal: np.ndarray) -> np.ndarray:
     neg = np.sort(-internal[internal < 0])
     if len(pos) and len(neg):  # images within tol of a requested non-negative stroke are that stroke
         j = np.searchsorted(pos, neg)
-        near = np.minimum(np.abs(pos[np.clip(j - 1, 0, len(pos) - 1)] - neg),
-                          np.abs(pos[np.clip(j, 0, len(pos) - 1)] - neg))
+        near = np.minimum(
+            np.abs(pos[np.clip(j - 1, 0, len(pos) - 1)] - neg), np.abs(pos[np.clip(j, 0, len(pos) - 1)] - neg)
+        )
         neg = neg[near > tol]
     if not len(neg):
         return pos

@@ -19,15 +19,27 @@ from .scene import Scene
 if TYPE_CHECKING:
     from pydantic import ValidationError
 
-__all__ = ["TEMPLATES", "DESIGN_SPACES", "PARAMETER_UNITS", "design_space", "parameter_unit", "template",
-           "template_parameters"]
+__all__ = [
+    "TEMPLATES",
+    "DESIGN_SPACES",
+    "PARAMETER_UNITS",
+    "design_space",
+    "parameter_unit",
+    "template",
+    "template_parameters",
+]
 
 STEEL = dict(E=210e9, G=79e9, density=7800.0, allowable_stress=600e6)
 
 
 def _steel(p: dict) -> dict:
-    return {"name": "steel", "E": p["E"], "G": p["G"], "density": p["density"],
-            "allowable_stress": p["allowable_stress"]}
+    return {
+        "name": "steel",
+        "E": p["E"],
+        "G": p["G"],
+        "density": p["density"],
+        "allowable_stress": p["allowable_stress"],
+    }
 
 
 def _leaf_spring(p: dict) -> dict:
@@ -38,15 +50,31 @@ def _leaf_spring(p: dict) -> dict:
         "name": "leaf-spring",
         "materials": [_steel(p)],
         "nodes": [{"name": "root", "position": [0, 0, 0]}, {"name": "tip", "position": [L, 0, 0]}],
-        "elements": [{
-            "kind": "beam", "name": "leaf", "nodes": ["root", "tip"], "material": "steel",
-            "section": {"kind": "rectangular", "width": p["width"], "thickness": p["thickness"],
-                        "warping": p["warping"]},
-            "y_axis": [0, 1, 0], "segments": int(p["segments"]),
-        }],
+        "elements": [
+            {
+                "kind": "beam",
+                "name": "leaf",
+                "nodes": ["root", "tip"],
+                "material": "steel",
+                "section": {
+                    "kind": "rectangular",
+                    "width": p["width"],
+                    "thickness": p["thickness"],
+                    "warping": p["warping"],
+                },
+                "y_axis": [0, 1, 0],
+                "segments": int(p["segments"]),
+            }
+        ],
         "supports": [{"node": "root"}],
-        "stroke": {"kind": "rotation", "node": "tip", "axis": [0, 1, 0], "start": -p["stroke"],
-                   "stop": p["stroke"], "points": int(p["points"])},
+        "stroke": {
+            "kind": "rotation",
+            "node": "tip",
+            "axis": [0, 1, 0],
+            "start": -p["stroke"],
+            "stop": p["stroke"],
+            "points": int(p["points"]),
+        },
         "support_directions": {"translations": [[0, 1, 0]], "rotations": [[1, 0, 0], [0, 0, 1]]},
         "modes": int(p["modes"]),
     }
@@ -62,24 +90,37 @@ def _parallel_leaf_spring(p: dict) -> dict:
     Jx = m * (d**2) / 12.0
     inertia = [[Jx, 0, 0], [0, Jy, 0], [0, 0, Jx + Jy]]
     leaf = lambda name, a, b: {  # noqa: E731
-        "kind": "beam", "name": name, "nodes": [a, b], "material": "steel",
-        "section": {"kind": "rectangular", "width": p["width"], "thickness": p["thickness"],
-                    "warping": p["warping"]},
-        "y_axis": [0, 1, 0], "segments": int(p["segments"]),
+        "kind": "beam",
+        "name": name,
+        "nodes": [a, b],
+        "material": "steel",
+        "section": {"kind": "rectangular", "width": p["width"], "thickness": p["thickness"], "warping": p["warping"]},
+        "y_axis": [0, 1, 0],
+        "segments": int(p["segments"]),
     }
     return {
         "name": "parallel-leaf-spring",
         "materials": [_steel(p)],
         "nodes": [
-            {"name": "root1", "position": [0, -d / 2, 0]}, {"name": "tip1", "position": [L, -d / 2, 0]},
-            {"name": "root2", "position": [0, d / 2, 0]}, {"name": "tip2", "position": [L, d / 2, 0]},
+            {"name": "root1", "position": [0, -d / 2, 0]},
+            {"name": "tip1", "position": [L, -d / 2, 0]},
+            {"name": "root2", "position": [0, d / 2, 0]},
+            {"name": "tip2", "position": [L, d / 2, 0]},
         ],
-        "bodies": [{"name": "stage", "mass": m, "center_of_mass": [L, 0, 0], "inertia": inertia,
-                    "nodes": ["tip1", "tip2"]}],
+        "bodies": [
+            {"name": "stage", "mass": m, "center_of_mass": [L, 0, 0], "inertia": inertia, "nodes": ["tip1", "tip2"]}
+        ],
         "elements": [leaf("leaf1", "root1", "tip1"), leaf("leaf2", "root2", "tip2")],
         "supports": [{"node": "root1"}, {"node": "root2"}],
-        "stroke": {"kind": "translation", "body": "stage", "axis": [0, 0, 1], "start": -p["stroke"],
-                   "stop": p["stroke"], "points": int(p["points"]), "unit": "m"},
+        "stroke": {
+            "kind": "translation",
+            "body": "stage",
+            "axis": [0, 0, 1],
+            "start": -p["stroke"],
+            "stop": p["stroke"],
+            "points": int(p["points"]),
+            "unit": "m",
+        },
         "modes": int(p["modes"]),
     }
 
@@ -103,21 +144,36 @@ def _cross_spring_pivot(p: dict) -> dict:
     r = p["body_radius"]
     inertia = [[m * r * r / 2, 0, 0], [0, m * r * r / 2, 0], [0, 0, m * r * r / 2]]
     leaf = lambda name, a, b: {  # noqa: E731
-        "kind": "beam", "name": name, "nodes": [a, b], "material": "steel",
+        "kind": "beam",
+        "name": name,
+        "nodes": [a, b],
+        "material": "steel",
         "section": {"kind": "rectangular", "width": w, "thickness": p["thickness"], "warping": p["warping"]},
-        "y_axis": [0, 0, 1], "segments": int(p["segments"]),
+        "y_axis": [0, 0, 1],
+        "segments": int(p["segments"]),
     }
     return {
         "name": "cross-spring-pivot",
         "materials": [_steel(p)],
-        "nodes": [{"name": "a0", "position": a0}, {"name": "a1", "position": a1},
-                  {"name": "b0", "position": b0}, {"name": "b1", "position": b1}],
-        "bodies": [{"name": "rotor", "mass": m, "center_of_mass": [0, hb, 0], "inertia": inertia,
-                    "nodes": ["a1", "b1"]}],
+        "nodes": [
+            {"name": "a0", "position": a0},
+            {"name": "a1", "position": a1},
+            {"name": "b0", "position": b0},
+            {"name": "b1", "position": b1},
+        ],
+        "bodies": [
+            {"name": "rotor", "mass": m, "center_of_mass": [0, hb, 0], "inertia": inertia, "nodes": ["a1", "b1"]}
+        ],
         "elements": [leaf("leafA", "a0", "a1"), leaf("leafB", "b0", "b1")],
         "supports": [{"node": "a0"}, {"node": "b0"}],
-        "stroke": {"kind": "rotation", "body": "rotor", "axis": [0, 0, 1], "start": -p["stroke"],
-                   "stop": p["stroke"], "points": int(p["points"])},
+        "stroke": {
+            "kind": "rotation",
+            "body": "rotor",
+            "axis": [0, 0, 1],
+            "start": -p["stroke"],
+            "stop": p["stroke"],
+            "points": int(p["points"]),
+        },
         "modes": int(p["modes"]),
     }
 
@@ -125,30 +181,86 @@ def _cross_spring_pivot(p: dict) -> dict:
 _COMMON = dict(STEEL, warping="free", points=91, modes=6)
 
 TEMPLATES: dict[str, tuple[Callable[[dict], dict], dict[str, Any]]] = {
-    "leaf-spring": (_leaf_spring, dict(_COMMON, length=0.1, width=0.04, thickness=0.5e-3, segments=10,
-                                       stroke=45.0)),
-    "parallel-leaf-spring": (_parallel_leaf_spring, dict(_COMMON, length=0.1, width=0.04, thickness=0.5e-3,
-                                                         spacing=0.06, segments=10, body_mass=0.1,
-                                                         body_depth=0.01, stroke=0.01)),
-    "cross-spring-pivot": (_cross_spring_pivot, dict(_COMMON, length=0.05, width=0.02, thickness=0.3e-3,
-                                                     angle=90.0, crossing=0.5, gap=0.002, segments=12, body_mass=0.1,
-                                                     body_radius=0.02, body_offset=0.01, stroke=45.0)),
+    "leaf-spring": (_leaf_spring, dict(_COMMON, length=0.1, width=0.04, thickness=0.5e-3, segments=10, stroke=45.0)),
+    "parallel-leaf-spring": (
+        _parallel_leaf_spring,
+        dict(
+            _COMMON,
+            length=0.1,
+            width=0.04,
+            thickness=0.5e-3,
+            spacing=0.06,
+            segments=10,
+            body_mass=0.1,
+            body_depth=0.01,
+            stroke=0.01,
+        ),
+    ),
+    "cross-spring-pivot": (
+        _cross_spring_pivot,
+        dict(
+            _COMMON,
+            length=0.05,
+            width=0.02,
+            thickness=0.3e-3,
+            angle=90.0,
+            crossing=0.5,
+            gap=0.002,
+            segments=12,
+            body_mass=0.1,
+            body_radius=0.02,
+            body_offset=0.01,
+            stroke=45.0,
+        ),
+    ),
 }
 
 
 #: SI unit of each template parameter (``""``: a plain number; absent: a count or a word). A parameter given
 #: as a string with a unit (``"0.3 mm"``, ``--set thickness=0.3mm``) is converted to this unit with pint.
 PARAMETER_UNITS: dict[str, str] = {
-    **dict.fromkeys(("E", "G", "allowable_stress"), "Pa"), "density": "kg/m^3",
-    **dict.fromkeys(("length", "width", "thickness", "spacing", "gap", "body_depth", "body_radius", "body_offset",
-                     "half_width", "height", "wire_length", "wire_diameter", "sheet_length", "sheet_width",
-                     "sheet_thickness", "body_length", "body_width", "body_height"), "m"),
-    **dict.fromkeys(("body_mass", "mid_mass"), "kg"), "area": "m^2", "angle": "deg", "crossing": "",
+    **dict.fromkeys(("E", "G", "allowable_stress"), "Pa"),
+    "density": "kg/m^3",
+    **dict.fromkeys(
+        (
+            "length",
+            "width",
+            "thickness",
+            "spacing",
+            "gap",
+            "body_depth",
+            "body_radius",
+            "body_offset",
+            "half_width",
+            "height",
+            "wire_length",
+            "wire_diameter",
+            "sheet_length",
+            "sheet_width",
+            "sheet_thickness",
+            "body_length",
+            "body_width",
+            "body_height",
+        ),
+        "m",
+    ),
+    **dict.fromkeys(("body_mass", "mid_mass"), "kg"),
+    "area": "m^2",
+    "angle": "deg",
+    "crossing": "",
 }
 #: Templates whose ``stroke`` parameter is a translation [m]; in the others it is a rotation [deg].
-_TRANSLATION_TEMPLATES = frozenset({"parallel-leaf-spring", "wire-guide-5", "wire-guide-parallel",
-                                    "wire-guide-topology", "folded-sheet-guide-5", "folded-sheet-guide-6",
-                                    "folded-sheet-guide-5a"})
+_TRANSLATION_TEMPLATES = frozenset(
+    {
+        "parallel-leaf-spring",
+        "wire-guide-5",
+        "wire-guide-parallel",
+        "wire-guide-topology",
+        "folded-sheet-guide-5",
+        "folded-sheet-guide-6",
+        "folded-sheet-guide-5a",
+    }
+)
 
 
 def parameter_unit(name: str, parameter: str) -> str | None:
@@ -163,8 +275,11 @@ def template_parameters(name: str) -> dict[str, Any]:
     if name not in TEMPLATES:
         from .scene import did_you_mean
 
-        raise SceneError("template", f"unknown template '{name}'{did_you_mean(name, sorted(TEMPLATES))}; "
-                         f"choose one of {', '.join(sorted(TEMPLATES))}")
+        raise SceneError(
+            "template",
+            f"unknown template '{name}'{did_you_mean(name, sorted(TEMPLATES))}; "
+            f"choose one of {', '.join(sorted(TEMPLATES))}",
+        )
     return dict(TEMPLATES[name][1])
 
 
@@ -180,15 +295,20 @@ def _read_parameter(name: str, key: str, default: Any, v: Any) -> Any:
             num = float(v)
         except ValueError:
             if unit is None:
-                raise SceneError(where, f"cannot read '{v}' as {type(default).__name__}: template parameter '{key}' "
-                                 f"is {kind} without unit") from None
+                raise SceneError(
+                    where,
+                    f"cannot read '{v}' as {type(default).__name__}: template parameter '{key}' is {kind} without unit",
+                ) from None
             from .units import UnitsError, quantity_to
 
             try:
                 num = quantity_to(v, unit)
             except UnitsError as exc:
-                raise SceneError(where, f"cannot read '{v}' as float or as a quantity in {unit or 'no unit'} "
-                                 f"(template parameter '{key}'): {exc}") from None
+                raise SceneError(
+                    where,
+                    f"cannot read '{v}' as float or as a quantity in {unit or 'no unit'} "
+                    f"(template parameter '{key}'): {exc}",
+                ) from None
         v = num
     if isinstance(v, bool) or not isinstance(v, numbers.Real):
         raise SceneError(where, f"template parameter '{key}' must be {kind}, got {v!r}")
@@ -219,8 +339,9 @@ def _at(data: Any, loc: tuple) -> Any:
     return data
 
 
-def _parameter_error(name: str, params: dict[str, Any], overrides: dict[str, Any], data: dict,
-                     exc: "ValidationError") -> SceneError:
+def _parameter_error(
+    name: str, params: dict[str, Any], overrides: dict[str, Any], data: dict, exc: ValidationError
+) -> SceneError:
     """A scene error of a template's scene, told in terms of the template parameter that caused it.
 
     The offending scene value is traced back to the parameter holding the same value (overridden
@@ -240,12 +361,17 @@ def _parameter_error(name: str, params: dict[str, Any], overrides: dict[str, Any
             msg = err["msg"].removeprefix("Value error, ").replace("Input should be", "must be")
             shown = f"{params[key]!r}" + (f" {unit}" if unit else "")
             return SceneError(f"template.{key}", f"template parameter '{key}' = {shown}: {msg}; change '{key}'")
-    given = ", ".join(f"{k} = {params[k]!r}" + (f" {parameter_unit(name, k)}" if parameter_unit(name, k) else "")
-                      for k in overrides if k in params)
+    given = ", ".join(
+        f"{k} = {params[k]!r}" + (f" {parameter_unit(name, k)}" if parameter_unit(name, k) else "")
+        for k in overrides
+        if k in params
+    )
     key = next(iter(overrides), None) if len(overrides) == 1 else None
-    return SceneError(f"template.{key}" if key else "", f"template '{name}' with {given or 'its defaults'} gives an "
-                      f"invalid scene: {format_validation_error(exc)}; change "
-                      + (f"'{key}'" if key else "the parameters"))
+    return SceneError(
+        f"template.{key}" if key else "",
+        f"template '{name}' with {given or 'its defaults'} gives an "
+        f"invalid scene: {format_validation_error(exc)}; change " + (f"'{key}'" if key else "the parameters"),
+    )
 
 
 def template(name: str, **overrides: Any) -> Scene:
@@ -265,8 +391,11 @@ def template(name: str, **overrides: Any) -> Scene:
         if k not in params:
             from .scene import did_you_mean
 
-            raise SceneError(f"template.{k}", f"template '{name}' has no parameter '{k}'"
-                             f"{did_you_mean(k, sorted(params))}; its parameters are {sorted(params)}")
+            raise SceneError(
+                f"template.{k}",
+                f"template '{name}' has no parameter '{k}'"
+                f"{did_you_mean(k, sorted(params))}; its parameters are {sorted(params)}",
+            )
         params[k] = _read_parameter(name, k, params[k], v)
     from pydantic import ValidationError
 
@@ -283,6 +412,7 @@ def template(name: str, **overrides: Any) -> Scene:
 # Scenes of seed 002 (Aarts, van Dijk and Jonker): exact-constraint examples. Appended; the templates above
 # are unchanged.
 
+
 def _truss12(p: dict) -> dict:
     """Figure 2 of seed 002: twelve rigid trusses. Supports at (+-a, +-a, 0); top nodes (a, 0, h),
     (0, a, h), (-a, 0, h), (0, -a, h) (a = ``half_width``, h = ``height``; the paper has a = h = 1), each
@@ -293,13 +423,37 @@ def _truss12(p: dict) -> dict:
     top = {"t_px": (a, 0.0), "t_py": (0.0, a), "t_mx": (-a, 0.0), "t_my": (0.0, -a)}
     nodes = [{"name": k, "position": [x, y, 0.0]} for k, (x, y) in sup.items()]
     nodes += [{"name": k, "position": [x, y, h]} for k, (x, y) in top.items()]
-    legs = [("t_px", "s_pp"), ("t_px", "s_pm"), ("t_py", "s_pp"), ("t_py", "s_mp"),
-            ("t_mx", "s_mp"), ("t_mx", "s_mm"), ("t_my", "s_mm"), ("t_my", "s_pm")]
+    legs = [
+        ("t_px", "s_pp"),
+        ("t_px", "s_pm"),
+        ("t_py", "s_pp"),
+        ("t_py", "s_mp"),
+        ("t_mx", "s_mp"),
+        ("t_mx", "s_mm"),
+        ("t_my", "s_mm"),
+        ("t_my", "s_pm"),
+    ]
     ring = [("t_px", "t_py"), ("t_py", "t_mx"), ("t_mx", "t_my"), ("t_my", "t_px")]
-    elements = [{"kind": "truss", "name": f"{s}-{t}", "nodes": [s, t], "material": "steel", "area": p["area"],
-                 "rigid": ["elongation"]} for s, t in legs + ring]
-    return {"name": "truss12", "materials": [_steel(p)], "nodes": nodes, "elements": elements,
-            "supports": [{"node": k} for k in sup], "stroke": None, "modes": int(p["modes"])}
+    elements = [
+        {
+            "kind": "truss",
+            "name": f"{s}-{t}",
+            "nodes": [s, t],
+            "material": "steel",
+            "area": p["area"],
+            "rigid": ["elongation"],
+        }
+        for s, t in legs + ring
+    ]
+    return {
+        "name": "truss12",
+        "materials": [_steel(p)],
+        "nodes": nodes,
+        "elements": elements,
+        "supports": [{"node": k} for k in sup],
+        "stroke": None,
+        "modes": int(p["modes"]),
+    }
 
 
 def _box_inertia(m: float, a: float, b: float, c: float) -> list[list[float]]:
@@ -314,8 +468,11 @@ def _wire_guide(p: dict, parallel: bool) -> dict:
     moves to x = -0.8a (above the first, at z = +0.5c): the two lateral wires are parallel and meet the
     same constraint line pattern, so one constraint is repeated (a self-stress) and the rotation about the
     vertical axis through x = -0.8a is free (a mechanism). Square wires of side ``wire_diameter``."""
-    return _wire_block(p, ["z--", "z-+", "z+0", "y--", "y-+"] if parallel else ["z--", "z-+", "z+0", "y-0", "y+0"],
-                       "wire-guide-parallel" if parallel else "wire-guide-5")
+    return _wire_block(
+        p,
+        ["z--", "z-+", "z+0", "y--", "y-+"] if parallel else ["z--", "z-+", "z+0", "y-0", "y+0"],
+        "wire-guide-parallel" if parallel else "wire-guide-5",
+    )
 
 
 _STEP = {"-": -1.0, "0": 0.0, "+": 1.0}
@@ -340,8 +497,10 @@ def guide_layout(descriptor: str) -> list[str]:
     wires = descriptor[2:].split(",")
     for w in wires:
         if len(w) != 3 or w[0] not in "yz" or w[1] not in _STEP or w[2] not in _STEP:
-            raise SceneError(where, f"guide topology '{descriptor}': wire '{w}' must be 'z' or 'y' and two of "
-                             "'-', '0', '+' (e.g. 'z-+')")
+            raise SceneError(
+                where,
+                f"guide topology '{descriptor}': wire '{w}' must be 'z' or 'y' and two of '-', '0', '+' (e.g. 'z-+')",
+            )
     if len(set(wires)) != len(wires):
         raise SceneError(where, f"guide topology '{descriptor}' places a wire twice")
     return wires
@@ -356,26 +515,56 @@ def _wire_block(p: dict, wires: list[str], name: str) -> dict:
     nodes, elements, supports, carried = [], [], [], []
     for k, tok in enumerate(wires, start=1):
         i, j = _STEP[tok[1]], _STEP[tok[2]]
-        at, direction = (((0.8 * a * i, 0.75 * b * j, -c), (0, 0, 1)) if tok[0] == "z"
-                         else ((0.8 * a * i, -b, 0.5 * c * j), (0, 1, 0)))
+        at, direction = (
+            ((0.8 * a * i, 0.75 * b * j, -c), (0, 0, 1))
+            if tok[0] == "z"
+            else ((0.8 * a * i, -b, 0.5 * c * j), (0, 1, 0))
+        )
         wname = f"wire{k}"
         base = [at[q] - Lw * direction[q] for q in range(3)]
         nodes.extend([{"name": f"{wname}_body", "position": list(at)}, {"name": f"{wname}_ground", "position": base}])
         carried.append(f"{wname}_body")
         supports.append({"node": f"{wname}_ground"})
-        elements.append({"kind": "beam", "name": wname, "nodes": [f"{wname}_ground", f"{wname}_body"],
-                         "material": "steel", "section": {"kind": "rectangular", "width": d, "thickness": d},
-                         "y_axis": [1, 0, 0], "segments": int(p["segments"]), "rigid": []})
+        elements.append(
+            {
+                "kind": "beam",
+                "name": wname,
+                "nodes": [f"{wname}_ground", f"{wname}_body"],
+                "material": "steel",
+                "section": {"kind": "rectangular", "width": d, "thickness": d},
+                "y_axis": [1, 0, 0],
+                "segments": int(p["segments"]),
+                "rigid": [],
+            }
+        )
     m = p["body_mass"]
     return {
         "name": name,
-        "materials": [_steel(p)], "nodes": nodes,
-        "bodies": [{"name": "slider", "mass": m, "center_of_mass": [0, 0, 0],
-                    "inertia": _box_inertia(m, 2 * a, 2 * b, 2 * c), "nodes": carried}],
-        "elements": elements, "supports": supports,
-        "stroke": {"kind": "translation", "body": "slider", "axis": [1, 0, 0], "start": -p["stroke"],
-                   "stop": p["stroke"], "points": int(p["points"]), "unit": "m", "drive": "free"},
-        "kinematic": True, "modes": int(p["modes"]),
+        "materials": [_steel(p)],
+        "nodes": nodes,
+        "bodies": [
+            {
+                "name": "slider",
+                "mass": m,
+                "center_of_mass": [0, 0, 0],
+                "inertia": _box_inertia(m, 2 * a, 2 * b, 2 * c),
+                "nodes": carried,
+            }
+        ],
+        "elements": elements,
+        "supports": supports,
+        "stroke": {
+            "kind": "translation",
+            "body": "slider",
+            "axis": [1, 0, 0],
+            "start": -p["stroke"],
+            "stop": p["stroke"],
+            "points": int(p["points"]),
+            "unit": "m",
+            "drive": "free",
+        },
+        "kinematic": True,
+        "modes": int(p["modes"]),
     }
 
 
@@ -407,8 +596,7 @@ def _folded_sheet_guide(p: dict, count: int, variant: str = "") -> dict:
     elif count == 5:
         places = [(-Lb / 2, 90.0), (-Lb / 2, 210.0), (-Lb / 2, 330.0), (Lb / 4, 30.0), (Lb / 4, 150.0)]
     else:
-        places = [(-Lb / 2, 90.0), (-Lb / 2, 210.0), (-Lb / 2, 330.0), (Lb / 4, 30.0), (Lb / 4, 150.0),
-                  (Lb / 4, 270.0)]
+        places = [(-Lb / 2, 90.0), (-Lb / 2, 210.0), (-Lb / 2, 330.0), (Lb / 4, 30.0), (Lb / 4, 150.0), (Lb / 4, 270.0)]
     s2 = math.sqrt(0.5)
     nodes, elements, supports, carried = [], [], [], []
     sec = {"kind": "rectangular", "width": p["sheet_width"], "thickness": p["sheet_thickness"]}
@@ -422,27 +610,66 @@ def _folded_sheet_guide(p: dict, count: int, variant: str = "") -> dict:
         F = tuple(P[k] + Ls * b[k] for k in range(3))
         S = tuple(F[k] + Ls * a[k] for k in range(3))
         tag = f"flex{i}"
-        nodes += [{"name": f"{tag}_body", "position": list(P)}, {"name": f"{tag}_fold", "position": list(F)},
-                  {"name": f"{tag}_ground", "position": list(S)}]
+        nodes += [
+            {"name": f"{tag}_body", "position": list(P)},
+            {"name": f"{tag}_fold", "position": list(F)},
+            {"name": f"{tag}_ground", "position": list(S)},
+        ]
         carried.append(f"{tag}_body")
         supports.append({"node": f"{tag}_ground"})
-        elements.append({"kind": "beam", "name": f"{tag}B", "nodes": [f"{tag}_body", f"{tag}_fold"],
-                         "material": "steel", "section": sec, "y_axis": list(f), "segments": int(p["segments"]),
-                         "generalised": ["eps4"]})
-        elements.append({"kind": "beam", "name": f"{tag}A", "nodes": [f"{tag}_fold", f"{tag}_ground"],
-                         "material": "steel", "section": sec, "y_axis": list(f), "segments": int(p["segments"])})
+        elements.append(
+            {
+                "kind": "beam",
+                "name": f"{tag}B",
+                "nodes": [f"{tag}_body", f"{tag}_fold"],
+                "material": "steel",
+                "section": sec,
+                "y_axis": list(f),
+                "segments": int(p["segments"]),
+                "generalised": ["eps4"],
+            }
+        )
+        elements.append(
+            {
+                "kind": "beam",
+                "name": f"{tag}A",
+                "nodes": [f"{tag}_fold", f"{tag}_ground"],
+                "material": "steel",
+                "section": sec,
+                "y_axis": list(f),
+                "segments": int(p["segments"]),
+            }
+        )
     m = p["body_mass"]
     Jx = m * R * R / 2
     Jt = m * (3 * R * R + Lb * Lb) / 12
     return {
         "name": f"folded-sheet-guide-{count}{variant}",
-        "materials": [_steel(p)], "nodes": nodes,
-        "bodies": [{"name": "cylinder", "mass": m, "center_of_mass": [0, 0, 0],
-                    "inertia": [[Jx, 0, 0], [0, Jt, 0], [0, 0, Jt]], "nodes": carried}],
-        "elements": elements, "supports": supports,
-        "stroke": {"kind": "translation", "body": "cylinder", "axis": [1, 0, 0], "start": -p["stroke"],
-                   "stop": p["stroke"], "points": int(p["points"]), "unit": "m", "drive": "free"},
-        "kinematic": True, "modes": int(p["modes"]),
+        "materials": [_steel(p)],
+        "nodes": nodes,
+        "bodies": [
+            {
+                "name": "cylinder",
+                "mass": m,
+                "center_of_mass": [0, 0, 0],
+                "inertia": [[Jx, 0, 0], [0, Jt, 0], [0, 0, Jt]],
+                "nodes": carried,
+            }
+        ],
+        "elements": elements,
+        "supports": supports,
+        "stroke": {
+            "kind": "translation",
+            "body": "cylinder",
+            "axis": [1, 0, 0],
+            "start": -p["stroke"],
+            "stop": p["stroke"],
+            "points": int(p["points"]),
+            "unit": "m",
+            "drive": "free",
+        },
+        "kinematic": True,
+        "modes": int(p["modes"]),
     }
 
 
@@ -451,30 +678,55 @@ def _folded_sheet_guide(p: dict, count: int, variant: str = "") -> dict:
 # python bench/bench_mesh_estimate.py): hinges 12 segments per leaf (8 read 0.6-0.8 % off at +-45 deg), the
 # cartwheel 40 (20 per half leaf; 4 read 8.8 % off), wire guides 8 per wire (1 read 3.4 %; at 4 the estimate
 # from 2 still reads 0.58 %), folded sheets 24 per sheet (1 read 56 %; 16 read 0.52 %).
-_WIRE = dict(_COMMON, body_length=0.1, body_width=0.04, body_height=0.03, body_mass=0.3, wire_length=0.05,
-             wire_diameter=1e-3, segments=8, stroke=0.002, points=11)
-_FOLDED = dict(_COMMON, body_radius=0.02, body_length=0.1, body_mass=0.312, sheet_length=0.05,
-               sheet_width=0.02, sheet_thickness=0.2e-3, segments=24, stroke=0.002, points=11)
-TEMPLATES.update({
-    "truss12": (_truss12, dict(_COMMON, half_width=1.0, height=1.0, area=1e-4)),
-    "wire-guide-5": (lambda p: _wire_guide(p, False), dict(_WIRE)),
-    "wire-guide-parallel": (lambda p: _wire_guide(p, True), dict(_WIRE)),
-    # a generated wire guide (optim/topology): wires placed by a descriptor, see guide_layout
-    "wire-guide-topology": (lambda p: _wire_block(p, guide_layout(p["topology"]), f"guide {p['topology']}"),
-                            dict(_WIRE, topology="T:z--,z-+,z+0,y-0,y+0")),
-    "folded-sheet-guide-5": (lambda p: _folded_sheet_guide(p, 5), dict(_FOLDED)),
-    "folded-sheet-guide-6": (lambda p: _folded_sheet_guide(p, 6), dict(_FOLDED)),
-    # Figure 5a: five flexures, the second side's two with parallel fold lines (90 and 270 degrees): the
-    # paper's kinematic analysis finds it under- and overconstrained at once (one free motion, one
-    # self-stress); tests/test_topology.py checks that the topology filter finds it so
-    "folded-sheet-guide-5a": (lambda p: _folded_sheet_guide(p, 5, "a"), dict(_FOLDED)),
-})
+_WIRE = dict(
+    _COMMON,
+    body_length=0.1,
+    body_width=0.04,
+    body_height=0.03,
+    body_mass=0.3,
+    wire_length=0.05,
+    wire_diameter=1e-3,
+    segments=8,
+    stroke=0.002,
+    points=11,
+)
+_FOLDED = dict(
+    _COMMON,
+    body_radius=0.02,
+    body_length=0.1,
+    body_mass=0.312,
+    sheet_length=0.05,
+    sheet_width=0.02,
+    sheet_thickness=0.2e-3,
+    segments=24,
+    stroke=0.002,
+    points=11,
+)
+TEMPLATES.update(
+    {
+        "truss12": (_truss12, dict(_COMMON, half_width=1.0, height=1.0, area=1e-4)),
+        "wire-guide-5": (lambda p: _wire_guide(p, False), dict(_WIRE)),
+        "wire-guide-parallel": (lambda p: _wire_guide(p, True), dict(_WIRE)),
+        # a generated wire guide (optim/topology): wires placed by a descriptor, see guide_layout
+        "wire-guide-topology": (
+            lambda p: _wire_block(p, guide_layout(p["topology"]), f"guide {p['topology']}"),
+            dict(_WIRE, topology="T:z--,z-+,z+0,y-0,y+0"),
+        ),
+        "folded-sheet-guide-5": (lambda p: _folded_sheet_guide(p, 5), dict(_FOLDED)),
+        "folded-sheet-guide-6": (lambda p: _folded_sheet_guide(p, 6), dict(_FOLDED)),
+        # Figure 5a: five flexures, the second side's two with parallel fold lines (90 and 270 degrees): the
+        # paper's kinematic analysis finds it under- and overconstrained at once (one free motion, one
+        # self-stress); tests/test_topology.py checks that the topology filter finds it so
+        "folded-sheet-guide-5a": (lambda p: _folded_sheet_guide(p, 5, "a"), dict(_FOLDED)),
+    }
+)
 
 
 # ----------------------------------------------------------------------------------------------------------
 # Rotational hinge families searched by the optimiser (optim/). All traceable: casadi maths on continuous
 # parameters, so model/design.py can differentiate their scenes. Leaves are steel beams with rectangular
 # sections, width along the hinge axis z; stiff parts are rigid bodies; stroke = rotor rotation about z.
+
 
 def _rotor(m: float, r: float, com: list, nodes: list[str], name: str = "rotor") -> dict:
     inertia = [[m * r * r / 2, 0, 0], [0, m * r * r / 2, 0], [0, 0, m * r * r / 2]]
@@ -483,17 +735,35 @@ def _rotor(m: float, r: float, com: list, nodes: list[str], name: str = "rotor")
 
 def _leaf(p: dict, name: str, a: str, b: str, width, segments: int, thickness=None) -> dict:
     t = p["thickness"] if thickness is None else thickness
-    return {"kind": "beam", "name": name, "nodes": [a, b], "material": "steel",
-            "section": {"kind": "rectangular", "width": width, "thickness": t, "warping": p["warping"]},
-            "y_axis": [0, 0, 1], "segments": segments}
+    return {
+        "kind": "beam",
+        "name": name,
+        "nodes": [a, b],
+        "material": "steel",
+        "section": {"kind": "rectangular", "width": width, "thickness": t, "warping": p["warping"]},
+        "y_axis": [0, 0, 1],
+        "segments": segments,
+    }
 
 
 def _hinge(p: dict, name: str, nodes: list, bodies: list, elements: list, supports: list[str]) -> dict:
-    return {"name": name, "materials": [_steel(p)], "nodes": [{"name": k, "position": v} for k, v in nodes],
-            "bodies": bodies, "elements": elements, "supports": [{"node": k} for k in supports],
-            "stroke": {"kind": "rotation", "body": "rotor", "axis": [0, 0, 1], "start": -p["stroke"],
-                       "stop": p["stroke"], "points": int(p["points"])},
-            "modes": int(p["modes"])}
+    return {
+        "name": name,
+        "materials": [_steel(p)],
+        "nodes": [{"name": k, "position": v} for k, v in nodes],
+        "bodies": bodies,
+        "elements": elements,
+        "supports": [{"node": k} for k in supports],
+        "stroke": {
+            "kind": "rotation",
+            "body": "rotor",
+            "axis": [0, 0, 1],
+            "start": -p["stroke"],
+            "stop": p["stroke"],
+            "points": int(p["points"]),
+        },
+        "modes": int(p["modes"]),
+    }
 
 
 def _cartwheel_hinge(p: dict) -> dict:
@@ -505,11 +775,20 @@ def _cartwheel_hinge(p: dict) -> dict:
     L, half = p["length"], p["angle"] * ca.pi / 360.0
     ux, uy = ca.sin(half), ca.cos(half)
     n = max(int(p["segments"]) // 2, 1)
-    nodes = [("centre", [0.0, 0.0, 0.0]), ("a0", [-ux * L / 2, -uy * L / 2, 0.0]), ("a1", [ux * L / 2, uy * L / 2, 0.0]),
-             ("b0", [ux * L / 2, -uy * L / 2, 0.0]), ("b1", [-ux * L / 2, uy * L / 2, 0.0])]
+    nodes = [
+        ("centre", [0.0, 0.0, 0.0]),
+        ("a0", [-ux * L / 2, -uy * L / 2, 0.0]),
+        ("a1", [ux * L / 2, uy * L / 2, 0.0]),
+        ("b0", [ux * L / 2, -uy * L / 2, 0.0]),
+        ("b1", [-ux * L / 2, uy * L / 2, 0.0]),
+    ]
     w = p["width"]
-    elements = [_leaf(p, "leafA0", "a0", "centre", w, n), _leaf(p, "leafA1", "centre", "a1", w, n),
-                _leaf(p, "leafB0", "b0", "centre", w, n), _leaf(p, "leafB1", "centre", "b1", w, n)]
+    elements = [
+        _leaf(p, "leafA0", "a0", "centre", w, n),
+        _leaf(p, "leafA1", "centre", "a1", w, n),
+        _leaf(p, "leafB0", "b0", "centre", w, n),
+        _leaf(p, "leafB1", "centre", "b1", w, n),
+    ]
     body = _rotor(p["body_mass"], p["body_radius"], [0, uy * L / 2 + p["body_offset"], 0], ["a1", "b1"])
     return _hinge(p, "cartwheel-hinge", nodes, [body], elements, ["a0", "b0"])
 
@@ -528,8 +807,11 @@ def _three_fold_cross_hinge(p: dict) -> dict:
     nodes = [("a0", [-ux * L * lam, -uy * L * lam, 0.0]), ("a1", [ux * L * (1 - lam), uy * L * (1 - lam), 0.0])]
     for k, z in (("b", zc), ("c", -zc)):
         nodes += [(k + "0", [ux * L * lam, -uy * L * lam, z]), (k + "1", [-ux * L * (1 - lam), uy * L * (1 - lam), z])]
-    elements = [_leaf(p, "middle", "a0", "a1", 2 * w, n), _leaf(p, "outer1", "b0", "b1", w, n),
-                _leaf(p, "outer2", "c0", "c1", w, n)]
+    elements = [
+        _leaf(p, "middle", "a0", "a1", 2 * w, n),
+        _leaf(p, "outer1", "b0", "b1", w, n),
+        _leaf(p, "outer2", "c0", "c1", w, n),
+    ]
     body = _rotor(p["body_mass"], p["body_radius"], [0, uy * L * (1 - lam) + p["body_offset"], 0], ["a1", "b1", "c1"])
     return _hinge(p, "three-fold-cross-hinge", nodes, [body], elements, ["a0", "b0", "c0"])
 
@@ -546,37 +828,78 @@ def _double_cross_hinge(p: dict) -> dict:
     ux, uy = ca.sin(half), ca.cos(half)
     c = w / 2.0 + p["gap"] / 2.0
     n = int(p["segments"])
-    nodes = [("a0", [-ux * L / 2, -uy * L / 2, c]), ("a1", [ux * L / 2, uy * L / 2, c]),
-             ("b0", [ux * L / 2, -uy * L / 2, -c]), ("b1", [-ux * L / 2, uy * L / 2, -c]),
-             ("c0", [ux * L / 2, -uy * L / 2, 3 * c]), ("c1", [-ux * L / 2, uy * L / 2, 3 * c]),
-             ("d0", [-ux * L / 2, -uy * L / 2, -3 * c]), ("d1", [ux * L / 2, uy * L / 2, -3 * c])]
-    elements = [_leaf(p, "stage1A", "a0", "a1", w, n), _leaf(p, "stage1B", "b0", "b1", w, n),
-                _leaf(p, "stage2A", "c0", "c1", w, n), _leaf(p, "stage2B", "d0", "d1", w, n)]
+    nodes = [
+        ("a0", [-ux * L / 2, -uy * L / 2, c]),
+        ("a1", [ux * L / 2, uy * L / 2, c]),
+        ("b0", [ux * L / 2, -uy * L / 2, -c]),
+        ("b1", [-ux * L / 2, uy * L / 2, -c]),
+        ("c0", [ux * L / 2, -uy * L / 2, 3 * c]),
+        ("c1", [-ux * L / 2, uy * L / 2, 3 * c]),
+        ("d0", [-ux * L / 2, -uy * L / 2, -3 * c]),
+        ("d1", [ux * L / 2, uy * L / 2, -3 * c]),
+    ]
+    elements = [
+        _leaf(p, "stage1A", "a0", "a1", w, n),
+        _leaf(p, "stage1B", "b0", "b1", w, n),
+        _leaf(p, "stage2A", "c0", "c1", w, n),
+        _leaf(p, "stage2B", "d0", "d1", w, n),
+    ]
     mid = _rotor(p["mid_mass"], p["body_radius"], [0.0, 0.0, 0.0], ["a1", "b1", "c0", "d0"], name="intermediate")
     body = _rotor(p["body_mass"], p["body_radius"], [0, uy * L / 2 + p["body_offset"], 0], ["c1", "d1"])
     return _hinge(p, "double-cross-hinge", nodes, [mid, body], elements, ["a0", "b0"])
 
 
-_HINGE = dict(_COMMON, length=0.05, width=0.02, thickness=0.3e-3, angle=90.0, gap=0.002, segments=12, body_mass=0.1,
-              body_radius=0.02, body_offset=0.01, stroke=45.0)
-TEMPLATES.update({
-    "cartwheel-hinge": (_cartwheel_hinge, dict(_HINGE, segments=40)),  # 20 per half leaf
-    "three-fold-cross-hinge": (_three_fold_cross_hinge, dict(_HINGE, width=0.01, crossing=0.5)),
-    "double-cross-hinge": (_double_cross_hinge, dict(_HINGE, mid_mass=0.02)),
-})
+_HINGE = dict(
+    _COMMON,
+    length=0.05,
+    width=0.02,
+    thickness=0.3e-3,
+    angle=90.0,
+    gap=0.002,
+    segments=12,
+    body_mass=0.1,
+    body_radius=0.02,
+    body_offset=0.01,
+    stroke=45.0,
+)
+TEMPLATES.update(
+    {
+        "cartwheel-hinge": (_cartwheel_hinge, dict(_HINGE, segments=40)),  # 20 per half leaf
+        "three-fold-cross-hinge": (_three_fold_cross_hinge, dict(_HINGE, width=0.01, crossing=0.5)),
+        "double-cross-hinge": (_double_cross_hinge, dict(_HINGE, mid_mass=0.02)),
+    }
+)
 
 #: Continuous design parameters of the optimiser's families with physical bounds [m, deg, -]: every design in
 #: the box is a valid scene (leaves never meet, positive dimensions); thickness bounds are raised to the
 #: problem's minimum manufacturable thickness by the optimiser.
 DESIGN_SPACES: dict[str, dict[str, tuple[float, float]]] = {
-    "cross-spring-pivot": {"length": (0.03, 0.07), "thickness": (1e-4, 4e-4), "width": (0.01, 0.04),
-                           "angle": (60.0, 120.0), "crossing": (0.15, 0.85)},
-    "cartwheel-hinge": {"length": (0.04, 0.14), "thickness": (5e-5, 4e-4), "width": (0.01, 0.04),
-                        "angle": (60.0, 120.0)},
-    "three-fold-cross-hinge": {"length": (0.03, 0.07), "thickness": (1e-4, 4e-4), "width": (0.005, 0.02),
-                               "angle": (60.0, 120.0), "crossing": (0.15, 0.85)},
-    "double-cross-hinge": {"length": (0.03, 0.07), "thickness": (1e-4, 4e-4), "width": (0.01, 0.04),
-                           "angle": (60.0, 120.0)},
+    "cross-spring-pivot": {
+        "length": (0.03, 0.07),
+        "thickness": (1e-4, 4e-4),
+        "width": (0.01, 0.04),
+        "angle": (60.0, 120.0),
+        "crossing": (0.15, 0.85),
+    },
+    "cartwheel-hinge": {
+        "length": (0.04, 0.14),
+        "thickness": (5e-5, 4e-4),
+        "width": (0.01, 0.04),
+        "angle": (60.0, 120.0),
+    },
+    "three-fold-cross-hinge": {
+        "length": (0.03, 0.07),
+        "thickness": (1e-4, 4e-4),
+        "width": (0.005, 0.02),
+        "angle": (60.0, 120.0),
+        "crossing": (0.15, 0.85),
+    },
+    "double-cross-hinge": {
+        "length": (0.03, 0.07),
+        "thickness": (1e-4, 4e-4),
+        "width": (0.01, 0.04),
+        "angle": (60.0, 120.0),
+    },
 }
 
 
@@ -619,8 +942,11 @@ def topology_layout(descriptor: str) -> list[dict]:
     """
     where = "template.topology"
     if not isinstance(descriptor, str) or not descriptor.startswith("R:"):
-        raise SceneError(where, f"topology '{descriptor}' must start with 'R:' (a rotation about the z axis), "
-                         "e.g. 'R:+-@' (the cross-spring pivot)")
+        raise SceneError(
+            where,
+            f"topology '{descriptor}' must start with 'R:' (a rotation about the z axis), "
+            "e.g. 'R:+-@' (the cross-spring pivot)",
+        )
     stages = []
     for k, text in enumerate(descriptor[2:].split("|"), start=1):
         inplane = text.startswith("x")
@@ -631,8 +957,11 @@ def topology_layout(descriptor: str) -> list[dict]:
         while i < len(body):
             c = body[i]
             if c not in _PLANES:
-                raise SceneError(where, f"topology '{descriptor}', stage {k}: '{c}' is not a leaf plane; a leaf "
-                                 "is '+', '-' or '0', then an optional width multiple 2-9 and an optional 'r'")
+                raise SceneError(
+                    where,
+                    f"topology '{descriptor}', stage {k}: '{c}' is not a leaf plane; a leaf "
+                    "is '+', '-' or '0', then an optional width multiple 2-9 and an optional 'r'",
+                )
             i += 1
             mult = 1
             if i < len(body) and body[i] in "23456789":
@@ -643,11 +972,17 @@ def topology_layout(descriptor: str) -> list[dict]:
         if not leaves:
             raise SceneError(where, f"topology '{descriptor}': stage {k} has no leaves")
         if inplane and (len(leaves) < 2 or len({lf[0] for lf in leaves}) < len(leaves)):
-            raise SceneError(where, f"topology '{descriptor}', stage {k}: leaves crossing in one plane ('x') need "
-                             "at least two leaves in different planes")
+            raise SceneError(
+                where,
+                f"topology '{descriptor}', stage {k}: leaves crossing in one plane ('x') need "
+                "at least two leaves in different planes",
+            )
         if inplane and any(lf[2] for lf in leaves):
-            raise SceneError(where, f"topology '{descriptor}', stage {k}: a reinforced leaf ('r') cannot cross in "
-                             "one plane ('x'): its rigid middle would hold the joint")
+            raise SceneError(
+                where,
+                f"topology '{descriptor}', stage {k}: a reinforced leaf ('r') cannot cross in "
+                "one plane ('x'): its rigid middle would hold the joint",
+            )
         stages.append({"inplane": inplane, "free_crossing": free, "leaves": leaves})
     return stages
 
@@ -661,8 +996,11 @@ def _layer_heights(stages: list[dict], w: Any, t_gap: Any) -> dict[tuple[int, in
     # layers (top to bottom): (stage index, leaf indices, width multiple)
     order: list[tuple[int, list[int], int]] = []
     for k, st in enumerate(stages):
-        own = ([(k, list(range(len(st["leaves"]))), max(lf[1] for lf in st["leaves"]))] if st["inplane"]
-               else [(k, [i], lf[1]) for i, lf in enumerate(st["leaves"])])
+        own = (
+            [(k, list(range(len(st["leaves"]))), max(lf[1] for lf in st["leaves"]))]
+            if st["inplane"]
+            else [(k, [i], lf[1]) for i, lf in enumerate(st["leaves"])]
+        )
         up = (len(own) + 1) // 2
         order = own if k == 0 else own[:up] + order + own[up:]
     total = sum(m * widths[k] for k, _, m in order) + (len(order) - 1) * t_gap
@@ -708,10 +1046,15 @@ def _topology_hinge(p: dict) -> dict:
     for k in range(len(stages)):
         half = (inherit(f"angle_s{k + 1}", p["angle"]) if k else p["angle"]) * ca.pi / 360.0
         sx, cy = ca.sin(half), ca.cos(half)
-        dims.append({"L": inherit(f"length_s{k + 1}", p["length"]) if k else p["length"],
-                     "w": inherit(f"width_s{k + 1}", p["width"]) if k else p["width"],
-                     "t": inherit(f"thickness_s{k + 1}", p["thickness"]) if k else p["thickness"], "cy": cy,
-                     "dirs": {"+": (sx, cy), "-": (-sx, cy), "0": (0.0, 1.0)}})
+        dims.append(
+            {
+                "L": inherit(f"length_s{k + 1}", p["length"]) if k else p["length"],
+                "w": inherit(f"width_s{k + 1}", p["width"]) if k else p["width"],
+                "t": inherit(f"thickness_s{k + 1}", p["thickness"]) if k else p["thickness"],
+                "cy": cy,
+                "dirs": {"+": (sx, cy), "-": (-sx, cy), "0": (0.0, 1.0)},
+            }
+        )
     level = int(p["flexure_level"])
     n = 1 if level else int(p["segments"])
     n_half = max(n // 2, 1)
@@ -741,23 +1084,35 @@ def _topology_hinge(p: dict) -> dict:
             s1.append(f"{tag}_1")
             wi = mult * w
             if st["inplane"] and not level:
-                elements += [_leaf(p, f"{tag}a", f"{tag}_0", centre, wi, n_half, ti),
-                             _leaf(p, f"{tag}b", centre, f"{tag}_1", wi, n_half, ti)]
+                elements += [
+                    _leaf(p, f"{tag}a", f"{tag}_0", centre, wi, n_half, ti),
+                    _leaf(p, f"{tag}b", centre, f"{tag}_1", wi, n_half, ti),
+                ]
             elif st["inplane"]:
-                elements += [_leaf(p, f"{tag}a", f"{tag}_0", centre, wi, 1, ti),
-                             _leaf(p, f"{tag}b", centre, f"{tag}_1", wi, 1, ti)]
+                elements += [
+                    _leaf(p, f"{tag}a", f"{tag}_0", centre, wi, 1, ti),
+                    _leaf(p, f"{tag}b", centre, f"{tag}_1", wi, 1, ti),
+                ]
             elif rein and not level:
                 f0, f1 = (1 - rho) / 2.0, (1 + rho) / 2.0
                 ra = [a[j] + (b[j] - a[j]) * f0 for j in range(3)]
                 rb = [a[j] + (b[j] - a[j]) * f1 for j in range(3)]
                 nodes += [(f"{tag}_ra", ra), (f"{tag}_rb", rb)]
-                elements += [_leaf(p, f"{tag}a", f"{tag}_0", f"{tag}_ra", wi, n_half, ti),
-                             _leaf(p, f"{tag}b", f"{tag}_rb", f"{tag}_1", wi, n_half, ti)]
+                elements += [
+                    _leaf(p, f"{tag}a", f"{tag}_0", f"{tag}_ra", wi, n_half, ti),
+                    _leaf(p, f"{tag}b", f"{tag}_rb", f"{tag}_1", wi, n_half, ti),
+                ]
                 mr = p["density"] * wi * p["rigid_thickness"] * rho * L
                 jr = mr * (rho * L) ** 2 / 12.0
-                bodies.append({"name": f"{tag}_rigid", "mass": mr,
-                               "center_of_mass": [(ra[j] + rb[j]) / 2 for j in range(3)],
-                               "inertia": [[jr, 0, 0], [0, jr, 0], [0, 0, jr]], "nodes": [f"{tag}_ra", f"{tag}_rb"]})
+                bodies.append(
+                    {
+                        "name": f"{tag}_rigid",
+                        "mass": mr,
+                        "center_of_mass": [(ra[j] + rb[j]) / 2 for j in range(3)],
+                        "inertia": [[jr, 0, 0], [0, jr, 0], [0, 0, jr]],
+                        "nodes": [f"{tag}_ra", f"{tag}_rb"],
+                    }
+                )
             else:
                 elements.append(_leaf(p, tag, f"{tag}_0", f"{tag}_1", wi, n, ti))
         starts.append(s0)
@@ -776,10 +1131,28 @@ def _topology_hinge(p: dict) -> dict:
 
 #: Stages and leaves per stage that may have their own dimensions (the grammar's largest spaces: 3 stages, 6 leaves).
 _OWN_STAGES, _OWN_LEAVES = 3, 6
-_PER_STAGE = {f"{key}_s{k}": 0.0 for k in range(2, _OWN_STAGES + 1) for key in ("length", "thickness", "width", "angle")}
+_PER_STAGE = {
+    f"{key}_s{k}": 0.0 for k in range(2, _OWN_STAGES + 1) for key in ("length", "thickness", "width", "angle")
+}
 _PER_LEAF = {f"thickness_s{k}l{i}": 0.0 for k in range(1, _OWN_STAGES + 1) for i in range(1, _OWN_LEAVES + 1)}
-TEMPLATES["topology-hinge"] = (_topology_hinge, dict(_HINGE, topology="R:+-@", crossing=0.5, mid_mass=0.02,
-                                                     rigid_fraction=1.0 / 3.0, rigid_thickness=2e-3,
-                                                     flexure_level=0, **_PER_STAGE, **_PER_LEAF))
-PARAMETER_UNITS.update({"rigid_thickness": "m", "rigid_fraction": "",
-                        **{k: ("deg" if k.startswith("angle") else "m") for k in (*_PER_STAGE, *_PER_LEAF)}})
+TEMPLATES["topology-hinge"] = (
+    _topology_hinge,
+    dict(
+        _HINGE,
+        topology="R:+-@",
+        crossing=0.5,
+        mid_mass=0.02,
+        rigid_fraction=1.0 / 3.0,
+        rigid_thickness=2e-3,
+        flexure_level=0,
+        **_PER_STAGE,
+        **_PER_LEAF,
+    ),
+)
+PARAMETER_UNITS.update(
+    {
+        "rigid_thickness": "m",
+        "rigid_fraction": "",
+        **{k: ("deg" if k.startswith("angle") else "m") for k in (*_PER_STAGE, *_PER_LEAF)},
+    }
+)

@@ -37,8 +37,14 @@ from typing import Any
 __all__ = ["VARIABLES", "limit_process", "limited", "threads"]
 
 #: The variables through which BLAS/LAPACK/OpenMP libraries read their thread count when they load.
-VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
-             "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
+VARIABLES = (
+    "OPENBLAS_NUM_THREADS",
+    "OMP_NUM_THREADS",
+    "MKL_NUM_THREADS",
+    "BLIS_NUM_THREADS",
+    "VECLIB_MAXIMUM_THREADS",
+    "NUMEXPR_NUM_THREADS",
+)
 
 _LOCK = threading.Lock()
 _state: dict[str, Any] = {"process": False, "held": 0, "saved": None}
@@ -54,8 +60,9 @@ def threads() -> int:
     except ValueError:
         n = 0
     if n < 1:
-        raise ValueError(f"FLEXOPT_BLAS_THREADS={raw!r} is not a positive integer: set it to e.g. 1 (the "
-                         "default) or unset it")
+        raise ValueError(
+            f"FLEXOPT_BLAS_THREADS={raw!r} is not a positive integer: set it to e.g. 1 (the default) or unset it"
+        )
     return n
 
 
@@ -96,8 +103,9 @@ def _preload() -> None:
         return
     if spec is None or spec.origin is None:  # pragma: no cover
         return
-    for path in sorted(glob.glob(os.path.join(os.path.dirname(os.path.dirname(spec.origin)), "scipy.libs",
-                                              "*openblas*.so*"))):
+    for path in sorted(
+        glob.glob(os.path.join(os.path.dirname(os.path.dirname(spec.origin)), "scipy.libs", "*openblas*.so*"))
+    ):
         try:
             ctypes.CDLL(path)
         except OSError:  # pragma: no cover - another platform's wheel layout: the limit covers what is loaded

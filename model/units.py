@@ -55,7 +55,6 @@ def registry() -> Any:
 
 def check_unit(kind: str, unit: str) -> str:
     """``unit`` if pint reads it as a unit of ``kind`` (one of :data:`UNIT_KINDS`); else :class:`UnitsError`."""
-    import pint
 
     si, dim = UNIT_KINDS[kind]
     big_power = isinstance(unit, str) and re.search(r"(\*\*|\^)\s*-?\d{3}", unit)
@@ -86,10 +85,16 @@ def factors(units: dict[str, str | None]) -> dict[str, float]:
     for kind in ("length", "mass", "force"):
         u = given[kind]
         f[kind] = 1.0 if u is None else float(reg.Quantity(1.0, check_unit(kind, u)).to(UNIT_KINDS[kind][0]).magnitude)
-    f["stress"] = (f["force"] / f["length"] ** 2 if given["stress"] is None
-                   else float(reg.Quantity(1.0, check_unit("stress", given["stress"])).to("Pa").magnitude))
-    f["density"] = (f["mass"] / f["length"] ** 3 if given["density"] is None
-                    else float(reg.Quantity(1.0, check_unit("density", given["density"])).to("kg/m^3").magnitude))
+    f["stress"] = (
+        f["force"] / f["length"] ** 2
+        if given["stress"] is None
+        else float(reg.Quantity(1.0, check_unit("stress", given["stress"])).to("Pa").magnitude)
+    )
+    f["density"] = (
+        f["mass"] / f["length"] ** 3
+        if given["density"] is None
+        else float(reg.Quantity(1.0, check_unit("density", given["density"])).to("kg/m^3").magnitude)
+    )
     return f
 
 
@@ -197,8 +202,9 @@ def quantity_to(text: str, unit: str) -> float:
     try:
         q = reg.Quantity(number, reg.Unit(unit_text))
     except Exception as exc:  # noqa: BLE001 - pint's parser raises many types (PintError, SyntaxError, ...)
-        raise UnitsError(f"cannot read '{text}' as a quantity ({exc}); write a number with a unit, "
-                         f"e.g. '0.3 mm'") from None
+        raise UnitsError(
+            f"cannot read '{text}' as a quantity ({exc}); write a number with a unit, e.g. '0.3 mm'"
+        ) from None
     try:
         v = float(q.to(unit).magnitude)
     except OverflowError:

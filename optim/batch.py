@@ -57,8 +57,10 @@ class BatchCancelled(Exception):
     """
 
     def __init__(self, results: list[dict | None]) -> None:
-        super().__init__(f"cancelled after {sum(r is not None for r in results)} of {len(results)} cases; "
-                         "rerun with the same store to resume")
+        super().__init__(
+            f"cancelled after {sum(r is not None for r in results)} of {len(results)} cases; "
+            "rerun with the same store to resume"
+        )
         self.results = results
 
 
@@ -74,9 +76,11 @@ class NoWorkers(RuntimeError):
 
     def __init__(self, results: list[dict | None], timeout: float) -> None:
         done = sum(r is not None for r in results)
-        super().__init__(f"the cluster had no workers for {timeout:g} s: stopped after {done} of {len(results)} "
-                         "cases (the finished ones are kept in the store); start workers (`dask worker "
-                         "SCHEDULER_ADDRESS`) and rerun with the same store to resume")
+        super().__init__(
+            f"the cluster had no workers for {timeout:g} s: stopped after {done} of {len(results)} "
+            "cases (the finished ones are kept in the store); start workers (`dask worker "
+            "SCHEDULER_ADDRESS`) and rerun with the same store to resume"
+        )
         self.results = results
 
 
@@ -89,8 +93,10 @@ def case_id(case: dict) -> str:
     try:
         blob = json.dumps(case, sort_keys=True, separators=(",", ":"), allow_nan=False)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"a case must be strict JSON ({exc}): convert numpy values with float() or "
-                         ".tolist() and replace NaN or infinity by null") from None
+        raise ValueError(
+            f"a case must be strict JSON ({exc}): convert numpy values with float() or "
+            ".tolist() and replace NaN or infinity by null"
+        ) from None
     return hashlib.sha256(blob.encode()).hexdigest()[:20]
 
 
@@ -111,8 +117,10 @@ def case_seed(case: dict, base_seed: int = 0) -> int:
 def _split(fn: str) -> tuple[str, str]:
     mod, sep, name = fn.partition(":")
     if not (sep and mod and name and all(p.isidentifier() for p in mod.split(".")) and name.isidentifier()):
-        raise ValueError(f"fn must name an importable function as 'module:function' (e.g. "
-                         f"'flexopt.optim.search:run_case'), got {fn!r}")
+        raise ValueError(
+            f"fn must name an importable function as 'module:function' (e.g. "
+            f"'flexopt.optim.search:run_case'), got {fn!r}"
+        )
     return mod, name
 
 
@@ -138,8 +146,10 @@ def _call(fn: str, case_json: str) -> str:
         try:
             return json.dumps({"ok": True, "result": out})  # NaN is kept (Python's JSON reads it back)
         except (TypeError, ValueError) as exc:
-            raise type(exc)(f"the result of {fn} is not JSON ({exc}): return floats, lists and dicts "
-                            "(numpy values through float() or .tolist())") from None
+            raise type(exc)(
+                f"the result of {fn} is not JSON ({exc}): return floats, lists and dicts "
+                "(numpy values through float() or .tolist())"
+            ) from None
     except Exception as exc:  # noqa: BLE001 - every failure of a case becomes its record: type and message
         return json.dumps({"ok": False, "error": _message(exc), "kind": type(exc).__name__})
 
@@ -187,8 +197,9 @@ def dask_executor(address: str, **client_kwargs: object) -> cf.Executor:
         from distributed import Client
         from distributed.cfexecutor import ClientExecutor
     except ImportError as exc:  # pragma: no cover - depends on the installation
-        raise ValueError("running on a Dask cluster needs the 'distributed' package: pip install "
-                         "'flexopt[cluster]'") from exc
+        raise ValueError(
+            "running on a Dask cluster needs the 'distributed' package: pip install 'flexopt[cluster]'"
+        ) from exc
 
     class _OwningClientExecutor(ClientExecutor):
         def worker_count(self) -> int:
@@ -205,8 +216,10 @@ def dask_executor(address: str, **client_kwargs: object) -> cf.Executor:
     try:
         client = Client(address, **client_kwargs)
     except OSError as exc:
-        raise ValueError(f"cannot reach the Dask scheduler at {address!r} ({exc}): check the address, or "
-                         "start one with `dask scheduler` and workers with `dask worker ADDRESS`") from exc
+        raise ValueError(
+            f"cannot reach the Dask scheduler at {address!r} ({exc}): check the address, or "
+            "start one with `dask scheduler` and workers with `dask worker ADDRESS`"
+        ) from exc
     return _OwningClientExecutor(client)
 
 
@@ -258,10 +271,18 @@ class _Bar:
             sys.stderr.flush()
 
 
-def run_cases(cases: list[dict], fn: str, *, executor: cf.Executor | None = None, workers: int | None = None,
-              store: str | os.PathLike | None = None, progress: Callable[[dict], None] | None = None,
-              cancel: threading.Event | None = None, retry_failed: bool = False,
-              no_worker_timeout: float = NO_WORKER_TIMEOUT) -> list[dict]:
+def run_cases(
+    cases: list[dict],
+    fn: str,
+    *,
+    executor: cf.Executor | None = None,
+    workers: int | None = None,
+    store: str | os.PathLike | None = None,
+    progress: Callable[[dict], None] | None = None,
+    cancel: threading.Event | None = None,
+    retry_failed: bool = False,
+    no_worker_timeout: float = NO_WORKER_TIMEOUT,
+) -> list[dict]:
     """Run ``fn`` on every case, in parallel; results in the order of ``cases``.
 
     Parameters
@@ -385,13 +406,16 @@ def run_cases(cases: list[dict], fn: str, *, executor: cf.Executor | None = None
             raise RuntimeError(
                 "a worker process died (out of memory, killed, a crash in compiled code, or a script that "
                 "starts the batch without an `if __name__ == '__main__':` guard); finished cases are in the "
-                "store: rerun to resume") from exc
+                "store: rerun to resume"
+            ) from exc
         except Exception as exc:  # noqa: BLE001 - the executor could not run this case: report, do not store
             record = {"id": cid, "error": _message(exc), "kind": type(exc).__name__}
         else:
             if out.get("setup"):
-                raise ValueError(f"cannot import {fn!r} on a worker ({out['kind']}: {out['error']}): check the "
-                                 "name, and that the workers have flexopt (and the module) installed")
+                raise ValueError(
+                    f"cannot import {fn!r} on a worker ({out['kind']}: {out['error']}): check the "
+                    "name, and that the workers have flexopt (and the module) installed"
+                )
             if out["ok"]:
                 record = dict(out["result"], id=cid)
             else:

@@ -25,19 +25,36 @@ __all__ = ["DEFAULT_DESIGN", "guide_problem", "optimise_guides"]
 DEFAULT_DESIGN: dict[str, tuple[float, float]] = {"wire_length": (0.03, 0.08), "wire_diameter": (5e-4, 1.5e-3)}
 
 
-def guide_problem(descriptor: str, design: dict[str, tuple[float, float]] | None = None,
-                  fixed: dict[str, Any] | None = None, **problem: Any) -> Problem:
+def guide_problem(
+    descriptor: str,
+    design: dict[str, tuple[float, float]] | None = None,
+    fixed: dict[str, Any] | None = None,
+    **problem: Any,
+) -> Problem:
     """The problem of one wire guide ``descriptor``: template ``wire-guide-topology`` with ``topology`` fixed,
     the ``design`` box (default :data:`DEFAULT_DESIGN`), other ``fixed`` parameters and the remaining
     :class:`optim.problem.Problem` fields (``stroke`` in metres, ``samples``, ...)."""
-    fam = {"template": "wire-guide-topology", "design": {k: list(v) for k, v in (design or DEFAULT_DESIGN).items()},
-           "fixed": {**(fixed or {}), "topology": descriptor}}
+    fam = {
+        "template": "wire-guide-topology",
+        "design": {k: list(v) for k, v in (design or DEFAULT_DESIGN).items()},
+        "fixed": {**(fixed or {}), "topology": descriptor},
+    }
     return Problem.model_validate({**problem, "families": [fam]})
 
 
-def optimise_guides(guides: Sequence[str] | dict, *, top: int = 5, design: dict[str, tuple[float, float]] | None = None,
-                    fixed: dict[str, Any] | None = None, problem: dict[str, Any] | None = None, executor: Any = None,
-                    workers: int | None = None, store: Any = None, progress: Any = None, cancel: Any = None) -> dict:
+def optimise_guides(
+    guides: Sequence[str] | dict,
+    *,
+    top: int = 5,
+    design: dict[str, tuple[float, float]] | None = None,
+    fixed: dict[str, Any] | None = None,
+    problem: dict[str, Any] | None = None,
+    executor: Any = None,
+    workers: int | None = None,
+    store: Any = None,
+    progress: Any = None,
+    cancel: Any = None,
+) -> dict:
     """Shape-optimise wire guides for their worst-case first parasitic frequency over the translation stroke.
 
     ``guides``: descriptors, or a topology search's result for ``motion: "translation"`` (its first ``top``
@@ -61,28 +78,58 @@ def optimise_guides(guides: Sequence[str] | dict, *, top: int = 5, design: dict[
     names = list(dict.fromkeys(names))  # each guide once
     probs = [guide_problem(d, design, fixed, **(problem or {})) for d in names]
     batch = [c for p in probs for c in cases(p)]
-    results = run_cases(batch, "flexopt.optim.search:run_case", executor=executor, workers=workers, store=store,
-                        progress=progress, cancel=cancel)
+    results = run_cases(
+        batch,
+        "flexopt.optim.search:run_case",
+        executor=executor,
+        workers=workers,
+        store=store,
+        progress=progress,
+        cancel=cancel,
+    )
     out = []
     k = 0
     for d, p in zip(names, probs):
-        rs = results[k:k + p.starts]
+        rs = results[k : k + p.starts]
         k += p.starts
         ok = [r for r in rs if r.get("status") == "optimal" and (r.get("verified") or {}).get("worst_hz") is not None]
-        rec: dict[str, Any] = {"topology": d, "condition_number": cond.get(d), "starts": [
-            {"start": r.get("start"), "status": r.get("status", "failed"), "message": r.get("message") or r.get("error")}
-            for r in rs]}
+        rec: dict[str, Any] = {
+            "topology": d,
+            "condition_number": cond.get(d),
+            "starts": [
+                {
+                    "start": r.get("start"),
+                    "status": r.get("status", "failed"),
+                    "message": r.get("message") or r.get("error"),
+                }
+                for r in rs
+            ],
+        }
         if not ok:
-            rec.update(status="failed", reason="no start reached a converged, verified, feasible optimum: " + "; ".join(
-                f"start {s['start']}: {s['status']} ({s['message']})" for s in rec["starts"]))
+            rec.update(
+                status="failed",
+                reason="no start reached a converged, verified, feasible optimum: "
+                + "; ".join(f"start {s['start']}: {s['status']} ({s['message']})" for s in rec["starts"]),
+            )
         else:
             b = max(ok, key=lambda r: r["verified"]["worst_hz"])
             v = b["verified"]
-            rec.update(status="optimised", reason=None, worst_case_hz=v["worst_hz"], zero_stroke_hz=v["zero_stroke_hz"],
-                       ratio=v["ratio"], stress_ratio=v["stress_ratio"], design=b["design"],
-                       kkt_residual=b["optimality"]["kkt_residual"], active_bounds=b["optimality"]["active_bounds"],
-                       max_drive=v.get("max_drive"), drive_unit=v.get("drive_unit"), warnings=b.get("warnings", []))
+            rec.update(
+                status="optimised",
+                reason=None,
+                worst_case_hz=v["worst_hz"],
+                zero_stroke_hz=v["zero_stroke_hz"],
+                ratio=v["ratio"],
+                stress_ratio=v["stress_ratio"],
+                design=b["design"],
+                kkt_residual=b["optimality"]["kkt_residual"],
+                active_bounds=b["optimality"]["active_bounds"],
+                max_drive=v.get("max_drive"),
+                drive_unit=v.get("drive_unit"),
+                warnings=b.get("warnings", []),
+            )
         out.append(rec)
-    ranking = [r["topology"] for r in sorted((r for r in out if r["status"] == "optimised"),
-                                            key=lambda r: -r["worst_case_hz"])]
+    ranking = [
+        r["topology"] for r in sorted((r for r in out if r["status"] == "optimised"), key=lambda r: -r["worst_case_hz"])
+    ]
     return {"guides": out, "ranking": ranking, "problem": probs[0].model_dump(mode="json") if probs else None}

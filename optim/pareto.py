@@ -54,9 +54,14 @@ class ParetoCheck(BaseModel):
 
     population: int = Field(default=16, ge=4, le=200, description="NSGA-II population size")
     generations: int = Field(default=8, ge=1, le=200, description="NSGA-II generations")
-    tolerance: float = Field(default=0.02, gt=0, lt=0.5, description="an NSGA-II point beating a front point "
-                             "by more than this fraction in one objective, and no worse in the other, fails "
-                             "the check")
+    tolerance: float = Field(
+        default=0.02,
+        gt=0,
+        lt=0.5,
+        description="an NSGA-II point beating a front point "
+        "by more than this fraction in one objective, and no worse in the other, fails "
+        "the check",
+    )
     seed: int = Field(default=0, ge=0, description="NSGA-II's random seed (deterministic)")
 
 
@@ -67,31 +72,39 @@ class ParetoSpec(BaseModel):
 
     format: Literal["flexopt-pareto"] = "flexopt-pareto"
     version: Literal[1] = 1
-    problem: Problem = Field(description="the optimisation problem (flexopt-problem, one family); its "
-                             "max_drive, if any, is replaced by each level's limit")
-    points: int = Field(default=5, ge=2, le=25, description="front points, the two single-objective optima "
-                        "included")
+    problem: Problem = Field(
+        description="the optimisation problem (flexopt-problem, one family); its "
+        "max_drive, if any, is replaced by each level's limit"
+    )
+    points: int = Field(default=5, ge=2, le=25, description="front points, the two single-objective optima included")
     against: Literal["drive_stiffness", "stroke"] = Field(
-        default="drive_stiffness", description="the second objective: 'drive_stiffness' (minimised) or 'stroke' "
-        "(maximised: the frequency optimum at each of ``points`` strokes evenly spaced over ``strokes``)")
+        default="drive_stiffness",
+        description="the second objective: 'drive_stiffness' (minimised) or 'stroke' "
+        "(maximised: the frequency optimum at each of ``points`` strokes evenly spaced over ``strokes``)",
+    )
     strokes: tuple[float, float] | None = Field(
-        default=None, description="with against 'stroke': the smallest and largest half range of the stroke, in the "
-        "template's stroke unit (deg for rotations, m for translations)")
-    check: ParetoCheck | None = Field(default=None, description="gradient-free check by NSGA-II (pymoo; "
-                                      "optional)")
+        default=None,
+        description="with against 'stroke': the smallest and largest half range of the stroke, in the "
+        "template's stroke unit (deg for rotations, m for translations)",
+    )
+    check: ParetoCheck | None = Field(default=None, description="gradient-free check by NSGA-II (pymoo; optional)")
 
     @model_validator(mode="after")
     def _one_family(self) -> ParetoSpec:
         if len(self.problem.families) != 1:
-            raise ValueError(f"problem.families: a front is drawn for one family, got {len(self.problem.families)};"
-                             " keep one")
+            raise ValueError(
+                f"problem.families: a front is drawn for one family, got {len(self.problem.families)}; keep one"
+            )
         if self.against == "stroke":
             if self.strokes is None or not 0 < self.strokes[0] < self.strokes[1] < math.inf:
-                raise ValueError("strokes: with against 'stroke' give [smallest, largest] half ranges, "
-                                 "0 < smallest < largest")
+                raise ValueError(
+                    "strokes: with against 'stroke' give [smallest, largest] half ranges, 0 < smallest < largest"
+                )
             if self.check is not None:
-                raise ValueError("check: the NSGA-II check covers the drive-stiffness front; remove it or set "
-                                 "against 'drive_stiffness'")
+                raise ValueError(
+                    "check: the NSGA-II check covers the drive-stiffness front; remove it or set "
+                    "against 'drive_stiffness'"
+                )
         elif self.strokes is not None:
             raise ValueError("strokes: only with against 'stroke'; remove it")
         return self
@@ -146,13 +159,25 @@ def _point(r: dict, level: float | None, s_si: float, tol: float) -> dict:
     status, message = r.get("status", "failed"), r.get("message") or r.get("error") or ""
     k = v["max_drive"] / s_si if v.get("max_drive") is not None else None
     if status == "optimal" and level is not None and k is not None and k > level * (1 + tol):
-        status, message = "infeasible", (f"the verified drive stiffness {k:.6g} exceeds the level {level:.6g} by "
-                                         f"{k / level - 1:.3g}")
-    return {"status": status, "message": message, "design": r.get("design"), "worst_hz": v.get("worst_hz"),
-            "zero_stroke_hz": v.get("zero_stroke_hz"), "stroke_at_worst": v.get("stroke_at_worst"),
-            "drive_stiffness": k, "max_drive": v.get("max_drive"), "stress_ratio": v.get("stress_ratio"),
-            "level": level, "start": r.get("start"), "kkt_residual": (r.get("optimality") or {}).get("kkt_residual"),
-            "warnings": r.get("warnings", [])}
+        status, message = (
+            "infeasible",
+            (f"the verified drive stiffness {k:.6g} exceeds the level {level:.6g} by {k / level - 1:.3g}"),
+        )
+    return {
+        "status": status,
+        "message": message,
+        "design": r.get("design"),
+        "worst_hz": v.get("worst_hz"),
+        "zero_stroke_hz": v.get("zero_stroke_hz"),
+        "stroke_at_worst": v.get("stroke_at_worst"),
+        "drive_stiffness": k,
+        "max_drive": v.get("max_drive"),
+        "stress_ratio": v.get("stress_ratio"),
+        "level": level,
+        "start": r.get("start"),
+        "kkt_residual": (r.get("optimality") or {}).get("kkt_residual"),
+        "warnings": r.get("warnings", []),
+    }
 
 
 def run_point(case: dict) -> dict:
@@ -229,9 +254,15 @@ def _min_drive(prob: Problem, start: int) -> dict:
 
     z0 = np.concatenate([x0, [1.0]])
     try:
-        res = minimize(lambda z: z[-1], z0, jac=lambda z: np.eye(nx + 1)[-1], method="SLSQP",
-                       bounds=[(0.0, 1.0)] * nx + [(None, None)], constraints=[{"type": "ineq", "fun": con, "jac": jac}],
-                       options={"maxiter": prob.max_iterations, "ftol": prob.tolerance * 1e-2})
+        res = minimize(
+            lambda z: z[-1],
+            z0,
+            jac=lambda z: np.eye(nx + 1)[-1],
+            method="SLSQP",
+            bounds=[(0.0, 1.0)] * nx + [(None, None)],
+            constraints=[{"type": "ineq", "fun": con, "jac": jac}],
+            options={"maxiter": prob.max_iterations, "ftol": prob.tolerance * 1e-2},
+        )
     except RuntimeError:
         return {**base, "status": "failed", "message": f"an evaluation failed: {failed[-1]}", "verified": {}}
     x = np.clip(res.x[:nx], 0.0, 1.0)
@@ -260,16 +291,27 @@ def _min_drive(prob: Problem, start: int) -> dict:
     elif float(np.min(c)) < -tol:
         status, message = "infeasible", f"a constraint is violated by {-float(np.min(c)):.3g} (scaled)"
     elif verified["max_drive"] > searched * (1 + tol):
-        status, message = "unconverged", (f"the verified peak drive {verified['max_drive']:.6g} exceeds the "
-                                          f"searched one {searched:.6g} (a peak between the samples)")
+        status, message = (
+            "unconverged",
+            (
+                f"the verified peak drive {verified['max_drive']:.6g} exceeds the "
+                f"searched one {searched:.6g} (a peak between the samples)"
+            ),
+        )
     elif res.status != 0:
         status, message = "unconverged", f"the solver stopped: {res.message}"
     elif kkt > prob.kkt_tolerance:
         status, message = "unconverged", f"KKT residual {kkt:.3g} above kkt_tolerance {prob.kkt_tolerance:g}"
     params = fam.params(x)
-    return {**base, "status": status, "message": message, "design": {k: params[k] for k in names},
-            "verified": verified, "optimality": {"kkt_residual": kkt, "active_bounds": active_bounds},
-            "warnings": []}
+    return {
+        **base,
+        "status": status,
+        "message": message,
+        "design": {k: params[k] for k in names},
+        "verified": verified,
+        "optimality": {"kkt_residual": kkt, "active_bounds": active_bounds},
+        "warnings": [],
+    }
 
 
 # ------------------------------------------------------------------------------------- dominance
@@ -284,10 +326,20 @@ def dominates(a: dict, b: dict, tol: float = 0.0, against: str = "drive_stiffnes
 def _best(records: list[dict], by_drive: bool = False) -> dict:
     ok = [r for r in records if r["status"] == "optimal" and r["worst_hz"] is not None]
     if not ok:
-        return records[0] if len(records) == 1 else {**records[0], "status": "failed", "message": "; ".join(
-            f"start {r['start']}: {r['status']} ({r['message']})" for r in records)}
-    return min(ok, key=lambda r: (r["drive_stiffness"], -r["worst_hz"])) if by_drive else \
-        max(ok, key=lambda r: r["worst_hz"])
+        return (
+            records[0]
+            if len(records) == 1
+            else {
+                **records[0],
+                "status": "failed",
+                "message": "; ".join(f"start {r['start']}: {r['status']} ({r['message']})" for r in records),
+            }
+        )
+    return (
+        min(ok, key=lambda r: (r["drive_stiffness"], -r["worst_hz"]))
+        if by_drive
+        else max(ok, key=lambda r: r["worst_hz"])
+    )
 
 
 # --------------------------------------------------------------------------- gradient-free check
@@ -327,18 +379,25 @@ def evaluate_design(case: dict) -> dict:
             env = max((float(p @ p) - float(p @ axis) ** 2) / prob.envelope.radius**2 for p in pts) - 1.0
             if prob.envelope.half_height is not None:
                 env = max(env, max(float(p @ axis) ** 2 / prob.envelope.half_height**2 for p in pts) - 1.0)
-    return {"ok": True, "x": x.tolist(), "design": {k: params[k] for k in fam.names},
-            "worst_hz": float(np.min(curve.parasitic_hz)),
-            "drive_stiffness": float(np.max(np.abs(curve.drive_reaction))) / s_si,
-            "stress_ratio": float(np.max(vm)) / allow, "envelope": env}
+    return {
+        "ok": True,
+        "x": x.tolist(),
+        "design": {k: params[k] for k in fam.names},
+        "worst_hz": float(np.min(curve.parasitic_hz)),
+        "drive_stiffness": float(np.max(np.abs(curve.drive_reaction))) / s_si,
+        "stress_ratio": float(np.max(vm)) / allow,
+        "envelope": env,
+    }
 
 
 def _envelope_positions(scene: dict) -> list[np.ndarray]:
     """The points of :func:`optim.search._envelope_points` (nodes and leaf edges), without derivatives."""
     from .search import _envelope_points
 
-    empty = {"nodes": [{"position": [0.0, 0.0, 0.0]} for _ in scene["nodes"]],
-             "elements": [{"y_axis": [0.0, 0.0, 0.0], "section": {"width": 0.0}} for _ in scene["elements"]]}
+    empty = {
+        "nodes": [{"position": [0.0, 0.0, 0.0]} for _ in scene["nodes"]],
+        "elements": [{"y_axis": [0.0, 0.0, 0.0], "section": {"width": 0.0}} for _ in scene["elements"]],
+    }
     return [p for p, _, _ in _envelope_points(scene, (empty,))]
 
 
@@ -362,8 +421,10 @@ def _nsga(spec: ParetoSpec, run: Any, lo: np.ndarray, hi: np.ndarray) -> dict:
             super().__init__(n_var=len(lo), n_obj=2, n_ieq_constr=2, xl=0.0, xu=1.0)
 
         def _evaluate(self, X, out, *args, **kwargs):
-            recs = run([{"problem": pj, "x": [float(v) for v in x], "points": points} for x in X],
-                       "flexopt.optim.pareto:evaluate_design")
+            recs = run(
+                [{"problem": pj, "x": [float(v) for v in x], "points": points} for x in X],
+                "flexopt.optim.pareto:evaluate_design",
+            )
             F, G = [], []
             for r in recs:
                 if r.get("ok"):
@@ -375,8 +436,9 @@ def _nsga(spec: ParetoSpec, run: Any, lo: np.ndarray, hi: np.ndarray) -> dict:
                     G.append([1e30, 1e30])
             out["F"], out["G"] = np.array(F), np.array(G)
 
-    res = moo_minimize(_Moo(), NSGA2(pop_size=check.population), ("n_gen", check.generations), seed=check.seed,
-                       verbose=False)
+    res = moo_minimize(
+        _Moo(), NSGA2(pop_size=check.population), ("n_gen", check.generations), seed=check.seed, verbose=False
+    )
     X = np.atleast_2d(res.X) if res.X is not None else np.zeros((0, len(lo)))
     return {"front_x": X.tolist(), "evaluated": len(seen)}
 
@@ -384,16 +446,33 @@ def _nsga(spec: ParetoSpec, run: Any, lo: np.ndarray, hi: np.ndarray) -> dict:
 def example_spec() -> dict:
     """A small front (cross-spring pivot, length and thickness, +-30 deg): what ``flexopt pareto --example``
     prints."""
-    return {"format": "flexopt-pareto", "version": 1, "points": 5,
-            "problem": {"families": [{"template": "cross-spring-pivot",
-                                      "design": {"length": [0.03, 0.07], "thickness": [2e-4, 4e-4]}}],
-                        "stroke": 30, "samples": 5, "starts": 1, "verify_points": 61},
-            "check": {"population": 12, "generations": 6, "tolerance": 0.02, "seed": 0}}
+    return {
+        "format": "flexopt-pareto",
+        "version": 1,
+        "points": 5,
+        "problem": {
+            "families": [
+                {"template": "cross-spring-pivot", "design": {"length": [0.03, 0.07], "thickness": [2e-4, 4e-4]}}
+            ],
+            "stroke": 30,
+            "samples": 5,
+            "starts": 1,
+            "verify_points": 61,
+        },
+        "check": {"population": 12, "generations": 6, "tolerance": 0.02, "seed": 0},
+    }
 
 
 # ---------------------------------------------------------------------------------------- driver
-def pareto(spec: ParetoSpec | dict, *, executor: cf.Executor | None = None, workers: int | None = None,
-           store: Any = None, progress: Any = None, cancel: Any = None) -> dict:
+def pareto(
+    spec: ParetoSpec | dict,
+    *,
+    executor: cf.Executor | None = None,
+    workers: int | None = None,
+    store: Any = None,
+    progress: Any = None,
+    cancel: Any = None,
+) -> dict:
     """The front of ``spec`` (module docstring): JSON with its points (design, verified worst case [Hz],
     drive stiffness with its unit, stress ratio, status), the single-objective optima, the NSGA-II check
     and warnings. ``executor``: any ``concurrent.futures.Executor`` (default: a local process pool of
@@ -417,8 +496,10 @@ def pareto(spec: ParetoSpec | dict, *, executor: cf.Executor | None = None, work
         return run_cases(cs, fn, executor=ex, store=store, progress=progress, cancel=cancel)
 
     def level_cases(kind: str, level: float | None = None) -> list[dict]:
-        return [{"problem": pj, "kind": kind, "start": s, **({} if level is None else {"level": level})}
-                for s in range(prob.starts)]
+        return [
+            {"problem": pj, "kind": kind, "start": s, **({} if level is None else {"level": level})}
+            for s in range(prob.starts)
+        ]
 
     if spec.against == "stroke":
         try:
@@ -431,7 +512,7 @@ def pareto(spec: ParetoSpec | dict, *, executor: cf.Executor | None = None, work
         with limited():
             ends = run(level_cases("max_frequency") + level_cases("min_drive"))
             top = _best(ends[: prob.starts])
-            bottom = _best(ends[prob.starts:], by_drive=True)
+            bottom = _best(ends[prob.starts :], by_drive=True)
             notes: list[dict] = []
             points = [bottom]
             if top["status"] == "optimal" and bottom["status"] == "optimal":
@@ -440,22 +521,37 @@ def pareto(spec: ParetoSpec | dict, *, executor: cf.Executor | None = None, work
                 flat = [c for lv in levels for c in level_cases("epsilon", lv)]
                 recs = run(flat) if flat else []
                 for i in range(len(levels)):
-                    points.append(_best(recs[i * prob.starts:(i + 1) * prob.starts]))
+                    points.append(_best(recs[i * prob.starts : (i + 1) * prob.starts]))
             else:
-                notes.append({"kind": "notice", "message": "a single-objective optimum failed (max frequency: "
-                              f"{top['status']} {top['message']}; min drive stiffness: {bottom['status']} "
-                              f"{bottom['message']}); no front between them"})
+                notes.append(
+                    {
+                        "kind": "notice",
+                        "message": "a single-objective optimum failed (max frequency: "
+                        f"{top['status']} {top['message']}; min drive stiffness: {bottom['status']} "
+                        f"{bottom['message']}); no front between them",
+                    }
+                )
             points.append(top)
             front = [p for p in points if p["status"] == "optimal"]
             for p in points:
                 if p["status"] != "optimal":
-                    notes.append({"kind": "notice", "message": f"the point at level {p['level']} is not on the "
-                                  f"front: {p['status']} ({p['message']})"})
+                    notes.append(
+                        {
+                            "kind": "notice",
+                            "message": f"the point at level {p['level']} is not on the "
+                            f"front: {p['status']} ({p['message']})",
+                        }
+                    )
             for p in front:
                 p["dominated_by"] = [j for j, q in enumerate(front) if q is not p and dominates(q, p)]
                 if p["dominated_by"]:
-                    notes.append({"kind": "notice", "message": f"the point of drive stiffness "
-                                  f"{p['drive_stiffness']:.6g} {k_unit} is dominated by another point of the front"})
+                    notes.append(
+                        {
+                            "kind": "notice",
+                            "message": f"the point of drive stiffness "
+                            f"{p['drive_stiffness']:.6g} {k_unit} is dominated by another point of the front",
+                        }
+                    )
             check = None
             if spec.check is not None:
                 check = _check(spec, prob, front, run, s_si)
@@ -464,12 +560,22 @@ def pareto(spec: ParetoSpec | dict, *, executor: cf.Executor | None = None, work
     finally:
         if own:
             ex.shutdown()
-    return {"format": "flexopt-pareto-result", "template": prob.families[0].template, "against": "drive_stiffness",
-            "objectives": {"worst_hz": "maximised, Hz", "drive_stiffness": f"minimised, {k_unit}"},
-            "drive_stiffness_unit": k_unit, "stroke_si": s_si, "points": front, "rejected": [p for p in points
-                                                                                             if p not in front],
-            "max_frequency": top, "min_drive_stiffness": bottom, "check": check,
-            "seconds": time.perf_counter() - t0, "warnings": notes, "spec": spec.model_dump(mode="json")}
+    return {
+        "format": "flexopt-pareto-result",
+        "template": prob.families[0].template,
+        "against": "drive_stiffness",
+        "objectives": {"worst_hz": "maximised, Hz", "drive_stiffness": f"minimised, {k_unit}"},
+        "drive_stiffness_unit": k_unit,
+        "stroke_si": s_si,
+        "points": front,
+        "rejected": [p for p in points if p not in front],
+        "max_frequency": top,
+        "min_drive_stiffness": bottom,
+        "check": check,
+        "seconds": time.perf_counter() - t0,
+        "warnings": notes,
+        "spec": spec.model_dump(mode="json"),
+    }
 
 
 def _stroke_front(spec: ParetoSpec, prob: Problem, run: Any, level_cases: Any, k_unit: str, t0: float) -> dict:
@@ -478,23 +584,45 @@ def _stroke_front(spec: ParetoSpec, prob: Problem, run: Any, level_cases: Any, k
     lo, hi = spec.strokes
     levels = [lo + (hi - lo) * i / (spec.points - 1) for i in range(spec.points)]
     recs = run([c for lv in levels for c in level_cases("stroke", lv)])
-    points = [_best(recs[i * prob.starts:(i + 1) * prob.starts]) for i in range(len(levels))]
+    points = [_best(recs[i * prob.starts : (i + 1) * prob.starts]) for i in range(len(levels))]
     for p, lv in zip(points, levels):
         p["stroke"] = lv
     front = [p for p in points if p["status"] == "optimal"]
-    notes = [{"kind": "notice", "message": f"the point at stroke {p['stroke']:.6g} is not on the front: {p['status']} "
-              f"({p['message']})"} for p in points if p["status"] != "optimal"]
+    notes = [
+        {
+            "kind": "notice",
+            "message": f"the point at stroke {p['stroke']:.6g} is not on the front: {p['status']} ({p['message']})",
+        }
+        for p in points
+        if p["status"] != "optimal"
+    ]
     for p in front:
         p["dominated_by"] = [j for j, q in enumerate(front) if q is not p and dominates(q, p, against="stroke")]
         if p["dominated_by"]:
-            notes.append({"kind": "notice", "message": f"the point at stroke {p['stroke']:.6g} is dominated by another "
-                          "point of the front (a longer stroke reaches at least its worst case)"})
+            notes.append(
+                {
+                    "kind": "notice",
+                    "message": f"the point at stroke {p['stroke']:.6g} is dominated by another "
+                    "point of the front (a longer stroke reaches at least its worst case)",
+                }
+            )
     unit = "deg" if k_unit == "N m/rad" else "m"
-    return {"format": "flexopt-pareto-result", "template": prob.families[0].template, "against": "stroke",
-            "objectives": {"worst_hz": "maximised, Hz", "stroke": f"maximised, {unit}"}, "stroke_unit": unit,
-            "drive_stiffness_unit": k_unit, "points": front, "rejected": [p for p in points if p not in front],
-            "max_frequency": None, "min_drive_stiffness": None, "check": None,
-            "seconds": time.perf_counter() - t0, "warnings": notes, "spec": spec.model_dump(mode="json")}
+    return {
+        "format": "flexopt-pareto-result",
+        "template": prob.families[0].template,
+        "against": "stroke",
+        "objectives": {"worst_hz": "maximised, Hz", "stroke": f"maximised, {unit}"},
+        "stroke_unit": unit,
+        "drive_stiffness_unit": k_unit,
+        "points": front,
+        "rejected": [p for p in points if p not in front],
+        "max_frequency": None,
+        "min_drive_stiffness": None,
+        "check": None,
+        "seconds": time.perf_counter() - t0,
+        "warnings": notes,
+        "spec": spec.model_dump(mode="json"),
+    }
 
 
 def _check(spec: ParetoSpec, prob: Problem, front: list[dict], run: Any, s_si: float) -> dict:
@@ -506,21 +634,53 @@ def _check(spec: ParetoSpec, prob: Problem, front: list[dict], run: Any, s_si: f
     t0 = time.perf_counter()
     res = _nsga(spec, run, fam.lo, fam.hi)
     pj = prob.model_dump(mode="json")
-    ver = run([{"problem": pj, "x": x, "points": prob.verify_points} for x in res["front_x"]],
-              "flexopt.optim.pareto:evaluate_design")
+    ver = run(
+        [{"problem": pj, "x": x, "points": prob.verify_points} for x in res["front_x"]],
+        "flexopt.optim.pareto:evaluate_design",
+    )
     tol = spec.check.tolerance
-    pts = [r for r in ver if r.get("ok") and r["stress_ratio"] <= 1 + prob.tolerance
-           and r["envelope"] <= prob.tolerance]
-    beats = [{"nsga": q["design"], "nsga_worst_hz": q["worst_hz"], "nsga_drive_stiffness": q["drive_stiffness"],
-              "front_worst_hz": p["worst_hz"], "front_drive_stiffness": p["drive_stiffness"]}
-             for q in pts for p in front if dominates(q, p, tol)]
-    margin = max((max(q["worst_hz"] / p["worst_hz"] - 1, 1 - q["drive_stiffness"] / p["drive_stiffness"])
-                  for q in pts for p in front if q["worst_hz"] >= p["worst_hz"] and q["drive_stiffness"] <= p["drive_stiffness"]),
-                 default=0.0)
+    pts = [
+        r for r in ver if r.get("ok") and r["stress_ratio"] <= 1 + prob.tolerance and r["envelope"] <= prob.tolerance
+    ]
+    beats = [
+        {
+            "nsga": q["design"],
+            "nsga_worst_hz": q["worst_hz"],
+            "nsga_drive_stiffness": q["drive_stiffness"],
+            "front_worst_hz": p["worst_hz"],
+            "front_drive_stiffness": p["drive_stiffness"],
+        }
+        for q in pts
+        for p in front
+        if dominates(q, p, tol)
+    ]
+    margin = max(
+        (
+            max(q["worst_hz"] / p["worst_hz"] - 1, 1 - q["drive_stiffness"] / p["drive_stiffness"])
+            for q in pts
+            for p in front
+            if q["worst_hz"] >= p["worst_hz"] and q["drive_stiffness"] <= p["drive_stiffness"]
+        ),
+        default=0.0,
+    )
     passed = not beats
-    summary = (f"NSGA-II ({spec.check.population} x {spec.check.generations}, {res['evaluated']} exact curves): "
-               f"{len(pts)} verified non-dominated points, "
-               + ("none dominates a front point by more than " if passed else f"{len(beats)} dominate front points by "
-                  "more than ") + f"{tol:g} (largest margin of a dominating NSGA-II point: {margin:.3g})")
-    return {"passed": passed, "tolerance": tol, "points": pts, "dominating": beats, "largest_margin": margin,
-            "evaluations": res["evaluated"], "seconds": time.perf_counter() - t0, "summary": summary}
+    summary = (
+        f"NSGA-II ({spec.check.population} x {spec.check.generations}, {res['evaluated']} exact curves): "
+        f"{len(pts)} verified non-dominated points, "
+        + (
+            "none dominates a front point by more than "
+            if passed
+            else f"{len(beats)} dominate front points by more than "
+        )
+        + f"{tol:g} (largest margin of a dominating NSGA-II point: {margin:.3g})"
+    )
+    return {
+        "passed": passed,
+        "tolerance": tol,
+        "points": pts,
+        "dominating": beats,
+        "largest_margin": margin,
+        "evaluations": res["evaluated"],
+        "seconds": time.perf_counter() - t0,
+        "summary": summary,
+    }

@@ -21,11 +21,16 @@ class Envelope(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     shape: Literal["cylinder"] = "cylinder"
-    radius: PositiveFloat = Field(description="largest distance of any scene node or leaf edge (node +- "
-                                  "width/2 across the leaf) from the stroke axis [m]")
-    half_height: PositiveFloat | None = Field(default=None, description="largest distance of any scene node or "
-                                              "leaf edge along the axis from the origin's plane [m] (default: "
-                                              "unbounded)")
+    radius: PositiveFloat = Field(
+        description="largest distance of any scene node or leaf edge (node +- "
+        "width/2 across the leaf) from the stroke axis [m]"
+    )
+    half_height: PositiveFloat | None = Field(
+        default=None,
+        description="largest distance of any scene node or "
+        "leaf edge along the axis from the origin's plane [m] (default: "
+        "unbounded)",
+    )
 
 
 class Ratio(BaseModel):
@@ -55,13 +60,18 @@ class Family(BaseModel):
         default_factory=dict, description="other template parameters held at these values (default: the template's)"
     )
     origins: dict[str, tuple[str, str]] = Field(
-        default_factory=dict, description="where each design bound comes from, (lower, upper) in words (e.g. "
+        default_factory=dict,
+        description="where each design bound comes from, (lower, upper) in words (e.g. "
         "'the envelope's height shared by 2 layers'): a warning for an optimum on a bound names it (optional; "
-        "bounds without an origin are the family's design box)")
+        "bounds without an origin are the family's design box)",
+    )
     ratios: list[Ratio] = Field(
-        default_factory=list, max_length=32, description="validity constraints numerator / (factor x "
+        default_factory=list,
+        max_length=32,
+        description="validity constraints numerator / (factor x "
         "denominator) >= minimum on template parameters, e.g. a leaf's length over its width within beam "
-        "theory (optional)")
+        "theory (optional)",
+    )
 
     @field_validator("design")
     @classmethod
@@ -74,7 +84,7 @@ class Family(BaseModel):
         return v
 
     @model_validator(mode="after")
-    def _disjoint(self) -> "Family":
+    def _disjoint(self) -> Family:
         both = sorted(set(self.design) & set(self.fixed))
         if both:
             raise ValueError(f"parameters {both} are both designed and fixed; keep each in one of the two")
@@ -93,49 +103,100 @@ class Problem(BaseModel):
     version: Literal[1] = 1
     families: list[Family] = Field(min_length=1, max_length=16, description="the candidate topologies")
     stroke: float | None = Field(
-        default=None, gt=0, description="half range of the stroke, in the template's stroke unit (deg for "
+        default=None,
+        gt=0,
+        description="half range of the stroke, in the template's stroke unit (deg for "
         "rotations, m for translations); default: the template's own 'stroke' parameter (45 deg for hinges)",
     )
     samples: int = Field(default=9, ge=3, le=61, description="stroke samples of the search, over -stroke..stroke")
-    modes: int = Field(default=2, ge=1, le=6, description="lowest parasitic modes bounded at every sample "
-                       "(more than one, so a mode switch cannot hide the minimum)")
-    safety_factor: float = Field(default=1.5, ge=1.0, le=20.0,
-                                 description="von Mises stress must stay below allowable / safety_factor")
-    min_thickness: float = Field(default=50e-6, gt=0, description="smallest manufacturable thickness [m]; "
-                                 "raises the lower bound of every parameter named '*thickness*'")
-    max_drive: float | None = Field(default=None, gt=0, description="largest actuation moment [N m] or "
-                                    "force [N] along the stroke (optional)")
+    modes: int = Field(
+        default=2,
+        ge=1,
+        le=6,
+        description="lowest parasitic modes bounded at every sample "
+        "(more than one, so a mode switch cannot hide the minimum)",
+    )
+    safety_factor: float = Field(
+        default=1.5, ge=1.0, le=20.0, description="von Mises stress must stay below allowable / safety_factor"
+    )
+    min_thickness: float = Field(
+        default=50e-6,
+        gt=0,
+        description="smallest manufacturable thickness [m]; "
+        "raises the lower bound of every parameter named '*thickness*'",
+    )
+    max_drive: float | None = Field(
+        default=None, gt=0, description="largest actuation moment [N m] or force [N] along the stroke (optional)"
+    )
     envelope: PositiveFloat | Envelope | None = Field(
-        default=None, description="the space every family must fit in, the same for all: a cylinder around "
-        "the stroke axis ({\"radius\", \"half_height\"} [m]), or a number: a sphere of that radius [m] about "
+        default=None,
+        description="the space every family must fit in, the same for all: a cylinder around "
+        'the stroke axis ({"radius", "half_height"} [m]), or a number: a sphere of that radius [m] about '
         "the origin (the hinge centre of the templates); scene nodes and leaf edges are constrained, rigid "
-        "bodies are not (optional)")
+        "bodies are not (optional)",
+    )
     body_mass: PositiveFloat | None = Field(
-        default=None, description="moving-body mass [kg] given to every family (the templates' 'body_mass'), so "
+        default=None,
+        description="moving-body mass [kg] given to every family (the templates' 'body_mass'), so "
         "that they are compared with the same payload; default: each template's own (0.1 kg for every hinge "
-        "family); the result reports each family's mass and warns when they differ")
+        "family); the result reports each family's mass and warns when they differ",
+    )
     solver: Literal["slsqp", "trust-constr"] = Field(
-        default="slsqp", description="'slsqp' (scipy SLSQP, active set) or 'trust-constr' (scipy's "
-        "interior-point / trust-region method, with BFGS Hessians of the constraints)")
-    kkt_tolerance: float = Field(default=1e-2, gt=0, lt=1, description="largest first-order optimality "
-                                 "residual (KKT, relative to the objective's gradient) of a converged start")
-    starts: int = Field(default=4, ge=1, le=64, description="multi-start: starts per family (the first is the "
-                        "template's defaults clipped into the bounds, start k >= 1 the k-th point of a scrambled "
-                        "Halton sequence seeded by (seed, family): adding starts keeps the earlier ones)")
-    screen: int = Field(default=0, ge=0, le=256, description="fast-method screening: each start first "
-                        "evaluates this many Latin-hypercube candidates of its own with the modal-derivative "
-                        "'auto' method (the cheapest method whose estimated error meets screen_tolerance; exact "
-                        "where none does) and starts from the one with the highest estimated worst case")
+        default="slsqp",
+        description="'slsqp' (scipy SLSQP, active set) or 'trust-constr' (scipy's "
+        "interior-point / trust-region method, with BFGS Hessians of the constraints)",
+    )
+    kkt_tolerance: float = Field(
+        default=1e-2,
+        gt=0,
+        lt=1,
+        description="largest first-order optimality "
+        "residual (KKT, relative to the objective's gradient) of a converged start",
+    )
+    starts: int = Field(
+        default=4,
+        ge=1,
+        le=64,
+        description="multi-start: starts per family (the first is the "
+        "template's defaults clipped into the bounds, start k >= 1 the k-th point of a scrambled "
+        "Halton sequence seeded by (seed, family): adding starts keeps the earlier ones)",
+    )
+    screen: int = Field(
+        default=0,
+        ge=0,
+        le=256,
+        description="fast-method screening: each start first "
+        "evaluates this many Latin-hypercube candidates of its own with the modal-derivative "
+        "'auto' method (the cheapest method whose estimated error meets screen_tolerance; exact "
+        "where none does) and starts from the one with the highest estimated worst case",
+    )
     screen_tolerance: float = Field(default=0.02, gt=0, lt=0.5, description="error tolerance of the screening")
     seed: int = Field(default=0, ge=0, description="base seed of the start sequence and the screening (deterministic)")
-    max_iterations: int = Field(default=30, ge=1, le=500, description="SLSQP iterations per start and "
-                                "round (trust-constr: ten times as many, its iterations being cheaper)")
-    refine_rounds: int = Field(default=3, ge=0, le=10, description="verification rounds: what the "
-                               "verification found (the stroke of the verified minimum or stress peak, or the "
-                               "stressed member's constraints) is added to the search and the search resumed; "
-                               "a round that would add nothing stops with the reason")
+    max_iterations: int = Field(
+        default=30,
+        ge=1,
+        le=500,
+        description="SLSQP iterations per start and "
+        "round (trust-constr: ten times as many, its iterations being cheaper)",
+    )
+    refine_rounds: int = Field(
+        default=3,
+        ge=0,
+        le=10,
+        description="verification rounds: what the "
+        "verification found (the stroke of the verified minimum or stress peak, or the "
+        "stressed member's constraints) is added to the search and the search resumed; "
+        "a round that would add nothing stops with the reason",
+    )
     verify_points: int = Field(default=181, ge=31, le=2001, description="exact stroke points of the verification")
-    preview: bool = Field(default=True, description="compute the start design's curve (method 'auto') for the "
-                          "plot of start against optimum; a topology search's first pass leaves it out")
-    tolerance: float = Field(default=1e-3, gt=0, lt=0.1, description="relative tolerance of the search "
-                             "(SLSQP ftol) and of the verified-versus-searched worst case")
+    preview: bool = Field(
+        default=True,
+        description="compute the start design's curve (method 'auto') for the "
+        "plot of start against optimum; a topology search's first pass leaves it out",
+    )
+    tolerance: float = Field(
+        default=1e-3,
+        gt=0,
+        lt=0.1,
+        description="relative tolerance of the search (SLSQP ftol) and of the verified-versus-searched worst case",
+    )

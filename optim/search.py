@@ -65,7 +65,6 @@ from ..model.errors import FlexoptError
 from ..model.results import ResultWarning
 from ..model.templates import TEMPLATES
 from ..model.threads import limited
-
 from .problem import Envelope, Family, Problem
 
 __all__ = ["run_case", "cases", "optimise", "summarise", "start_point"]
@@ -106,8 +105,10 @@ def _bounds(fam: Family, prob: Problem) -> tuple[list[str], np.ndarray, np.ndarr
         if "thickness" in k:
             lo[i] = max(lo[i], prob.min_thickness)
             if not lo[i] < hi[i]:
-                raise FlexoptError(f"families[].design.{k}: the upper bound {hi[i]:g} m is below the minimum "
-                                   f"manufacturable thickness {prob.min_thickness:g} m; raise it")
+                raise FlexoptError(
+                    f"families[].design.{k}: the upper bound {hi[i]:g} m is below the minimum "
+                    f"manufacturable thickness {prob.min_thickness:g} m; raise it"
+                )
     return names, lo, hi
 
 
@@ -116,22 +117,29 @@ class _Family:
 
     def __init__(self, prob: Problem, fam: Family) -> None:
         if fam.template not in TEMPLATES:
-            raise FlexoptError(f"families[].template: unknown template '{fam.template}'; choose one of "
-                               f"{sorted(TEMPLATES)}")
+            raise FlexoptError(
+                f"families[].template: unknown template '{fam.template}'; choose one of {sorted(TEMPLATES)}"
+            )
         self.prob, self.fam = prob, fam
         self.names, self.lo, self.hi = _bounds(fam, prob)
         defaults = TEMPLATES[fam.template][1]
         unknown = sorted(set(self.names) - set(defaults))
         if unknown:
-            raise FlexoptError(f"families[].design: template '{fam.template}' has no parameters {unknown}; "
-                               f"its parameters are {sorted(defaults)}")
+            raise FlexoptError(
+                f"families[].design: template '{fam.template}' has no parameters {unknown}; "
+                f"its parameters are {sorted(defaults)}"
+            )
         if prob.body_mass is not None:
             if "body_mass" not in defaults:
-                raise FlexoptError(f"body_mass: template '{fam.template}' has no moving body ('body_mass'); "
-                                   "remove body_mass from the problem or this family")
+                raise FlexoptError(
+                    f"body_mass: template '{fam.template}' has no moving body ('body_mass'); "
+                    "remove body_mass from the problem or this family"
+                )
             if "body_mass" in fam.design or fam.fixed.get("body_mass", prob.body_mass) != prob.body_mass:
-                raise FlexoptError(f"families[].{fam.template}: body_mass is set by the problem "
-                                   f"({prob.body_mass:g} kg, the same for every family); remove it from the family")
+                raise FlexoptError(
+                    f"families[].{fam.template}: body_mass is set by the problem "
+                    f"({prob.body_mass:g} kg, the same for every family); remove it from the family"
+                )
         self.stroke = float(prob.stroke if prob.stroke is not None else defaults.get("stroke", 45.0))
         self.samples = np.linspace(-self.stroke, self.stroke, prob.samples)
         self.f_ref: float | None = None
@@ -168,8 +176,16 @@ class _Family:
         try:
             ev = self._evaluate(x)
         except FlexoptError as exc:
-            ev = _Eval(x.copy(), np.empty(0), np.empty((0, len(x) + 1)), float("nan"), float("nan"), float("nan"),
-                       False, str(exc))
+            ev = _Eval(
+                x.copy(),
+                np.empty(0),
+                np.empty((0, len(x) + 1)),
+                float("nan"),
+                float("nan"),
+                float("nan"),
+                False,
+                str(exc),
+            )
         self._last = ev
         if ev.ok:
             self._good = ev
@@ -196,8 +212,9 @@ class _Family:
         def visit(eq, modes, labels):
             par = [i for i in np.argsort(modes.omega2) if labels[i] == "parasitic"][: prob.modes]
             if len(par) < prob.modes:
-                raise FlexoptError(f"only {len(par)} parasitic modes are tracked; lower 'modes' or raise the "
-                                   "template's 'modes'")
+                raise FlexoptError(
+                    f"only {len(par)} parasitic modes are tracked; lower 'modes' or raise the template's 'modes'"
+                )
             ps = point_sensitivity(an.system, eq, modes, par, dstructs)
             lam = modes.omega2[par]
             hz = np.sqrt(np.maximum(lam, 0)) / (2 * np.pi)
@@ -209,31 +226,66 @@ class _Family:
             for b in range(s.n_beams):
                 for end in range(2):
                     r = float(ps.vm[b, end]) / allow
-                    rows_g.append((1.0 - r * r, -ps.dvm2[:, b, end] * scale / allow**2, su, "stress",
-                                   f"stress in {member[b]} (segment {b}, end {end}) at stroke {su:.6g}"))
+                    rows_g.append(
+                        (
+                            1.0 - r * r,
+                            -ps.dvm2[:, b, end] * scale / allow**2,
+                            su,
+                            "stress",
+                            f"stress in {member[b]} (segment {b}, end {end}) at stroke {su:.6g}",
+                        )
+                    )
             if prob.max_drive is not None:
                 r = eq.drive_reaction / prob.max_drive
-                rows_g.append((1.0 - r * r, -2.0 * r * ps.dreaction * scale / prob.max_drive, su, "drive",
-                               f"drive force or moment at stroke {su:.6g}"))
+                rows_g.append(
+                    (
+                        1.0 - r * r,
+                        -2.0 * r * ps.dreaction * scale / prob.max_drive,
+                        su,
+                        "drive",
+                        f"drive force or moment at stroke {su:.6g}",
+                    )
+                )
             pts[eq.stroke] = (float(hz[0]), float(np.max(ps.vm)))
 
         if prob.envelope is not None:
             for pos, dpos, name in _envelope_points(ds.scene_dict, ds.dscene):
                 if not isinstance(prob.envelope, Envelope):  # a sphere about the origin
                     R2 = prob.envelope**2
-                    rows_g.append((1.0 - float(pos @ pos) / R2, -2.0 * (dpos @ pos) * scale / R2, float("nan"),
-                                   "envelope", f"{name} on the envelope (sphere)"))
+                    rows_g.append(
+                        (
+                            1.0 - float(pos @ pos) / R2,
+                            -2.0 * (dpos @ pos) * scale / R2,
+                            float("nan"),
+                            "envelope",
+                            f"{name} on the envelope (sphere)",
+                        )
+                    )
                     continue
                 axis = np.asarray(stroke.axis, float)
                 axis = axis / float(np.linalg.norm(axis))
                 a, da = float(pos @ axis), dpos @ axis
                 R2 = prob.envelope.radius**2
-                rows_g.append((1.0 - (float(pos @ pos) - a * a) / R2, -2.0 * (dpos @ pos - a * da) * scale / R2,
-                               float("nan"), "envelope", f"{name} on the envelope's radius"))
+                rows_g.append(
+                    (
+                        1.0 - (float(pos @ pos) - a * a) / R2,
+                        -2.0 * (dpos @ pos - a * da) * scale / R2,
+                        float("nan"),
+                        "envelope",
+                        f"{name} on the envelope's radius",
+                    )
+                )
                 if prob.envelope.half_height is not None:
                     H2 = prob.envelope.half_height**2
-                    rows_g.append((1.0 - a * a / H2, -2.0 * a * da * scale / H2, float("nan"), "envelope",
-                                   f"{name} on the envelope's end"))
+                    rows_g.append(
+                        (
+                            1.0 - a * a / H2,
+                            -2.0 * a * da * scale / H2,
+                            float("nan"),
+                            "envelope",
+                            f"{name} on the envelope's end",
+                        )
+                    )
         if self.fam.ratios:
             full = {**TEMPLATES[self.fam.template][1], **self.params(x)}
             for rt in self.fam.ratios:
@@ -245,9 +297,16 @@ class _Family:
                         g[i] += k * den / num**2 * scale[i]
                     if name == rt.denominator:
                         g[i] -= k / num * scale[i]
-                rows_g.append((1.0 - k * den / num, g, float("nan"), "validity",
-                               f"{rt.numerator} / ({rt.factor:g} {rt.denominator}) >= {rt.minimum:g}"
-                               + (f" ({rt.reason})" if rt.reason else "")))
+                rows_g.append(
+                    (
+                        1.0 - k * den / num,
+                        g,
+                        float("nan"),
+                        "validity",
+                        f"{rt.numerator} / ({rt.factor:g} {rt.denominator}) >= {rt.minimum:g}"
+                        + (f" ({rt.reason})" if rt.reason else ""),
+                    )
+                )
         curve = an.frequency_curve(stroke=self.samples, visit=visit)
         if curve.status != "complete":
             raise FlexoptError(curve.failures[0].message if curve.failures else "the stroke was not completed")
@@ -256,15 +315,23 @@ class _Family:
             self.f_ref = float(f.min())
         nx = len(x)
         con = [hz / self.f_ref for hz, *_ in rows_f] + [r[0] for r in rows_g]
-        jac = ([np.concatenate([d / self.f_ref, [-1.0]]) for _, d, *_ in rows_f]
-               + [np.concatenate([r[1], [0.0]]) for r in rows_g])
+        jac = [np.concatenate([d / self.f_ref, [-1.0]]) for _, d, *_ in rows_f] + [
+            np.concatenate([r[1], [0.0]]) for r in rows_g
+        ]
         k = int(np.argmin(f))
         nf = len(rows_f)
-        return _Eval(x.copy(), np.array(con), np.array(jac).reshape(len(con), nx + 1), float(f.min()),
-                     rows_f[k][2], max(v[1] for v in pts.values()), True,
-                     strokes=np.array([r[2] for r in rows_f] + [r[2] for r in rows_g]),
-                     kinds=np.array(["frequency"] * nf + [r[3] for r in rows_g]),
-                     labels=[r[3] for r in rows_f] + [r[4] for r in rows_g])
+        return _Eval(
+            x.copy(),
+            np.array(con),
+            np.array(jac).reshape(len(con), nx + 1),
+            float(f.min()),
+            rows_f[k][2],
+            max(v[1] for v in pts.values()),
+            True,
+            strokes=np.array([r[2] for r in rows_f] + [r[2] for r in rows_g]),
+            kinds=np.array(["frequency"] * nf + [r[3] for r in rows_g]),
+            labels=[r[3] for r in rows_f] + [r[4] for r in rows_g],
+        )
 
     def n_frequency(self) -> int:
         return len(self.samples) * self.prob.modes
@@ -311,8 +378,10 @@ class _Family:
         rows = np.column_stack([ev.con, ev.jac])
         bad = np.flatnonzero(~np.all(np.isfinite(rows), axis=1))
         if len(bad):
-            raise FlexoptError(f"constraint rows {[ev.labels[i] for i in bad[:3]]} are not finite at design "
-                               f"{self.params(ev.x)}: a gradient is undefined there (report this as a bug)")
+            raise FlexoptError(
+                f"constraint rows {[ev.labels[i] for i in bad[:3]]} are not finite at design "
+                f"{self.params(ev.x)}: a gradient is undefined there (report this as a bug)"
+            )
         tol = 1e-9 * max(float(np.abs(rows).max()), 1e-300)
         keep: list[int] = []
         for i in range(len(rows)):
@@ -342,8 +411,10 @@ def _envelope_points(scene: dict, dscene: tuple[dict, ...]) -> list[tuple[np.nda
     node, and both edges of every rectangular leaf at its end nodes (node +- width/2 along the section's
     width direction ``y_axis``), so that the leaves' width counts. Rigid bodies are mass properties without a
     shape here and are not bounded; the thickness (t/2, well below a millimetre) is neglected."""
-    pos = {n["name"]: (np.asarray(n["position"], float), np.array([d["nodes"][k]["position"] for d in dscene], float))
-           for k, n in enumerate(scene["nodes"])}
+    pos = {
+        n["name"]: (np.asarray(n["position"], float), np.array([d["nodes"][k]["position"] for d in dscene], float))
+        for k, n in enumerate(scene["nodes"])
+    }
     out = [(p, dp, f"node {name}") for name, (p, dp) in pos.items()]
     for k, el in enumerate(scene["elements"]):
         sec = el.get("section") or {}
@@ -359,8 +430,13 @@ def _envelope_points(scene: dict, dscene: tuple[dict, ...]) -> list[tuple[np.nda
         for node in el["nodes"]:
             p, dp = pos[node]
             for sign, side in ((1.0, "+"), (-1.0, "-")):
-                out.append((p + sign * 0.5 * w * u, dp + sign * 0.5 * (np.outer(dw, u) + w * du),
-                            f"edge {side} of {el['name']} at node {node}"))
+                out.append(
+                    (
+                        p + sign * 0.5 * w * u,
+                        dp + sign * 0.5 * (np.outer(dw, u) + w * du),
+                        f"edge {side} of {el['name']} at node {node}",
+                    )
+                )
     return out
 
 
@@ -380,31 +456,60 @@ def _trust_constr_options(prob: Problem) -> dict:
     # measured (bench/bench_optim.py): with scipy's defaults (barrier 0.1, gtol 1e-8 loosened to the search's
     # tolerance) the interior point stops about 0.6 % inside an active bound; a small initial barrier and
     # tight barrier and gradient tolerances let it reach the bound in a few iterations more
-    return {"maxiter": prob.max_iterations * 10, "gtol": prob.tolerance * 1e-5, "xtol": prob.tolerance * 1e-7,
-            "barrier_tol": prob.tolerance * 1e-7, "initial_barrier_parameter": prob.tolerance}
+    return {
+        "maxiter": prob.max_iterations * 10,
+        "gtol": prob.tolerance * 1e-5,
+        "xtol": prob.tolerance * 1e-7,
+        "barrier_tol": prob.tolerance * 1e-7,
+        "initial_barrier_parameter": prob.tolerance,
+    }
 
 
 def _solve(fam: _Family, prob: Problem, x: np.ndarray, t0: float, lo: np.ndarray, hi: np.ndarray) -> dict:
     """One solver run from ``(x, t0)`` inside the box ``[lo, hi]``; raises _EvaluationFailed."""
     n = len(x)
     z0 = np.concatenate([np.clip(x, lo, hi), [t0]])
-    obj = (lambda z: -z[-1])
-    grad = (lambda z: np.concatenate([np.zeros(n), [-1.0]]))
+    obj = lambda z: -z[-1]
+    grad = lambda z: np.concatenate([np.zeros(n), [-1.0]])
     if prob.solver == "slsqp":
-        res = minimize(obj, z0, jac=grad, method="SLSQP", bounds=list(zip(lo, hi)) + [(None, None)],
-                       constraints=[{"type": "ineq", "fun": fam.fun, "jac": fam.jac}],
-                       options={"maxiter": prob.max_iterations, "ftol": prob.tolerance * 1e-2})
-        return {"z": res.x, "success": bool(res.status == 0), "code": int(res.status), "message": str(res.message),
-                "iterations": int(res.nit)}
+        res = minimize(
+            obj,
+            z0,
+            jac=grad,
+            method="SLSQP",
+            bounds=list(zip(lo, hi)) + [(None, None)],
+            constraints=[{"type": "ineq", "fun": fam.fun, "jac": fam.jac}],
+            options={"maxiter": prob.max_iterations, "ftol": prob.tolerance * 1e-2},
+        )
+        return {
+            "z": res.x,
+            "success": bool(res.status == 0),
+            "code": int(res.status),
+            "message": str(res.message),
+            "iterations": int(res.nit),
+        }
     con = NonlinearConstraint(fam.fun, 0.0, np.inf, jac=fam.jac, hess=BFGS())
     bounds = Bounds(np.concatenate([lo, [-np.inf]]), np.concatenate([hi, [np.inf]]))
     with warnings.catch_warnings():
         # BFGS skips its update where a constraint is linear in the step (the envelope, the epigraph's t)
         warnings.filterwarnings("ignore", message="delta_grad == 0.0", category=UserWarning)
-        res = minimize(obj, z0, jac=grad, hess=lambda z: np.zeros((n + 1, n + 1)), method="trust-constr",
-                       bounds=bounds, constraints=[con], options=_trust_constr_options(prob))
-    return {"z": res.x, "success": bool(res.status in (1, 2)), "code": int(res.status), "message": str(res.message),
-            "iterations": int(res.nit)}
+        res = minimize(
+            obj,
+            z0,
+            jac=grad,
+            hess=lambda z: np.zeros((n + 1, n + 1)),
+            method="trust-constr",
+            bounds=bounds,
+            constraints=[con],
+            options=_trust_constr_options(prob),
+        )
+    return {
+        "z": res.x,
+        "success": bool(res.status in (1, 2)),
+        "code": int(res.status),
+        "message": str(res.message),
+        "iterations": int(res.nit),
+    }
 
 
 def _optimality(fam: _Family, ev: _Eval, tol: float) -> dict:
@@ -442,22 +547,35 @@ def _optimality(fam: _Family, ev: _Eval, tol: float) -> dict:
         mu, resid = np.zeros(0), float(np.linalg.norm(g))
     active = [nm for nm, m in zip(names, mu) if m > 1e-9]
     kinds = ev.kinds if ev.kinds is not None else np.array([], dtype=object)
-    return {"kkt_residual": float(resid), "max_violation": float(max(0.0, -float(c.min()))),
-            "active": active, "active_bounds": bounds,
-            "active_kinds": sorted({str(kinds[i]) for i, m in zip(act, mu) if m > 1e-9})}
+    return {
+        "kkt_residual": float(resid),
+        "max_violation": float(max(0.0, -float(c.min()))),
+        "active": active,
+        "active_bounds": bounds,
+        "active_kinds": sorted({str(kinds[i]) for i, m in zip(act, mu) if m > 1e-9}),
+    }
 
 
 def _curve_summary(curve, points: int) -> dict:
     """What a case records of a curve on ``points`` stroke points: status, failures, the curve, and (when
     complete) the worst first parasitic frequency, where it is, the zero-stroke one and their ratio."""
-    out = {"points": points, "status": curve.status, "failures": [f.message for f in curve.failures],
-           "stroke": curve.stroke.tolist(), "parasitic_hz": curve.parasitic_hz.tolist()}
+    out = {
+        "points": points,
+        "status": curve.status,
+        "failures": [f.message for f in curve.failures],
+        "stroke": curve.stroke.tolist(),
+        "parasitic_hz": curve.parasitic_hz.tolist(),
+    }
     if curve.status == "complete" and len(curve.stroke):
         ph = curve.parasitic_hz
         i = int(np.argmin(ph))
         zero = float(ph[int(np.argmin(np.abs(curve.stroke)))])
-        out.update(worst_hz=float(ph[i]), stroke_at_worst=float(curve.stroke[i]), zero_stroke_hz=zero,
-                   ratio=float(ph[i] / zero))
+        out.update(
+            worst_hz=float(ph[i]),
+            stroke_at_worst=float(curve.stroke[i]),
+            zero_stroke_hz=zero,
+            ratio=float(ph[i] / zero),
+        )
     return out
 
 
@@ -480,11 +598,16 @@ def _verify(fam: _Family, x: np.ndarray, points: int) -> dict:
     per_member = np.nan_to_num(np.array([curve.max_von_mises[m] for m in members]), nan=-np.inf)
     im, ip = np.unravel_index(int(np.argmax(per_member)), per_member.shape)
     stress = float(per_member[im, ip])
-    out.update(max_stress=stress, allowable_stress=allow,
-               stress_ratio=stress * fam.prob.safety_factor / allow,
-               stroke_at_max_stress=float(curve.stroke[ip]), member_at_max_stress=members[im],
-               max_drive=float(np.max(np.abs(curve.drive_reaction))), drive_unit=curve.drive_reaction_unit,
-               scene=scene.model_dump(mode="json"))
+    out.update(
+        max_stress=stress,
+        allowable_stress=allow,
+        stress_ratio=stress * fam.prob.safety_factor / allow,
+        stroke_at_max_stress=float(curve.stroke[ip]),
+        member_at_max_stress=members[im],
+        max_drive=float(np.max(np.abs(curve.drive_reaction))),
+        drive_unit=curve.drive_reaction_unit,
+        scene=scene.model_dump(mode="json"),
+    )
     return out
 
 
@@ -502,8 +625,11 @@ def _preview(fam: _Family, x: np.ndarray, points: int, tolerance: float) -> dict
         curve = fast_curve(Analysis(template(fam.fam.template, **fam.params(x))), "auto", tolerance, grid)
     except FlexoptError as exc:
         return {"points": points, "status": "failed", "failures": [str(exc)], "stroke": [], "parasitic_hz": []}
-    return {**_curve_summary(curve, points), "method": curve.solver.get("auto_method", curve.method),
-            "estimated_error": curve.solver.get("auto_estimate", 0.0)}
+    return {
+        **_curve_summary(curve, points),
+        "method": curve.solver.get("auto_method", curve.method),
+        "estimated_error": curve.solver.get("auto_estimate", 0.0),
+    }
 
 
 def _screen(fam: _Family, prob: Problem, family_index: int, start: int, x0: np.ndarray) -> tuple[np.ndarray, dict]:
@@ -547,8 +673,15 @@ def _search(fam: _Family, prob: Problem, x: np.ndarray) -> dict:
     while True:
         good = fam.evaluate(x)
         if not good.ok:
-            return {"x": x, "success": False, "code": -1, "iterations": iterations, "steps": steps,
-                    "failed": good.message, "message": "evaluation failed"}
+            return {
+                "x": x,
+                "success": False,
+                "code": -1,
+                "iterations": iterations,
+                "steps": steps,
+                "failed": good.message,
+                "message": "evaluation failed",
+            }
         assert fam.f_ref is not None  # set by the first evaluation
         t0 = good.worst_hz / fam.f_ref
         try:
@@ -560,9 +693,15 @@ def _search(fam: _Family, prob: Problem, x: np.ndarray) -> dict:
             good = last
             steps.append({"failed_at": fam.params(exc.x), "message": str(exc)})
             if backs > _STEP_BACKS:
-                return {"x": good.x, "success": False, "code": -1, "iterations": iterations, "steps": steps,
-                        "failed": f"{backs} evaluations failed (last: {exc}); stopped at the last good design",
-                        "message": "evaluations failed"}
+                return {
+                    "x": good.x,
+                    "success": False,
+                    "code": -1,
+                    "iterations": iterations,
+                    "steps": steps,
+                    "failed": f"{backs} evaluations failed (last: {exc}); stopped at the last good design",
+                    "message": "evaluations failed",
+                }
             r = 0.5 * max(float(np.abs(exc.x - good.x).max()), 1e-6)
             x, lo, hi = good.x.copy(), np.maximum(good.x - r, 0.0), np.minimum(good.x + r, 1.0)
             continue
@@ -596,16 +735,20 @@ def _refine(fam: _Family, verified: dict, low: bool, stressed: bool, symmetric: 
             add(s_)
             added.append(f"stroke {s_:.6g} (verified minimum)")
         else:
-            why.append(f"the verified minimum ({verified['worst_hz']:.6g} Hz) lies at the sampled stroke {s_:.6g}: "
-                       "the searched modes miss it (raise 'modes')")
+            why.append(
+                f"the verified minimum ({verified['worst_hz']:.6g} Hz) lies at the sampled stroke {s_:.6g}: "
+                "the searched modes miss it (raise 'modes')"
+            )
     if stressed:
         s_, m = verified["stroke_at_max_stress"], verified["member_at_max_stress"]
         if not sampled(s_):
             add(s_)
             added.append(f"stroke {s_:.6g} (verified stress peak)")
         else:
-            why.append(f"the stress limit is exceeded at the sampled stroke {s_:.6g} in {m}, whose constraints the "
-                       "solver had: it stopped at an infeasible design")
+            why.append(
+                f"the stress limit is exceeded at the sampled stroke {s_:.6g} in {m}, whose constraints the "
+                "solver had: it stopped at an infeasible design"
+            )
     if added:
         fam._last = fam._good = None
     return added, "; ".join(why)
@@ -620,12 +763,19 @@ def _provenance(prob: Problem, one_start: bool = False) -> dict:
         ver = version("flexopt")
     except PackageNotFoundError:  # pragma: no cover - running from a source tree without installing
         ver = "0+unknown"
-    blob = json.dumps(prob.model_dump(mode="json", exclude={"starts"} if one_start else None), sort_keys=True,
-                      separators=(",", ":"))
-    settings = {"method": prob.solver, "max_iterations": prob.max_iterations, "tolerance": prob.tolerance,
-                "kkt_tolerance": prob.kkt_tolerance, "refine_rounds": prob.refine_rounds,
-                "stress_rows": "every segment end at every sample", "step_backs": _STEP_BACKS,
-                "starts": "template defaults, then a scrambled Halton sequence seeded by (seed, family)"}
+    blob = json.dumps(
+        prob.model_dump(mode="json", exclude={"starts"} if one_start else None), sort_keys=True, separators=(",", ":")
+    )
+    settings = {
+        "method": prob.solver,
+        "max_iterations": prob.max_iterations,
+        "tolerance": prob.tolerance,
+        "kkt_tolerance": prob.kkt_tolerance,
+        "refine_rounds": prob.refine_rounds,
+        "stress_rows": "every segment end at every sample",
+        "step_backs": _STEP_BACKS,
+        "starts": "template defaults, then a scrambled Halton sequence seeded by (seed, family)",
+    }
     if prob.solver == "slsqp":
         settings["ftol"] = prob.tolerance * 1e-2
     else:
@@ -644,8 +794,11 @@ def run_case(case: dict) -> dict:
     screening = None
     if prob.screen:
         x0, screening = _screen(fam, prob, fi, si, x0)
-    initial = (_preview(fam, x0, prob.verify_points, prob.tolerance) if prob.preview else
-               {"points": 0, "status": "skipped", "failures": [], "stroke": [], "parasitic_hz": []})
+    initial = (
+        _preview(fam, x0, prob.verify_points, prob.tolerance)
+        if prob.preview
+        else {"points": 0, "status": "skipped", "failures": [], "stroke": [], "parasitic_hz": []}
+    )
     x = x0.copy()
     history: list[dict] = []
     status, message = "optimal", ""
@@ -657,8 +810,11 @@ def run_case(case: dict) -> dict:
         for frac in _START_STEPS:
             ev = fam.evaluate(x0 + frac * (xd - x0))
             if ev.ok:
-                moved = {"fraction_toward_defaults": frac, "reason": searched.message,
-                         "design": {k: v for k, v in fam.params(ev.x).items() if k in fam.names}}
+                moved = {
+                    "fraction_toward_defaults": frac,
+                    "reason": searched.message,
+                    "design": {k: v for k, v in fam.params(ev.x).items() if k in fam.names},
+                }
                 x, searched = ev.x.copy(), ev
                 break
     symmetric = fam.reduce_symmetric(searched)
@@ -676,11 +832,18 @@ def run_case(case: dict) -> dict:
             run = _search(fam, prob, x)
             x = run["x"]
             searched = fam.evaluate(x)
-            history.append({"round": rnd, "samples": fam.samples.tolist(), "solver_status": run["code"],
-                            "solver_message": run["message"], "iterations": run["iterations"],
-                            "constraints": 0 if fam.keep is None else int(len(fam.keep)),
-                            "step_backs": run["steps"],
-                            "searched_worst_hz": searched.worst_hz})
+            history.append(
+                {
+                    "round": rnd,
+                    "samples": fam.samples.tolist(),
+                    "solver_status": run["code"],
+                    "solver_message": run["message"],
+                    "iterations": run["iterations"],
+                    "constraints": 0 if fam.keep is None else int(len(fam.keep)),
+                    "step_backs": run["steps"],
+                    "searched_worst_hz": searched.worst_hz,
+                }
+            )
             if run["failed"] or not searched.ok:
                 status, message = "failed", run["failed"] or searched.message
                 break
@@ -710,72 +873,133 @@ def run_case(case: dict) -> dict:
             status, message = "infeasible", f"a constraint is violated by {opt['max_violation']:.3g} (scaled)"
         elif low:
             status = "unconverged"
-            message = message or (f"the verified minimum ({verified['worst_hz']:.5g} Hz) is below the searched one "
-                                  f"({searched.worst_hz:.5g} Hz)")
+            message = message or (
+                f"the verified minimum ({verified['worst_hz']:.5g} Hz) is below the searched one "
+                f"({searched.worst_hz:.5g} Hz)"
+            )
         elif not run["success"]:
             status, message = "unconverged", f"the solver stopped: {run['message']}"
         elif opt["kkt_residual"] > prob.kkt_tolerance:
-            status, message = "unconverged", (f"KKT residual {opt['kkt_residual']:.3g} above kkt_tolerance "
-                                              f"{prob.kkt_tolerance:g}")
+            status, message = (
+                "unconverged",
+                (f"KKT residual {opt['kkt_residual']:.3g} above kkt_tolerance {prob.kkt_tolerance:g}"),
+            )
     params = fam.params(x)
     notes = _case_warnings(fam, si, status, message, verified, opt)
     if moved is not None:
-        notes.append(ResultWarning("notice", f"{fam_spec.template} start {si}: the start design fails "
-                                   f"({moved['reason']}); the search started {moved['fraction_toward_defaults']:g} of "
-                                   "the way toward the template's design instead"))
+        notes.append(
+            ResultWarning(
+                "notice",
+                f"{fam_spec.template} start {si}: the start design fails "
+                f"({moved['reason']}); the search started {moved['fraction_toward_defaults']:g} of "
+                "the way toward the template's design instead",
+            )
+        )
     return {
-        "family": fam_spec.template, "family_index": fi, "start": si, "status": status, "message": message,
+        "family": fam_spec.template,
+        "family_index": fi,
+        "start": si,
+        "status": status,
+        "message": message,
         "design": {k: params[k] for k in fam.names},
         "bounds": {k: [float(lo), float(hi)] for k, lo, hi in zip(fam.names, fam.lo, fam.hi)},
         "x0": {k: float(fam.lo[i] + x0[i] * (fam.hi[i] - fam.lo[i])) for i, k in enumerate(fam.names)},
-        "searched": {"worst_hz": searched.worst_hz, "stroke_at_worst": searched.stroke_at_worst,
-                     "samples": len(fam.samples), "mirror_symmetric": symmetric,
-                     "max_stress": searched.max_stress},
-        "solver": {"method": prob.solver, "status": run["code"] if run else None,
-                   "message": run["message"] if run else None, "converged": bool(run and run["success"])},
-        "optimality": opt, "moving_mass": fam.moving_mass(), "start_moved": moved,
-        "verified": verified, "initial": initial, "history": history, "screening": screening,
-        "evaluations": fam.evaluations, "seconds": time.perf_counter() - t0,
-        "warnings": [w.to_dict() for w in notes], "provenance": _provenance(prob, one_start=True),
+        "searched": {
+            "worst_hz": searched.worst_hz,
+            "stroke_at_worst": searched.stroke_at_worst,
+            "samples": len(fam.samples),
+            "mirror_symmetric": symmetric,
+            "max_stress": searched.max_stress,
+        },
+        "solver": {
+            "method": prob.solver,
+            "status": run["code"] if run else None,
+            "message": run["message"] if run else None,
+            "converged": bool(run and run["success"]),
+        },
+        "optimality": opt,
+        "moving_mass": fam.moving_mass(),
+        "start_moved": moved,
+        "verified": verified,
+        "initial": initial,
+        "history": history,
+        "screening": screening,
+        "evaluations": fam.evaluations,
+        "seconds": time.perf_counter() - t0,
+        "warnings": [w.to_dict() for w in notes],
+        "provenance": _provenance(prob, one_start=True),
     }
 
 
-def _case_warnings(fam: _Family, start: int, status: str, message: str, verified: dict,
-                   opt: dict | None) -> list[ResultWarning]:
+def _case_warnings(
+    fam: _Family, start: int, status: str, message: str, verified: dict, opt: dict | None
+) -> list[ResultWarning]:
     out: list[ResultWarning] = []
     name = fam.fam.template
     for w in verified.get("warnings", []):  # the model's own checks (validity, mesh, units); stress is below
         if w["kind"] != "stress":
             rng = w.get("stroke_range")
-            out.append(ResultWarning(w["kind"], f"{name} start {start}: {w['message']}", w.get("element"),
-                                     None if rng is None else (rng[0], rng[1]), w.get("value")))
+            out.append(
+                ResultWarning(
+                    w["kind"],
+                    f"{name} start {start}: {w['message']}",
+                    w.get("element"),
+                    None if rng is None else (rng[0], rng[1]),
+                    w.get("value"),
+                )
+            )
     if verified.get("stress_ratio", 0.0) > 1 + fam.prob.tolerance:
-        out.append(ResultWarning("stress", f"{name} start {start}: the verified peak stress is "
-                                 f"{verified['stress_ratio']:.3f} times allowable / safety_factor in "
-                                 f"{verified['member_at_max_stress']} at stroke {verified['stroke_at_max_stress']:.4g}; "
-                                 "this design is not an optimum", element=verified["member_at_max_stress"],
-                                 value=verified["stress_ratio"]))
+        out.append(
+            ResultWarning(
+                "stress",
+                f"{name} start {start}: the verified peak stress is "
+                f"{verified['stress_ratio']:.3f} times allowable / safety_factor in "
+                f"{verified['member_at_max_stress']} at stroke {verified['stroke_at_max_stress']:.4g}; "
+                "this design is not an optimum",
+                element=verified["member_at_max_stress"],
+                value=verified["stress_ratio"],
+            )
+        )
     if status in ("unconverged", "failed"):
-        out.append(ResultWarning("notice", f"{name} start {start}: {status} ({message}); it is not ranked",
-                                 value=None if opt is None else opt["kkt_residual"]))
+        out.append(
+            ResultWarning(
+                "notice",
+                f"{name} start {start}: {status} ({message}); it is not ranked",
+                value=None if opt is None else opt["kkt_residual"],
+            )
+        )
     if opt is not None and opt["active_bounds"]:
         origins = fam.fam.origins
         plain = {k: side for k, side in opt["active_bounds"].items() if k not in origins}
         told = {k: side for k, side in opt["active_bounds"].items() if k in origins}
         if plain:
             which = ", ".join(f"{k} ({side})" for k, side in plain.items())
-            out.append(ResultWarning("notice", f"{name} start {start}: stopped by the design bounds {which}: the "
-                                     "design is the bounds' result, not the family's; widen them (or bound the "
-                                     "family by an envelope) to compare families fairly"))
+            out.append(
+                ResultWarning(
+                    "notice",
+                    f"{name} start {start}: stopped by the design bounds {which}: the "
+                    "design is the bounds' result, not the family's; widen them (or bound the "
+                    "family by an envelope) to compare families fairly",
+                )
+            )
         for k, side in told.items():  # the bound's origin says whether widening it is the user's choice
             why = origins[k][0 if side == "lower" else 1]
-            out.append(ResultWarning("notice", f"{name} start {start}: {k} is on its {side} bound, which is {why}: "
-                                     "the optimum is limited by it", value=fam.params(
-                                         np.zeros(len(fam.names)) if side == "lower" else np.ones(len(fam.names)))[k]))
+            out.append(
+                ResultWarning(
+                    "notice",
+                    f"{name} start {start}: {k} is on its {side} bound, which is {why}: the optimum is limited by it",
+                    value=fam.params(np.zeros(len(fam.names)) if side == "lower" else np.ones(len(fam.names)))[k],
+                )
+            )
     if opt is not None and "validity" in opt.get("active_kinds", []):
         act = [a for a in opt["active"] if " / (" in a]
-        out.append(ResultWarning("notice", f"{name} start {start}: the validity constraint is active "
-                                 f"({'; '.join(act)}): the optimum is limited by it"))
+        out.append(
+            ResultWarning(
+                "notice",
+                f"{name} start {start}: the validity constraint is active "
+                f"({'; '.join(act)}): the optimum is limited by it",
+            )
+        )
     return out
 
 
@@ -799,47 +1023,97 @@ def summarise(prob: Problem, results: list[dict]) -> dict:
         rs = [r for r in results if r.get("family_index") == i]
         ok = [r for r in rs if r.get("status") == "optimal" and r["verified"].get("worst_hz") is not None]
         best = max(ok, key=lambda r: r["verified"]["worst_hz"]) if ok else None
-        table = [{"start": r.get("start"), "status": r.get("status", "failed"),
-                  "message": r.get("message") or r.get("error"),
-                  "worst_hz": (r.get("verified") or {}).get("worst_hz"),
-                  "stress_ratio": (r.get("verified") or {}).get("stress_ratio"),
-                  "kkt_residual": (r.get("optimality") or {}).get("kkt_residual"),
-                  "active_bounds": (r.get("optimality") or {}).get("active_bounds"),
-                  "seconds": r.get("seconds")} for r in rs]
+        table = [
+            {
+                "start": r.get("start"),
+                "status": r.get("status", "failed"),
+                "message": r.get("message") or r.get("error"),
+                "worst_hz": (r.get("verified") or {}).get("worst_hz"),
+                "stress_ratio": (r.get("verified") or {}).get("stress_ratio"),
+                "kkt_residual": (r.get("optimality") or {}).get("kkt_residual"),
+                "active_bounds": (r.get("optimality") or {}).get("active_bounds"),
+                "seconds": r.get("seconds"),
+            }
+            for r in rs
+        ]
         worst = [r["verified"]["worst_hz"] for r in ok]
-        fams.append({"template": fam.template, "best": best, "starts": len(rs), "optimal_starts": len(ok),
-                     "spread": (max(worst) - min(worst)) / max(worst) if worst else None,
-                     "moving_mass": next((r.get("moving_mass") for r in rs if "moving_mass" in r), None),
-                     "start_table": table,
-                     "failed": [{"start": t["start"], "status": t["status"], "message": t["message"]}
-                                for t, r in zip(table, rs) if r not in ok]})
+        fams.append(
+            {
+                "template": fam.template,
+                "best": best,
+                "starts": len(rs),
+                "optimal_starts": len(ok),
+                "spread": (max(worst) - min(worst)) / max(worst) if worst else None,
+                "moving_mass": next((r.get("moving_mass") for r in rs if "moving_mass" in r), None),
+                "start_table": table,
+                "failed": [
+                    {"start": t["start"], "status": t["status"], "message": t["message"]}
+                    for t, r in zip(table, rs)
+                    if r not in ok
+                ],
+            }
+        )
         if best is not None:
             notes += list(best.get("warnings", []))
         elif rs:
-            notes.append(ResultWarning("notice", f"{fam.template}: no start reached a converged, verified, "
-                                          "feasible optimum; the family is not ranked").to_dict())
+            notes.append(
+                ResultWarning(
+                    "notice",
+                    f"{fam.template}: no start reached a converged, verified, "
+                    "feasible optimum; the family is not ranked",
+                ).to_dict()
+            )
     masses = {f["template"]: f["moving_mass"] for f in fams if f["moving_mass"] is not None}
     if len(set(masses.values())) > 1:
-        notes.append(ResultWarning("notice", f"the families move different masses ({masses} kg): they are not "
-                                      "compared with the same payload; set the problem's body_mass").to_dict())
+        notes.append(
+            ResultWarning(
+                "notice",
+                f"the families move different masses ({masses} kg): they are not "
+                "compared with the same payload; set the problem's body_mass",
+            ).to_dict()
+        )
     if prob.envelope is None and len(prob.families) > 1:
-        notes.append(ResultWarning("notice", "no envelope: each family is bounded only by its own design box, "
-                                      "so the ranking compares boxes as much as topologies; set 'envelope'").to_dict())
+        notes.append(
+            ResultWarning(
+                "notice",
+                "no envelope: each family is bounded only by its own design box, "
+                "so the ranking compares boxes as much as topologies; set 'envelope'",
+            ).to_dict()
+        )
     ranking = sorted((f for f in fams if f["best"] is not None), key=lambda f: -f["best"]["verified"]["worst_hz"])
-    return {"problem": prob.model_dump(mode="json"), "families": fams,
-            "ranking": [{"template": f["template"], "worst_hz": f["best"]["verified"]["worst_hz"],
-                         "zero_stroke_hz": f["best"]["verified"]["zero_stroke_hz"],
-                         "ratio": f["best"]["verified"]["ratio"], "design": f["best"]["design"],
-                         "status": f["best"]["status"], "kkt_residual": f["best"]["optimality"]["kkt_residual"],
-                         "active_bounds": f["best"]["optimality"]["active_bounds"],
-                         "active": f["best"]["optimality"]["active"]}
-                        for f in ranking],
-            "warnings": notes, "provenance": _provenance(prob)}
+    return {
+        "problem": prob.model_dump(mode="json"),
+        "families": fams,
+        "ranking": [
+            {
+                "template": f["template"],
+                "worst_hz": f["best"]["verified"]["worst_hz"],
+                "zero_stroke_hz": f["best"]["verified"]["zero_stroke_hz"],
+                "ratio": f["best"]["verified"]["ratio"],
+                "design": f["best"]["design"],
+                "status": f["best"]["status"],
+                "kkt_residual": f["best"]["optimality"]["kkt_residual"],
+                "active_bounds": f["best"]["optimality"]["active_bounds"],
+                "active": f["best"]["optimality"]["active"],
+            }
+            for f in ranking
+        ],
+        "warnings": notes,
+        "provenance": _provenance(prob),
+    }
 
 
 @limited()  # one BLAS thread while it computes (model.threads)
-def optimise(problem: Problem | dict, *, executor: Any = None, workers: int | None = None, store: Any = None,
-             progress: Any = None, cancel: Any = None, no_worker_timeout: float | None = None) -> dict:
+def optimise(
+    problem: Problem | dict,
+    *,
+    executor: Any = None,
+    workers: int | None = None,
+    store: Any = None,
+    progress: Any = None,
+    cancel: Any = None,
+    no_worker_timeout: float | None = None,
+) -> dict:
     """Optimise every family of ``problem`` (multi-start), in parallel, resumable through ``store``.
 
     ``executor``: any ``concurrent.futures.Executor`` (default: a local process pool of ``workers``; a
@@ -853,6 +1127,14 @@ def optimise(problem: Problem | dict, *, executor: Any = None, workers: int | No
     for fam in prob.families:  # fail fast, in the caller, on a bad family
         _Family(prob, fam)
     kw: dict[str, Any] = {} if no_worker_timeout is None else {"no_worker_timeout": no_worker_timeout}
-    results = run_cases(cases(prob), "flexopt.optim.search:run_case", executor=executor, workers=workers, store=store,
-                        progress=progress, cancel=cancel, **kw)
+    results = run_cases(
+        cases(prob),
+        "flexopt.optim.search:run_case",
+        executor=executor,
+        workers=workers,
+        store=store,
+        progress=progress,
+        cancel=cancel,
+        **kw,
+    )
     return summarise(prob, results)

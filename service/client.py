@@ -23,12 +23,11 @@ from __future__ import annotations
 
 import asyncio
 import time
+import uuid
+from collections.abc import Awaitable, Callable
 from typing import Any, Literal, Self
 
 import httpx
-
-import uuid
-from collections.abc import Awaitable, Callable
 
 from .schemas import FieldError, FrequencyCurveOut, Health, Job, JobPage, Problem, TemplateInfo
 
@@ -77,8 +76,9 @@ class APIError(FlexoptClientError):
 
     status: int = 0
 
-    def __init__(self, status: int, detail: str, errors: list[FieldError] | None = None,
-                 retry_after: float | None = None) -> None:
+    def __init__(
+        self, status: int, detail: str, errors: list[FieldError] | None = None, retry_after: float | None = None
+    ) -> None:
         self.status = status
         self.detail = detail
         self.errors = errors or []
@@ -130,9 +130,17 @@ class ComputeTimeout(APIError):
     """504: the computation exceeded the server's time limit."""
 
 
-_BY_STATUS: dict[int, type[APIError]] = {400: BadRequest, 401: Unauthorized, 404: NotFound, 413: PayloadTooLarge,
-                                         422: InvalidInput, 429: TooManyRequests, 500: ServerError,
-                                         503: ServiceUnavailable, 504: ComputeTimeout}
+_BY_STATUS: dict[int, type[APIError]] = {
+    400: BadRequest,
+    401: Unauthorized,
+    404: NotFound,
+    413: PayloadTooLarge,
+    422: InvalidInput,
+    429: TooManyRequests,
+    500: ServerError,
+    503: ServiceUnavailable,
+    504: ComputeTimeout,
+}
 
 
 def _retry_after(response: httpx.Response) -> float | None:
@@ -173,8 +181,9 @@ def _curve_body(scene: Any, stroke: Any, method: str, tolerance: float | None) -
 
 
 class _Base:
-    def __init__(self, base_url: str, api_key: str | None, timeout: float, max_retries: int, backoff: float,
-                 api_key_header: str) -> None:
+    def __init__(
+        self, base_url: str, api_key: str | None, timeout: float, max_retries: int, backoff: float, api_key_header: str
+    ) -> None:
         self.base_url = base_url.rstrip("/")
         self.headers = {api_key_header: api_key} if api_key else {}
         self.timeout = timeout
@@ -189,9 +198,17 @@ class _Base:
 class Client(_Base):
     """Synchronous client: ``Client("http://127.0.0.1:8000", api_key=None)``; use as a context manager."""
 
-    def __init__(self, base_url: str, api_key: str | None = None, *, timeout: float = 60.0, max_retries: int = 3,
-                 backoff: float = 0.5, api_key_header: str = "X-API-Key",
-                 transport: httpx.BaseTransport | None = None) -> None:
+    def __init__(
+        self,
+        base_url: str,
+        api_key: str | None = None,
+        *,
+        timeout: float = 60.0,
+        max_retries: int = 3,
+        backoff: float = 0.5,
+        api_key_header: str = "X-API-Key",
+        transport: httpx.BaseTransport | None = None,
+    ) -> None:
         super().__init__(base_url, api_key, timeout, max_retries, backoff, api_key_header)
         self._http = httpx.Client(base_url=self.base_url, headers=self.headers, timeout=timeout, transport=transport)
 
@@ -237,46 +254,74 @@ class Client(_Base):
         """The scene JSON of template ``name`` with parameters overridden."""
         return self._request("POST", f"/v1/templates/{name}/scene", json={"parameters": params}).json()
 
-    def frequency_curve(self, scene: Any, stroke: Any = None, method: str = "exact", tolerance: float | None = None,
-                        format: Format = "json") -> FrequencyCurveOut | str | bytes:
+    def frequency_curve(
+        self,
+        scene: Any,
+        stroke: Any = None,
+        method: str = "exact",
+        tolerance: float | None = None,
+        format: Format = "json",
+    ) -> FrequencyCurveOut | str | bytes:
         """The frequency curve: a FrequencyCurveOut (``format="json"``), CSV text or PNG bytes."""
-        r = self._request("POST", "/v1/frequency-curve", json=_curve_body(scene, stroke, method, tolerance),
-                          headers={"Accept": _ACCEPT[format]})
-        return FrequencyCurveOut.model_validate_json(r.content) if format == "json" else (
-            r.text if format == "csv" else r.content)
+        r = self._request(
+            "POST",
+            "/v1/frequency-curve",
+            json=_curve_body(scene, stroke, method, tolerance),
+            headers={"Accept": _ACCEPT[format]},
+        )
+        return (
+            FrequencyCurveOut.model_validate_json(r.content)
+            if format == "json"
+            else (r.text if format == "csv" else r.content)
+        )
 
     def diagnose(self, scene: Any, at_stroke: float | None = None, kinematic: bool | None = None) -> dict[str, Any]:
         """The exact-constraint diagnosis (``model.constraints.ConstraintDiagnosis.to_dict`` form)."""
-        return self._request("POST", "/v1/diagnosis", json={"scene": _scene_json(scene), "at_stroke": at_stroke,
-                                                             "kinematic": kinematic}).json()
+        return self._request(
+            "POST", "/v1/diagnosis", json={"scene": _scene_json(scene), "at_stroke": at_stroke, "kinematic": kinematic}
+        ).json()
 
-    def modes(self, scene: Any, at_stroke: float = 0.0, format: Literal["json", "png", "gif"] = "json",
-              mode: int | None = None) -> dict[str, Any] | bytes:
+    def modes(
+        self,
+        scene: Any,
+        at_stroke: float = 0.0,
+        format: Literal["json", "png", "gif"] = "json",
+        mode: int | None = None,
+    ) -> dict[str, Any] | bytes:
         """Deflected structure and mode shapes at ``at_stroke`` (``ModesOut`` dict, for
         ``flexopt.service.plots``), or a PNG 3D view / GIF animation of ``mode`` (0-based)."""
-        r = self._request("POST", "/v1/modes", json={"scene": _scene_json(scene), "at_stroke": at_stroke, "mode": mode},
-                          headers={"Accept": {"json": "application/json", "png": "image/png", "gif": "image/gif"}[format]})
+        r = self._request(
+            "POST",
+            "/v1/modes",
+            json={"scene": _scene_json(scene), "at_stroke": at_stroke, "mode": mode},
+            headers={"Accept": {"json": "application/json", "png": "image/png", "gif": "image/gif"}[format]},
+        )
         return r.json() if format == "json" else r.content
 
-    def submit_optimisation(self, spec: Any, idempotency_key: str | None = None) -> "JobHandle":
+    def submit_optimisation(self, spec: Any, idempotency_key: str | None = None) -> JobHandle:
         """Submit an optimisation (an ``optim.Problem`` or its JSON); one idempotency key for all retries, so
         a retried submission returns the same job."""
         key = idempotency_key or str(uuid.uuid4())
         r = self._request("POST", "/v1/optimisations", json=_spec_json(spec), headers={"Idempotency-Key": key})
         return JobHandle(self, Job.model_validate(r.json()))
 
-    def submit_topology_search(self, spec: Any = None, idempotency_key: str | None = None) -> "JobHandle":
+    def submit_topology_search(self, spec: Any = None, idempotency_key: str | None = None) -> JobHandle:
         """Submit a topology search (a ``TopologySpec``, its JSON, or None for the defaults) as a job; retries
         and idempotency as :meth:`submit_optimisation`. ``.wait()`` returns ``run_topology_search``'s dict."""
         key = idempotency_key or str(uuid.uuid4())
-        r = self._request("POST", "/v1/topology-searches", json=_spec_json(spec if spec is not None else {}),
-                          headers={"Idempotency-Key": key})
+        r = self._request(
+            "POST",
+            "/v1/topology-searches",
+            json=_spec_json(spec if spec is not None else {}),
+            headers={"Idempotency-Key": key},
+        )
         return JobHandle(self, Job.model_validate(r.json()))
 
     def topology_searches(self, offset: int = 0, limit: int = 20) -> JobPage:
         """A page of topology searches, newest first."""
-        return JobPage.model_validate(self._request("GET", "/v1/topology-searches",
-                                                    params={"offset": offset, "limit": limit}).json())
+        return JobPage.model_validate(
+            self._request("GET", "/v1/topology-searches", params={"offset": offset, "limit": limit}).json()
+        )
 
     def optimisation(self, job_id: str) -> Job:
         """The current state of a job."""
@@ -284,8 +329,9 @@ class Client(_Base):
 
     def optimisations(self, offset: int = 0, limit: int = 20) -> JobPage:
         """A page of jobs, newest first."""
-        return JobPage.model_validate(self._request("GET", "/v1/optimisations",
-                                                    params={"offset": offset, "limit": limit}).json())
+        return JobPage.model_validate(
+            self._request("GET", "/v1/optimisations", params={"offset": offset, "limit": limit}).json()
+        )
 
     def cancel_optimisation(self, job_id: str) -> Job:
         """``DELETE``: an unfinished job is cancelled (queued: at once; running: after the cases in progress);
@@ -296,12 +342,21 @@ class Client(_Base):
 class AsyncClient(_Base):
     """Asynchronous client with the same methods as :class:`Client` (``await``-ed)."""
 
-    def __init__(self, base_url: str, api_key: str | None = None, *, timeout: float = 60.0, max_retries: int = 3,
-                 backoff: float = 0.5, api_key_header: str = "X-API-Key",
-                 transport: httpx.AsyncBaseTransport | None = None) -> None:
+    def __init__(
+        self,
+        base_url: str,
+        api_key: str | None = None,
+        *,
+        timeout: float = 60.0,
+        max_retries: int = 3,
+        backoff: float = 0.5,
+        api_key_header: str = "X-API-Key",
+        transport: httpx.AsyncBaseTransport | None = None,
+    ) -> None:
         super().__init__(base_url, api_key, timeout, max_retries, backoff, api_key_header)
-        self._http = httpx.AsyncClient(base_url=self.base_url, headers=self.headers, timeout=timeout,
-                                       transport=transport)
+        self._http = httpx.AsyncClient(
+            base_url=self.base_url, headers=self.headers, timeout=timeout, transport=transport
+        )
 
     async def aclose(self) -> None:
         """Close the connection pool."""
@@ -345,41 +400,67 @@ class AsyncClient(_Base):
         """The scene JSON of template ``name`` with parameters overridden."""
         return (await self._request("POST", f"/v1/templates/{name}/scene", json={"parameters": params})).json()
 
-    async def frequency_curve(self, scene: Any, stroke: Any = None, method: str = "exact",
-                              tolerance: float | None = None, format: Format = "json") -> FrequencyCurveOut | str | bytes:
+    async def frequency_curve(
+        self,
+        scene: Any,
+        stroke: Any = None,
+        method: str = "exact",
+        tolerance: float | None = None,
+        format: Format = "json",
+    ) -> FrequencyCurveOut | str | bytes:
         """The frequency curve: a FrequencyCurveOut (``format="json"``), CSV text or PNG bytes."""
-        r = await self._request("POST", "/v1/frequency-curve", json=_curve_body(scene, stroke, method, tolerance),
-                                headers={"Accept": _ACCEPT[format]})
-        return FrequencyCurveOut.model_validate_json(r.content) if format == "json" else (
-            r.text if format == "csv" else r.content)
+        r = await self._request(
+            "POST",
+            "/v1/frequency-curve",
+            json=_curve_body(scene, stroke, method, tolerance),
+            headers={"Accept": _ACCEPT[format]},
+        )
+        return (
+            FrequencyCurveOut.model_validate_json(r.content)
+            if format == "json"
+            else (r.text if format == "csv" else r.content)
+        )
 
-    async def diagnose(self, scene: Any, at_stroke: float | None = None,
-                       kinematic: bool | None = None) -> dict[str, Any]:
+    async def diagnose(
+        self, scene: Any, at_stroke: float | None = None, kinematic: bool | None = None
+    ) -> dict[str, Any]:
         """The exact-constraint diagnosis (``ConstraintDiagnosis.to_dict`` form)."""
-        r = await self._request("POST", "/v1/diagnosis", json={"scene": _scene_json(scene), "at_stroke": at_stroke,
-                                                                "kinematic": kinematic})
+        r = await self._request(
+            "POST", "/v1/diagnosis", json={"scene": _scene_json(scene), "at_stroke": at_stroke, "kinematic": kinematic}
+        )
         return r.json()
 
-    async def modes(self, scene: Any, at_stroke: float = 0.0, format: Literal["json", "png", "gif"] = "json",
-                    mode: int | None = None) -> dict[str, Any] | bytes:
+    async def modes(
+        self,
+        scene: Any,
+        at_stroke: float = 0.0,
+        format: Literal["json", "png", "gif"] = "json",
+        mode: int | None = None,
+    ) -> dict[str, Any] | bytes:
         """Deflected structure and mode shapes; see :meth:`Client.modes`."""
-        r = await self._request("POST", "/v1/modes", json={"scene": _scene_json(scene), "at_stroke": at_stroke,
-                                                           "mode": mode},
-                                headers={"Accept": {"json": "application/json", "png": "image/png",
-                                                    "gif": "image/gif"}[format]})
+        r = await self._request(
+            "POST",
+            "/v1/modes",
+            json={"scene": _scene_json(scene), "at_stroke": at_stroke, "mode": mode},
+            headers={"Accept": {"json": "application/json", "png": "image/png", "gif": "image/gif"}[format]},
+        )
         return r.json() if format == "json" else r.content
 
-    async def submit_optimisation(self, spec: Any, idempotency_key: str | None = None) -> "AsyncJobHandle":
+    async def submit_optimisation(self, spec: Any, idempotency_key: str | None = None) -> AsyncJobHandle:
         """Submit an optimisation; see :meth:`Client.submit_optimisation`."""
         key = idempotency_key or str(uuid.uuid4())
         r = await self._request("POST", "/v1/optimisations", json=_spec_json(spec), headers={"Idempotency-Key": key})
         return AsyncJobHandle(self, Job.model_validate(r.json()))
 
-    async def submit_topology_search(self, spec: Any = None, idempotency_key: str | None = None) -> "AsyncJobHandle":
+    async def submit_topology_search(self, spec: Any = None, idempotency_key: str | None = None) -> AsyncJobHandle:
         """Submit a topology search; see :meth:`Client.submit_topology_search`."""
         key = idempotency_key or str(uuid.uuid4())
-        r = await self._request("POST", "/v1/topology-searches", json=_spec_json(spec if spec is not None else {}),
-                                headers={"Idempotency-Key": key})
+        r = await self._request(
+            "POST",
+            "/v1/topology-searches",
+            json=_spec_json(spec if spec is not None else {}),
+            headers={"Idempotency-Key": key},
+        )
         return AsyncJobHandle(self, Job.model_validate(r.json()))
 
     async def optimisation(self, job_id: str) -> Job:
@@ -408,8 +489,9 @@ class JobHandle:
         self.job = self.client.cancel_optimisation(self.id)
         return self.job
 
-    def wait(self, progress: Callable[[Job], None] | None = None, poll: float = 0.5,
-             timeout: float | None = None) -> dict[str, Any]:
+    def wait(
+        self, progress: Callable[[Job], None] | None = None, poll: float = 0.5, timeout: float | None = None
+    ) -> dict[str, Any]:
         """Poll until the job ends; returns the result, raises :class:`JobFailed` if it failed or was cancelled
         and ``TimeoutError`` past ``timeout`` seconds. ``progress(job)`` sees every polled state."""
         deadline = None if timeout is None else time.monotonic() + timeout
@@ -440,8 +522,12 @@ class AsyncJobHandle:
         self.job = await self.client.cancel_optimisation(self.id)
         return self.job
 
-    async def wait(self, progress: Callable[[Job], Awaitable[None] | None] | None = None, poll: float = 0.5,
-                   timeout: float | None = None) -> dict[str, Any]:
+    async def wait(
+        self,
+        progress: Callable[[Job], Awaitable[None] | None] | None = None,
+        poll: float = 0.5,
+        timeout: float | None = None,
+    ) -> dict[str, Any]:
         """See :meth:`JobHandle.wait`; ``progress`` may be a coroutine function."""
         deadline = None if timeout is None else time.monotonic() + timeout
         while True:

@@ -17,8 +17,12 @@ class JsonLogFormatter(logging.Formatter):
     """One JSON object per record: time, level, logger, message, the record's extra fields, the traceback."""
 
     def format(self, record: logging.LogRecord) -> str:
-        out: dict[str, Any] = {"time": self.formatTime(record, "%Y-%m-%dT%H:%M:%S%z"), "level": record.levelname,
-                               "logger": record.name, "message": record.getMessage()}
+        out: dict[str, Any] = {
+            "time": self.formatTime(record, "%Y-%m-%dT%H:%M:%S%z"),
+            "level": record.levelname,
+            "logger": record.name,
+            "message": record.getMessage(),
+        }
         out.update({k: v for k, v in record.__dict__.items() if k not in _STANDARD and not k.startswith("_")})
         if record.exc_info:
             out["traceback"] = self.formatException(record.exc_info)
@@ -30,9 +34,14 @@ def log_config(level: str = "info") -> dict[str, Any]:
     :class:`RequestLog` writes a richer one)."""
     lvl = level.upper()
     handler = {"class": "logging.StreamHandler", "formatter": "json", "stream": "ext://sys.stderr"}
-    return {"version": 1, "disable_existing_loggers": False,
-            "formatters": {"json": {"()": f"{__name__}.JsonLogFormatter"}},
-            "handlers": {"stderr": handler},
-            "loggers": {"flexopt": {"handlers": ["stderr"], "level": lvl, "propagate": False},
-                        "uvicorn": {"handlers": ["stderr"], "level": lvl, "propagate": False},
-                        "uvicorn.access": {"handlers": [], "level": "WARNING", "propagate": False}}}
+    return {
+        "version": 1,
+        "disable_existing_loggers": False,
+        "formatters": {"json": {"()": f"{__name__}.JsonLogFormatter"}},
+        "handlers": {"stderr": handler},
+        "loggers": {
+            "flexopt": {"handlers": ["stderr"], "level": lvl, "propagate": False},
+            "uvicorn": {"handlers": ["stderr"], "level": lvl, "propagate": False},
+            "uvicorn.access": {"handlers": [], "level": "WARNING", "propagate": False},
+        },
+    }

@@ -26,8 +26,18 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-__all__ = ["curve_figure", "curve_png", "shapes_figure", "animate_mode", "diagnosis_figure", "figure_bytes",
-           "save", "mode_scale", "design_summary", "pareto_figure"]
+__all__ = [
+    "curve_figure",
+    "curve_png",
+    "shapes_figure",
+    "animate_mode",
+    "diagnosis_figure",
+    "figure_bytes",
+    "save",
+    "mode_scale",
+    "design_summary",
+    "pareto_figure",
+]
 
 PARASITIC_COLOR = "#c0392b"
 MODE_COLOR = "#e67e22"
@@ -122,8 +132,7 @@ def curve_figure(curve: Any, scene: Any = None, log: bool | None = None) -> Figu
     members = list(d.get("max_von_mises", {}))
     fig = Figure(figsize=(8, 6.2 + 0.16 * min(len(warn), 8)))
     bottom = 0.08 + 0.025 * min(len(warn), 8)
-    gs = fig.add_gridspec(2, 1, height_ratios=[3, 1.25], hspace=0.08, left=0.1, right=0.8, top=0.88,
-                          bottom=bottom)
+    gs = fig.add_gridspec(2, 1, height_ratios=[3, 1.25], hspace=0.08, left=0.1, right=0.8, top=0.88, bottom=bottom)
     ax = fig.add_subplot(gs[0])
     ax2 = fig.add_subplot(gs[1], sharex=ax)
     finite = modes[np.isfinite(modes) & (modes > 0)]
@@ -133,20 +142,40 @@ def curve_figure(curve: Any, scene: Any = None, log: bool | None = None) -> Figu
     for j in range(modes.shape[1]):
         lab = labels[i0][j] if len(labels) > i0 and j < len(labels[i0]) else ""
         ls = "-" if lab == "parasitic" else ("--" if lab == "intended" else ":")
-        line, = ax.plot(stroke, modes[:, j], lw=1, ls=ls, color=f"C{j % 10}", alpha=0.8,
-                        label=f"mode {j + 1} ({lab})" if lab else f"mode {j + 1}")
+        (line,) = ax.plot(
+            stroke,
+            modes[:, j],
+            lw=1,
+            ls=ls,
+            color=f"C{j % 10}",
+            alpha=0.8,
+            label=f"mode {j + 1} ({lab})" if lab else f"mode {j + 1}",
+        )
         ok = np.flatnonzero(np.isfinite(modes[:, j]))
         if len(ok):
             k = ok[-1]
-            ax.annotate(f"{j + 1}", (stroke[k], modes[k, j]), xytext=(3, 0), textcoords="offset points",
-                        fontsize=7, color=line.get_color(), va="center")
+            ax.annotate(
+                f"{j + 1}",
+                (stroke[k], modes[k, j]),
+                xytext=(3, 0),
+                textcoords="offset points",
+                fontsize=7,
+                color=line.get_color(),
+                va="center",
+            )
     ax.plot(stroke, par, color=PARASITIC_COLOR, lw=3, alpha=0.9, label="first parasitic", zorder=5)
     if np.isfinite(par).any():
         k = int(np.nanargmin(par))
         ax.plot(stroke[k], par[k], "o", color=PARASITIC_COLOR, zorder=6)
-        ax.annotate(f"worst {par[k]:.4g} Hz at {stroke[k]:.3g} {unit}", (stroke[k], par[k]),
-                    xytext=(0, -14 if not log else -16), textcoords="offset points", ha="center", fontsize=8,
-                    color=PARASITIC_COLOR)
+        ax.annotate(
+            f"worst {par[k]:.4g} Hz at {stroke[k]:.3g} {unit}",
+            (stroke[k], par[k]),
+            xytext=(0, -14 if not log else -16),
+            textcoords="offset points",
+            ha="center",
+            fontsize=8,
+            color=PARASITIC_COLOR,
+        )
     if log:
         ax.set_yscale("log")
     ax.set_ylabel("natural frequency [Hz]" + (" (log)" if log else ""))
@@ -170,9 +199,16 @@ def curve_figure(curve: Any, scene: Any = None, log: bool | None = None) -> Figu
     ax2.grid(alpha=0.3)
     ax2.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False)
     if warn:
-        fig.text(0.02, 0.01, "\n".join(warn[:8]) + ("\n..." if len(warn) > 8 else ""), fontsize=7,
-                 va="bottom", family="monospace", color="#8e2c1f",
-                 bbox=dict(boxstyle="round", fc="#fdecea", ec="#e0b4ae"))
+        fig.text(
+            0.02,
+            0.01,
+            "\n".join(warn[:8]) + ("\n..." if len(warn) > 8 else ""),
+            fontsize=7,
+            va="bottom",
+            family="monospace",
+            color="#8e2c1f",
+            bbox=dict(boxstyle="round", fc="#fdecea", ec="#e0b4ae"),
+        )
     return fig
 
 
@@ -201,8 +237,9 @@ def mode_scale(shapes: Any, mode: int, fraction: float = 0.12) -> float:
     half = max([(mb.get("width") or 0.0) / 2 for mb in d["members"].values()] + [0.0])
     u = np.array(list(m["translation"].values()), dtype=float)
     r = np.array(list(m["rotation"].values()), dtype=float)
-    peak = max(float(np.linalg.norm(u, axis=1).max(initial=0)) + half * float(np.linalg.norm(r, axis=1).max(initial=0)),
-               1e-300)
+    peak = max(
+        float(np.linalg.norm(u, axis=1).max(initial=0)) + half * float(np.linalg.norm(r, axis=1).max(initial=0)), 1e-300
+    )
     return fraction * _extent(d) / peak
 
 
@@ -217,9 +254,19 @@ def _moved(d: dict, mode: dict | None, a: float) -> tuple[dict[str, np.ndarray],
     return pos, rot
 
 
-def _draw_structure(ax: Any, d: dict, pos: dict, rot: dict, *, color: str = PLATE_COLOR, alpha: float = 0.85,
-                    edge: str = "k", lw: float = 0.4, bodies: dict | None = None,
-                    facecolors: dict[str, Any] | None = None) -> list[np.ndarray]:
+def _draw_structure(
+    ax: Any,
+    d: dict,
+    pos: dict,
+    rot: dict,
+    *,
+    color: str = PLATE_COLOR,
+    alpha: float = 0.85,
+    edge: str = "k",
+    lw: float = 0.4,
+    bodies: dict | None = None,
+    facecolors: dict[str, Any] | None = None,
+) -> list[np.ndarray]:
     """Plates (rectangular sections, real width), lines (other members) and body boxes; returns the points
     drawn (for the axis limits)."""
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
@@ -239,14 +286,21 @@ def _draw_structure(ax: Any, d: dict, pos: dict, rot: dict, *, color: str = PLAT
         else:
             ax.plot(*P.T, color=fc, lw=2.0, alpha=alpha)
             pts.append(P)
-    for name, b in (bodies if bodies is not None else d.get("bodies", {})).items():
+    for b in (bodies if bodies is not None else d.get("bodies", {})).values():
         c, R = b["_centre"], b["_R"]
         size = np.asarray(b["size"], dtype=float)
         signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], dtype=float)
         V = c + (signs * size / 2) @ R.T
         faces = [[0, 1, 3, 2], [4, 5, 7, 6], [0, 1, 5, 4], [2, 3, 7, 6], [0, 2, 6, 4], [1, 3, 7, 5]]
-        ax.add_collection3d(Poly3DCollection([[V[i] for i in f] for f in faces], facecolors=BODY_COLOR,
-                                             edgecolors="0.3", linewidths=lw, alpha=0.15 * alpha / 0.85))
+        ax.add_collection3d(
+            Poly3DCollection(
+                [[V[i] for i in f] for f in faces],
+                facecolors=BODY_COLOR,
+                edgecolors="0.3",
+                linewidths=lw,
+                alpha=0.15 * alpha / 0.85,
+            )
+        )
         pts.append(V)
     return pts
 
@@ -286,7 +340,7 @@ def _label_axes(ax: Any) -> None:
     from matplotlib.ticker import FuncFormatter
 
     fmt = FuncFormatter(lambda v, _: f"{v * 1e3:.0f}")
-    for axis, name in ((ax.xaxis, "x"), (ax.yaxis, "y"), (ax.zaxis, "z")):
+    for axis, _name in ((ax.xaxis, "x"), (ax.yaxis, "y"), (ax.zaxis, "z")):
         axis.set_major_formatter(fmt)
     ax.set_xlabel("x [mm]", fontsize=8)
     ax.set_ylabel("y [mm]", fontsize=8)
@@ -300,14 +354,17 @@ def _mode_title(d: dict, mode: int | None, a: float) -> str:
         return t + ": deflected state"
     m = d["modes"][mode]
     shown = a * mode_scale(d, mode, 1.0) ** -1 * _extent(d)  # the largest drawn displacement, plate edges included
-    return (t + f"\nmode {mode + 1}: {m['hz']:.4g} Hz ({m['label']}), mass-normalised shape drawn at scale {a:.3g}\n"
-            f"(largest displacement shown {shown * 1e3:.3g} mm, plate edges included; grey = deflected state)")
+    return (
+        t + f"\nmode {mode + 1}: {m['hz']:.4g} Hz ({m['label']}), mass-normalised shape drawn at scale {a:.3g}\n"
+        f"(largest displacement shown {shown * 1e3:.3g} mm, plate edges included; grey = deflected state)"
+    )
 
 
 def _draw_frame(ax: Any, d: dict, mode: int | None, a: float, fixed_limits: list[np.ndarray] | None = None) -> list:
     pos, rot = _moved(d, None, 0.0)
-    pts = _draw_structure(ax, d, pos, rot, alpha=0.25 if mode is not None else 0.85, edge="0.5",
-                          bodies=_body_poses(d, None, 0.0))
+    pts = _draw_structure(
+        ax, d, pos, rot, alpha=0.25 if mode is not None else 0.85, edge="0.5", bodies=_body_poses(d, None, 0.0)
+    )
     if mode is not None:
         m = d["modes"][mode]
         pos2, rot2 = _moved(d, m, a)
@@ -317,8 +374,9 @@ def _draw_frame(ax: Any, d: dict, mode: int | None, a: float, fixed_limits: list
     return pts
 
 
-def shapes_figure(shapes: Any, mode: int | None = None, scale: float | None = None,
-                  view: tuple[float, float] = (22.0, -60.0)) -> Figure:
+def shapes_figure(
+    shapes: Any, mode: int | None = None, scale: float | None = None, view: tuple[float, float] = (22.0, -60.0)
+) -> Figure:
     """The deflected structure in 3D with mode ``mode`` (index into ``shapes['modes']``) overlaid.
 
     ``scale``: amplitude of the drawn mode (default :func:`mode_scale`); the title states it.
@@ -332,14 +390,28 @@ def shapes_figure(shapes: Any, mode: int | None = None, scale: float | None = No
     fig.suptitle(_mode_title(d, mode, a), fontsize=9)
     warn = _warning_lines(d, 100)
     if warn:
-        fig.text(0.02, 0.01, "\n".join(warn[:4]), fontsize=7, color="#8e2c1f",
-                 bbox=dict(boxstyle="round", fc="#fdecea", ec="#e0b4ae"))
+        fig.text(
+            0.02,
+            0.01,
+            "\n".join(warn[:4]),
+            fontsize=7,
+            color="#8e2c1f",
+            bbox=dict(boxstyle="round", fc="#fdecea", ec="#e0b4ae"),
+        )
     fig.subplots_adjust(left=0.0, right=1.0, bottom=0.04, top=0.9)
     return fig
 
 
-def animate_mode(shapes: Any, mode: int, path: str, scale: float | None = None, frames: int = 20, fps: int = 12,
-                 view: tuple[float, float] = (22.0, -60.0), dpi: int = 80) -> None:
+def animate_mode(
+    shapes: Any,
+    mode: int,
+    path: str,
+    scale: float | None = None,
+    frames: int = 20,
+    fps: int = 12,
+    view: tuple[float, float] = (22.0, -60.0),
+    dpi: int = 80,
+) -> None:
     """Write mode ``mode`` oscillating about the deflected state as an animated GIF (matplotlib animation,
     Pillow writer); the amplitude (``scale``, default :func:`mode_scale`) is stated in the title."""
     from matplotlib.animation import FuncAnimation, PillowWriter
@@ -387,8 +459,11 @@ def _scene_geometry(scene: dict) -> dict:
             y = np.asarray(e["y_axis"], dtype=float)
             y = y - (y @ t) * t
             y = (y / np.linalg.norm(y)).tolist()
-        members[e["name"]] = {"nodes": chain, "width": sec.get("width") if sec.get("kind") == "rectangular" else None,
-                              "y_axis": y}
+        members[e["name"]] = {
+            "nodes": chain,
+            "width": sec.get("width") if sec.get("kind") == "rectangular" else None,
+            "y_axis": y,
+        }
     P = np.array(list(nodes.values()))
     ext = float(max(np.ptp(P, axis=0).max(), 1e-12))
     bodies = {}
@@ -396,11 +471,19 @@ def _scene_geometry(scene: dict) -> dict:
         com = np.asarray(b["center_of_mass"], dtype=float)
         pts = np.array([pos[n] for n in b.get("nodes", [])] + [com])
         lo, hi = pts.min(axis=0), pts.max(axis=0)
-        bodies[b["name"]] = {"nodes": list(b.get("nodes", [])), "size": np.maximum(hi - lo, 0.06 * ext).tolist(),
-                             "center_offset": ((lo + hi) / 2 - com).tolist(), "position": com.tolist(),
-                             "orientation": [0.0, 0.0, 0.0]}
-    return {"nodes": {k: v.tolist() for k, v in nodes.items()},
-            "orientations": {k: [0.0, 0.0, 0.0] for k in nodes}, "members": members, "bodies": bodies}
+        bodies[b["name"]] = {
+            "nodes": list(b.get("nodes", [])),
+            "size": np.maximum(hi - lo, 0.06 * ext).tolist(),
+            "center_offset": ((lo + hi) / 2 - com).tolist(),
+            "position": com.tolist(),
+            "orientation": [0.0, 0.0, 0.0],
+        }
+    return {
+        "nodes": {k: v.tolist() for k, v in nodes.items()},
+        "orientations": {k: [0.0, 0.0, 0.0] for k in nodes},
+        "members": members,
+        "bodies": bodies,
+    }
 
 
 def _free_motion(scene: dict, geo: dict, motion: dict, Lc: float) -> dict:
@@ -485,16 +568,22 @@ def diagnosis_figure(scene: Any, diagnosis: Any, max_motions: int = 4) -> Figure
             if np.linalg.norm(psi) > 1e-6:
                 at = ref_bodies[m]["_centre"] if m in ref_bodies else np.asarray(geo["nodes"].get(m, [0, 0, 0]))
                 ax.quiver(*at, *(0.3 * ext * psi / np.linalg.norm(psi)), color=color, lw=2.5, arrow_length_ratio=0.25)
-        legend.append((color, f"free motion {i + 1} (amplitude {a:.3g}, ghost; arrow = rotation axis): "
-                              + _motion_text(motion)))
+        legend.append(
+            (color, f"free motion {i + 1} (amplitude {a:.3g}, ghost; arrow = rotation axis): " + _motion_text(motion))
+        )
     for s in sc.get("supports", []):
         if s.get("node") in geo["nodes"]:
             ax.scatter(*np.asarray(geo["nodes"][s["node"]]), marker="^", color="C2", s=50)
     _equal_axes(ax, pts)
     _label_axes(ax)
     if stress:
-        fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, shrink=0.55, pad=0.08,
-                     label="first self-stress (normalised) [-]\nred tension, blue compression")
+        fig.colorbar(
+            ScalarMappable(norm=norm, cmap=cmap),
+            ax=ax,
+            shrink=0.55,
+            pad=0.08,
+            label="first self-stress (normalised) [-]\nred tension, blue compression",
+        )
     head = f"{dg.get('scene', '')}: {dg.get('classification', '')}"
     if dg.get("stroke") is not None:
         head += f" (at stroke {dg['stroke']:.4g})"
@@ -504,8 +593,14 @@ def diagnosis_figure(scene: Any, diagnosis: Any, max_motions: int = 4) -> Figure
         wrapped = textwrap.wrap(text, 120)
         fig.text(0.02, y, "\n".join(wrapped), fontsize=7, color=color, va="bottom")
         y += 0.022 * len(wrapped) + 0.005
-    fig.text(0.02, 0.9, "supports: green triangles; lengths in mm; free-motion translations in L_c = "
-             f"{Lc * 1e3:.3g} mm per unit, rotations in rad per unit", fontsize=7, va="top")
+    fig.text(
+        0.02,
+        0.9,
+        "supports: green triangles; lengths in mm; free-motion translations in L_c = "
+        f"{Lc * 1e3:.3g} mm per unit, rotations in rad per unit",
+        fontsize=7,
+        va="top",
+    )
     fig.subplots_adjust(left=0.0, right=0.95, bottom=min(0.05 + y, 0.4), top=0.88)
     return fig
 
@@ -522,29 +617,47 @@ def pareto_figure(result: Any) -> Figure:
     unit = d.get("drive_stiffness_unit", "") if key == "drive_stiffness" else d.get("stroke_unit", "")
     chk = d.get("check") or {}
     if chk.get("points"):
-        ax.plot([q["drive_stiffness"] for q in chk["points"]], [q["worst_hz"] for q in chk["points"]], "x",
-                color="0.6", label=f"NSGA-II check ({chk.get('evaluations', 0)} curves): "
-                f"{'passed' if chk.get('passed') else 'FAILED'}")
+        ax.plot(
+            [q["drive_stiffness"] for q in chk["points"]],
+            [q["worst_hz"] for q in chk["points"]],
+            "x",
+            color="0.6",
+            label=f"NSGA-II check ({chk.get('evaluations', 0)} curves): {'passed' if chk.get('passed') else 'FAILED'}",
+        )
     if pts:
-        ax.plot([p[key] for p in pts], [p["worst_hz"] for p in pts], "o-", color=PARASITIC_COLOR,
-                label="epsilon-constraint front (verified)")
+        ax.plot(
+            [p[key] for p in pts],
+            [p["worst_hz"] for p in pts],
+            "o-",
+            color=PARASITIC_COLOR,
+            label="epsilon-constraint front (verified)",
+        )
         for p in pts:
             text = ", ".join(f"{k}={v:.4g}" for k, v in (p.get("design") or {}).items())  # SI, as the spec
-            ax.annotate(text, (p[key], p["worst_hz"]), fontsize=6, xytext=(4, -10),
-                        textcoords="offset points")
+            ax.annotate(text, (p[key], p["worst_hz"]), fontsize=6, xytext=(4, -10), textcoords="offset points")
         for key, label in (("max_frequency", "max frequency"), ("min_drive_stiffness", "min drive stiffness")):
             e = d.get(key) or {}
             if e.get("status") == "optimal" and key == "drive_stiffness":
                 ax.plot([e["drive_stiffness"]], [e["worst_hz"]], "s", mfc="none", mec="k", ms=10, label=label)
-    ax.set_xlabel(f"drive stiffness (peak drive / stroke) [{unit}]" if key == "drive_stiffness"
-                  else f"stroke (half range) [{unit}]")
+    ax.set_xlabel(
+        f"drive stiffness (peak drive / stroke) [{unit}]"
+        if key == "drive_stiffness"
+        else f"stroke (half range) [{unit}]"
+    )
     ax.set_ylabel("worst-case first parasitic frequency [Hz]")
     ax.set_title(f"{d.get('template', '')}: Pareto front", fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="lower right")
     lines = [f"{w['kind']}: {w['message']}" for w in d.get("warnings", [])]
     if lines:
-        ax.text(0.01, 0.99, "\n".join(textwrap.shorten(x, 110) for x in lines[:4]), transform=ax.transAxes,
-                fontsize=6, va="top", bbox={"fc": "#fff3cd", "ec": "#c9a227"})
+        ax.text(
+            0.01,
+            0.99,
+            "\n".join(textwrap.shorten(x, 110) for x in lines[:4]),
+            transform=ax.transAxes,
+            fontsize=6,
+            va="top",
+            bbox={"fc": "#fff3cd", "ec": "#c9a227"},
+        )
     fig.tight_layout()
     return fig

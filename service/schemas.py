@@ -42,8 +42,10 @@ API_VERSION = "1"
 
 SceneDocument = Annotated[
     dict[str, Any],
-    Field(description="a flexopt scene (SI units); schema at GET /v1/scene-schema, examples from "
-                      "POST /v1/templates/{name}/scene"),
+    Field(
+        description="a flexopt scene (SI units); schema at GET /v1/scene-schema, examples from "
+        "POST /v1/templates/{name}/scene"
+    ),
 ]
 
 
@@ -66,11 +68,16 @@ class ParameterInfo(_Wire):
     name: str
     type: Literal["number", "integer", "string"]
     default: float | int | str
-    bounds: str = Field(description="accepted values, derived from the parameter's kind (the templates declare "
-                                    "no numeric ranges; the scene validator has the final word)")
-    unit: str | None = Field(None, description="the SI unit of the default and of a plain number (None for counts, "
-                                               "words and ratios); a string with any unit of this dimension is "
-                                               "converted, e.g. '0.3 mm'")
+    bounds: str = Field(
+        description="accepted values, derived from the parameter's kind (the templates declare "
+        "no numeric ranges; the scene validator has the final word)"
+    )
+    unit: str | None = Field(
+        None,
+        description="the SI unit of the default and of a plain number (None for counts, "
+        "words and ratios); a string with any unit of this dimension is "
+        "converted, e.g. '0.3 mm'",
+    )
 
 
 class TemplateInfo(_Wire):
@@ -84,8 +91,10 @@ class TemplateSceneRequest(_Wire):
     """Parameter overrides for a template (omitted parameters keep their defaults)."""
 
     parameters: dict[str, float | int | str] = Field(
-        default_factory=dict, description="numbers in the parameter's SI unit (a rotation stroke in deg), or "
-        "strings with a unit, e.g. {\"thickness\": \"0.3 mm\"}; the scene returned is SI")
+        default_factory=dict,
+        description="numbers in the parameter's SI unit (a rotation stroke in deg), or "
+        'strings with a unit, e.g. {"thickness": "0.3 mm"}; the scene returned is SI',
+    )
 
 
 class FrequencyCurveRequest(_Wire):
@@ -93,14 +102,23 @@ class FrequencyCurveRequest(_Wire):
 
     scene: SceneDocument
     stroke: list[FiniteFloat] | None = Field(
-        None, description="stroke values in the result's stroke unit: deg or rad, m for translations (SI even when "
-        "the scene has a units block); default: the scene's own grid")
-    method: Method = Field("exact", description="exact (continuation + eigen), fd1, fd2, manifold, reduced, hermite (exact samples + exact stroke derivatives, cubic Hermite) or auto")
-    tolerance: PositiveFloat = Field(0.01, description="relative error allowed on the first parasitic "
-                                                       "frequency (method auto)")
-    shapes: bool = Field(False, description="add the deflected configuration at every stroke point (`shapes`: "
-                                            "member chains, body boxes and per point node positions [m], "
-                                            "orientations as rotation vectors [rad], stresses)")
+        None,
+        description="stroke values in the result's stroke unit: deg or rad, m for translations (SI even when "
+        "the scene has a units block); default: the scene's own grid",
+    )
+    method: Method = Field(
+        "exact",
+        description="exact (continuation + eigen), fd1, fd2, manifold, reduced, hermite (exact samples + exact stroke derivatives, cubic Hermite) or auto",
+    )
+    tolerance: PositiveFloat = Field(
+        0.01, description="relative error allowed on the first parasitic frequency (method auto)"
+    )
+    shapes: bool = Field(
+        False,
+        description="add the deflected configuration at every stroke point (`shapes`: "
+        "member chains, body boxes and per point node positions [m], "
+        "orientations as rotation vectors [rad], stresses)",
+    )
 
 
 class FailureOut(_Wire):
@@ -117,7 +135,8 @@ class WarningOut(_Wire):
 
     kind: Literal["stress", "validity", "mesh", "units", "notice"] = Field(
         description="stress: a limit broken; validity: outside beam theory; mesh: discretisation not "
-        "converged; units: input whose units look wrong; notice: anything else")
+        "converged; units: input whose units look wrong; notice: anything else"
+    )
     message: str = Field(description="one line: what, where and what to do")
     element: str | None = Field(None, description="the scene element it applies to, if one")
     stroke_range: list[float] | None = Field(None, description="[from, to] in the result's stroke unit, if limited")
@@ -144,14 +163,17 @@ class FrequencyCurveOut(_Wire):
     conventions: dict[str, str]
     solver: dict[str, float | int | str | bool | None] = Field(
         description="how the curve was computed: numbers (seconds, tolerances, exact points, estimates; null for "
-                    "NaN) and notes (auto_method: the method auto chose; auto_rejected; mirrored: which half of the "
-                    "stroke was mirrored by symmetry)")
+        "NaN) and notes (auto_method: the method auto chose; auto_rejected; mirrored: which half of the "
+        "stroke was mirrored by symmetry)"
+    )
     warnings: list[WarningOut] = Field(default_factory=list, description="limits broken, validity, mesh, units")
     mesh_error: float | None = Field(None, description="estimated relative discretisation error of parasitic_hz")
-    provenance: dict[str, Any] = Field(default_factory=dict, description="flexopt version, scene hash, method, "
-                                       "solver settings")
-    shapes: dict[str, Any] | None = Field(None, description="with shapes=true: {members, bodies, points: one "
-                                          "deflected configuration per stroke point}")
+    provenance: dict[str, Any] = Field(
+        default_factory=dict, description="flexopt version, scene hash, method, solver settings"
+    )
+    shapes: dict[str, Any] | None = Field(
+        None, description="with shapes=true: {members, bodies, points: one deflected configuration per stroke point}"
+    )
 
 
 class SpacarImportRequest(_Wire):
@@ -183,24 +205,37 @@ class StateSpaceRequest(_Wire):
 
     scene: SceneDocument
     at_stroke: FiniteFloat = Field(0.0, description="stroke value (stroke unit)")
-    inputs: list[str] = Field(min_length=1, max_length=50, description="forces or moments on nodes or bodies, "
-                              "e.g. ['tip.fz', 'stage.my'] (fx fy fz mx my mz, global axes)")
-    outputs: list[str] = Field(min_length=1, max_length=50, description="positions, rotations or rates, e.g. "
-                               "['tip.z', 'tip.ry', 'tip.vz'] (x y z rx ry rz vx vy vz wx wy wz)")
+    inputs: list[str] = Field(
+        min_length=1,
+        max_length=50,
+        description="forces or moments on nodes or bodies, "
+        "e.g. ['tip.fz', 'stage.my'] (fx fy fz mx my mz, global axes)",
+    )
+    outputs: list[str] = Field(
+        min_length=1,
+        max_length=50,
+        description="positions, rotations or rates, e.g. "
+        "['tip.z', 'tip.ry', 'tip.vz'] (x y z rx ry rz vx vy vz wx wy wz)",
+    )
     damping: float = Field(0.01, ge=0, lt=1, description="modal damping ratio of every mode")
     modes: int | None = Field(None, ge=1, le=3000, description="keep the lowest N modes (default all)")
-    frequencies_hz: list[FiniteFloat] | None = Field(None, max_length=2000,
-                                                    description="frequencies of a frequency response (Bode) table")
+    frequencies_hz: list[FiniteFloat] | None = Field(
+        None, max_length=2000, description="frequencies of a frequency response (Bode) table"
+    )
 
 
 class DiagnosisRequest(_Wire):
     """A scene to diagnose, at the reference or at a stroke value."""
 
     scene: SceneDocument
-    at_stroke: FiniteFloat | None = Field(None, description="stroke value (stroke unit); null = reference configuration")
+    at_stroke: FiniteFloat | None = Field(
+        None, description="stroke value (stroke unit); null = reference configuration"
+    )
     kinematic: bool | None = Field(
-        None, description="kinematic diagnosis (null: the scene's own setting, or the kinematic idealisation "
-        "when the scene declares no rigid or generalised deformation; the result's notes say so)")
+        None,
+        description="kinematic diagnosis (null: the scene's own setting, or the kinematic idealisation "
+        "when the scene declares no rigid or generalised deformation; the result's notes say so)",
+    )
 
 
 class ModesRequest(_Wire):
@@ -208,8 +243,11 @@ class ModesRequest(_Wire):
 
     scene: SceneDocument
     at_stroke: FiniteFloat = Field(0.0, description="stroke value in the scene's stroke unit")
-    mode: int | None = Field(None, ge=0, description="0-based mode drawn with Accept: image/png or image/gif "
-                                                     "(default: the first parasitic mode)")
+    mode: int | None = Field(
+        None,
+        ge=0,
+        description="0-based mode drawn with Accept: image/png or image/gif (default: the first parasitic mode)",
+    )
 
 
 class ModeShapeOut(_Wire):
@@ -228,16 +266,21 @@ class ModesOut(_Wire):
     stroke: float = Field(description="stroke value (stroke_unit)")
     stroke_unit: str
     stroke_kind: str
-    nodes: dict[str, list[float]] = Field(description="node -> deflected position [m] (scene and segment-internal "
-                                                      "nodes 'member#i')")
+    nodes: dict[str, list[float]] = Field(
+        description="node -> deflected position [m] (scene and segment-internal nodes 'member#i')"
+    )
     orientations: dict[str, list[float]] = Field(description="node -> rotation vector from the reference [rad]")
-    bodies: dict[str, dict[str, Any]] = Field(description="body -> position (centre of mass) [m], orientation "
-                                              "[rad], nodes, drawn box size and centre offset [m]")
-    members: dict[str, dict[str, Any]] = Field(description="member -> node chain, width and thickness [m] (plates), "
-                                               "unit width direction in the reference")
+    bodies: dict[str, dict[str, Any]] = Field(
+        description="body -> position (centre of mass) [m], orientation "
+        "[rad], nodes, drawn box size and centre offset [m]"
+    )
+    members: dict[str, dict[str, Any]] = Field(
+        description="member -> node chain, width and thickness [m] (plates), unit width direction in the reference"
+    )
     drive_reaction: float | None = Field(description="actuator moment [N m] or force [N]")
-    stress: dict[str, dict[str, float | None]] = Field(description="member -> von_mises [Pa], allowable [Pa], "
-                                                       "utilisation [-]")
+    stress: dict[str, dict[str, float | None]] = Field(
+        description="member -> von_mises [Pa], allowable [Pa], utilisation [-]"
+    )
     modes: list[ModeShapeOut]
     warnings: list[WarningOut] = Field(default_factory=list)
     conventions: dict[str, str]
@@ -265,19 +308,25 @@ class Job(_Wire):
 
     id: str
     kind: Literal["optimisation", "frequency-curve", "topology-search", "pareto-front"] = Field(
-        "optimisation", description="an optimisation, a frequency curve too costly for a request, a topology "
-                                    "search or a Pareto front")
+        "optimisation",
+        description="an optimisation, a frequency curve too costly for a request, a topology search or a Pareto front",
+    )
     status: Literal["queued", "running", "cancelling", "succeeded", "failed", "cancelled"]
-    progress: dict[str, Any] = Field(description="{'done': cases finished, 'total': cases} of the running batch; "
-                                     "a topology search adds 'phase' (screen, first pass, full pass, refine), "
-                                     "'counts' (generated, screened, passed, first_pass, optimised, verified) "
-                                     "and 'best' (the best verified worst case so far)")
-    partial: list[dict[str, Any]] = Field(description="summary of every finished case (family, start, verified "
-                                                      "worst-case frequency, design)")
-    result: dict[str, Any] | None = Field(description="optim.optimise's result once succeeded: per family the best "
-                                                      "verified design, curves before and after, the ranking (a "
-                                                      "topology search: run_topology_search's candidates, ranking "
-                                                      "and best; a Pareto front: optim.pareto.pareto's points)")
+    progress: dict[str, Any] = Field(
+        description="{'done': cases finished, 'total': cases} of the running batch; "
+        "a topology search adds 'phase' (screen, first pass, full pass, refine), "
+        "'counts' (generated, screened, passed, first_pass, optimised, verified) "
+        "and 'best' (the best verified worst case so far)"
+    )
+    partial: list[dict[str, Any]] = Field(
+        description="summary of every finished case (family, start, verified worst-case frequency, design)"
+    )
+    result: dict[str, Any] | None = Field(
+        description="optim.optimise's result once succeeded: per family the best "
+        "verified design, curves before and after, the ranking (a "
+        "topology search: run_topology_search's candidates, ranking "
+        "and best; a Pareto front: optim.pareto.pareto's points)"
+    )
     error: str | None = None
     attempts: int = Field(description="runs started (a server restart resumes a running job)")
     created: str

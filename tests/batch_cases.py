@@ -33,7 +33,6 @@ def seeded(case: dict) -> dict:
     ``hold`` (seconds) keeps the case running that long, so a test can cancel while it runs.
     """
     import numpy as np
-
     from flexopt.optim.batch import case_seed
 
     _mark(case)

@@ -18,8 +18,9 @@ README = ROOT / "README.md"
 PAGES = ROOT / "docs" / "pages"
 #: the reasons a block may give after "skip: " (one or more, comma-separated)
 OPT_OUT = {"starts a server", "long run", "installs the package"}
-_FENCE = re.compile(r"^(?:<!-- readme-test: (?P<mark>[^>]*?) -->\n)?```(?P<lang>[a-z]*)\n(?P<body>.*?)^```$",
-                    re.M | re.S)
+_FENCE = re.compile(
+    r"^(?:<!-- readme-test: (?P<mark>[^>]*?) -->\n)?```(?P<lang>[a-z]*)\n(?P<body>.*?)^```$", re.M | re.S
+)
 
 
 @dataclass(frozen=True)
@@ -40,8 +41,10 @@ class Block:
 
 def blocks(path: Path) -> list[Block]:
     text = path.read_text()
-    return [Block(path, text.count("\n", 0, m.start("lang")) + 1, m["lang"], m["body"], m["mark"])
-            for m in _FENCE.finditer(text)]
+    return [
+        Block(path, text.count("\n", 0, m.start("lang")) + 1, m["lang"], m["body"], m["mark"])
+        for m in _FENCE.finditer(text)
+    ]
 
 
 def pages() -> list[Path]:
@@ -82,5 +85,8 @@ def expected_exit(command: str) -> int:
 def uses_server(block: Block) -> bool:
     """A block that talks to a running service: it names its address, or it is one of the README's Python
     blocks (the client examples)."""
-    return ("localhost:8000" in block.body or "127.0.0.1:8000" in block.body
-            or (block.lang == "python" and block.path == README))
+    return (
+        "localhost:8000" in block.body
+        or "127.0.0.1:8000" in block.body
+        or (block.lang == "python" and block.path == README)
+    )

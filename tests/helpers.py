@@ -12,7 +12,6 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
-
 from flexopt.model import template
 
 __all__ = [
@@ -32,9 +31,18 @@ __all__ = [
 #: convergence of the continuation, finite gradients, ...) pass them through :func:`coarse`: the finer
 #: defaults cost up to 7x (the cartwheel's 40 segments) to 10x (the folded sheets' 24), and figures quoted in
 #: those tests were measured on these meshes. Never where the mesh matters to the check.
-COARSE_MESH = {"cross-spring-pivot": 8, "cartwheel-hinge": 8, "three-fold-cross-hinge": 8, "double-cross-hinge": 8,
-               "topology-hinge": 8, "wire-guide-5": 1, "wire-guide-parallel": 1, "folded-sheet-guide-5": 1,
-               "folded-sheet-guide-6": 1, "folded-sheet-guide-5a": 1}
+COARSE_MESH = {
+    "cross-spring-pivot": 8,
+    "cartwheel-hinge": 8,
+    "three-fold-cross-hinge": 8,
+    "double-cross-hinge": 8,
+    "topology-hinge": 8,
+    "wire-guide-5": 1,
+    "wire-guide-parallel": 1,
+    "folded-sheet-guide-5": 1,
+    "folded-sheet-guide-6": 1,
+    "folded-sheet-guide-5a": 1,
+}
 
 
 def coarse(name: str) -> dict[str, int]:
@@ -91,11 +99,13 @@ def rotation_from_quaternion(q: Sequence[float]) -> np.ndarray:
     Normalised quaternions from a distribution symmetric about the origin give rotations spread over SO(3).
     """
     w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 _FULL_TRIPLES = ({"x", "y", "z"}, {"rx", "ry", "rz"})

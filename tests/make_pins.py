@@ -27,11 +27,17 @@ import numpy as np
 #: templates' defaults when the pins were made (the defaults became finer with issue 26 item 4). The 64-segment pivot is left out on purpose:
 #: its eigenvalues carry up to 4e-4 relative LAPACK noise today (issue 12 item 2), which that item removes.
 CASES = [
-    ("leaf-spring", {}), ("leaf-spring", {"segments": 40}), ("parallel-leaf-spring", {}),
-    ("cross-spring-pivot", {"segments": 8}), ("wire-guide-5", {"segments": 1}),
-    ("wire-guide-parallel", {"segments": 1}), ("folded-sheet-guide-5", {"segments": 1}),
-    ("folded-sheet-guide-6", {"segments": 1}), ("cartwheel-hinge", {"segments": 8}),
-    ("three-fold-cross-hinge", {"segments": 8}), ("double-cross-hinge", {"segments": 8}),
+    ("leaf-spring", {}),
+    ("leaf-spring", {"segments": 40}),
+    ("parallel-leaf-spring", {}),
+    ("cross-spring-pivot", {"segments": 8}),
+    ("wire-guide-5", {"segments": 1}),
+    ("wire-guide-parallel", {"segments": 1}),
+    ("folded-sheet-guide-5", {"segments": 1}),
+    ("folded-sheet-guide-6", {"segments": 1}),
+    ("cartwheel-hinge", {"segments": 8}),
+    ("three-fold-cross-hinge", {"segments": 8}),
+    ("double-cross-hinge", {"segments": 8}),
 ]
 #: Per-case relative tolerance where the float64 data itself is not reproducible to 1e-9: replacing only the
 #: rounding of the rotation update (scipy's exponential map by our Rodrigues formula, same maths) moved the
@@ -55,14 +61,23 @@ def compute() -> list[dict]:
     for name, over in CASES:
         sc = template(name, **over)
         c = Analysis(sc).frequency_curve(strokes(sc))
-        out.append({"template": name, "overrides": over, "stroke": c.stroke.tolist(),
-                    "modes_hz": c.modes_hz.tolist(), "parasitic_hz": c.parasitic_hz.tolist(),
-                    "status": c.status})
+        out.append(
+            {
+                "template": name,
+                "overrides": over,
+                "stroke": c.stroke.tolist(),
+                "modes_hz": c.modes_hz.tolist(),
+                "parasitic_hz": c.parasitic_hz.tolist(),
+                "status": c.status,
+            }
+        )
     return out
 
 
 if __name__ == "__main__":
     PATH.parent.mkdir(exist_ok=True)
-    PATH.write_text(json.dumps({"note": "REGRESSION PINS (not references): tests/make_pins.py", "cases": compute()},
-                               indent=1) + "\n")
+    PATH.write_text(
+        json.dumps({"note": "REGRESSION PINS (not references): tests/make_pins.py", "cases": compute()}, indent=1)
+        + "\n"
+    )
     print(f"wrote {PATH}")

@@ -31,20 +31,27 @@ IZ = T * W**3 / 12  # strong axis
 J_SERIES = W * T**3 / 3 * (1 - 0.63 * T / W * (1 - T**4 / (12 * W**4)))  # Roark Table 10.7 case 4
 IP = IY + IZ
 
-MESH_WHY = ("10 beam elements; with the cubic consistent mass the discretisation error of the first bending and "
-            "torsion modes is below 1e-5 (bench/bench_mesh.py); the bound of 1 % predates it and also covers the "
-            "closed forms' own approximations (e.g. the Rayleigh rotary-inertia factor)")
+MESH_WHY = (
+    "10 beam elements; with the cubic consistent mass the discretisation error of the first bending and "
+    "torsion modes is below 1e-5 (bench/bench_mesh.py); the bound of 1 % predates it and also covers the "
+    "closed forms' own approximations (e.g. the Rayleigh rotary-inertia factor)"
+)
 
 CANTILEVER_BENDING = Ref(
-    1.8751**2 / (2 * math.pi) * math.sqrt(E * IY / (RHO * A * L**4)), 0.01,
+    1.8751**2 / (2 * math.pi) * math.sqrt(E * IY / (RHO * A * L**4)),
+    0.01,
     "Euler-Bernoulli cantilever, beta1 L = 1.8751 (Blevins, Formulas for Natural Frequency, Table 8-1)",
     MESH_WHY,
 )
 TORSION_FREE_WARPING = Ref(
-    1 / (4 * L) * math.sqrt(G * J_SERIES / (RHO * IP)), 0.01,
+    1 / (4 * L) * math.sqrt(G * J_SERIES / (RHO * IP)),
+    0.01,
     "St Venant torsion of a clamped-free bar, f = (1/4L) sqrt(GJ/(rho Ip)) (Blevins Table 8-19); 198.1 Hz "
-    "per shared/PHYSICS.md", MESH_WHY,
+    "per shared/PHYSICS.md",
+    MESH_WHY,
 )
+
+
 def _rotary_inertia_factor(r2: float, length: float) -> float:
     """Rayleigh quotient of a cantilever with rotary inertia (Rayleigh beam), using the exact Euler-Bernoulli
     first mode shape: f_R = f_EB / sqrt(1 + r^2 int(phi'^2) / int(phi^2)) (Rayleigh's principle; the error
@@ -62,14 +69,18 @@ def _rotary_inertia_factor(r2: float, length: float) -> float:
 # shared/PHYSICS.md gives 3353 Hz, the Euler-Bernoulli value; the leaf is deep in this direction
 # (w/L = 0.4), where rotary inertia lowers it by 3.0 %: the model includes rotary inertia.
 IN_PLANE_BENDING = Ref(
-    1.8751**2 / (2 * math.pi) * math.sqrt(E * IZ / (RHO * A * L**4)) * _rotary_inertia_factor(IZ / A, L), 0.01,
+    1.8751**2 / (2 * math.pi) * math.sqrt(E * IZ / (RHO * A * L**4)) * _rotary_inertia_factor(IZ / A, L),
+    0.01,
     "Euler-Bernoulli cantilever about the strong axis (Blevins Table 8-1), 3353 Hz, times the Rayleigh-"
-    "quotient rotary-inertia factor 0.9704 (computed here): 3253 Hz", MESH_WHY,
+    "quotient rotary-inertia factor 0.9704 (computed here): 3253 Hz",
+    MESH_WHY,
 )
 CLAMPED_GUIDED_BENDING = Ref(
-    2.3650**2 / (2 * math.pi) * math.sqrt(E * IY / (RHO * A * L**4)), 0.01,
+    2.3650**2 / (2 * math.pi) * math.sqrt(E * IY / (RHO * A * L**4)),
+    0.01,
     "Euler-Bernoulli clamped-sliding beam, beta1 L = 2.3650 (Blevins Table 8-1): the leaf's first "
-    "driving-plane mode with the end rotation locked", MESH_WHY,
+    "driving-plane mode with the end rotation locked",
+    MESH_WHY,
 )
 
 
@@ -84,13 +95,15 @@ def warping_factor(ends: str) -> float:
 
 # Exact-constraint diagnosis (seed 002, section 3.3, twelve-truss example of Figure 2).
 TRUSS12_SELF_STRESS = Ref(
-    math.sqrt(3) / 6, 1e-9,
+    math.sqrt(3) / 6,
+    1e-9,
     "seed 002 sec. 3.3: every entry of the last column of U is +-sqrt(3)/6 (twelve equal entries of a unit vector)",
     "D_cc is an exact 12 x 12 Jacobian with entries of order 1; SVD round-off is about 1e-15, 1e-9 is a margin "
     "that still fails on any real change of the vector",
 )
 TRUSS12_MOTION = Ref(
-    0.5, 1e-9,
+    0.5,
+    1e-9,
     "seed 002 eq. 16: each top node moves 0.5 (unit vector of the last column of V), radially, alternating",
     "exact Jacobian; round-off of the SVD of a 12 x 12 matrix is about 1e-15",
 )
@@ -113,21 +126,25 @@ def cantilever_torsion_hz(L: float, w: float, t: float) -> float:
     return 1 / (4 * L) * math.sqrt(G * J / (RHO * (w * t**3 + t * w**3) / 12))
 
 
-EXTREME_WHY = ("12 beam elements (cubic consistent mass): discretisation error well below 0.5 % on the first "
-               "bending and torsion modes at any slenderness (the beam is Euler-Bernoulli, so the closed forms "
-               "hold for stubby leaves too), bound 1 %")
+EXTREME_WHY = (
+    "12 beam elements (cubic consistent mass): discretisation error well below 0.5 % on the first "
+    "bending and torsion modes at any slenderness (the beam is Euler-Bernoulli, so the closed forms "
+    "hold for stubby leaves too), bound 1 %"
+)
 
 
 # Mesh convergence (tests/test_mesh.py): the cubic consistent mass (model.elements.beam_mass_spec).
 MESH10_RTOL = Ref(
-    0.0, 1e-3,
+    0.0,
+    1e-3,
     "issue 11 item 6: zero-stroke modes at 10 segments per member within 0.1 % of the converged value "
     "(a fine mesh of 80 segments, whose own error is below 1e-6 relative at the measured fourth order)",
     "the cubic mass is fourth-order accurate, so 10 segments read within about 0.01 %; 0.1 % is the "
     "requirement, an order of magnitude above the expected error and far below the linear mass's 1 %",
 )
 MASS_ORDER = Ref(
-    4.0, 0.15,
+    4.0,
+    0.15,
     "bending with the Hermite (cubic) consistent mass and the exact Euler-Bernoulli element stiffness, and "
     "torsion with the mean of lumped and consistent rotary inertia, converge at O(h^4) (model.elements)",
     "a slope fitted over n = 5, 10, 20 still carries higher-order terms: 3.4-4.6 accepts fourth order and "
@@ -159,7 +176,8 @@ def stiff_axis_leaf_loss_deg(L: float = L, w: float = T, t: float = W) -> float:
 
 
 STIFF_AXIS_LOSS = Ref(
-    stiff_axis_leaf_loss_deg(), 1e-3,
+    stiff_axis_leaf_loss_deg(),
+    1e-3,
     "lateral-torsional buckling of the stiff-axis leaf, M_cr = (pi/L) sqrt(E I_w G J) (Timoshenko and Gere "
     "ch. 6; semi-tangential tip moment, derived in references.stiff_axis_leaf_loss_deg): 0.03436 deg "
     "(issue 11; shared/PHYSICS.md's independent estimate about 0.0344)",
@@ -173,19 +191,38 @@ STIFF_AXIS_LOSS = Ref(
 # motions: elongation and in-plane bending rigid; seed 002 sec. 4.2). Integers: compared exactly.
 CONSTRAINT_COUNTS: dict[str, tuple[int, int, str]] = {
     "folded-sheet-guide-5": (0, 0, "seed 002 sec. 4.2, Figure 3b: D_cc square and non-singular (exact constraint)"),
-    "folded-sheet-guide-6": (0, 1, "seed 002 sec. 4.3, Figure 5b: overconstrained, one self-stress (in-plane "
-                             "bending in every sheet)"),
+    "folded-sheet-guide-6": (
+        0,
+        1,
+        "seed 002 sec. 4.3, Figure 5b: overconstrained, one self-stress (in-plane bending in every sheet)",
+    ),
     "folded-sheet-guide-5a": (1, 1, "seed 002 sec. 4.3, Figure 5a: 'both underconstrained' and overconstrained"),
-    "R:+-@": (0, 1, "hand count: two sheets fix 3 + 3 rotor motions, 5 rotor coordinates besides the drive, both "
-              "sheets fix the axial translation: rank 5, so 0 free and 6 - 5 = 1 self-stress"),
-    "R:++": (2, 3, "hand count: two parallel sheets in one plane fix only that plane's 3 motions: 5 - 3 = 2 free "
-             "(translation along the plane's normal, rotation about the leaf direction), 6 - 3 = 3 self-stresses"),
+    "R:+-@": (
+        0,
+        1,
+        "hand count: two sheets fix 3 + 3 rotor motions, 5 rotor coordinates besides the drive, both "
+        "sheets fix the axial translation: rank 5, so 0 free and 6 - 5 = 1 self-stress",
+    ),
+    "R:++": (
+        2,
+        3,
+        "hand count: two parallel sheets in one plane fix only that plane's 3 motions: 5 - 3 = 2 free "
+        "(translation along the plane's normal, rotation about the leaf direction), 6 - 3 = 3 self-stresses",
+    ),
     "T:z--,z-+,z+0,y-0,y+0": (0, 0, "seed 002 sec. 4.1, Figure 3a: five wires, D_cc square and non-singular"),
-    "T:z--,z-+,z+0,y--,y-+": (1, 1, "hand count: the two lateral wires at x = -0.8a are parallel and in one "
-                              "vertical line, so they fix the same translation y there (a self-stress) and leave the "
-                              "rotation about the vertical through that line free"),
-    "R:+-|-+": (0, 2, "hand count: each pivot stage fixes 5 of its body's 6 motions with 1 self-stress; the "
-                "intermediate body's rotation about the axis is the series arrangement's intended motion"),
+    "T:z--,z-+,z+0,y--,y-+": (
+        1,
+        1,
+        "hand count: the two lateral wires at x = -0.8a are parallel and in one "
+        "vertical line, so they fix the same translation y there (a self-stress) and leave the "
+        "rotation about the vertical through that line free",
+    ),
+    "R:+-|-+": (
+        0,
+        2,
+        "hand count: each pivot stage fixes 5 of its body's 6 motions with 1 self-stress; the "
+        "intermediate body's rotation about the axis is the series arrangement's intended motion",
+    ),
 }
 
 
@@ -206,8 +243,13 @@ def elastica_tip(alpha2: float) -> tuple[float, float, float]:
     def phi1(k: float) -> float:
         return math.asin(1.0 / (k * math.sqrt(2.0)))
 
-    k = brentq(lambda k: ellipk(k * k) - ellipkinc(phi1(k), k * k) - alpha, 1 / math.sqrt(2) + 1e-14, 1 - 1e-14,
-               xtol=1e-15, rtol=4 * np.finfo(float).eps)
+    k = brentq(
+        lambda k: ellipk(k * k) - ellipkinc(phi1(k), k * k) - alpha,
+        1 / math.sqrt(2) + 1e-14,
+        1 - 1e-14,
+        xtol=1e-15,
+        rtol=4 * np.finfo(float).eps,
+    )
     sin_tip = 2 * k * k - 1
     x = math.sqrt(2 * sin_tip) / alpha
     delta = 1 - 2 / alpha * (ellipe(k * k) - ellipeinc(phi1(k), k * k))

@@ -17,9 +17,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-
 from flexopt.optim import optimise
 from flexopt.optim.batch import BatchCancelled, case_id, case_seed, run_cases
+
 from tests.batch_cases import leaf_torsion_hz
 
 LEAF = "tests.batch_cases:leaf_torsion_hz"
@@ -119,8 +119,11 @@ def test_failures_are_records_kept_and_retried_only_on_request(tmp_path: Path, m
         out = run_cases(cases[:5], MISBEHAVE, executor=ex, store=store)
     out += run_cases(cases[5:], LEAF, workers=1, store=store)  # the model's own error, in a worker process
     expected = [  # kind, words in the message
-        ("KeyError", "missing-key"), ("ZeroDivisionError", "division by zero"),
-        ("TypeError", "must return a dict"), ("TypeError", "not JSON"), (None, None),
+        ("KeyError", "missing-key"),
+        ("ZeroDivisionError", "division by zero"),
+        ("TypeError", "must return a dict"),
+        ("TypeError", "not JSON"),
+        (None, None),
         ("SceneError", "template parameter 'thickness' = -0.001 m: must be greater than 0"),  # FlexoptError: whole
     ]
     for case, r, (kind, words) in zip(cases, out, expected, strict=True):
@@ -163,8 +166,11 @@ def test_a_case_the_executor_lost_is_reported_not_stored(tmp_path: Path, marks: 
     cases = [{"base_seed": 1, "k": k, "marker_dir": str(marks)} for k in range(2)]
     with _LosesFirstCase() as ex:
         out = run_cases(cases, SEEDED, executor=ex, store=tmp_path)
-    assert out[0] == {"id": case_id(cases[0]), "error": "connection to worker tcp://10.0.0.7:40000 lost",
-                      "kind": "OSError"}
+    assert out[0] == {
+        "id": case_id(cases[0]),
+        "error": "connection to worker tcp://10.0.0.7:40000 lost",
+        "kind": "OSError",
+    }
     assert not (tmp_path / f"{case_id(cases[0])}.json").exists() and _runs(marks) == 1
     with cf.ThreadPoolExecutor(1) as ex:
         again = run_cases(cases, SEEDED, executor=ex, store=tmp_path)
@@ -184,14 +190,17 @@ def test_case_ids_and_seeds_are_deterministic_across_workers() -> None:
     assert len({r["draw"] for r in out}) == 4, "different cases draw different random streams"
 
 
-@pytest.mark.parametrize(("call", "words"), [
-    (lambda: run_cases([{}], "tests.batch_cases.seeded"), "'module:function'"),
-    (lambda: run_cases([{}], "tests.batch_cases:"), "'module:function'"),
-    (lambda: run_cases([{"x": float("nan")}], SEEDED), "strict JSON"),
-    (lambda: run_cases([{"x": {1, 2}}], SEEDED), "strict JSON"),
-    (lambda: run_cases([{}], SEEDED, workers=0), "workers must be at least 1"),
-    (lambda: case_seed({}, -1), "non-negative"),
-])
+@pytest.mark.parametrize(
+    ("call", "words"),
+    [
+        (lambda: run_cases([{}], "tests.batch_cases.seeded"), "'module:function'"),
+        (lambda: run_cases([{}], "tests.batch_cases:"), "'module:function'"),
+        (lambda: run_cases([{"x": float("nan")}], SEEDED), "strict JSON"),
+        (lambda: run_cases([{"x": {1, 2}}], SEEDED), "strict JSON"),
+        (lambda: run_cases([{}], SEEDED, workers=0), "workers must be at least 1"),
+        (lambda: case_seed({}, -1), "non-negative"),
+    ],
+)
 def test_bad_inputs_fail_fast_with_a_fix(call: Callable[[], object], words: str) -> None:
     with pytest.raises(ValueError, match=words):
         call()
@@ -217,8 +226,13 @@ def test_progress_bar_on_a_terminal(tmp_path: Path, monkeypatch: pytest.MonkeyPa
     assert lines[0].endswith("] 2/2 cases") and lines[1].endswith("] 1/1 cases, 1 failed")
 
 
-TINY = {"families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]}}], "stroke": 20,
-        "samples": 5, "starts": 2, "max_iterations": 5}
+TINY = {
+    "families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]}}],
+    "stroke": 20,
+    "samples": 5,
+    "starts": 2,
+    "max_iterations": 5,
+}
 
 
 def test_optimise_runs_families_as_a_batch_and_resumes(tmp_path: Path) -> None:
@@ -244,8 +258,9 @@ def test_dask_local_cluster_gives_the_pool_results() -> None:
     t0 = time.perf_counter()
     try:
         # close order: the executor closes its client first, then the cluster stops its workers
-        with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                      dashboard_address=":0") as cluster:  # a free port: 8787 may be taken
+        with distributed.LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
+        ) as cluster:  # a free port: 8787 may be taken
             with dask_executor(cluster.scheduler_address, timeout="30s") as ex:
                 out = run_cases(cases, LEAF, executor=ex, cancel=cancel)
                 assert ex._client.status == "running"
@@ -277,11 +292,15 @@ def test_a_dask_cluster_survives_a_lost_worker_and_stops_when_it_has_none(tmp_pa
     from flexopt.optim.batch import NoWorkers, dask_executor
 
     hold = [{"base_seed": 1, "k": k, "hold": 2.0, "marker_dir": str(marks)} for k in range(2)]
-    tail = [{"base_seed": 1, "k": 2, "marker_dir": str(marks)},
-            {"base_seed": 1, "k": 3, "hold": 120.0, "marker_dir": str(marks)}]
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=":0") as cluster:  # a free port: 8787 may be taken
+    tail = [
+        {"base_seed": 1, "k": 2, "marker_dir": str(marks)},
+        {"base_seed": 1, "k": 3, "hold": 120.0, "marker_dir": str(marks)},
+    ]
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
+    ) as cluster:  # a free port: 8787 may be taken
         with dask_executor(cluster.scheduler_address, timeout="30s") as ex:
+
             def kill_one() -> None:
                 while _runs(marks) < 2:  # both cases are running
                     time.sleep(0.05)

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from flexopt.model import Analysis, SceneError, scene_from_dict, template
 from flexopt.model.errors import MassUnderflowError
 
@@ -53,8 +52,10 @@ def test_weak_axis_leaf_has_no_stiff_axis_cause():
 
 def test_unconnected_part_is_named():
     leaf = template("leaf-spring").model_dump(mode="json")["elements"][0]
-    d = _leaf_plus([{"name": "s1", "position": [0, 0.1, 0]}, {"name": "s2", "position": [0.05, 0.1, 0]}],
-                   [dict(leaf, name="stray", nodes=["s1", "s2"])])
+    d = _leaf_plus(
+        [{"name": "s1", "position": [0, 0.1, 0]}, {"name": "s2", "position": [0.05, 0.1, 0]}],
+        [dict(leaf, name="stray", nodes=["s1", "s2"])],
+    )
     with pytest.raises(SceneError) as e:
         Analysis(scene_from_dict(d)).frequency_curve()
     msg = str(e.value)
@@ -64,16 +65,25 @@ def test_unconnected_part_is_named():
 
 def test_body_joined_to_nothing_is_named():
     d = _leaf_plus([{"name": "n9", "position": [0, 0.2, 0]}], [])
-    d["bodies"] = [{"name": "lump", "mass": 0.1, "center_of_mass": [0, 0.2, 0],
-                    "inertia": [[1e-5, 0, 0], [0, 1e-5, 0], [0, 0, 1e-5]], "nodes": ["n9"]}]
+    d["bodies"] = [
+        {
+            "name": "lump",
+            "mass": 0.1,
+            "center_of_mass": [0, 0.2, 0],
+            "inertia": [[1e-5, 0, 0], [0, 1e-5, 0], [0, 0, 1e-5]],
+            "nodes": ["n9"],
+        }
+    ]
     with pytest.raises(SceneError, match=r"bodies\[0\]: 'lump' is not connected"):
         Analysis(scene_from_dict(d)).frequency_curve()
 
 
 def test_mechanism_is_named():
     # a node hanging from the tip by one truss swings freely across it: two free motions
-    d = _leaf_plus([{"name": "bob", "position": [0.1, 0.0, -0.05]}],
-                   [{"kind": "truss", "name": "rod", "nodes": ["tip", "bob"], "material": "steel", "area": 1e-6}])
+    d = _leaf_plus(
+        [{"name": "bob", "position": [0.1, 0.0, -0.05]}],
+        [{"kind": "truss", "name": "rod", "nodes": ["tip", "bob"], "material": "steel", "area": 1e-6}],
+    )
     with pytest.raises(SceneError) as e:
         Analysis(scene_from_dict(d)).frequency_curve()
     msg = str(e.value)
@@ -87,8 +97,10 @@ def test_mechanism_beyond_the_search_limit_is_an_equilibrium_error(monkeypatch):
     from flexopt.model import EquilibriumError
 
     monkeypatch.setattr(causes, "MECHANISM_MAX_COLUMNS", 0)
-    d = _leaf_plus([{"name": "bob", "position": [0.1, 0.0, -0.05]}],
-                   [{"kind": "truss", "name": "rod", "nodes": ["tip", "bob"], "material": "steel", "area": 1e-6}])
+    d = _leaf_plus(
+        [{"name": "bob", "position": [0.1, 0.0, -0.05]}],
+        [{"kind": "truss", "name": "rod", "nodes": ["tip", "bob"], "material": "steel", "area": 1e-6}],
+    )
     with pytest.raises(EquilibriumError, match="stress-free reference.*a mechanism or an unconnected part"):
         Analysis(scene_from_dict(d)).frequency_curve()
 

@@ -10,10 +10,9 @@ import math
 from dataclasses import replace
 from pathlib import Path
 
+import flexopt
 import numpy as np
 import pytest
-
-import flexopt
 from flexopt.model import Analysis, FrequencyCurve, diagnose, scene_from_dict, template
 from flexopt.model.checks import (
     MESH_RTOL,
@@ -40,6 +39,7 @@ def _curve(name: str, **params) -> FrequencyCurve:
 
 
 # --- stress ----------------------------------------------------------------------------------------------
+
 
 def test_default_pivot_warns_stress_at_45_degrees() -> None:
     """Issue 11: the default cross-spring pivot reaches about 648 MPa at +-45 deg against its 600 MPa."""
@@ -71,7 +71,8 @@ def test_leaf_at_170_degrees_warns_stress_and_45_does_not() -> None:
     near = _curve("leaf-spring", points=3)
     assert not _kinds(near, "stress")
     assert np.nanmax(near.max_von_mises["leaf"]) == pytest.approx(
-        210e9 * 0.5e-3 * math.radians(45) / (2 * 0.1), rel=0.01)  # pure bending: a circular arc
+        210e9 * 0.5e-3 * math.radians(45) / (2 * 0.1), rel=0.01
+    )  # pure bending: a circular arc
 
 
 def test_stress_range_is_interpolated() -> None:
@@ -88,13 +89,26 @@ def test_stress_range_is_interpolated() -> None:
 
 def _synthetic(s: np.ndarray, vm: dict, allow: dict, mesh_error: float | None = None) -> FrequencyCurve:
     p = len(s)
-    return FrequencyCurve(scene="synthetic", method="exact", stroke=s, stroke_unit="deg", stroke_kind="rotation",
-                          modes_hz=np.ones((p, 1)), mode_labels=np.full((p, 1), "parasitic", dtype=object),
-                          parasitic_hz=np.ones(p), drive_reaction=np.zeros(p), drive_reaction_unit="N m",
-                          max_von_mises=vm, allowable_stress=allow, status="complete", mesh_error=mesh_error)
+    return FrequencyCurve(
+        scene="synthetic",
+        method="exact",
+        stroke=s,
+        stroke_unit="deg",
+        stroke_kind="rotation",
+        modes_hz=np.ones((p, 1)),
+        mode_labels=np.full((p, 1), "parasitic", dtype=object),
+        parasitic_hz=np.ones(p),
+        drive_reaction=np.zeros(p),
+        drive_reaction_unit="N m",
+        max_von_mises=vm,
+        allowable_stress=allow,
+        status="complete",
+        mesh_error=mesh_error,
+    )
 
 
 # --- validity, mesh, units -------------------------------------------------------------------------------
+
 
 def test_thick_leaf_warns_validity() -> None:
     """Issue 11: a 100 mm thick 'leaf' (L/t = 1) is outside beam theory; the seed leaf (L/t = 200) is not."""
@@ -107,8 +121,20 @@ def test_thick_leaf_warns_validity() -> None:
 
 
 def test_thick_leaf_curve_carries_validity_and_strict_exits_3(capsys) -> None:
-    code = main(["curve", "--template", "leaf-spring", "--set", "thickness=100mm", "--set", "points=3",
-                 "--set", "segments=4", "--strict"])
+    code = main(
+        [
+            "curve",
+            "--template",
+            "leaf-spring",
+            "--set",
+            "thickness=100mm",
+            "--set",
+            "points=3",
+            "--set",
+            "segments=4",
+            "--strict",
+        ]
+    )
     out = capsys.readouterr().out
     assert code == 3 and "# warning [validity] leaf: L/t" in out
 
@@ -150,8 +176,12 @@ def test_lengths_in_mm_without_units_block_warn() -> None:
 
 # --- units block and unit-bearing parameters -------------------------------------------------------------
 
-@pytest.mark.parametrize("block", [{"length": "mm", "mass": "tonne", "stress": "MPa"},
-                                   {"length": "mm", "mass": "tonne", "force": "N"}], ids=["MPa", "N"])
+
+@pytest.mark.parametrize(
+    "block",
+    [{"length": "mm", "mass": "tonne", "stress": "MPa"}, {"length": "mm", "mass": "tonne", "force": "N"}],
+    ids=["MPa", "N"],
+)
 def test_units_block_round_trip(block: dict) -> None:
     """A scene written in mm, tonne, MPa (scaled by tests.helpers.scale_units, independently of pint) with a
     units block loads to the SI scene and gives its frequencies to 1e-12 (relative)."""
@@ -172,8 +202,16 @@ def test_units_block_round_trip(block: dict) -> None:
 
 def test_units_block_general_section_and_truss() -> None:
     data = scene_dict("leaf-spring", segments=2, points=3)
-    data["elements"][0]["section"] = {"kind": "general", "A": 20.0, "Iy": 0.4167, "Iz": 2667.0, "J": 1.6,
-                                      "cy": 20.0, "cz": 0.25, "torsion_stress_factor": 0.3125}
+    data["elements"][0]["section"] = {
+        "kind": "general",
+        "A": 20.0,
+        "Iy": 0.4167,
+        "Iz": 2667.0,
+        "J": 1.6,
+        "cy": 20.0,
+        "cz": 0.25,
+        "torsion_stress_factor": 0.3125,
+    }
     mm = scale_units(data, 1e-3, 1.0)  # lengths in mm, masses in kg
     for k, f in (("A", 1e6), ("Iy", 1e12), ("Iz", 1e12), ("J", 1e12), ("cy", 1e3), ("cz", 1e3)):
         mm["elements"][0]["section"][k] = data["elements"][0]["section"][k] * f
@@ -198,8 +236,20 @@ def test_curve_set_with_unit_equals_si(capsys) -> None:
     """Issue 11: `flexopt curve --set` was refused; now --set thickness=0.4mm equals thickness=0.0004."""
     outs = []
     for value in ("0.4mm", "0.0004"):
-        code = main(["curve", "--template", "leaf-spring", "--set", f"thickness={value}", "--set", "points=3",
-                     "--set", "segments=4", "--json"])
+        code = main(
+            [
+                "curve",
+                "--template",
+                "leaf-spring",
+                "--set",
+                f"thickness={value}",
+                "--set",
+                "points=3",
+                "--set",
+                "segments=4",
+                "--json",
+            ]
+        )
         assert code == 0
         outs.append(json.loads(capsys.readouterr().out))
     assert outs[0]["parasitic_hz"] == outs[1]["parasitic_hz"]
@@ -215,13 +265,16 @@ def test_strict_exit_codes(capsys) -> None:
     assert main(args) == 0
     out = capsys.readouterr().out
     assert "# warning [stress] leafA" in out
-    assert main(["curve", "--template", "leaf-spring", "--set", "points=3", "--set", "segments=4", "--strict",
-                 "--csv"]) == 0
+    assert (
+        main(["curve", "--template", "leaf-spring", "--set", "points=3", "--set", "segments=4", "--strict", "--csv"])
+        == 0
+    )
     err = capsys.readouterr().err
     assert "warning [notice]" in err  # CSV cannot carry warnings: they go to stderr
 
 
 # --- provenance ------------------------------------------------------------------------------------------
+
 
 def test_provenance_on_curves_and_diagnosis() -> None:
     scene = template("leaf-spring", points=3, segments=4)
@@ -270,6 +323,7 @@ def test_load_scene_reads_units_block(tmp_path: Path) -> None:
 
 # --- small strain, --strict on units, the units a scene was read in (issue 26 item 3) ---------------------
 
+
 def test_axial_pull_beyond_small_strain_is_a_validity_warning() -> None:
     """A 0.1 m leaf whose tip is pulled 0.2 m along its axis: engineering strain 0.2 / 0.1 = 2 (closed form;
     a straight member in pure tension has von Mises stress E eps, so the check's sigma_vM / E is eps to
@@ -277,8 +331,14 @@ def test_axial_pull_beyond_small_strain_is_a_validity_warning() -> None:
     the strain passes STRAIN_MAX, at a pull of STRAIN_MAX * L = 1 mm (exact: the strain is linear in the pull,
     so the linear interpolation between stroke points is too)."""
     data = scene_dict("leaf-spring", segments=2)
-    data["stroke"] = {"kind": "translation", "node": "tip", "axis": [1.0, 0.0, 0.0], "start": 0.0, "stop": 0.2,
-                      "points": 5}
+    data["stroke"] = {
+        "kind": "translation",
+        "node": "tip",
+        "axis": [1.0, 0.0, 0.0],
+        "start": 0.0,
+        "stop": 0.2,
+        "points": 5,
+    }
     curve = Analysis(scene_from_dict(data)).frequency_curve()
     assert curve.status == "complete"
     ws = [w for w in _kinds(curve, "validity") if "strain" in w.message]

@@ -11,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from flexopt.model import template
 from flexopt.service.cli.main import main
 
@@ -122,8 +121,7 @@ def test_invalid_scene_file_names_the_field(capsys, tmp_path: Path):
 def test_truncated_curve_exits_1_and_says_where(capsys, tmp_path: Path):
     """Push the leaf's tip along its axis past Euler buckling: the curve stops and the CLI says so."""
     data = template("leaf-spring", segments=6).model_dump(mode="json")
-    data["stroke"] = {"kind": "translation", "node": "tip", "axis": [1, 0, 0], "start": -2e-5, "stop": 0.0,
-                      "points": 5}
+    data["stroke"] = {"kind": "translation", "node": "tip", "axis": [1, 0, 0], "start": -2e-5, "stop": 0.0, "points": 5}
     path = tmp_path / "buckle.json"
     path.write_text(json.dumps(data))
     code, out, err = _run(capsys, "curve", str(path))
@@ -133,7 +131,9 @@ def test_truncated_curve_exits_1_and_says_where(capsys, tmp_path: Path):
 
 def test_console_script_runs_in_a_fresh_process():
     """The installed entry point (not only main()) works and does not import the web stack."""
-    code = ("import sys; from flexopt.service.cli.main import main; rc = main(['template']); "
-            "assert 'fastapi' not in sys.modules; sys.exit(rc)")
+    code = (
+        "import sys; from flexopt.service.cli.main import main; rc = main(['template']); "
+        "assert 'fastapi' not in sys.modules; sys.exit(rc)"
+    )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr

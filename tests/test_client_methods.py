@@ -38,8 +38,9 @@ def _coarse(name: str) -> dict[str, object]:
 
 @pytest.fixture(scope="module")
 def client(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Client]:
-    settings = Settings(data_dir=tmp_path_factory.mktemp("data"), executor="thread", max_concurrent=1,
-                        request_timeout=300, cache_size=0)
+    settings = Settings(
+        data_dir=tmp_path_factory.mktemp("data"), executor="thread", max_concurrent=1, request_timeout=300, cache_size=0
+    )
     with _Server(settings) as server, Client(server.url, timeout=300) as c:
         yield c
 
@@ -63,7 +64,10 @@ def test_every_method_on_every_template_through_the_client(client: Client, name:
             curve = client.frequency_curve(scene, method=method, tolerance=0.01)
         except InvalidInput as exc:
             assert method not in ALWAYS and f"method '{method}'" in exc.detail and "use method" in exc.detail, (
-                name, method, exc)
+                name,
+                method,
+                exc,
+            )
             continue
         assert isinstance(curve, FrequencyCurveOut), (name, method)
         assert curve.method == method or method == "auto", (name, method, curve.method)

@@ -92,8 +92,9 @@ def test_fast_methods_in_a_fresh_process_import_no_scipy_optimize_or_linalg() ->
         "    assert c.status == 'complete', c.status\n"
         "print(json.dumps(sorted(m for m in sys.modules if m in ('scipy.optimize', 'scipy.linalg'))))\n"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600, cwd=_ROOT,
-                         check=False)
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=600, cwd=_ROOT, check=False
+    )
     assert out.returncode == 0, out.stderr[-3000:]
     loaded = json.loads(out.stdout.strip().splitlines()[-1])
     assert loaded == [], f"a cold fast-method curve imported {loaded} (0.15-0.8 s each)"

@@ -10,13 +10,12 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
-
 from flexopt.model import Analysis, SceneError, scene_from_dict
 from flexopt.model.constraints import NEAR_RTOL, RANK_RTOL
 from flexopt.model.diagnosis import diagnose
 from flexopt.service.cli.main import main
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from . import references as ref
 from .helpers import edit, rigid_motion, rotation_from_quaternion, scale_units, scene_dict
@@ -52,8 +51,12 @@ def test_truss12_reproduces_the_paper() -> None:
     assert sum(v > 0 for v in stress.values()) == 6
     # closed form: equilibrium of each top node along its radial direction needs its two legs in opposite
     # signs, and the ring alternates around the square (the paper's two colours)
-    for top, (s1, s2) in {"t_px": ("s_pp", "s_pm"), "t_py": ("s_pp", "s_mp"), "t_mx": ("s_mp", "s_mm"),
-                          "t_my": ("s_mm", "s_pm")}.items():
+    for top, (s1, s2) in {
+        "t_px": ("s_pp", "s_pm"),
+        "t_py": ("s_pp", "s_mp"),
+        "t_mx": ("s_mp", "s_mm"),
+        "t_my": ("s_mm", "s_pm"),
+    }.items():
         assert stress[f"{top}-{s1}"] * stress[f"{top}-{s2}"] < 0
     ring = [stress[k] for k in ("t_px-t_py", "t_py-t_mx", "t_mx-t_my", "t_my-t_px")]
     assert all(ring[i] * ring[(i + 1) % 4] < 0 for i in range(4))
@@ -133,8 +136,12 @@ def test_parallel_wires_give_one_mechanism_and_one_self_stress() -> None:
     assert s["wire1"]["elongation"] / s["wire4"]["elongation"] == pytest.approx(0.015 / (1.5 * 0.02), rel=1e-9)
     # release candidates: the entries of at least half the largest; wires 1 and 2 sit exactly at half (the
     # tie counts; before, round-off in the last bit decided, and this test failed on some BLAS builds)
-    assert set(d.release_candidates[0]) == {"wire4.elongation", "wire5.elongation", "wire1.elongation",
-                                            "wire2.elongation"}
+    assert set(d.release_candidates[0]) == {
+        "wire4.elongation",
+        "wire5.elongation",
+        "wire1.elongation",
+        "wire2.elongation",
+    }
     v = d.kinematic_modes[0]["slider"]
     a = 0.8 * 0.05  # 0.8 * body_length / 2 (template default)
     assert v["rotation"][2] != 0
@@ -216,14 +223,23 @@ def _three_wires(delta: float) -> dict:
     plane, and along z. D_cc = [[1, 0, 0], [cos d, sin d, 0], [0, 0, 1]] (unit vectors of the wires)."""
     L = 0.05
     sec = {"kind": "rectangular", "width": 1e-3, "thickness": 1e-3}
-    wire = lambda name, a, y: {"kind": "beam", "name": name, "nodes": [a, "n"], "material": "steel",  # noqa: E731
-                               "section": sec, "y_axis": y}
+    wire = lambda name, a, y: {
+        "kind": "beam",
+        "name": name,
+        "nodes": [a, "n"],
+        "material": "steel",  # noqa: E731
+        "section": sec,
+        "y_axis": y,
+    }
     return {
         "name": "three-wires",
         "materials": [{"name": "steel", "E": 210e9, "G": 79e9, "density": 7800, "allowable_stress": 6e8}],
-        "nodes": [{"name": "n", "position": [0, 0, 0]}, {"name": "a", "position": [-L, 0, 0]},
-                  {"name": "b", "position": [-L * math.cos(delta), -L * math.sin(delta), 0]},
-                  {"name": "c", "position": [0, 0, -L]}],
+        "nodes": [
+            {"name": "n", "position": [0, 0, 0]},
+            {"name": "a", "position": [-L, 0, 0]},
+            {"name": "b", "position": [-L * math.cos(delta), -L * math.sin(delta), 0]},
+            {"name": "c", "position": [0, 0, -L]},
+        ],
         "elements": [wire("wa", "a", [0, 0, 1]), wire("wb", "b", [0, 0, 1]), wire("wc", "c", [1, 0, 0])],
         "supports": [{"node": "a"}, {"node": "b"}, {"node": "c"}, {"node": "n", "dofs": ["rx", "ry", "rz"]}],
         "stroke": None,
@@ -253,21 +269,38 @@ def test_tilted_wire_is_almost_singular_with_the_analytic_singular_value(delta: 
 
 # ----------------------------------------------------------------------------------- bad partitions
 BAD = [
-    ("stroke on a supported coordinate",
-     lambda: edit(scene_dict("wire-guide-5"), {"stroke.body": None, "stroke.node": "wire1_ground"}),
-     {}, ["stroke.node", "support"]),
-    ("all deformations released",
-     lambda: edit(scene_dict("truss12"), {f"elements.{i}.rigid": [] for i in range(12)}),
-     {"kinematic": False}, ["elements[].rigid", "no rigid"]),
-    ("rigid and generalised at once",
-     lambda: edit(scene_dict("wire-guide-5"), {"elements.0.rigid": ["elongation"],
-                                               "elements.0.generalised": ["eps1"]}),
-     {"kinematic": False}, ["generalised", "both rigid and generalised"]),
-    ("generalised deformation that the kinematic idealisation holds rigid",
-     lambda: edit(scene_dict("wire-guide-5"), {"elements.0.generalised": ["elongation"]}),
-     {}, ["elements[0].generalised", "kinematic_rigid"]),
-    ("diagnosis at a stroke value without a stroke",
-     lambda: scene_dict("truss12"), {"at_stroke": 0.1}, ["stroke", "needs a 'stroke'"]),
+    (
+        "stroke on a supported coordinate",
+        lambda: edit(scene_dict("wire-guide-5"), {"stroke.body": None, "stroke.node": "wire1_ground"}),
+        {},
+        ["stroke.node", "support"],
+    ),
+    (
+        "all deformations released",
+        lambda: edit(scene_dict("truss12"), {f"elements.{i}.rigid": [] for i in range(12)}),
+        {"kinematic": False},
+        ["elements[].rigid", "no rigid"],
+    ),
+    (
+        "rigid and generalised at once",
+        lambda: edit(
+            scene_dict("wire-guide-5"), {"elements.0.rigid": ["elongation"], "elements.0.generalised": ["eps1"]}
+        ),
+        {"kinematic": False},
+        ["generalised", "both rigid and generalised"],
+    ),
+    (
+        "generalised deformation that the kinematic idealisation holds rigid",
+        lambda: edit(scene_dict("wire-guide-5"), {"elements.0.generalised": ["elongation"]}),
+        {},
+        ["elements[0].generalised", "kinematic_rigid"],
+    ),
+    (
+        "diagnosis at a stroke value without a stroke",
+        lambda: scene_dict("truss12"),
+        {"at_stroke": 0.1},
+        ["stroke", "needs a 'stroke'"],
+    ),
 ]
 
 
@@ -291,8 +324,17 @@ def test_cli_diagnose_json(tmp_path, capsys) -> None:
     png = tmp_path / "d.png"
     assert main(["diagnose", str(path), "--json", "--plot", str(png)]) == 0
     out = json.loads(capsys.readouterr().out)
-    for key in ("rows", "columns", "rank", "singular_values", "statically_indeterminate",
-                "kinematically_indeterminate", "exact_constraint", "kinematic_modes", "static_modes"):
+    for key in (
+        "rows",
+        "columns",
+        "rank",
+        "singular_values",
+        "statically_indeterminate",
+        "kinematically_indeterminate",
+        "exact_constraint",
+        "kinematic_modes",
+        "static_modes",
+    ):
         assert key in out
     assert (out["rank"], out["statically_indeterminate"], out["kinematically_indeterminate"]) == (11, 1, 1)
     assert set(out["kinematic_modes"][0]) == {"t_px", "t_py", "t_mx", "t_my"}

@@ -11,10 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from flexopt.model import Analysis, scene_from_dict, template
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
-
-from flexopt.model import Analysis, scene_from_dict, template
 
 SCENES = {
     "leaf": lambda: template("leaf-spring", segments=3),
@@ -24,27 +23,59 @@ SCENES = {
 
 def _wire_scene():
     """A body on three beams, one with rigid elongation (a constraint with a multiplier) and a truss."""
-    return scene_from_dict({
-        "materials": [{"name": "s", "E": 200e9, "G": 80e9, "density": 7800, "allowable_stress": 5e8}],
-        "nodes": [{"name": "g1", "position": [0, 0, 0]}, {"name": "g2", "position": [0.05, 0, 0]},
-                  {"name": "g3", "position": [0, 0.05, 0]}, {"name": "t1", "position": [0, 0, 0.04]},
-                  {"name": "t2", "position": [0.05, 0, 0.04]}, {"name": "t3", "position": [0, 0.05, 0.04]}],
-        "bodies": [{"name": "top", "mass": 0.2, "center_of_mass": [0.02, 0.02, 0.05],
-                    "inertia": [[1e-4, 0, 0], [0, 1e-4, 0], [0, 0, 1.5e-4]], "nodes": ["t1", "t2", "t3"]}],
-        "elements": [
-            {"kind": "beam", "name": "w1", "nodes": ["g1", "t1"], "material": "s",
-             "section": {"kind": "general", "A": 1e-6, "Iy": 8e-14, "Iz": 8e-14, "J": 1.6e-13},
-             "y_axis": [1, 0, 0], "rigid": ["elongation"]},
-            {"kind": "beam", "name": "w2", "nodes": ["g2", "t2"], "material": "s",
-             "section": {"kind": "rectangular", "width": 0.01, "thickness": 3e-4}, "y_axis": [0, 1, 0]},
-            {"kind": "beam", "name": "w3", "nodes": ["g3", "t3"], "material": "s",
-             "section": {"kind": "rectangular", "width": 0.01, "thickness": 3e-4}, "y_axis": [1, 0, 0],
-             "segments": 2},
-            {"kind": "truss", "name": "bar", "nodes": ["g2", "t3"], "material": "s", "area": 1e-6},
-        ],
-        "supports": [{"node": "g1"}, {"node": "g2"}, {"node": "g3"}],
-        "stroke": {"kind": "rotation", "body": "top", "axis": [0, 0, 1]},
-    })
+    return scene_from_dict(
+        {
+            "materials": [{"name": "s", "E": 200e9, "G": 80e9, "density": 7800, "allowable_stress": 5e8}],
+            "nodes": [
+                {"name": "g1", "position": [0, 0, 0]},
+                {"name": "g2", "position": [0.05, 0, 0]},
+                {"name": "g3", "position": [0, 0.05, 0]},
+                {"name": "t1", "position": [0, 0, 0.04]},
+                {"name": "t2", "position": [0.05, 0, 0.04]},
+                {"name": "t3", "position": [0, 0.05, 0.04]},
+            ],
+            "bodies": [
+                {
+                    "name": "top",
+                    "mass": 0.2,
+                    "center_of_mass": [0.02, 0.02, 0.05],
+                    "inertia": [[1e-4, 0, 0], [0, 1e-4, 0], [0, 0, 1.5e-4]],
+                    "nodes": ["t1", "t2", "t3"],
+                }
+            ],
+            "elements": [
+                {
+                    "kind": "beam",
+                    "name": "w1",
+                    "nodes": ["g1", "t1"],
+                    "material": "s",
+                    "section": {"kind": "general", "A": 1e-6, "Iy": 8e-14, "Iz": 8e-14, "J": 1.6e-13},
+                    "y_axis": [1, 0, 0],
+                    "rigid": ["elongation"],
+                },
+                {
+                    "kind": "beam",
+                    "name": "w2",
+                    "nodes": ["g2", "t2"],
+                    "material": "s",
+                    "section": {"kind": "rectangular", "width": 0.01, "thickness": 3e-4},
+                    "y_axis": [0, 1, 0],
+                },
+                {
+                    "kind": "beam",
+                    "name": "w3",
+                    "nodes": ["g3", "t3"],
+                    "material": "s",
+                    "section": {"kind": "rectangular", "width": 0.01, "thickness": 3e-4},
+                    "y_axis": [1, 0, 0],
+                    "segments": 2,
+                },
+                {"kind": "truss", "name": "bar", "nodes": ["g2", "t3"], "material": "s", "area": 1e-6},
+            ],
+            "supports": [{"node": "g1"}, {"node": "g2"}, {"node": "g3"}],
+            "stroke": {"kind": "rotation", "body": "top", "axis": [0, 0, 1]},
+        }
+    )
 
 
 SCENES["wires"] = _wire_scene
@@ -72,6 +103,7 @@ def _fd_checks(name: str, seed: int) -> None:
 
     for _ in range(3):
         v = rng.normal(size=sys.n) * scale
+
         # first and second derivatives: central differences at h and h/2 (h = 1e-4 of the DOF scale),
         # Richardson-extrapolated (truncation O(h^4) ~ 1e-13 relative; the plain O(h^2) value was seen off
         # by 1.6e-6 on stiff wires); rounding ~1e-16 |L| / h^2 ~ 1e-8 relative for the second derivative
@@ -82,9 +114,9 @@ def _fd_checks(name: str, seed: int) -> None:
             return (f(v, h) - 2 * f(v, 0) + f(v, -h)) / h**2
 
         h = 1e-4
-        assert (4 * d1(h / 2) - d1(h)) / 3 == pytest.approx(
-            ev.g @ v, rel=1e-7, abs=1e-9 * np.abs(ev.g * scale).sum())
+        assert (4 * d1(h / 2) - d1(h)) / 3 == pytest.approx(ev.g @ v, rel=1e-7, abs=1e-9 * np.abs(ev.g * scale).sum())
         assert (4 * d2(h / 2) - d2(h)) / 3 == pytest.approx(v @ ev.H @ v, rel=1e-5)
+
         # third derivative: central differences with h = 1e-3, 5e-4 and 2.5e-4 (error O(h^2), observed up to
         # 1.2e-2 at 1e-3), Richardson-extrapolated twice to O(h^6). Once (O(h^4)) was not enough: seed 2171
         # (hypothesis) left 1.5e-5 against a 1e-5 bound while the twice-extrapolated value was 6e-9 off.

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from flexopt.model import Analysis
 from flexopt.model.analysis import beam_end_stresses
 from flexopt.model.design import point_sensitivity, structure_derivative, trace_template
@@ -88,11 +87,18 @@ def test_design_kernel_reproduces_the_structure_arrays(name):
     for ie, el in enumerate(scene.elements):
         rows = np.flatnonzero(s.beam_member == ie)
         m = mats[el.material]
-        x = np.concatenate([pos[el.nodes[0]], pos[el.nodes[1]], el.y_axis,
-                            [el.section.width, el.section.thickness, m.E, m.G, m.density]])
+        x = np.concatenate(
+            [
+                pos[el.nodes[0]],
+                pos[el.nodes[1]],
+                el.y_axis,
+                [el.section.width, el.section.thickness, m.E, m.G, m.density],
+            ]
+        )
         out = np.asarray(beam_segment_design(el.section.warping)(x, el.segments)[0]).ravel()
-        np.testing.assert_allclose(s.beam_const[rows][:, :15], np.tile(out[:15], (len(rows), 1)), rtol=1e-14,
-                                   atol=1e-300)
+        np.testing.assert_allclose(
+            s.beam_const[rows][:, :15], np.tile(out[:15], (len(rows), 1)), rtol=1e-14, atol=1e-300
+        )
         np.testing.assert_allclose(s.beam_mass[rows], out[15], rtol=1e-14)
         np.testing.assert_allclose(s.beam_stress[rows], np.tile(out[25:32], (len(rows), 1)), rtol=1e-14)
 

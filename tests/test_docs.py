@@ -38,8 +38,22 @@ def _env() -> dict[str, str]:
 def test_site_builds_with_warnings_as_errors(tmp_path: Path) -> None:
     pytest.importorskip("mkdocs", reason="the docs extra (mkdocs, mkdocstrings) is part of the test extra")
     run = subprocess.run(
-        [sys.executable, "-m", "mkdocs", "build", "--strict", "-f", str(ROOT / "docs" / "mkdocs.yml"), "-d",
-         str(tmp_path / "site")], capture_output=True, text=True, cwd=ROOT, env=_env(), timeout=600,
+        [
+            sys.executable,
+            "-m",
+            "mkdocs",
+            "build",
+            "--strict",
+            "-f",
+            str(ROOT / "docs" / "mkdocs.yml"),
+            "-d",
+            str(tmp_path / "site"),
+        ],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        env=_env(),
+        timeout=600,
     )
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     assert (tmp_path / "site" / "index.html").exists()
@@ -51,13 +65,16 @@ def test_site_builds_with_warnings_as_errors(tmp_path: Path) -> None:
 def test_code_blocks_run(page: Path, tmp_path: Path) -> None:
     shutil.copytree(ROOT / "examples", tmp_path / "examples")
     for b in _local(page):
-        steps = [[sys.executable, "-c", b.body]] if b.lang == "python" else [["bash", "-c", c] for c in commands(b.body)]
+        steps = (
+            [[sys.executable, "-c", b.body]] if b.lang == "python" else [["bash", "-c", c] for c in commands(b.body)]
+        )
         for cmd in steps:
             want = 0 if b.lang == "python" else expected_exit(cmd[-1])
             run = subprocess.run(cmd, capture_output=True, text=True, cwd=tmp_path, env=_env(), timeout=900)
             assert run.returncode == want, (
                 f"{b}: exit {run.returncode}, expected {want}\n--- run ---\n{cmd[-1]}\n--- stdout ---\n"
-                f"{run.stdout[-2000:]}\n--- stderr ---\n{run.stderr[-2000:]}")
+                f"{run.stdout[-2000:]}\n--- stderr ---\n{run.stderr[-2000:]}"
+            )
 
 
 def test_pages_have_blocks_to_run() -> None:

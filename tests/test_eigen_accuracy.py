@@ -16,7 +16,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.linalg as sla
-
 from flexopt.model import Analysis, linalg, template
 
 LD = np.longdouble

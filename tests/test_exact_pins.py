@@ -12,8 +12,8 @@ import json
 
 import numpy as np
 import pytest
-
 from flexopt.model import Analysis, template
+
 from tests.make_pins import PATH, RTOL
 
 PINS = json.loads(PATH.read_text())["cases"]
@@ -25,7 +25,9 @@ def test_exact_curve_matches_regression_pin(pin: dict) -> None:
     c = Analysis(template(pin["template"], **pin["overrides"])).frequency_curve(np.array(pin["stroke"]))
     assert c.status == pin["status"]
     np.testing.assert_allclose(c.stroke, pin["stroke"], rtol=1e-12)
-    np.testing.assert_allclose(c.modes_hz, pin["modes_hz"], rtol=rtol,
-                               err_msg="regression pin (tests/make_pins.py) changed")
-    np.testing.assert_allclose(c.parasitic_hz, pin["parasitic_hz"], rtol=rtol,
-                               err_msg="regression pin (tests/make_pins.py) changed")
+    np.testing.assert_allclose(
+        c.modes_hz, pin["modes_hz"], rtol=rtol, err_msg="regression pin (tests/make_pins.py) changed"
+    )
+    np.testing.assert_allclose(
+        c.parasitic_hz, pin["parasitic_hz"], rtol=rtol, err_msg="regression pin (tests/make_pins.py) changed"
+    )

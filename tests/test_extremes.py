@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from flexopt.model import Analysis, scene_from_dict, template
 from flexopt.model.methods import estimate_error, expansion_curve, frequency_curve
+
 from tests import references as ref
 
 # (label, length, width, thickness): t/w from 1e-4 (10 um foil on a 100 mm wide sheet) to 0.5, L/t from

@@ -8,11 +8,11 @@ import itertools
 import casadi as ca
 import numpy as np
 import pytest
-
 from flexopt.model import DESIGN_SPACES, Analysis, template
 from flexopt.model.modal import modes_at
 from flexopt.model.statics import solve_point
 from flexopt.model.templates import TEMPLATES
+
 from tests.helpers import coarse
 from tests.test_design import H_REL, TOL, _at
 
@@ -86,8 +86,15 @@ def test_families_are_traceable(name):
             assert np.abs(J[:, i]).max() > 0, f"{name}: node positions do not depend on '{k}'"
 
 
-@pytest.mark.parametrize("name,param", [("cartwheel-hinge", "angle"), ("three-fold-cross-hinge", "crossing"),
-                                        ("double-cross-hinge", "length"), ("cross-spring-pivot", "angle")])
+@pytest.mark.parametrize(
+    "name,param",
+    [
+        ("cartwheel-hinge", "angle"),
+        ("three-fold-cross-hinge", "crossing"),
+        ("double-cross-hinge", "length"),
+        ("cross-spring-pivot", "angle"),
+    ],
+)
 def test_design_derivative_of_new_parameters(name, param):
     """Exact frequency derivative against central differences of the whole pipeline (tests/test_design.py
     explains the step and the tolerance). Modes closer than 1 % (the three-fold hinge's symmetric pair, in

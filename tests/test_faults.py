@@ -24,6 +24,7 @@ if not sys.platform.startswith("linux"):
     pytest.skip("reads /proc and uses process groups", allow_module_level=True)
 
 from flexopt.service.client import Client  # noqa: E402
+
 from tests.test_jobs import LONG, TINY, _cases, _server, _until  # noqa: E402
 from tests.test_service import ROOT, _free_port  # noqa: E402
 
@@ -77,8 +78,10 @@ def test_killed_job_process_and_pool_worker_are_retried_from_finished_cases(tmp_
             os.kill(job_pid, signal.SIGKILL)  # 1. the job process dies (out of memory, killed)
             _until(lambda: not (_group(job_pid) & group), timeout=20)  # its pool workers die with it
             _until(lambda: h.status().attempts == 2 and h.status().status == "running", timeout=30)
-            _until(lambda: (w := _job_processes(h.id)) and _pool_worker(w[0]) and
-                   len(_cases(tmp_path)) > len(before), timeout=90)
+            _until(
+                lambda: (w := _job_processes(h.id)) and _pool_worker(w[0]) and len(_cases(tmp_path)) > len(before),
+                timeout=90,
+            )
             assert all(_cases(tmp_path)[k] == v for k, v in before.items()), "finished cases kept, not redone"
             before = _cases(tmp_path)
             [job_pid] = _job_processes(h.id)
@@ -99,10 +102,18 @@ LEASE = 8  # seconds; the job process beats every 2 s, often enough under load
 
 
 def _serve(tmp_path: Path, port: int) -> subprocess.Popen:
-    env = {**os.environ, "FLEXOPT_DATA_DIR": str(tmp_path), "FLEXOPT_EXECUTOR": "thread",
-           "FLEXOPT_JOB_WORKERS": "1", "FLEXOPT_LEASE_SECONDS": str(LEASE)}
-    p = subprocess.Popen([sys.executable, "-m", "flexopt.service.cli", "serve", "--port", str(port),
-                          "--log-level", "warning"], cwd=ROOT, env=env)
+    env = {
+        **os.environ,
+        "FLEXOPT_DATA_DIR": str(tmp_path),
+        "FLEXOPT_EXECUTOR": "thread",
+        "FLEXOPT_JOB_WORKERS": "1",
+        "FLEXOPT_LEASE_SECONDS": str(LEASE),
+    }
+    p = subprocess.Popen(
+        [sys.executable, "-m", "flexopt.service.cli", "serve", "--port", str(port), "--log-level", "warning"],
+        cwd=ROOT,
+        env=env,
+    )
 
     def up() -> bool:
         try:
@@ -200,8 +211,14 @@ def test_locked_store_answers_503_and_dispatching_carries_on(tmp_path: Path) -> 
 def test_corrupt_store_refused_at_start_with_one_line(tmp_path: Path) -> None:
     (tmp_path / "jobs.sqlite").write_bytes(b"garbage " * 1000)
     env = {**os.environ, "FLEXOPT_DATA_DIR": str(tmp_path)}
-    r = subprocess.run([sys.executable, "-m", "flexopt.service.cli", "serve", "--port", str(_free_port())],
-                       cwd=ROOT, env=env, capture_output=True, text=True, timeout=60)
+    r = subprocess.run(
+        [sys.executable, "-m", "flexopt.service.cli", "serve", "--port", str(_free_port())],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert r.returncode == 2
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and str(tmp_path / "jobs.sqlite") in lines[0] and "move it aside" in lines[0], r.stderr

@@ -37,9 +37,19 @@ def test_folded_sheet_constraint_jacobian_matches_finite_differences():
     """A folded-sheet guide (translation drive, sheets as rectangular leaves): every frequency, stress and drive
     row's gradient in the scaled design against Richardson-extrapolated central differences of re-solved
     designs (steps 4e-3, 2e-3), as test_optim's hinge test and with its tolerance (1e-4 on rows of order 1)."""
-    prob = Problem.model_validate({"families": [{"template": "folded-sheet-guide-5", "design": {
-        "sheet_length": [0.03, 0.07], "sheet_thickness": [1e-4, 4e-4]}, "fixed": {"segments": 2}}],
-        "samples": 3, "max_drive": 50.0})
+    prob = Problem.model_validate(
+        {
+            "families": [
+                {
+                    "template": "folded-sheet-guide-5",
+                    "design": {"sheet_length": [0.03, 0.07], "sheet_thickness": [1e-4, 4e-4]},
+                    "fixed": {"segments": 2},
+                }
+            ],
+            "samples": 3,
+            "max_drive": 50.0,
+        }
+    )
     fam = _Family(prob, prob.families[0])
     x = np.array([0.4, 0.5])
     ev = fam.evaluate(x)

@@ -8,7 +8,6 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-
 from flexopt.model import Analysis, template
 from flexopt.model.errors import FlexoptError
 from flexopt.model.methods import frequency_curve
@@ -17,8 +16,14 @@ from flexopt.model.methods.taylor import mass_derivatives, mass_slope, projected
 
 from .helpers import coarse  # the former default meshes: hermite against exact on one mesh
 
-SIX = ["leaf-spring", "parallel-leaf-spring", "cross-spring-pivot", "cartwheel-hinge", "three-fold-cross-hinge",
-       "double-cross-hinge"]
+SIX = [
+    "leaf-spring",
+    "parallel-leaf-spring",
+    "cross-spring-pivot",
+    "cartwheel-hinge",
+    "three-fold-cross-hinge",
+    "double-cross-hinge",
+]
 
 
 @pytest.fixture(scope="module")
@@ -30,8 +35,9 @@ def exact() -> dict:
     return out
 
 
-@pytest.mark.parametrize("name,stroke", [("leaf-spring", 20.0), ("cross-spring-pivot", 30.0),
-                                         ("parallel-leaf-spring", 0.004)])
+@pytest.mark.parametrize(
+    "name,stroke", [("leaf-spring", 20.0), ("cross-spring-pivot", 30.0), ("parallel-leaf-spring", 0.004)]
+)
 def test_stroke_slopes_match_central_differences_of_exact_eigenvalues(name: str, stroke: float) -> None:
     """d lambda/ds from Nelson's formula with exact dK/ds and dM/ds against a central difference of the exact
     eigenvalues (step 1e-3 rad or 1e-5 m; its truncation error measured below 1e-4 relative)."""
@@ -39,8 +45,10 @@ def test_stroke_slopes_match_central_differences_of_exact_eigenvalues(name: str,
     rot = an.scene.stroke.kind == "rotation"
     h_user = float(np.degrees(1e-3)) if rot else 1e-5
     seen: dict = {}
-    an.frequency_curve(np.array([stroke - h_user, stroke, stroke + h_user]),
-                       visit=lambda eq, m, lab: seen.setdefault(round(float(eq.stroke), 12), (eq, m)))
+    an.frequency_curve(
+        np.array([stroke - h_user, stroke, stroke + h_user]),
+        visit=lambda eq, m, lab: seen.setdefault(round(float(eq.stroke), 12), (eq, m)),
+    )
     keys = sorted(seen)
     fd = (seen[keys[2]][1].omega2 - seen[keys[0]][1].omega2) / (keys[2] - keys[0])
     eq, modes = seen[keys[1]]
@@ -104,8 +112,9 @@ def test_hermite_within_one_percent_of_exact_over_the_whole_stroke(exact: dict, 
     err = float(np.max(np.abs(c.parasitic_hz / ex.parasitic_hz - 1)))
     assert err <= 0.01, f"{name}: hermite error {err:.3g}"
     assert c.solver["samples"] <= len(ex.stroke) / 4
-    assert np.all(c.modes_hz[np.isclose(c.stroke, 0.0)] == pytest.approx(ex.modes_hz[np.isclose(ex.stroke, 0.0)],
-                                                                          rel=1e-12)), "exact at the samples"
+    assert np.all(
+        c.modes_hz[np.isclose(c.stroke, 0.0)] == pytest.approx(ex.modes_hz[np.isclose(ex.stroke, 0.0)], rel=1e-12)
+    ), "exact at the samples"
 
 
 def test_auto_takes_hermite_on_long_curves_and_exact_on_short_ones(exact: dict) -> None:
@@ -145,8 +154,9 @@ class _FakeSide:
         # d mu / ds from d f / ds: mu = (2 pi f)^-2, so mu' = -2 mu f' / f
         m0, m1 = w0**-2.0, w1**-2.0
         self.lam = np.array([m0, m1])
-        self.slope = np.array([-2 * m0 * np.asarray(slope_hz0) / np.asarray(hz0),
-                               -2 * m1 * np.asarray(slope_hz1) / np.asarray(hz1)])
+        self.slope = np.array(
+            [-2 * m0 * np.asarray(slope_hz0) / np.asarray(hz0), -2 * m1 * np.asarray(slope_hz1) / np.asarray(hz1)]
+        )
         self.mac = [np.asarray(mac, float)]
         # the MAC matrix of the branches at the two ends (by default each branch matched only with itself)
         self.macs = [np.diag(np.asarray(mac, float)) if macs is None else np.asarray(macs, float)]
@@ -174,8 +184,13 @@ def test_crossing_check_refines_only_where_an_uncertain_branch_can_reach_the_low
     # (in mu) dips to 105 Hz inside the interval, within 10 % of the lowest (100 Hz), while its end values
     # stay 1.3 to 1.5 times above it; with slopes of 2500 and 1250 it dips to 109 Hz (also caught), with
     # 2000 and 1000 to 113 Hz (not: clear of the 10 % margin)
-    c = _FakeSide([100.0, 150.0, 151.0], [100.0, 150.0, 130.0], slope_hz0=[0.0, 0.0, -3000.0],
-                  slope_hz1=[0.0, 0.0, 1500.0], mac=[1.0, 0.3, 0.3])
+    c = _FakeSide(
+        [100.0, 150.0, 151.0],
+        [100.0, 150.0, 130.0],
+        slope_hz0=[0.0, 0.0, -3000.0],
+        slope_hz1=[0.0, 0.0, 1500.0],
+        mac=[1.0, 0.3, 0.3],
+    )
     assert _error(c, 0) == float("inf")
     c.mac = [np.ones(3)]  # the same branches with a certain match: no crossing check, a finite estimate
     assert np.isfinite(_error(c, 0))
@@ -213,8 +228,13 @@ def test_the_pair_form_follows_a_veering_that_the_single_branches_cut() -> None:
     mu = H._Side.evaluate(side, np.zeros(len(s), dtype=int), s[:, None])[:, 0, :]
     true = np.array([at(x)[0][0] for x in s])  # the largest mu: the lowest frequency
     assert np.max(np.abs(mu.max(axis=1) / true - 1)) < 1e-12
-    single = H._interpolate(H._basis(np.array([0.0]), np.array([0.1]), s[None, :]), side.lam[:1], side.lam[1:],
-                            side.slope[:1], side.slope[1:])[0].max(axis=1)
+    single = H._interpolate(
+        H._basis(np.array([0.0]), np.array([0.1]), s[None, :]),
+        side.lam[:1],
+        side.lam[1:],
+        side.slope[:1],
+        side.slope[1:],
+    )[0].max(axis=1)
     assert np.max(np.abs(np.sqrt(true / single) - 1)) > 0.05  # in frequency
 
 
@@ -288,8 +308,9 @@ def test_a_probed_interval_estimate_is_not_below_its_error(exact: dict, name: st
 
 
 @pytest.mark.parametrize("name", SIX)
-def test_quarter_points_are_samples_only_where_the_branch_falls_over_the_first_half(exact: dict, name: str,
-                                                                                   monkeypatch) -> None:  # noqa: ANN001
+def test_quarter_points_are_samples_only_where_the_branch_falls_over_the_first_half(
+    exact: dict, name: str, monkeypatch
+) -> None:  # noqa: ANN001
     """model.methods.hermite._Side.initial: the quarter point s/4 becomes a sample where the first parasitic
     frequency at half the stroke differs from its value at 0 by more than SMOOTH (20 %), read from the exact
     curve here (pivot, cartwheel, three-fold: 71 to 83 %), and the second half is probed at 3s/4; elsewhere
@@ -343,8 +364,10 @@ def test_path_curvature_matches_second_differences_and_brings_the_long_first_ste
     eq0 = solve_point(sys, sys.reference_state(), 0.0, an.options, 0.0)
     curv = path_curvature(sys, eq0)
     h = 1e-3 if an.scene.stroke.kind == "rotation" else 1e-5
-    xi = [sys.difference(solve_point(sys, sys.update(eq0.state, eq0.tangent * s), s, an.options, 0.0).state,
-                         eq0.state) for s in (h, -h)]
+    xi = [
+        sys.difference(solve_point(sys, sys.update(eq0.state, eq0.tangent * s), s, an.options, 0.0).state, eq0.state)
+        for s in (h, -h)
+    ]
     fd = (xi[0] + xi[1]) / h**2
     scale = np.abs(fd).max()
     assert scale > 0
@@ -362,9 +385,8 @@ def test_the_quintic_of_the_estimate_is_the_hermite_interpolant_through_three_sa
     scipy's Krogh interpolator with doubled nodes (values and slopes at three strokes: the same polynomial of
     degree 5, built independently), for a neighbour on either side and unequal intervals, one call for the
     three; agreement to 1e-10 of the values' scale (rounding of the two constructions)."""
-    from scipy.interpolate import KroghInterpolator
-
     from flexopt.model.methods.hermite import _basis, _interpolate, _quintic_all
+    from scipy.interpolate import KroghInterpolator
 
     rng = np.random.default_rng(7)
     S = np.array([0.0, 0.3, 0.5, 1.2])
@@ -382,8 +404,9 @@ def test_the_quintic_of_the_estimate_is_the_hermite_interpolant_through_three_sa
         assert np.abs(got - cubic).max() > 1e-3  # the next order does differ from the cubic here
 
 
-@pytest.mark.parametrize("name", ["leaf-spring", "parallel-leaf-spring", "cross-spring-pivot", "cartwheel-hinge",
-                                  "double-cross-hinge"])
+@pytest.mark.parametrize(
+    "name", ["leaf-spring", "parallel-leaf-spring", "cross-spring-pivot", "cartwheel-hinge", "double-cross-hinge"]
+)
 def test_slopes_at_stroke_zero_of_a_stroke_symmetric_design_vanish(exact: dict, name: str) -> None:
     """hermite takes every slope at stroke 0 as zero on a design whose symmetry reverses the stroke and whose
     eigenvalues there are simple (model.symmetry: the spectrum at -s is the one at s, so each simple branch is

@@ -20,10 +20,14 @@ import pytest
 from flexopt.model import Analysis, template
 from flexopt.model.methods import frequency_curve
 
-DESIGNS = [{"angle": a, "mid_mass": m, "width": w, "segments": 4}
-           for a, m, w in itertools.product((60, 75, 105, 120), (0.005, 0.02, 0.08), (0.01, 0.03))]
-DESIGNS += [{"angle": a, "mid_mass": m, "width": 0.015, "segments": 6}
-            for a, m in ((65, 0.01), (85, 0.01), (95, 0.01), (65, 0.04))]
+DESIGNS = [
+    {"angle": a, "mid_mass": m, "width": w, "segments": 4}
+    for a, m, w in itertools.product((60, 75, 105, 120), (0.005, 0.02, 0.08), (0.01, 0.03))
+]
+DESIGNS += [
+    {"angle": a, "mid_mass": m, "width": 0.015, "segments": 6}
+    for a, m in ((65, 0.01), (85, 0.01), (95, 0.01), (65, 0.04))
+]
 
 
 def _id(d: dict) -> str:

@@ -7,17 +7,19 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.linalg as sla
-from hypothesis import given, settings
-from hypothesis import strategies as st
-
 from flexopt.model import Analysis, scene_from_dict
 from flexopt.model.statics import walk
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from .helpers import rigid_motion, rotation_from_quaternion, scale_units, scene_dict
 
 # Stroke points used by the invariance checks: both signs, small and large.
-STROKES = {"leaf-spring": [-40.0, 0.0, 25.0], "cross-spring-pivot": [-30.0, 0.0, 45.0],
-           "parallel-leaf-spring": [-0.008, 0.0, 0.005]}
+STROKES = {
+    "leaf-spring": [-40.0, 0.0, 25.0],
+    "cross-spring-pivot": [-30.0, 0.0, 45.0],
+    "parallel-leaf-spring": [-0.008, 0.0, 0.005],
+}
 
 # Newton converges to a scaled residual of 1e-9, so equilibria carry relative errors of about 1e-9 and the
 # frequencies (stationary in the configuration error, to first order) somewhat less; round-off in the
@@ -52,7 +54,8 @@ def _reference(name: str):
 
 
 quaternions = st.tuples(*[st.floats(-1, 1, allow_nan=False) for _ in range(4)]).filter(
-    lambda q: sum(v * v for v in q) > 0.05)
+    lambda q: sum(v * v for v in q) > 0.05
+)
 translations = st.tuples(*[st.floats(-2.0, 2.0, allow_nan=False) for _ in range(3)])
 
 
@@ -68,8 +71,9 @@ def test_rigid_motion_leaves_frequencies_and_stresses_unchanged(name, q, t):
     assert moved.status == "complete"
     np.testing.assert_allclose(moved.modes_hz, ref.modes_hz, rtol=RIGID_RTOL)
     np.testing.assert_allclose(moved.parasitic_hz, ref.parasitic_hz, rtol=RIGID_RTOL)
-    np.testing.assert_allclose(moved.drive_reaction, ref.drive_reaction, rtol=RIGID_RTOL,
-                               atol=RIGID_RTOL * np.abs(ref.drive_reaction).max())
+    np.testing.assert_allclose(
+        moved.drive_reaction, ref.drive_reaction, rtol=RIGID_RTOL, atol=RIGID_RTOL * np.abs(ref.drive_reaction).max()
+    )
     for member, vm in ref.max_von_mises.items():
         np.testing.assert_allclose(moved.max_von_mises[member], vm, rtol=RIGID_RTOL, atol=RIGID_RTOL * vm.max())
 
@@ -87,7 +91,8 @@ def test_millimetre_units_give_the_same_hertz(name):
     a = _curve(base, name)
     mm = scale_units(base, length=1e-3, mass=1e3)
     b = Analysis(scene_from_dict(mm)).frequency_curve(
-        stroke=np.array(STROKES[name]) * (1e3 if base["stroke"]["kind"] == "translation" else 1.0))
+        stroke=np.array(STROKES[name]) * (1e3 if base["stroke"]["kind"] == "translation" else 1.0)
+    )
     lam_max = _largest_eigenvalues(Analysis(scene_from_dict(base)), a.stroke)
     rtol = 10 * np.finfo(float).eps * lam_max[:, None] / (2 * (2 * np.pi * a.modes_hz) ** 2)
     err = np.abs(b.modes_hz / a.modes_hz - 1)
@@ -108,5 +113,6 @@ def test_mirror_symmetric_designs_give_even_curves(name):
     np.testing.assert_allclose(c.stroke, -c.stroke[::-1], atol=1e-12)
     np.testing.assert_allclose(c.parasitic_hz, c.parasitic_hz[::-1], rtol=1e-7)
     np.testing.assert_allclose(np.sort(c.modes_hz, axis=1), np.sort(c.modes_hz[::-1], axis=1), rtol=1e-7)
-    np.testing.assert_allclose(c.drive_reaction, -c.drive_reaction[::-1], rtol=1e-7,
-                               atol=1e-7 * np.abs(c.drive_reaction).max())
+    np.testing.assert_allclose(
+        c.drive_reaction, -c.drive_reaction[::-1], rtol=1e-7, atol=1e-7 * np.abs(c.drive_reaction).max()
+    )

@@ -18,13 +18,17 @@ import pytest
 from flexopt.service.jobs.dispatch import RUN_TOKEN, Dispatcher
 from flexopt.service.jobs.store import HOST, MAX_CRASHES, JobStore
 
-pytestmark = pytest.mark.skipif(not Path("/proc/self/environ").exists() or not hasattr(os, "pidfd_open"),
-                                reason="identity is proven from /proc and pidfds (Linux)")
+pytestmark = pytest.mark.skipif(
+    not Path("/proc/self/environ").exists() or not hasattr(os, "pidfd_open"),
+    reason="identity is proven from /proc and pidfds (Linux)",
+)
 
 SPEC = {"families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]}}], "starts": 1}
 # a process-group leader with one child in its group, both sleeping
-_GROUP = "import subprocess, sys, time; subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(60)']); " \
-         "print('ready', flush=True); time.sleep(60)"
+_GROUP = (
+    "import subprocess, sys, time; subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(60)']); "
+    "print('ready', flush=True); time.sleep(60)"
+)
 
 
 def _expired_job(tmp_path: Path, pid: int) -> tuple[JobStore, str]:
@@ -38,14 +42,18 @@ def _expired_job(tmp_path: Path, pid: int) -> tuple[JobStore, str]:
 
 
 def _group(env: dict | None = None) -> tuple[subprocess.Popen, list[int]]:
-    p = subprocess.Popen([sys.executable, "-c", _GROUP], start_new_session=True, env=env, stdout=subprocess.PIPE,
-                         text=True)
+    p = subprocess.Popen(
+        [sys.executable, "-c", _GROUP], start_new_session=True, env=env, stdout=subprocess.PIPE, text=True
+    )
     assert p.stdout is not None
     ready = p.stdout.readline().strip()
     p.stdout.close()
     assert ready == "ready"
-    members = [int(d) for d in os.listdir("/proc") if d.isdigit() and os.path.exists(f"/proc/{d}/stat")
-               and _pgid(int(d)) == p.pid]
+    members = [
+        int(d)
+        for d in os.listdir("/proc")
+        if d.isdigit() and os.path.exists(f"/proc/{d}/stat") and _pgid(int(d)) == p.pid
+    ]
     return p, members
 
 

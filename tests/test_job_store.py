@@ -181,9 +181,11 @@ def test_old_database_gets_the_new_columns(tmp_path: Path) -> None:
     """A job table of the previous release (no owner, no lease) is upgraded in place; its jobs stay."""
     path = tmp_path / "jobs.sqlite"
     con = sqlite3.connect(path)
-    con.execute("CREATE TABLE jobs (id VARCHAR(36) PRIMARY KEY, status VARCHAR(16), spec TEXT, idempotency_key "
-                "VARCHAR(200) UNIQUE, progress TEXT, partial TEXT, result TEXT, error TEXT, attempts INTEGER, "
-                "created VARCHAR(40), updated VARCHAR(40))")
+    con.execute(
+        "CREATE TABLE jobs (id VARCHAR(36) PRIMARY KEY, status VARCHAR(16), spec TEXT, idempotency_key "
+        "VARCHAR(200) UNIQUE, progress TEXT, partial TEXT, result TEXT, error TEXT, attempts INTEGER, "
+        "created VARCHAR(40), updated VARCHAR(40))"
+    )
     con.execute("INSERT INTO jobs VALUES ('j1', 'running', '{}', NULL, '{}', '[]', NULL, NULL, 1, 'a', 'a')")
     con.commit()
     con.close()

@@ -16,18 +16,26 @@ import pytest
 pytest.importorskip("fastapi")
 pytest.importorskip("sqlalchemy")
 
+from flexopt.service.api.settings import Settings  # noqa: E402
 from flexopt.service.client import Client, InvalidInput, JobFailed, NotFound  # noqa: E402
 from flexopt.service.jobs.run import run_job
 from flexopt.service.jobs.store import JobStore  # noqa: E402
-from flexopt.service.api.settings import Settings  # noqa: E402
+
 from tests.test_job_store import pg_server, pg_url  # noqa: E402,F401 - fixtures
 from tests.test_service import _Server  # noqa: E402
 
-TINY = {"families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]}}], "stroke": 20,
-        "samples": 5, "starts": 1, "max_iterations": 3}
+TINY = {
+    "families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]}}],
+    "stroke": 20,
+    "samples": 5,
+    "starts": 1,
+    "max_iterations": 3,
+}
 # four cases of a few seconds each: long enough to interrupt, short enough for CI
-LONG = {"families": [{"template": "cross-spring-pivot",
-                      "design": {"length": [0.03, 0.07], "thickness": [1.5e-4, 4e-4]}}], "starts": 4}
+LONG = {
+    "families": [{"template": "cross-spring-pivot", "design": {"length": [0.03, 0.07], "thickness": [1.5e-4, 4e-4]}}],
+    "starts": 4,
+}
 
 
 def _server(tmp_path: Path, **kw: object) -> _Server:
@@ -83,8 +91,7 @@ def test_job_completes_with_progress_and_idempotency(tmp_path: Path) -> None:
 def test_keys_isolate_jobs_cap_and_delete(tmp_path: Path) -> None:
     srv = _server(tmp_path, api_keys="key-a,key-b", max_active_jobs=1)
     try:
-        with Client(srv.url, api_key="key-a", max_retries=0) as a, Client(srv.url, api_key="key-b",
-                                                                          max_retries=0) as b:
+        with Client(srv.url, api_key="key-a", max_retries=0) as a, Client(srv.url, api_key="key-b", max_retries=0) as b:
             h = a.submit_optimisation(TINY, idempotency_key="same")
             r = httpx.post(f"{srv.url}/v1/optimisations", json=TINY, headers={"X-API-Key": "key-a"})
             assert r.status_code == 429 and "limit 1" in r.json()["detail"], "one unfinished job per key here"
@@ -110,19 +117,50 @@ def test_keys_isolate_jobs_cap_and_delete(tmp_path: Path) -> None:
 
 # each: the body, the field path expected in the 422, words of the message
 BAD_SPECS = [
-    ('{"families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]}}], "stroke": Infinity}',
-     ["body", "stroke"], "finite"),
-    ('{"families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]}}], "max_drive": Infinity}',
-     ["body", "max_drive"], "finite"),
-    (json.dumps({"families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]},
-                               "fixed": {"segments": 100000}}]}), ["body", "families", 0, "fixed", "segments"], ""),
-    (json.dumps({"families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]},
-                               "fixed": {"warping": "bogus"}}]}), ["body", "families", 0, "fixed", "warping"], ""),
-    (json.dumps({"families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4],
-                                                                     "segments": [4, 12]}}]}),
-     ["body", "families", 0, "design", "segments"], "set it in 'fixed'"),
-    (json.dumps({"families": [{"template": "nope", "design": {"t": [1, 2]}}]}), ["body", "families", 0, "template"],
-     "unknown template"),
+    (
+        '{"families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]}}], "stroke": Infinity}',
+        ["body", "stroke"],
+        "finite",
+    ),
+    (
+        '{"families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]}}], "max_drive": Infinity}',
+        ["body", "max_drive"],
+        "finite",
+    ),
+    (
+        json.dumps(
+            {
+                "families": [
+                    {"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]}, "fixed": {"segments": 100000}}
+                ]
+            }
+        ),
+        ["body", "families", 0, "fixed", "segments"],
+        "",
+    ),
+    (
+        json.dumps(
+            {
+                "families": [
+                    {"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]}, "fixed": {"warping": "bogus"}}
+                ]
+            }
+        ),
+        ["body", "families", 0, "fixed", "warping"],
+        "",
+    ),
+    (
+        json.dumps(
+            {"families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4], "segments": [4, 12]}}]}
+        ),
+        ["body", "families", 0, "design", "segments"],
+        "set it in 'fixed'",
+    ),
+    (
+        json.dumps({"families": [{"template": "nope", "design": {"t": [1, 2]}}]}),
+        ["body", "families", 0, "template"],
+        "unknown template",
+    ),
 ]
 
 
@@ -133,7 +171,7 @@ def test_job_specs_validated_completely_at_submission(tmp_path: Path) -> None:
             r = httpx.post(f"{srv.url}/v1/optimisations", content=body, headers={"Content-Type": "application/json"})
             assert r.status_code == 422, (body, r.text)
             err = r.json()["errors"]
-            assert err and err[0]["loc"][:len(loc)] == loc and words in err[0]["msg"], (body, err)
+            assert err and err[0]["loc"][: len(loc)] == loc and words in err[0]["msg"], (body, err)
         assert httpx.get(f"{srv.url}/v1/optimisations").json()["total"] == 0, "no job was created"
     finally:
         srv.__exit__()
@@ -142,13 +180,24 @@ def test_job_specs_validated_completely_at_submission(tmp_path: Path) -> None:
 def test_job_whose_every_case_failed_is_failed(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The case runner's failure records (as optim.batch returns them) summarised as the job's verdict."""
     import flexopt.optim as optim
-    from flexopt.optim.search import summarise
     from flexopt.optim.problem import Problem
+    from flexopt.optim.search import summarise
 
     def all_fail(spec, **kw):  # every case raised in its worker: the batch returns failure records
         prob = Problem.model_validate(spec)
-        return summarise(prob, [{"id": "x", "family_index": 0, "start": 0, "status": "failed",
-                                 "error": "EquilibriumError: no equilibrium at stroke 3 deg", "verified": {}}])
+        return summarise(
+            prob,
+            [
+                {
+                    "id": "x",
+                    "family_index": 0,
+                    "start": 0,
+                    "status": "failed",
+                    "error": "EquilibriumError: no equilibrium at stroke 3 deg",
+                    "verified": {},
+                }
+            ],
+        )
 
     monkeypatch.setattr(optim, "optimise", all_fail)
     url = f"sqlite:///{tmp_path / 'jobs.sqlite'}"
@@ -163,8 +212,9 @@ def test_job_whose_every_case_failed_is_failed(tmp_path: Path, monkeypatch: pyte
     assert "no equilibrium at stroke 3 deg" in final["error"]
 
 
-def test_progress_lost_in_an_outage_is_written_with_the_verdict(tmp_path: Path,
-                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+def test_progress_lost_in_an_outage_is_written_with_the_verdict(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Issue 29 item 8: with the database out for every progress write (here: all of them, as at the very
     end of a job), the job once succeeded listed 3 of 12 cases and progress 3/12. The verdict now carries
     the final progress and every case (it failed before: progress {} and no cases listed)."""
@@ -209,8 +259,9 @@ def test_job_cancelled(tmp_path: Path) -> None:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("db", ["sqlite", "postgresql"])
-def test_restart_resumes_a_running_job_without_redoing_finished_cases(tmp_path: Path, db: str,
-                                                                      request: pytest.FixtureRequest) -> None:
+def test_restart_resumes_a_running_job_without_redoing_finished_cases(
+    tmp_path: Path, db: str, request: pytest.FixtureRequest
+) -> None:
     url = request.getfixturevalue("pg_url") if db == "postgresql" else ""
     srv = _server(tmp_path, database_url=url)
     with Client(srv.url, max_retries=0) as c:
@@ -237,7 +288,6 @@ def test_restart_resumes_a_running_job_without_redoing_finished_cases(tmp_path: 
 def test_costly_curve_runs_as_a_job_when_asked(tmp_path: Path) -> None:
     """Large models leave the request path: 413 naming the way out, or a job with 'Prefer: respond-async'."""
     import numpy as np
-
     from flexopt.model import Analysis
     from flexopt.model.scene import Scene
 
@@ -247,8 +297,7 @@ def test_costly_curve_runs_as_a_job_when_asked(tmp_path: Path) -> None:
             scene = c.template_scene("leaf-spring", points=5)
             r = httpx.post(f"{srv.url}/v1/frequency-curve", json={"scene": scene})
             assert r.status_code == 413 and "Prefer: respond-async" in r.json()["detail"]
-            r = httpx.post(f"{srv.url}/v1/frequency-curve", json={"scene": scene},
-                           headers={"Prefer": "respond-async"})
+            r = httpx.post(f"{srv.url}/v1/frequency-curve", json={"scene": scene}, headers={"Prefer": "respond-async"})
             assert r.status_code == 202 and r.headers["preference-applied"] == "respond-async", r.text
             assert r.json()["kind"] == "frequency-curve"
             job = _until(lambda: (j := c.optimisation(r.json()["id"])).status in ("succeeded", "failed") and j)

@@ -30,19 +30,46 @@ def _pendulum(g: float) -> dict:
     # along the hinge axis from a clamp to the body (GJ / L about y; its other stiffness meets the hinge's
     # constraints), swinging under gravity; the drive (the body's rotation about y) is free in the eigen analysis
     return {
-        "name": "hinged pendulum", "materials": [LIGHT],
-        "nodes": [{"name": "G0", "position": [0, -LB, 0]}, {"name": "P0", "position": [0, 0, 0]},
-                  {"name": "P1", "position": [0, 0, 0]}],
-        "bodies": [{"name": "bob", "mass": M, "center_of_mass": [0, 0, -D],
-                    "inertia": [[2e-4, 0, 0], [0, IYY, 0], [0, 0, 1.5e-4]], "nodes": ["P1"]}],
-        "elements": [{"kind": "beam", "name": "spring", "nodes": ["G0", "P1"], "material": "light",
-                      "section": {"kind": "general", "A": 1e-6, "Iy": 1e-12, "Iz": 1e-12, "J": J},
-                      "y_axis": [1, 0, 0], "segments": 2}],
+        "name": "hinged pendulum",
+        "materials": [LIGHT],
+        "nodes": [
+            {"name": "G0", "position": [0, -LB, 0]},
+            {"name": "P0", "position": [0, 0, 0]},
+            {"name": "P1", "position": [0, 0, 0]},
+        ],
+        "bodies": [
+            {
+                "name": "bob",
+                "mass": M,
+                "center_of_mass": [0, 0, -D],
+                "inertia": [[2e-4, 0, 0], [0, IYY, 0], [0, 0, 1.5e-4]],
+                "nodes": ["P1"],
+            }
+        ],
+        "elements": [
+            {
+                "kind": "beam",
+                "name": "spring",
+                "nodes": ["G0", "P1"],
+                "material": "light",
+                "section": {"kind": "general", "A": 1e-6, "Iy": 1e-12, "Iz": 1e-12, "J": J},
+                "y_axis": [1, 0, 0],
+                "segments": 2,
+            }
+        ],
         "joints": [{"kind": "hinge", "name": "pin", "nodes": ["P0", "P1"], "axis": [0, 1, 0]}],
         "supports": [{"node": "G0"}, {"node": "P0"}],
-        "stroke": {"kind": "rotation", "body": "bob", "axis": [0, 1, 0], "start": -1, "stop": 1, "points": 3,
-                   "drive": "free"},
-        "gravity": [0, 0, -g], "modes": 3,
+        "stroke": {
+            "kind": "rotation",
+            "body": "bob",
+            "axis": [0, 1, 0],
+            "start": -1,
+            "stop": 1,
+            "points": 3,
+            "drive": "free",
+        },
+        "gravity": [0, 0, -g],
+        "modes": 3,
     }
 
 
@@ -66,16 +93,34 @@ def test_slider_with_axial_spring():
     rounding."""
     L, A, m = 0.1, 1e-6, 0.5
     scene = {
-        "name": "slider", "materials": [LIGHT],
-        "nodes": [{"name": "G", "position": [-L, 0, 0]}, {"name": "S0", "position": [0, 0, 0]},
-                  {"name": "S1", "position": [0, 0, 0]}],
-        "bodies": [{"name": "carriage", "mass": m, "center_of_mass": [0, 0, 0.01],
-                    "inertia": [[1e-4, 0, 0], [0, 1e-4, 0], [0, 0, 1e-4]], "nodes": ["S1"]}],
+        "name": "slider",
+        "materials": [LIGHT],
+        "nodes": [
+            {"name": "G", "position": [-L, 0, 0]},
+            {"name": "S0", "position": [0, 0, 0]},
+            {"name": "S1", "position": [0, 0, 0]},
+        ],
+        "bodies": [
+            {
+                "name": "carriage",
+                "mass": m,
+                "center_of_mass": [0, 0, 0.01],
+                "inertia": [[1e-4, 0, 0], [0, 1e-4, 0], [0, 0, 1e-4]],
+                "nodes": ["S1"],
+            }
+        ],
         "elements": [{"kind": "truss", "name": "spring", "nodes": ["G", "S1"], "material": "light", "area": A}],
         "joints": [{"kind": "slider", "name": "guide", "nodes": ["S0", "S1"], "axis": [1, 0, 0]}],
         "supports": [{"node": "G"}, {"node": "S0"}],
-        "stroke": {"kind": "translation", "body": "carriage", "axis": [1, 0, 0], "start": -0.001, "stop": 0.001,
-                   "points": 3, "drive": "free"},
+        "stroke": {
+            "kind": "translation",
+            "body": "carriage",
+            "axis": [1, 0, 0],
+            "start": -0.001,
+            "stop": 0.001,
+            "points": 3,
+            "drive": "free",
+        },
         "modes": 1,
     }
     ref = math.sqrt(210e9 * A / L / (m + 1.0 * A * L / 3)) / (2 * math.pi)
@@ -105,23 +150,57 @@ def _four_bar(rigid=(), segments=2, stroke=True) -> dict:
     B0 = [A_ * math.cos(TH0), A_ * math.sin(TH0), 0.0]
     C0 = [*_rocker_point(TH0), 0.0]
     return {
-        "name": "four-bar", "materials": [STEEL],
-        "nodes": [{"name": n, "position": p} for n, p in (("A0", [0, 0, 0]), ("A1", [0, 0, 0]), ("B1", B0),
-                                                             ("B2", B0), ("C1", C0), ("C2", C0),
-                                                             ("D0", [D_, 0, 0]), ("D1", [D_, 0, 0]))],
-        "bodies": [{"name": "crank", "mass": 0.05, "center_of_mass": [B0[0] / 2, B0[1] / 2, 0],
-                    "inertia": [[1e-5, 0, 0], [0, 1e-5, 0], [0, 0, 1e-5]], "nodes": ["A1", "B1"]},
-                   {"name": "rocker", "mass": 0.08, "center_of_mass": [(C0[0] + D_) / 2, C0[1] / 2, 0],
-                    "inertia": [[2e-5, 0, 0], [0, 2e-5, 0], [0, 0, 2e-5]], "nodes": ["C1", "D1"]}],
-        "elements": [{"kind": "beam", "name": "coupler", "nodes": ["B2", "C2"], "material": "steel",
-                      "section": {"kind": "rectangular", "width": 0.005, "thickness": 0.002},
-                      "y_axis": [0, 0, 1], "segments": segments, "rigid": list(rigid)}],
-        "joints": [{"name": f"j{k}", "nodes": list(pair), "axis": [0, 0, 1]}
-                   for k, pair in (("A", ("A0", "A1")), ("B", ("B1", "B2")), ("C", ("C1", "C2")),
-                                   ("D", ("D0", "D1")))],
+        "name": "four-bar",
+        "materials": [STEEL],
+        "nodes": [
+            {"name": n, "position": p}
+            for n, p in (
+                ("A0", [0, 0, 0]),
+                ("A1", [0, 0, 0]),
+                ("B1", B0),
+                ("B2", B0),
+                ("C1", C0),
+                ("C2", C0),
+                ("D0", [D_, 0, 0]),
+                ("D1", [D_, 0, 0]),
+            )
+        ],
+        "bodies": [
+            {
+                "name": "crank",
+                "mass": 0.05,
+                "center_of_mass": [B0[0] / 2, B0[1] / 2, 0],
+                "inertia": [[1e-5, 0, 0], [0, 1e-5, 0], [0, 0, 1e-5]],
+                "nodes": ["A1", "B1"],
+            },
+            {
+                "name": "rocker",
+                "mass": 0.08,
+                "center_of_mass": [(C0[0] + D_) / 2, C0[1] / 2, 0],
+                "inertia": [[2e-5, 0, 0], [0, 2e-5, 0], [0, 0, 2e-5]],
+                "nodes": ["C1", "D1"],
+            },
+        ],
+        "elements": [
+            {
+                "kind": "beam",
+                "name": "coupler",
+                "nodes": ["B2", "C2"],
+                "material": "steel",
+                "section": {"kind": "rectangular", "width": 0.005, "thickness": 0.002},
+                "y_axis": [0, 0, 1],
+                "segments": segments,
+                "rigid": list(rigid),
+            }
+        ],
+        "joints": [
+            {"name": f"j{k}", "nodes": list(pair), "axis": [0, 0, 1]}
+            for k, pair in (("A", ("A0", "A1")), ("B", ("B1", "B2")), ("C", ("C1", "C2")), ("D", ("D0", "D1")))
+        ],
         "supports": [{"node": "A0"}, {"node": "D0"}],
         "stroke": {"kind": "rotation", "body": "crank", "axis": [0, 0, 1], "start": 0, "stop": 40, "points": 5}
-        if stroke else None,
+        if stroke
+        else None,
         "modes": 3,
     }
 
@@ -157,15 +236,22 @@ def test_four_bar_diagnosis_counts_the_kinematic_pairs():
     assert spins == ["B2", "C2"]
 
 
-@pytest.mark.parametrize("change, words", [
-    (lambda s: s["joints"].append({"name": "jX", "nodes": ["A1", "B1"], "axis": [0, 0, 1]}),
-     "both nodes of joint 'jX' are carried by body 'crank'"),
-    (lambda s: s["joints"].append({"name": "jY", "nodes": ["A0", "Q"], "axis": [0, 0, 1]}), "unknown node 'Q'"),
-    (lambda s: s["joints"].append({"name": "jZ", "nodes": ["A0", "A0"], "axis": [0, 0, 1]}), "to itself"),
-    (lambda s: s["joints"].append({"name": "coupler", "nodes": ["A0", "D0"], "axis": [0, 0, 1]}),
-     "also an element's name"),
-    (lambda s: s["joints"].append({"name": "jW", "nodes": ["A0", "D0"], "axis": [0, 0, 0]}), "zero vector"),
-])
+@pytest.mark.parametrize(
+    "change, words",
+    [
+        (
+            lambda s: s["joints"].append({"name": "jX", "nodes": ["A1", "B1"], "axis": [0, 0, 1]}),
+            "both nodes of joint 'jX' are carried by body 'crank'",
+        ),
+        (lambda s: s["joints"].append({"name": "jY", "nodes": ["A0", "Q"], "axis": [0, 0, 1]}), "unknown node 'Q'"),
+        (lambda s: s["joints"].append({"name": "jZ", "nodes": ["A0", "A0"], "axis": [0, 0, 1]}), "to itself"),
+        (
+            lambda s: s["joints"].append({"name": "coupler", "nodes": ["A0", "D0"], "axis": [0, 0, 1]}),
+            "also an element's name",
+        ),
+        (lambda s: s["joints"].append({"name": "jW", "nodes": ["A0", "D0"], "axis": [0, 0, 0]}), "zero vector"),
+    ],
+)
 def test_bad_joints(change, words):
     scene = _four_bar()
     change(scene)

@@ -5,7 +5,6 @@ kinetic-energy share in the spin of a rotor's centre of mass."""
 from __future__ import annotations
 
 import numpy as np
-
 from flexopt.model import Analysis, scene_from_dict, template
 
 

@@ -95,7 +95,7 @@ def _cycle(graph: dict[str, set[str]]) -> list[str] | None:
                 state[path.pop()] = 2
                 stack.pop()
             elif state.get(nxt) == 1:
-                return path[path.index(nxt):] + [nxt]
+                return path[path.index(nxt) :] + [nxt]
             elif not state.get(nxt):
                 state[nxt] = 1
                 path.append(nxt)
@@ -115,8 +115,10 @@ def test_the_reader_sees_every_kind_of_import(tmp_path: Path) -> None:
     assert "flexopt.model.scene" in g["flexopt.model.io"]  # `from . import scene as sc`, inside a function
     assert "flexopt.model.rotations" in g["flexopt.model.methods.taylor"]  # `from ..rotations import`, in functions
     f = tmp_path / "x.py"
-    f.write_text("import flexopt.model.scene.sub\n"
-                 "def g():\n    from flexopt.model import units, Analysis\n    import flexopt.optim as o\n")
+    f.write_text(
+        "import flexopt.model.scene.sub\n"
+        "def g():\n    from flexopt.model import units, Analysis\n    import flexopt.optim as o\n"
+    )
     known = {"flexopt.model", "flexopt.model.scene", "flexopt.model.units", "flexopt.optim"}
     assert _imports("flexopt.model.x", f, known) == known
 

@@ -14,7 +14,6 @@ import threading
 
 import numpy as np
 import pytest
-
 from flexopt.model import lapack, linalg
 
 pytestmark = pytest.mark.skipif(not linalg.available(), reason="the compiled drivers need a C compiler")
@@ -95,8 +94,10 @@ def test_threads_keep_their_own_workspace() -> None:
 
 def test_curve_path_does_not_import_scipy_linalg() -> None:
     """Issue 12 item 5: importing scipy.linalg costs 0.17-0.3 s of a command-line call's start-up."""
-    code = ("import sys; from flexopt.model import Analysis, template; "
-            "Analysis(template('leaf-spring')).frequency_curve(); print('scipy.linalg' in sys.modules)")
+    code = (
+        "import sys; from flexopt.model import Analysis, template; "
+        "Analysis(template('leaf-spring')).frequency_curve(); print('scipy.linalg' in sys.modules)"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
 
@@ -147,9 +148,19 @@ def _newton_system(sys_, banded: bool = False, pattern=None):
     from flexopt.model import linalg
 
     comp = np.argmax(sys_.Qa, axis=0)
-    return linalg.newton_system(sys_.n, sys_.drive, 0 if sys_.s.drive_kind == "rotation" else 1, sys_.free,
-                                sys_.block_pos, comp, np.asarray(sys_.s.drive_axis, dtype=float), sys_.scale,
-                                sys_.scale_free, pattern=pattern, banded=banded)
+    return linalg.newton_system(
+        sys_.n,
+        sys_.drive,
+        0 if sys_.s.drive_kind == "rotation" else 1,
+        sys_.free,
+        sys_.block_pos,
+        comp,
+        np.asarray(sys_.s.drive_axis, dtype=float),
+        sys_.scale,
+        sys_.scale_free,
+        pattern=pattern,
+        banded=banded,
+    )
 
 
 NEWTON_CASES = ["leaf-spring", "cross-spring-pivot", "parallel-leaf-spring", "double-cross-hinge"]
@@ -218,8 +229,10 @@ def test_banded_newton_solve_is_backward_stable(name: str) -> None:
         Afd = (ev.H + ev.chart)[f, d]
         checks = [(dxi[f], -ev.g[f] - Afd * dxi[d]), (tan[f], -Afd / dd[d])]
     else:
-        checks = [(dxi, np.concatenate([-ev.g[f], [s_target - dval]])),
-                  (tan, np.concatenate([np.zeros(len(f)), [1.0]]))]
+        checks = [
+            (dxi, np.concatenate([-ev.g[f], [s_target - dval]])),
+            (tan, np.concatenate([np.zeros(len(f)), [1.0]])),
+        ]
     for x, rhs in checks:
         assert backward(x, rhs) < 1e-13
     assert np.abs(dxi - dxi0).max() <= 1e-9 * np.abs(dxi0).max()
@@ -232,10 +245,18 @@ def test_banded_newton_solve_is_backward_stable(name: str) -> None:
     form = "reduced" if reduced else "bordered"
     kl, ku = ns.bands[form]
     lo = 5 + (sys_.n - 1) + 2 * len(sys_.block_pos) + (0 if reduced else 2 + sys_.n - 1)
-    assert tuple(ns.ip[lo:lo + 2]) == (kl, ku)
+    assert tuple(ns.ip[lo : lo + 2]) == (kl, ku)
     ns.ip[lo] = 0
-    narrow, _, _ = linalg.newton(ns, ev.H, ev.chart, ev.g, st.R[sys_.s.drive_master]
-                                 if sys_.s.drive_kind == "rotation" else None, h, s_target, dval)
+    narrow, _, _ = linalg.newton(
+        ns,
+        ev.H,
+        ev.chart,
+        ev.g,
+        st.R[sys_.s.drive_master] if sys_.s.drive_kind == "rotation" else None,
+        h,
+        s_target,
+        dval,
+    )
     x = narrow[f] if reduced else narrow
     assert backward(x, checks[0][1]) > 1e-8
 
@@ -246,10 +267,9 @@ def test_band_order_recovers_a_known_band() -> None:
     cliques can do better: each element block is full); a path graph to 1; its result is a permutation whose
     stated bandwidths are those of the reordered pattern; and on the templates' tangent patterns it is no
     wider than scipy.sparse.csgraph.reverse_cuthill_mckee (the library it stands in for, see its docstring)."""
+    from flexopt.model import Analysis, linalg, template
     from scipy.sparse import csr_matrix
     from scipy.sparse.csgraph import reverse_cuthill_mckee
-
-    from flexopt.model import Analysis, linalg, template
 
     def width(P: np.ndarray, perm: np.ndarray) -> tuple[int, int]:
         r, c = np.nonzero(P[np.ix_(perm, perm)])
@@ -267,8 +287,14 @@ def test_band_order_recovers_a_known_band() -> None:
     path = np.eye(40, dtype=bool) | np.eye(40, k=1, dtype=bool) | np.eye(40, k=-1, dtype=bool)
     s = rng.permutation(40)
     assert linalg.band_order(path[np.ix_(s, s)])[1:] == (1, 1)
-    for name in ["leaf-spring", "cross-spring-pivot", "parallel-leaf-spring", "three-fold-cross-hinge",
-                 "double-cross-hinge", "cartwheel-hinge"]:
+    for name in [
+        "leaf-spring",
+        "cross-spring-pivot",
+        "parallel-leaf-spring",
+        "three-fold-cross-hinge",
+        "double-cross-hinge",
+        "cartwheel-hinge",
+    ]:
         sys_ = Analysis(template(name)).system
         P = sys_.pattern()[np.ix_(sys_.free, sys_.free)]
         perm, kl, ku = linalg.band_order(P)
@@ -334,8 +360,15 @@ def test_compiled_newton_loop_equals_the_python_loop_bit_for_bit(name: str) -> N
     assert "at" in fast[-1].extra and "at" not in slow[-1].extra  # each route ran
     for a, b in zip(fast, slow):
         assert a.iterations == b.iterations and a.residual == b.residual and a.increment == b.increment
-        for x, y in ((a.state.X, b.state.X), (a.state.R, b.state.R), (a.tangent, b.tangent), (a.ev.g, b.ev.g),
-                     (a.ev.H, b.ev.H), (a.ev.e_beam, b.ev.e_beam), (a.ev.chart, b.ev.chart)):
+        for x, y in (
+            (a.state.X, b.state.X),
+            (a.state.R, b.state.R),
+            (a.tangent, b.tangent),
+            (a.ev.g, b.ev.g),
+            (a.ev.H, b.ev.H),
+            (a.ev.e_beam, b.ev.e_beam),
+            (a.ev.chart, b.ev.chart),
+        ):
             assert np.array_equal(x, y)
     assert np.abs(fast[-1].ev.chart).max() > 0  # a loaded state: the chart is not trivially zero
 
@@ -356,8 +389,11 @@ def test_compiled_newton_loop_fails_like_the_python_loop(name: str) -> None:
     rot = sys_.s.drive_kind == "rotation"
     bad = sys_.reference_state()
     bad.X[0, 0] = np.nan
-    cases = [(sys_.reference_state(), t, NewtonOptions(max_iter=m)) for t in ((0.8, 1.5) if rot else (0.02, 0.2))
-             for m in (3, 12)] + [(bad, 0.1 if rot else 0.001, NewtonOptions())]
+    cases = [
+        (sys_.reference_state(), t, NewtonOptions(max_iter=m))
+        for t in ((0.8, 1.5) if rot else (0.02, 0.2))
+        for m in (3, 12)
+    ] + [(bad, 0.1 if rot else 0.001, NewtonOptions())]
     messages = set()
     for start, target, opts in cases:
         out = []
@@ -445,9 +481,15 @@ print(json.dumps({"off": [s.native.assemble_call is None, s.native.update_call i
     np.testing.assert_allclose(res["hz"], ref, rtol=1e-8)
 
 
-LANCZOS_CASES = [("leaf-spring", {}), ("leaf-spring", {"segments": 40}), ("cross-spring-pivot", {}),
-                 ("parallel-leaf-spring", {}), ("three-fold-cross-hinge", {}), ("double-cross-hinge", {}),
-                 ("cartwheel-hinge", {"segments": 8})]  # the cartwheel's former default mesh
+LANCZOS_CASES = [
+    ("leaf-spring", {}),
+    ("leaf-spring", {"segments": 40}),
+    ("cross-spring-pivot", {}),
+    ("parallel-leaf-spring", {}),
+    ("three-fold-cross-hinge", {}),
+    ("double-cross-hinge", {}),
+    ("cartwheel-hinge", {"segments": 8}),
+]  # the cartwheel's former default mesh
 
 
 @pytest.mark.parametrize("name,params", LANCZOS_CASES)
@@ -469,8 +511,7 @@ def test_lanczos_pairs_equal_the_dense_solve(name: str, params: dict) -> None:
     k = an.structure.scene.modes + 2
     pts: dict = {}
     end = an.scene.stroke.values()[-1]
-    an.frequency_curve(np.array([0.0, end]), visit=lambda eq, m, lab: pts.setdefault(eq.stroke, eq),
-                       mesh_error=False)
+    an.frequency_curve(np.array([0.0, end]), visit=lambda eq, m, lab: pts.setdefault(eq.stroke, eq), mesh_error=False)
     assert len(pts) == 2
     for eq in pts.values():
         K = sys_.free_block(eq.ev.H)
@@ -551,8 +592,14 @@ def test_sturm_count_equals_the_number_of_eigenvalues_below_the_shift() -> None:
     lam = np.sort(np.linalg.eigvalsh(np.linalg.solve(L, np.linalg.solve(L, K).T)))
     lib = linalg._driver()[0]
     lib.sturm_count.restype = ctypes.c_longlong
-    lib.sturm_count.argtypes = [ctypes.c_longlong, ctypes.c_longlong, ctypes.c_void_p, ctypes.c_void_p,
-                                ctypes.c_double, ctypes.c_void_p]
+    lib.sturm_count.argtypes = [
+        ctypes.c_longlong,
+        ctypes.c_longlong,
+        ctypes.c_void_p,
+        ctypes.c_void_p,
+        ctypes.c_double,
+        ctypes.c_void_p,
+    ]
     for j in range(8):
         for sigma in (lam[j] * (1 + 1e-7), 0.5 * (lam[j] + lam[j + 1])):
             count = lib.sturm_count(n, kd, Kb.ctypes.data, Mb.ctypes.data, sigma, W.ctypes.data)

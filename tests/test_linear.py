@@ -51,6 +51,7 @@ def _split_leaf() -> dict:
 def _static_compliance(base: dict, at: float, h: float = 1e-3) -> float:
     """d(mid.z)/d(F_z at mid) by a static load case at stroke ``at`` (dead loads, model.loads): central
     difference of two equilibria (finite differences in tests only)."""
+
     def z(F: float) -> float:
         an = Analysis(scene_from_dict({**base, "loads": [{"node": "mid", "force": [0, 0, F]}]}))
         got: list = []
@@ -59,6 +60,7 @@ def _static_compliance(base: dict, at: float, h: float = 1e-3) -> float:
         i = s.node_names.index("mid")
         m = s.node_master[i]
         return float((got[-1].state.X[m] + got[-1].state.R[m] @ s.node_offset[i])[2])
+
     return (z(h) - z(-h)) / (2 * h)
 
 
@@ -93,8 +95,24 @@ def test_cli_and_http(capsys):
     from flexopt.service.api.app import create_app
     from flexopt.service.cli.main import main
 
-    assert main(["statespace", "--template", "leaf-spring", "--set", "segments=4", "--input", "tip.fz",
-                 "--output", "tip.z", "--bode", "1:100:3"]) == 0
+    assert (
+        main(
+            [
+                "statespace",
+                "--template",
+                "leaf-spring",
+                "--set",
+                "segments=4",
+                "--input",
+                "tip.fz",
+                "--output",
+                "tip.z",
+                "--bode",
+                "1:100:3",
+            ]
+        )
+        == 0
+    )
     out = json.loads(capsys.readouterr().out)
     assert out["static_gain"][0][0] == pytest.approx(L**3 / (12 * EI), rel=1e-9) and len(out["bode"]["magnitude"]) == 3
 
@@ -103,8 +121,10 @@ def test_cli_and_http(capsys):
     async def run():
         app = create_app()
         # the lifespan starts the runtime (worker pool) the route runs the model in
-        async with app.router.lifespan_context(app), httpx.AsyncClient(
-                transport=httpx.ASGITransport(app=app), base_url="http://127.0.0.1") as c:
+        async with (
+            app.router.lifespan_context(app),
+            httpx.AsyncClient(transport=httpx.ASGITransport(app=app), base_url="http://127.0.0.1") as c,
+        ):
             return await c.post("/v1/state-space", json={"scene": scene, "inputs": ["tip.fz"], "outputs": ["tip.z"]})
 
     r = asyncio.run(run())

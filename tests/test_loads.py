@@ -17,17 +17,44 @@ from .references import elastica_tip, tensioned_cantilever_stiffness
 E, G = 210e9, 79e9
 
 
-def _beam_scene(L: float, w: float, t: float, n: int, *, axis=(1, 0, 0), supports, stroke, density=7800.0,
-                bodies=(), loads=(), gravity=None, rigid=(), modes=2) -> dict:
+def _beam_scene(
+    L: float,
+    w: float,
+    t: float,
+    n: int,
+    *,
+    axis=(1, 0, 0),
+    supports,
+    stroke,
+    density=7800.0,
+    bodies=(),
+    loads=(),
+    gravity=None,
+    rigid=(),
+    modes=2,
+) -> dict:
     return {
         "name": "loaded",
         "materials": [{"name": "steel", "E": E, "G": G, "density": density, "allowable_stress": 1e9}],
         "nodes": [{"name": "A", "position": [0, 0, 0]}, {"name": "B", "position": list(L * np.array(axis))}],
         "bodies": list(bodies),
-        "elements": [{"kind": "beam", "name": "leaf", "nodes": ["A", "B"], "material": "steel",
-                      "section": {"kind": "rectangular", "width": w, "thickness": t}, "y_axis": [0, 1, 0],
-                      "segments": n, "rigid": list(rigid)}],
-        "supports": supports, "stroke": stroke, "loads": list(loads), "gravity": gravity, "modes": modes,
+        "elements": [
+            {
+                "kind": "beam",
+                "name": "leaf",
+                "nodes": ["A", "B"],
+                "material": "steel",
+                "section": {"kind": "rectangular", "width": w, "thickness": t},
+                "y_axis": [0, 1, 0],
+                "segments": n,
+                "rigid": list(rigid),
+            }
+        ],
+        "supports": supports,
+        "stroke": stroke,
+        "loads": list(loads),
+        "gravity": gravity,
+        "modes": modes,
     }
 
 
@@ -39,9 +66,16 @@ EI_E = E * W_E * T_E**3 / 12
 def _elastica(P: float, n: int, **extra) -> dict:
     # clamped at A: x, y, z, rx, rz supported and ry held by the drive (rotation about y at stroke 0), so the
     # drive reaction is the root's bending moment
-    return _beam_scene(L_E, W_E, T_E, n, supports=[{"node": "A", "dofs": ["x", "y", "z", "rx", "rz"]}],
-                       stroke={"kind": "rotation", "node": "A", "axis": [0, 1, 0], "start": -1, "stop": 1,
-                               "points": 3}, **extra, loads=[{"node": "B", "force": [0, 0, -P]}])
+    return _beam_scene(
+        L_E,
+        W_E,
+        T_E,
+        n,
+        supports=[{"node": "A", "dofs": ["x", "y", "z", "rx", "rz"]}],
+        stroke={"kind": "rotation", "node": "A", "axis": [0, 1, 0], "start": -1, "stop": 1, "points": 3},
+        **extra,
+        loads=[{"node": "B", "force": [0, 0, -P]}],
+    )
 
 
 def _tip(P: float, n: int):
@@ -76,9 +110,15 @@ def test_gravity_on_a_cantilever_is_the_uniform_load_deflection():
     (model.elements.beam_gravity_spec) give the exact nodal deflection of the linear problem; the tolerance
     1e-5 is the geometric nonlinearity at delta/L ~ 1e-3 (relative effect of order (delta/L)^2) plus margin."""
     g = 9.81
-    scene = _beam_scene(L_E, W_E, T_E, 4, supports=[{"node": "A", "dofs": ["x", "y", "z", "rx", "rz"]}],
-                        stroke={"kind": "rotation", "node": "A", "axis": [0, 1, 0], "start": -1, "stop": 1,
-                                "points": 3}, gravity=[0, 0, -g])
+    scene = _beam_scene(
+        L_E,
+        W_E,
+        T_E,
+        4,
+        supports=[{"node": "A", "dofs": ["x", "y", "z", "rx", "rz"]}],
+        stroke={"kind": "rotation", "node": "A", "axis": [0, 1, 0], "start": -1, "stop": 1, "points": 3},
+        gravity=[0, 0, -g],
+    )
     an = Analysis(scene_from_dict(scene))
     eq = reference_equilibrium(an.system, an.options)
     z = eq.state.X[an.structure.master_names.index("B")][2]
@@ -97,10 +137,16 @@ P_CR = math.pi**2 * E * (W_C * T_C**3 / 12) / L_C**2  # Euler load of a pinned-p
 def _column(P: float) -> dict:
     # pinned-pinned along x: A holds x, y, z (twist held by the drive about x), B holds y, z; inextensible
     # (rigid elongation), as the closed form assumes
-    return _beam_scene(L_C, W_C, T_C, 10, rigid=["elongation"],
-                       supports=[{"node": "A", "dofs": ["x", "y", "z"]}, {"node": "B", "dofs": ["y", "z"]}],
-                       stroke={"kind": "rotation", "node": "A", "axis": [1, 0, 0], "start": -1, "stop": 1,
-                               "points": 3}, loads=[{"node": "B", "force": [-P, 0, 0]}])
+    return _beam_scene(
+        L_C,
+        W_C,
+        T_C,
+        10,
+        rigid=["elongation"],
+        supports=[{"node": "A", "dofs": ["x", "y", "z"]}, {"node": "B", "dofs": ["y", "z"]}],
+        stroke={"kind": "rotation", "node": "A", "axis": [1, 0, 0], "start": -1, "stop": 1, "points": 3},
+        loads=[{"node": "B", "force": [-P, 0, 0]}],
+    )
 
 
 def test_column_frequency_falls_to_zero_at_the_euler_load():
@@ -125,11 +171,18 @@ L_P, W_P, T_P, M_P = 0.05, 0.01, 0.0002, 0.05
 def _pendulum(g: float) -> dict:
     # a leaf hanging from A along -z with a bob of mass M_P (no rotary inertia) at its tip; the leaf's
     # density 1 kg/m^3 makes its mass 1e-5 of the bob's (the closed form has a massless leaf)
-    return _beam_scene(L_P, W_P, T_P, 10, axis=(0, 0, -1), density=1.0,
-                       bodies=[{"name": "bob", "mass": M_P, "center_of_mass": [0, 0, -L_P], "nodes": ["B"]}],
-                       supports=[{"node": "A", "dofs": ["x", "y", "z", "rx", "ry"]}],
-                       stroke={"kind": "rotation", "node": "A", "axis": [0, 0, 1], "start": -1, "stop": 1,
-                               "points": 3}, gravity=[0, 0, -g])
+    return _beam_scene(
+        L_P,
+        W_P,
+        T_P,
+        10,
+        axis=(0, 0, -1),
+        density=1.0,
+        bodies=[{"name": "bob", "mass": M_P, "center_of_mass": [0, 0, -L_P], "nodes": ["B"]}],
+        supports=[{"node": "A", "dofs": ["x", "y", "z", "rx", "ry"]}],
+        stroke={"kind": "rotation", "node": "A", "axis": [0, 0, 1], "start": -1, "stop": 1, "points": 3},
+        gravity=[0, 0, -g],
+    )
 
 
 @pytest.mark.parametrize("g", [0.0, 9.81, 100.0])
@@ -146,9 +199,16 @@ def test_hanging_flexure_frequency_rises_with_gravity(g):
 # ----------------------------------------------------------------------------- loads along the stroke
 def _driven(load: dict, points=5) -> dict:
     # the seed-like leaf driven by an end rotation about y at B (A clamped), with a load on B
-    return _beam_scene(L_E, 0.01, 0.0005, 6, supports=[{"node": "A"}],
-                       stroke={"kind": "rotation", "node": "B", "axis": [0, 1, 0], "start": 0, "stop": 20,
-                               "points": points}, loads=[{"node": "B", **load}], modes=3)
+    return _beam_scene(
+        L_E,
+        0.01,
+        0.0005,
+        6,
+        supports=[{"node": "A"}],
+        stroke={"kind": "rotation", "node": "B", "axis": [0, 1, 0], "start": 0, "stop": 20, "points": points},
+        loads=[{"node": "B", **load}],
+        modes=3,
+    )
 
 
 def test_a_ramp_is_the_constant_load_at_each_stroke_point():
@@ -206,13 +266,19 @@ def test_load_gradient_is_the_energy_gradient():
 
 
 # ------------------------------------------------------------------------------------ input and methods
-@pytest.mark.parametrize("load, words", [
-    ({"node": "Q", "force": [1, 0, 0]}, "loads[0].node: unknown node 'Q'"),
-    ({"node": "B", "force": [1, 0, 0], "ramp": {"start": [0, 0, 0], "stop": [1, 0, 0]}}, "exactly one of 'force'"),
-    ({"node": "B", "point": [0, 0, 0], "force": [1, 0, 0]}, "'point' is for body loads"),
-    ({"node": "B", "table": {"stroke": [5, 20], "force": [[0, 0, 0], [1, 0, 0]]}}, "extend the table"),
-    ({"node": "B", "table": {"stroke": [0, 10, 20], "force": [[0, 0, 0], [1, 0, 0]]}}, "one force per stroke value"),
-])
+@pytest.mark.parametrize(
+    "load, words",
+    [
+        ({"node": "Q", "force": [1, 0, 0]}, "loads[0].node: unknown node 'Q'"),
+        ({"node": "B", "force": [1, 0, 0], "ramp": {"start": [0, 0, 0], "stop": [1, 0, 0]}}, "exactly one of 'force'"),
+        ({"node": "B", "point": [0, 0, 0], "force": [1, 0, 0]}, "'point' is for body loads"),
+        ({"node": "B", "table": {"stroke": [5, 20], "force": [[0, 0, 0], [1, 0, 0]]}}, "extend the table"),
+        (
+            {"node": "B", "table": {"stroke": [0, 10, 20], "force": [[0, 0, 0], [1, 0, 0]]}},
+            "one force per stroke value",
+        ),
+    ],
+)
 def test_bad_loads_are_one_line_naming_the_field(load, words):
     scene = _driven({"force": [0, 0, 0]})
     scene["loads"] = [load]

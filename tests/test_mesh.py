@@ -7,7 +7,6 @@ import math
 
 import numpy as np
 import pytest
-
 from flexopt.model import Analysis, template
 from flexopt.model.elements import HERMITE_MASS, beam_mass_spec
 
@@ -31,8 +30,9 @@ def test_beam_mass_of_a_rigid_motion_is_exact():
     # a straight segment along x of length l, mass m, centred offsets 0: a rigid rotation about z through
     # the left end moves every point with v = omega x s; kinetic energy m l^2 omega^2 / 6 (closed form)
     l, m = 0.3, 2.0
-    state = np.concatenate([[0, 0, 0], np.eye(3).ravel(order="F"), [0, 0, 0],
-                            [l, 0, 0], np.eye(3).ravel(order="F"), [0, 0, 0]])
+    state = np.concatenate(
+        [[0, 0, 0], np.eye(3).ravel(order="F"), [0, 0, 0], [l, 0, 0], np.eye(3).ravel(order="F"), [0, 0, 0]]
+    )
     const = np.zeros(21)
     const[0] = l
     const[1:10] = np.eye(3).ravel(order="F")
@@ -53,7 +53,8 @@ def test_zero_stroke_modes_at_10_segments_within_0p1_percent(name):
     rel = np.abs(coarse / fine - 1)
     assert rel.max() <= ref.MESH10_RTOL.rtol, (
         f"{name}: modes at 10 segments {coarse} vs 80 segments {fine}: {rel.max():.2e} > "
-        f"{ref.MESH10_RTOL.rtol} ({ref.MESH10_RTOL.source})")
+        f"{ref.MESH10_RTOL.rtol} ({ref.MESH10_RTOL.source})"
+    )
 
 
 def test_seed_leaf_at_10_segments_matches_closed_forms_within_0p1_percent():
@@ -73,7 +74,8 @@ def test_convergence_rate_is_fourth_order():
         err = np.array([abs(_zero_stroke_hz(name, int(m))[k] - fine) for m in n])
         slope = -np.polyfit(np.log(n), np.log(err), 1)[0]
         assert abs(slope - ref.MASS_ORDER.value) <= ref.MASS_ORDER.rtol * ref.MASS_ORDER.value, (
-            f"{name} mode {k + 1}: observed order {slope:.2f} from errors {err} ({ref.MASS_ORDER.source})")
+            f"{name} mode {k + 1}: observed order {slope:.2f} from errors {err} ({ref.MASS_ORDER.source})"
+        )
         assert math.isfinite(slope)
 
 
@@ -101,8 +103,12 @@ def test_every_exact_curve_estimates_its_mesh_error(name):
 #: the cartwheel's template puts segments // 2 on each half leaf) and the true error measured against it
 #: (python bench/bench_mesh_estimate.py: 55.7 %, 3.41 %, 633 %, 14.3 %). Before, the first three had no
 #: estimate and no warning, and the double cross (half mesh: 1 segment per member) reported 1.1 %.
-COARSE = [("folded-sheet-guide-5", 1, 24), ("wire-guide-5", 1, 32), ("cartwheel-hinge", 2, 64),
-          ("double-cross-hinge", 2, 64)]
+COARSE = [
+    ("folded-sheet-guide-5", 1, 24),
+    ("wire-guide-5", 1, 32),
+    ("cartwheel-hinge", 2, 64),
+    ("double-cross-hinge", 2, 64),
+]
 
 
 @pytest.mark.parametrize("name, n, n_ref", COARSE, ids=[f"{c[0]}-{c[1]}" for c in COARSE])
@@ -118,8 +124,10 @@ def test_a_mesh_too_coarse_to_halve_is_refined_for_its_estimate(name, n, n_ref):
     assert any(w.kind == "mesh" for w in c.warnings), c.warnings
 
 
-@pytest.mark.parametrize("name, method, points", [("cartwheel-hinge", "auto", 91), ("cartwheel-hinge", "hermite", 91),
-                                                  ("cross-spring-pivot", "fd1", 7)])
+@pytest.mark.parametrize(
+    "name, method, points",
+    [("cartwheel-hinge", "auto", 91), ("cartwheel-hinge", "hermite", 91), ("cross-spring-pivot", "fd1", 7)],
+)
 def test_a_fast_method_carries_the_exact_meshs_estimate(name, method, points):
     # before, the fast methods dropped mesh_error and the mesh warning (the cartwheel at 4 segments per half
     # leaf with auto: no warning, where the exact curve reports 11.4 % and is 8.8 % off)
@@ -131,8 +139,9 @@ def test_a_fast_method_carries_the_exact_meshs_estimate(name, method, points):
     assert fast.solver.get("auto_method", method) != "exact"  # the fast path ran, not the exact fallback
     # the same points solved exactly on both meshes: the exact curve's estimate to the Newton tolerance
     assert fast.mesh_error == pytest.approx(exact.mesh_error, rel=1e-6)
-    assert [w.message for w in fast.warnings if w.kind == "mesh"] == [w.message for w in exact.warnings
-                                                                      if w.kind == "mesh"]
+    assert [w.message for w in fast.warnings if w.kind == "mesh"] == [
+        w.message for w in exact.warnings if w.kind == "mesh"
+    ]
     assert fast.to_dict()["mesh_error"] == pytest.approx(exact.mesh_error, rel=1e-6)
 
 
@@ -171,11 +180,26 @@ def test_the_python_api_curve_carries_the_mesh_estimate(method):
 
 #: Converged references of the default-mesh test: Richardson's extrapolation (order 2) of two fine meshes
 #: (segments per member, the cartwheel's halved per half leaf), whose own error is O(h^2) of theirs.
-REFERENCE_MESHES = {"folded-sheet-guide-5": (16, 32), "folded-sheet-guide-6": (16, 32), "wire-guide-5": (16, 32),
-                    "wire-guide-parallel": (16, 32), "cartwheel-hinge": (48, 96)}
-DEFAULTS = ["leaf-spring", "parallel-leaf-spring", "cross-spring-pivot", "cartwheel-hinge", "three-fold-cross-hinge",
-            "double-cross-hinge", "topology-hinge", "wire-guide-5", "wire-guide-parallel", "folded-sheet-guide-5",
-            "folded-sheet-guide-6"]
+REFERENCE_MESHES = {
+    "folded-sheet-guide-5": (16, 32),
+    "folded-sheet-guide-6": (16, 32),
+    "wire-guide-5": (16, 32),
+    "wire-guide-parallel": (16, 32),
+    "cartwheel-hinge": (48, 96),
+}
+DEFAULTS = [
+    "leaf-spring",
+    "parallel-leaf-spring",
+    "cross-spring-pivot",
+    "cartwheel-hinge",
+    "three-fold-cross-hinge",
+    "double-cross-hinge",
+    "topology-hinge",
+    "wire-guide-5",
+    "wire-guide-parallel",
+    "folded-sheet-guide-5",
+    "folded-sheet-guide-6",
+]
 
 
 @pytest.mark.slow
@@ -189,8 +213,9 @@ def test_template_defaults_are_within_half_a_percent_of_converged(name):
 
     c = Analysis(template(name, points=5)).frequency_curve()
     n1, n2 = REFERENCE_MESHES.get(name, (24, 48))
-    f1, f2 = (Analysis(template(name, segments=n, points=5)).frequency_curve(mesh_error=False).parasitic_hz
-              for n in (n1, n2))
+    f1, f2 = (
+        Analysis(template(name, segments=n, points=5)).frequency_curve(mesh_error=False).parasitic_hz for n in (n1, n2)
+    )
     converged = f2 + (f2 - f1) / ((n2 / n1) ** 2 - 1.0)
     true = float(np.max(np.abs(c.parasitic_hz / converged - 1)))
     assert true <= MESH_RTOL, f"{name}: default mesh {true:.2%} from converged"

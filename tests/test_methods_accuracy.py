@@ -15,8 +15,14 @@ from flexopt.model.methods.accuracy import check_strokes, estimates, limit
 
 from .helpers import coarse
 
-TEMPLATES = ("leaf-spring", "parallel-leaf-spring", "cross-spring-pivot", "cartwheel-hinge",
-             "three-fold-cross-hinge", "double-cross-hinge")
+TEMPLATES = (
+    "leaf-spring",
+    "parallel-leaf-spring",
+    "cross-spring-pivot",
+    "cartwheel-hinge",
+    "three-fold-cross-hinge",
+    "double-cross-hinge",
+)
 FAST = ("fd1", "fd2", "manifold", "reduced")
 
 
@@ -56,8 +62,9 @@ def test_every_kept_point_meets_the_tolerance_and_the_rest_is_named(cases, name,
             assert c.status == "complete" and not c.failures
             continue
         assert c.status == "truncated"
-        assert np.abs(c.stroke).max() < np.abs(left_out).min() + 1e-9 or np.sign(left_out).min() != np.sign(
-            left_out).max(), "kept points run from stroke 0 outwards"
+        assert (
+            np.abs(c.stroke).max() < np.abs(left_out).min() + 1e-9 or np.sign(left_out).min() != np.sign(left_out).max()
+        ), "kept points run from stroke 0 outwards"
         firsts = sorted(f.stroke for f in c.failures if f.reason == "accuracy")
         for side in (left_out[left_out > 0], left_out[left_out < 0]):
             if len(side):
@@ -66,8 +73,15 @@ def test_every_kept_point_meets_the_tolerance_and_the_rest_is_named(cases, name,
         assert all("'hermite' or 'exact'" in f.message for f in c.failures)
 
 
-@pytest.mark.parametrize("name, method", [("cross-spring-pivot", "manifold"), ("three-fold-cross-hinge", "fd2"),
-                                          ("cartwheel-hinge", "fd1"), ("double-cross-hinge", "reduced")])
+@pytest.mark.parametrize(
+    "name, method",
+    [
+        ("cross-spring-pivot", "manifold"),
+        ("three-fold-cross-hinge", "fd2"),
+        ("cartwheel-hinge", "fd1"),
+        ("double-cross-hinge", "reduced"),
+    ],
+)
 def test_the_issues_negative_frequencies_are_cut_not_returned(cases, name, method):
     """The issue's cases: the expansion itself goes negative within +-45 deg (manifold on the pivot to
     -130,145 Hz, fd2 on the three-fold hinge to -5,325 Hz); the curve keeps none of those points and is
@@ -79,12 +93,15 @@ def test_the_issues_negative_frequencies_are_cut_not_returned(cases, name, metho
     assert c.parasitic_hz.min() > 0 and c.status == "truncated"
 
 
-@pytest.mark.parametrize("values, tolerance", [
-    (np.linspace(-200.0, 200.0, 7), 0.5),
-    (np.array([-200.0, -120.0, -40.0, 0.0, 40.0, 120.0, 200.0]), 0.2),
-    (np.array([-200.0, 10.0, 200.0]), 1.0),
-    (np.linspace(-30.0, 30.0, 7), 0.05),
-])
+@pytest.mark.parametrize(
+    "values, tolerance",
+    [
+        (np.linspace(-200.0, 200.0, 7), 0.5),
+        (np.array([-200.0, -120.0, -40.0, 0.0, 40.0, 120.0, 200.0]), 0.2),
+        (np.array([-200.0, 10.0, 200.0]), 1.0),
+        (np.linspace(-30.0, 30.0, 7), 0.05),
+    ],
+)
 def test_auto_on_short_curves_meets_its_tolerance_far_out(cases, values, tolerance):
     """auto on short grids (fewer than AUTO_MIN_POINTS per side: the expansions' turn) on the double cross
     hinge out to +-200 deg (issue 29: it picked fd2/fd1 and returned -11,836 Hz): whatever it picks, every

@@ -8,15 +8,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
-
 from flexopt.model import Analysis, scene_from_dict, template
+from flexopt.model.errors import FlexoptError
 from flexopt.model.methods import estimate_error, expansion_curve, frequency_curve
 from flexopt.model.methods.taylor import _eq_at, _prepare, modal_derivatives
-from flexopt.model.errors import FlexoptError
 from flexopt.model.modal import modes_at
 from flexopt.model.rotations import skew
 from flexopt.model.statics import solve_point
+from scipy.spatial.transform import Rotation
 
 from .helpers import scale_units, scene_dict
 
@@ -158,13 +157,16 @@ def test_symmetric_leaf_first_order_is_flat(analyses, exact_curves):
     assert abs(fd1.parasitic_hz[-1] / ex.parasitic_hz[-1] - 1) > 0.2
 
 
-@pytest.mark.parametrize("name, h, tol", [
-    # exact-curve second difference with Richardson extrapolation (h, h/2): truncation O(h^4); rounding
-    # of the exact eigenvalues (~1e-10 relative) / (h^2 curvature) sets the tolerance
-    ("leaf-spring", 1.0, 1e-4),
-    ("cross-spring-pivot", 0.2, 2e-3),
-    ("parallel-leaf-spring", 4e-4, 2e-2),
-])
+@pytest.mark.parametrize(
+    "name, h, tol",
+    [
+        # exact-curve second difference with Richardson extrapolation (h, h/2): truncation O(h^4); rounding
+        # of the exact eigenvalues (~1e-10 relative) / (h^2 curvature) sets the tolerance
+        ("leaf-spring", 1.0, 1e-4),
+        ("cross-spring-pivot", 0.2, 2e-3),
+        ("parallel-leaf-spring", 4e-4, 2e-2),
+    ],
+)
 def test_fd2_curvature_matches_exact(analyses, name, h, tol):
     """d2(omega^2)/d s^2 at stroke 0 from fd2 equals the exact curve's (central differences of exact).
 
@@ -182,24 +184,28 @@ def test_fd2_curvature_matches_exact(analyses, name, h, tol):
 
     ref = (4 * curv(h / 2) - curv(h)) / 3
     md = _prepare(an).md
-    i = int(np.argmin(np.where(np.array(md.labels[: an.scene.modes]) == "parasitic",
-                               md.omega2[: an.scene.modes], np.inf)))
+    i = int(
+        np.argmin(np.where(np.array(md.labels[: an.scene.modes]) == "parasitic", md.omega2[: an.scene.modes], np.inf))
+    )
     got = md.gamma2[i]
     assert abs(got / ref - 1) < tol, f"{name}: fd2 curvature {got:.6g} vs exact {ref:.6g}"
 
 
-@pytest.mark.parametrize("name, method, frac, bound", [
-    # measured max relative errors (bench/bench_methods.py, regression pins) times about 3
-    ("leaf-spring", "fd2", 1 / 3, 3e-3),  # measured 7.4e-4 over +-15 deg
-    ("leaf-spring", "fd2", 1.0, 5e-2),  # measured 1.9e-2 over +-45 deg
-    ("leaf-spring", "manifold", 1 / 9, 5e-3),  # measured 1.3e-3 over +-5 deg
-    ("leaf-spring", "reduced", 1 / 9, 5e-3),  # measured 1.3e-3 over +-5 deg
-    ("parallel-leaf-spring", "fd2", 1.0, 5e-2),  # measured 1.6e-2
-    ("parallel-leaf-spring", "manifold", 1 / 3, 1e-2),  # measured 3.0e-3
-    ("parallel-leaf-spring", "reduced", 1 / 9, 1e-1),  # measured 2.7e-2
-    ("cross-spring-pivot", "fd2", 1.0, 0.3),  # measured 0.18
-    ("cross-spring-pivot", "reduced", 1 / 9, 0.2),  # measured 0.064 over +-5 deg
-])
+@pytest.mark.parametrize(
+    "name, method, frac, bound",
+    [
+        # measured max relative errors (bench/bench_methods.py, regression pins) times about 3
+        ("leaf-spring", "fd2", 1 / 3, 3e-3),  # measured 7.4e-4 over +-15 deg
+        ("leaf-spring", "fd2", 1.0, 5e-2),  # measured 1.9e-2 over +-45 deg
+        ("leaf-spring", "manifold", 1 / 9, 5e-3),  # measured 1.3e-3 over +-5 deg
+        ("leaf-spring", "reduced", 1 / 9, 5e-3),  # measured 1.3e-3 over +-5 deg
+        ("parallel-leaf-spring", "fd2", 1.0, 5e-2),  # measured 1.6e-2
+        ("parallel-leaf-spring", "manifold", 1 / 3, 1e-2),  # measured 3.0e-3
+        ("parallel-leaf-spring", "reduced", 1 / 9, 1e-1),  # measured 2.7e-2
+        ("cross-spring-pivot", "fd2", 1.0, 0.3),  # measured 0.18
+        ("cross-spring-pivot", "reduced", 1 / 9, 0.2),  # measured 0.064 over +-5 deg
+    ],
+)
 def test_fast_methods_error_bounds(analyses, exact_curves, name, method, frac, bound):
     """Each expansion (every requested point, before the accuracy rule of model/methods/accuracy.py cuts
     it) within its measured error of the exact curve over the stated stroke range."""
@@ -252,13 +258,16 @@ def test_degenerate_pair_square_bar():
         assert err < bound, f"{m}: {err:.3g}"
 
 
-@pytest.mark.parametrize("name, tol", [
-    ("leaf-spring", 1e-9),
-    ("cross-spring-pivot", 1e-9),
-    # the exact method's own stroke-0 eigenvalue of this stiff, thin model differs by 3.4e-9 between the
-    # two unit systems (measured), which bounds every method built on it
-    ("parallel-leaf-spring", 1e-8),
-])
+@pytest.mark.parametrize(
+    "name, tol",
+    [
+        ("leaf-spring", 1e-9),
+        ("cross-spring-pivot", 1e-9),
+        # the exact method's own stroke-0 eigenvalue of this stiff, thin model differs by 3.4e-9 between the
+        # two unit systems (measured), which bounds every method built on it
+        ("parallel-leaf-spring", 1e-8),
+    ],
+)
 def test_units_invariance(name, tol):
     """The same scene in m-kg-s and in mm-tonne-s (tests/helpers.scale_units) gives the same Hz.
 
@@ -275,10 +284,13 @@ def test_units_invariance(name, tol):
         assert err < (1e-6 if m == "reduced" else tol), f"{name} {m}: {err:.3g}"
 
 
-@pytest.mark.parametrize("kwargs, words", [
-    ({"method": "taylor"}, "unknown method"),
-    ({"method": "fd2", "tolerance": 0.0}, "tolerance must be positive"),
-])
+@pytest.mark.parametrize(
+    "kwargs, words",
+    [
+        ({"method": "taylor"}, "unknown method"),
+        ({"method": "fd2", "tolerance": 0.0}, "tolerance must be positive"),
+    ],
+)
 def test_bad_arguments(analyses, kwargs, words):
     """Errors name the fix."""
     with pytest.raises(FlexoptError, match=words):

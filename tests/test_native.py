@@ -7,7 +7,6 @@ from __future__ import annotations
 import subprocess
 
 import pytest
-
 from flexopt.model import assembly, kernels, linalg, statics
 from flexopt.model.elements import rotation_update_spec
 
@@ -32,18 +31,23 @@ def test_every_native_source_has_its_definitions_here() -> None:
 
 
 @needs_cc
-@pytest.mark.parametrize("file,label,defines,prelude",
-                         [(f, *v) for f, vs in _variants().items() for v in vs],
-                         ids=lambda x: x if isinstance(x, str) else None)
-def test_native_source_compiles_without_warnings(tmp_path, file: str, label: str, defines: tuple,
-                                                 prelude: str) -> None:
+@pytest.mark.parametrize(
+    "file,label,defines,prelude",
+    [(f, *v) for f, vs in _variants().items() for v in vs],
+    ids=lambda x: x if isinstance(x, str) else None,
+)
+def test_native_source_compiles_without_warnings(tmp_path, file: str, label: str, defines: tuple, prelude: str) -> None:
     """gcc (or $CC) with the builds' own flags (model.kernels.FLAGS: ``-Wall -Wextra``) and ``-Werror``, to an
     object file: a warning fails the test with the compiler's message."""
     src = tmp_path / file
     src.write_text(kernels.native_source(file, defines, prelude))
     flags = [f for f in kernels.FLAGS if f != "-shared"]
-    proc = subprocess.run([CC, *flags, "-Werror", "-c", str(src), "-o", str(tmp_path / "out.o")],
-                          capture_output=True, text=True, check=False)
+    proc = subprocess.run(
+        [CC, *flags, "-Werror", "-c", str(src), "-o", str(tmp_path / "out.o")],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     assert proc.returncode == 0, proc.stderr
 
 
@@ -86,7 +90,6 @@ def test_native_off_switches_every_compiled_part_off(monkeypatch) -> None:
     are not offered; outside it they run again. Checked by counting the calls, so an off() that switched nothing
     off fails here (the comparisons themselves would then compare the C route with itself and pass)."""
     import numpy as np
-
     from flexopt.model import Analysis, template
     from flexopt.model.assembly import NativeRoute
     from flexopt.model.statics import _point_loop
@@ -98,8 +101,9 @@ def test_native_off_switches_every_compiled_part_off(monkeypatch) -> None:
     calls: list[str] = []
     for name in ("evaluate", "mass", "update", "hessian_derivative", "call"):
         orig = getattr(NativeRoute, name)
-        monkeypatch.setattr(NativeRoute, name,
-                            lambda self, *a, _orig=orig, _name=name: calls.append(_name) or _orig(self, *a))
+        monkeypatch.setattr(
+            NativeRoute, name, lambda self, *a, _orig=orig, _name=name: calls.append(_name) or _orig(self, *a)
+        )
     st = sys_.reference_state()
     step = np.full(sys_.n, 1e-3)
 

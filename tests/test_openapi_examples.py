@@ -44,8 +44,10 @@ def _scan() -> tuple[list[tuple[str, str, str, Any]], list[str]]:
                         missing.append(f"{method.upper()} {path}: path parameter '{p['name']}' has no example")
                     filled = filled.replace("{" + p["name"] + "}", str(p.get("example")))
             if not content.get("examples"):
-                missing.append(f"{method.upper()} {path}: a JSON body without examples (Swagger UI would make one "
-                               "up from the schema)")
+                missing.append(
+                    f"{method.upper()} {path}: a JSON body without examples (Swagger UI would make one "
+                    "up from the schema)"
+                )
                 continue
             out += [(method, filled, name, ex["value"]) for name, ex in content["examples"].items()]
     return out, missing
@@ -59,8 +61,9 @@ def test_every_json_body_has_examples() -> None:
 
 @pytest.fixture(scope="module")
 def url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    settings = Settings(data_dir=tmp_path_factory.mktemp("data"), executor="thread", max_jobs=1, job_workers=1,
-                        request_timeout=300)
+    settings = Settings(
+        data_dir=tmp_path_factory.mktemp("data"), executor="thread", max_jobs=1, job_workers=1, request_timeout=300
+    )
     with _Server(settings) as server:
         yield server.url
 

@@ -5,36 +5,52 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from pydantic import ValidationError
-
 from flexopt.model import Analysis, template
 from flexopt.model.errors import FlexoptError
 from flexopt.optim import Problem, cases, run_case
 from flexopt.optim.search import _Family
+from pydantic import ValidationError
 
-LEAF = {"families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]}}], "stroke": 20,
-        "samples": 5, "starts": 1, "max_iterations": 10}
+LEAF = {
+    "families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]}}],
+    "stroke": 20,
+    "samples": 5,
+    "starts": 1,
+    "max_iterations": 10,
+}
 
 
-@pytest.mark.parametrize("bad,words", [
-    ({"families": []}, "at least 1"),
-    ({"families": [{"template": "leaf-spring", "design": {"thickness": [6e-4, 3e-4]}}]}, "lower < upper"),
-    ({"families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, float("inf")]}}]}, "finite"),
-    ({"families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]},
-                    "fixed": {"thickness": 5e-4}}]}, "both designed and fixed"),
-    ({**LEAF, "samples": 2}, "greater than or equal to 3"),
-    ({**LEAF, "colour": "red"}, "Extra inputs"),
-])
+@pytest.mark.parametrize(
+    "bad,words",
+    [
+        ({"families": []}, "at least 1"),
+        ({"families": [{"template": "leaf-spring", "design": {"thickness": [6e-4, 3e-4]}}]}, "lower < upper"),
+        ({"families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, float("inf")]}}]}, "finite"),
+        (
+            {
+                "families": [
+                    {"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]}, "fixed": {"thickness": 5e-4}}
+                ]
+            },
+            "both designed and fixed",
+        ),
+        ({**LEAF, "samples": 2}, "greater than or equal to 3"),
+        ({**LEAF, "colour": "red"}, "Extra inputs"),
+    ],
+)
 def test_bad_problems_name_the_field(bad, words):
     with pytest.raises(ValidationError, match=words):
         Problem.model_validate(bad)
 
 
-@pytest.mark.parametrize("family,words", [
-    ({"template": "no-such", "design": {"x": [0, 1]}}, "unknown template 'no-such'"),
-    ({"template": "leaf-spring", "design": {"lenght": [0.05, 0.1]}}, r"no parameters \['lenght'\]"),
-    ({"template": "leaf-spring", "design": {"thickness": [1e-6, 2e-5]}}, "minimum manufacturable thickness"),
-])
+@pytest.mark.parametrize(
+    "family,words",
+    [
+        ({"template": "no-such", "design": {"x": [0, 1]}}, "unknown template 'no-such'"),
+        ({"template": "leaf-spring", "design": {"lenght": [0.05, 0.1]}}, r"no parameters \['lenght'\]"),
+        ({"template": "leaf-spring", "design": {"thickness": [1e-6, 2e-5]}}, "minimum manufacturable thickness"),
+    ],
+)
 def test_bad_families_get_a_clear_error(family, words):
     prob = Problem.model_validate({"families": [family]})
     with pytest.raises(FlexoptError, match=words):
@@ -47,9 +63,19 @@ def test_epigraph_constraint_jacobian_matches_finite_differences():
     truncation error is O(h^4) ~ 1e-9 and the rounding noise of re-solved equilibria and eigenvalues (about
     2e-8 relative) divided by the step stays near 1e-5, so 1e-4 absolute on constraints of order 1 is a
     bound that any missing derivative term (1e-2 or more) exceeds."""
-    prob = Problem.model_validate({"families": [{"template": "cross-spring-pivot", "design": {
-        "length": [0.03, 0.07], "thickness": [2e-4, 4e-4], "body_offset": [0.0, 0.02]}}],
-        "samples": 5, "max_drive": 1.0, "envelope": 0.06})
+    prob = Problem.model_validate(
+        {
+            "families": [
+                {
+                    "template": "cross-spring-pivot",
+                    "design": {"length": [0.03, 0.07], "thickness": [2e-4, 4e-4], "body_offset": [0.0, 0.02]},
+                }
+            ],
+            "samples": 5,
+            "max_drive": 1.0,
+            "envelope": 0.06,
+        }
+    )
     fam = _Family(prob, prob.families[0])
     x = np.array([0.4, 0.5, 0.3])
     ev = fam.evaluate(x)
@@ -62,8 +88,9 @@ def test_epigraph_constraint_jacobian_matches_finite_differences():
 
     for j in range(len(x)):
         fd = (4 * central(j, 2e-3) - central(j, 4e-3)) / 3
-        np.testing.assert_allclose(ev.jac[:, j], fd, rtol=1e-4, atol=1e-4,
-                                   err_msg=f"constraint gradients along {fam.names[j]}")
+        np.testing.assert_allclose(
+            ev.jac[:, j], fd, rtol=1e-4, atol=1e-4, err_msg=f"constraint gradients along {fam.names[j]}"
+        )
 
 
 def test_leaf_thickness_optimum_beats_a_grid_of_exact_curves():
@@ -88,8 +115,16 @@ def test_two_parameter_pivot_optimum_beats_a_grid_search():
     the optimiser's verified worst case is at least that of a 7 x 7 grid of feasible designs (exact
     31-point curves, stress checked), within 0.5 %."""
     # optimum against a grid on one mesh, the pivot's former default (tests.helpers.COARSE_MESH): any mesh
-    spec = {"families": [{"template": "cross-spring-pivot", "fixed": {"segments": 8},
-                          "design": {"length": [0.03, 0.07], "thickness": [1.5e-4, 4e-4]}}], "starts": 2}
+    spec = {
+        "families": [
+            {
+                "template": "cross-spring-pivot",
+                "fixed": {"segments": 8},
+                "design": {"length": [0.03, 0.07], "thickness": [1.5e-4, 4e-4]},
+            }
+        ],
+        "starts": 2,
+    }
     prob = Problem.model_validate(spec)
     best = max((run_case(c) for c in cases(prob)), key=lambda r: r["verified"].get("worst_hz", -1))
     assert best["status"] == "optimal", best["message"]
@@ -97,8 +132,9 @@ def test_two_parameter_pivot_optimum_beats_a_grid_search():
     grid_best = 0.0
     for L in np.linspace(0.03, 0.07, 7):
         for t in np.linspace(1.5e-4, 4e-4, 7):
-            c = Analysis(template("cross-spring-pivot", length=float(L), thickness=float(t), points=31,
-                                  segments=8)).frequency_curve()
+            c = Analysis(
+                template("cross-spring-pivot", length=float(L), thickness=float(t), points=31, segments=8)
+            ).frequency_curve()
             stress = max(float(np.max(v)) for v in c.max_von_mises.values())
             if c.status == "complete" and stress <= allow:
                 grid_best = max(grid_best, float(np.min(c.parasitic_hz)))
@@ -108,7 +144,9 @@ def test_two_parameter_pivot_optimum_beats_a_grid_search():
     # so; against its exact curve on the same 181 points
     ini = best["initial"]
     assert ini["method"] == "hermite" and ini["estimated_error"] <= prob.tolerance
-    ex = Analysis(template("cross-spring-pivot", segments=8, **best["x0"])).frequency_curve(stroke=np.array(ini["stroke"]))
+    ex = Analysis(template("cross-spring-pivot", segments=8, **best["x0"])).frequency_curve(
+        stroke=np.array(ini["stroke"])
+    )
     np.testing.assert_allclose(ini["parasitic_hz"], ex.parasitic_hz, rtol=prob.tolerance)
     assert ini["worst_hz"] == pytest.approx(float(np.min(ex.parasitic_hz)), rel=prob.tolerance)
 
@@ -153,9 +191,13 @@ def test_envelope_limits_the_optimum():
     """Without an envelope the pivot's best length is the upper bound (bench/bench_optim.py); a 30 mm sphere
     must stop it: the farthest point of the leaves (a leaf edge) lies on it (active constraint, to the search
     tolerance) and never outside."""
-    spec = {"families": [{"template": "cross-spring-pivot",
-                          "design": {"length": [0.03, 0.07], "thickness": [1.5e-4, 4e-4]}}],
-            "starts": 1, "envelope": 0.03}
+    spec = {
+        "families": [
+            {"template": "cross-spring-pivot", "design": {"length": [0.03, 0.07], "thickness": [1.5e-4, 4e-4]}}
+        ],
+        "starts": 1,
+        "envelope": 0.03,
+    }
     r = run_case(cases(spec)[0])
     assert r["status"] == "optimal", r["message"]
     assert "envelope" in r["optimality"]["active_kinds"]
@@ -179,9 +221,19 @@ def test_fast_screening_picks_the_best_estimated_start():
 # The audit's eight points (issue 16), one test each
 
 # the cartwheel at its former default mesh (tests.helpers.COARSE_MESH): these tests check gradients and starts
-CARTWHEEL = {"families": [{"template": "cartwheel-hinge", "design": {"thickness": [1e-4, 4e-4], "angle": [60, 120]},
-                           "fixed": {"segments": 8}}],
-             "stroke": 10, "samples": 3, "starts": 1, "verify_points": 31}
+CARTWHEEL = {
+    "families": [
+        {
+            "template": "cartwheel-hinge",
+            "design": {"thickness": [1e-4, 4e-4], "angle": [60, 120]},
+            "fixed": {"segments": 8},
+        }
+    ],
+    "stroke": 10,
+    "samples": 3,
+    "starts": 1,
+    "verify_points": 31,
+}
 
 
 def test_1_every_constraint_gradient_is_finite_at_zero_stress():
@@ -260,8 +312,13 @@ def test_3_stress_limits_are_smooth_rows_per_segment_end():
     """One row per segment end and sample (never the maximum over segments, whose kinks stall SLSQP), each a
     smooth function: its gradient matches central differences (the pivot's crossing, where the maximum over
     segments had its V-shaped kink at the optimum)."""
-    prob = Problem.model_validate({"families": [{"template": "cross-spring-pivot", "design": {
-        "crossing": [0.3, 0.7]}}], "samples": 3, "stroke": 30})
+    prob = Problem.model_validate(
+        {
+            "families": [{"template": "cross-spring-pivot", "design": {"crossing": [0.3, 0.7]}}],
+            "samples": 3,
+            "stroke": 30,
+        }
+    )
     fam = _Family(prob, prob.families[0])
     x = np.array([0.5])
     ev = fam.evaluate(x)
@@ -279,9 +336,15 @@ def test_4_unconverged_starts_are_reported_not_ranked():
     one has a residual within kkt_tolerance."""
     from flexopt.optim import summarise
 
-    spec = {"families": [{"template": "cross-spring-pivot", "design": {"length": [0.03, 0.07],
-                                                                       "thickness": [1.5e-4, 4e-4]}}],
-            "samples": 3, "starts": 1, "verify_points": 31, "refine_rounds": 0}
+    spec = {
+        "families": [
+            {"template": "cross-spring-pivot", "design": {"length": [0.03, 0.07], "thickness": [1.5e-4, 4e-4]}}
+        ],
+        "samples": 3,
+        "starts": 1,
+        "verify_points": 31,
+        "refine_rounds": 0,
+    }
     stopped = run_case(cases({**spec, "max_iterations": 1})[0])
     # one iteration: SLSQP stops at the limit, at a design that is either feasible (unconverged) or not
     assert stopped["status"] in ("unconverged", "infeasible"), stopped["message"]
@@ -300,9 +363,14 @@ def test_4_unconverged_starts_are_reported_not_ranked():
 def test_5_active_bounds_and_a_common_envelope_and_mass():
     """The pivot's length runs into its upper bound: the report says so (the bound's result, not the family's).
     A cylinder around the axis bounds it instead, and the problem's body_mass reaches every family."""
-    spec = {"families": [{"template": "cross-spring-pivot", "design": {"length": [0.03, 0.07],
-                                                                       "thickness": [1.5e-4, 4e-4]}}],
-            "samples": 3, "starts": 1, "verify_points": 31}
+    spec = {
+        "families": [
+            {"template": "cross-spring-pivot", "design": {"length": [0.03, 0.07], "thickness": [1.5e-4, 4e-4]}}
+        ],
+        "samples": 3,
+        "starts": 1,
+        "verify_points": 31,
+    }
     r = run_case(cases(spec)[0])
     assert r["optimality"]["active_bounds"] == {"length": "upper"}
     assert any("stopped by the design bounds length (upper)" in w["message"] for w in r["warnings"])
@@ -312,8 +380,15 @@ def test_5_active_bounds_and_a_common_envelope_and_mass():
     assert _extent(env["verified"]["scene"], radial=True) == pytest.approx(0.025, rel=1e-3)
     assert env["moving_mass"] == 0.05 and env["verified"]["scene"]["bodies"][0]["mass"] == 0.05
     with pytest.raises(FlexoptError, match="body_mass is set by the problem"):
-        p = Problem.model_validate({**spec, "body_mass": 0.05, "families": [
-            {"template": "cross-spring-pivot", "design": {"length": [0.03, 0.07]}, "fixed": {"body_mass": 0.1}}]})
+        p = Problem.model_validate(
+            {
+                **spec,
+                "body_mass": 0.05,
+                "families": [
+                    {"template": "cross-spring-pivot", "design": {"length": [0.03, 0.07]}, "fixed": {"body_mass": 0.1}}
+                ],
+            }
+        )
         _Family(p, p.families[0])
 
 
@@ -364,9 +439,18 @@ def test_cylinder_envelope_rows_match_finite_differences():
     """The envelope's rows (nodes and leaf edges in a cylinder around the axis) are algebraic in the design:
     their gradients along width, angle and crossing match central differences to rounding (quadratic
     functions: the O(h^2) truncation is below 1e-8 at h = 1e-4)."""
-    prob = Problem.model_validate({"families": [{"template": "cross-spring-pivot", "design": {
-        "width": [0.01, 0.04], "angle": [60, 120], "crossing": [0.3, 0.7]}}], "samples": 3,
-        "envelope": {"radius": 0.04, "half_height": 0.03}})
+    prob = Problem.model_validate(
+        {
+            "families": [
+                {
+                    "template": "cross-spring-pivot",
+                    "design": {"width": [0.01, 0.04], "angle": [60, 120], "crossing": [0.3, 0.7]},
+                }
+            ],
+            "samples": 3,
+            "envelope": {"radius": 0.04, "half_height": 0.03},
+        }
+    )
     fam = _Family(prob, prob.families[0])
     x = np.array([0.4, 0.3, 0.6])
     ev = fam.evaluate(x)
@@ -407,15 +491,28 @@ def test_summary_warns_of_unequal_payloads_and_a_missing_envelope():
 
     from flexopt.optim import summarise
 
-    prob = Problem.model_validate({"families": [
-        {"template": "cross-spring-pivot", "design": {"length": [0.03, 0.07]}, "fixed": {"body_mass": 0.2}},
-        {"template": "cartwheel-hinge", "design": {"length": [0.04, 0.14]}}]})
+    prob = Problem.model_validate(
+        {
+            "families": [
+                {"template": "cross-spring-pivot", "design": {"length": [0.03, 0.07]}, "fixed": {"body_mass": 0.2}},
+                {"template": "cartwheel-hinge", "design": {"length": [0.04, 0.14]}},
+            ]
+        }
+    )
 
     def result(i: int, hz: float, mass: float) -> dict:
-        return {"family_index": i, "start": 0, "status": "optimal", "message": "", "design": {"length": 0.05},
-                "verified": {"worst_hz": hz, "zero_stroke_hz": 2 * hz, "ratio": 0.5, "stress_ratio": 1.0},
-                "optimality": {"kkt_residual": 0.0, "active_bounds": {}, "active": []}, "moving_mass": mass,
-                "warnings": [], "seconds": 1.0}
+        return {
+            "family_index": i,
+            "start": 0,
+            "status": "optimal",
+            "message": "",
+            "design": {"length": 0.05},
+            "verified": {"worst_hz": hz, "zero_stroke_hz": 2 * hz, "ratio": 0.5, "stress_ratio": 1.0},
+            "optimality": {"kkt_residual": 0.0, "active_bounds": {}, "active": []},
+            "moving_mass": mass,
+            "warnings": [],
+            "seconds": 1.0,
+        }
 
     res = summarise(prob, [result(0, 30.0, 0.2), result(1, 20.0, 0.1)])
     assert [r["template"] for r in res["ranking"]] == ["cross-spring-pivot", "cartwheel-hinge"]
@@ -455,11 +552,25 @@ def test_the_verified_curves_own_warnings_reach_the_start():
 
     prob = Problem.model_validate(LEAF)
     fam = _Family(prob, prob.families[0])
-    verified = {"stress_ratio": 0.5, "warnings": [
-        {"kind": "validity", "message": "leaf: L/t = 8 is below 10", "element": "leaf", "stroke_range": None,
-         "value": 8.0},
-        {"kind": "stress", "message": "leaf above allowable", "element": "leaf", "stroke_range": [-20, 20],
-         "value": 1.1}]}
+    verified = {
+        "stress_ratio": 0.5,
+        "warnings": [
+            {
+                "kind": "validity",
+                "message": "leaf: L/t = 8 is below 10",
+                "element": "leaf",
+                "stroke_range": None,
+                "value": 8.0,
+            },
+            {
+                "kind": "stress",
+                "message": "leaf above allowable",
+                "element": "leaf",
+                "stroke_range": [-20, 20],
+                "value": 1.1,
+            },
+        ],
+    }
     out = _case_warnings(fam, 0, "optimal", "", verified, None)
     assert [(w.kind, w.element, w.value) for w in out] == [("validity", "leaf", 8.0)]
     assert "L/t = 8" in out[0].message and "start 0" in out[0].message

@@ -15,12 +15,18 @@ from flexopt.model import Analysis, template
 from flexopt.optim.pareto import ParetoSpec, drive_stiffness, pareto
 from flexopt.service.cli.main import main
 
-PIVOT = {"template": "cross-spring-pivot", "design": {"length": [0.03, 0.07], "thickness": [2e-4, 4e-4]},
-         "fixed": {"segments": 4}}  # a coarse mesh: the tests compare methods on the same mesh
+PIVOT = {
+    "template": "cross-spring-pivot",
+    "design": {"length": [0.03, 0.07], "thickness": [2e-4, 4e-4]},
+    "fixed": {"segments": 4},
+}  # a coarse mesh: the tests compare methods on the same mesh
 PROBLEM = {"families": [PIVOT], "stroke": 30, "samples": 5, "starts": 1, "verify_points": 31, "max_iterations": 20}
 HAS_PYMOO = importlib.util.find_spec("pymoo") is not None
-SPEC = {"problem": PROBLEM, "points": 4,
-        "check": {"population": 8, "generations": 4, "tolerance": 0.02} if HAS_PYMOO else None}
+SPEC = {
+    "problem": PROBLEM,
+    "points": 4,
+    "check": {"population": 8, "generations": 4, "tolerance": 0.02} if HAS_PYMOO else None,
+}
 TOL = PROBLEM.get("tolerance", 1e-3)  # the problem's tolerance (its default): search and verification
 
 
@@ -32,8 +38,11 @@ def _exact(design: dict, points: int) -> tuple[float, float, float]:
     assert c.status == "complete"
     vm = np.nan_to_num(np.array(list(c.max_von_mises.values())), nan=0.0)
     allow = min(m.allowable_stress for m in scene.materials) / 1.5
-    return float(np.min(c.parasitic_hz)), float(np.max(np.abs(c.drive_reaction))) / math.radians(30.0), \
-        float(np.max(vm)) / allow
+    return (
+        float(np.min(c.parasitic_hz)),
+        float(np.max(np.abs(c.drive_reaction))) / math.radians(30.0),
+        float(np.max(vm)) / allow,
+    )
 
 
 @pytest.mark.slow
@@ -47,6 +56,7 @@ def test_drive_stiffness_gradient_matches_finite_differences():
     k, grad = drive_stiffness(PROBLEM, design)
     assert k == pytest.approx(_exact(design, 5)[1], rel=1e-9)  # the same samples, the same equilibria
     for name, (lo, hi) in PIVOT["design"].items():
+
         def central(h: float, name: str = name) -> float:
             up, dn = dict(design), dict(design)
             up[name] += h
@@ -143,9 +153,17 @@ def test_figure_and_table(front, tmp_path):
 def test_cli_pareto_one_leaf(tmp_path, capsys):
     """One design parameter (a leaf's thickness; frequency and drive stiffness both rise with it): the front
     runs end to end through the CLI; JSON out, points ordered along the thickness."""
-    spec = {"problem": {"families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]},
-                                      "fixed": {"segments": 4}}], "stroke": 20, "samples": 5, "starts": 1,
-                        "verify_points": 31, "max_iterations": 10}, "points": 3}
+    spec = {
+        "problem": {
+            "families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]}, "fixed": {"segments": 4}}],
+            "stroke": 20,
+            "samples": 5,
+            "starts": 1,
+            "verify_points": 31,
+            "max_iterations": 10,
+        },
+        "points": 3,
+    }
     path = tmp_path / "spec.json"
     path.write_text(json.dumps(spec))
     assert main(["pareto", str(path), "--json", "--workers", "1"]) == 0
@@ -157,11 +175,14 @@ def test_cli_pareto_one_leaf(tmp_path, capsys):
     assert [p["worst_hz"] for p in pts] == sorted(p["worst_hz"] for p in pts)
 
 
-@pytest.mark.parametrize("bad,words", [
-    ({"problem": {"families": [PIVOT, PIVOT]}}, "problem.families: a front is drawn for one family"),
-    ({"problem": PROBLEM, "points": 1}, "points: Input should be greater than or equal to 2"),
-    ({"problem": PROBLEM, "colour": 1}, "colour: Extra inputs"),
-])
+@pytest.mark.parametrize(
+    "bad,words",
+    [
+        ({"problem": {"families": [PIVOT, PIVOT]}}, "problem.families: a front is drawn for one family"),
+        ({"problem": PROBLEM, "points": 1}, "points: Input should be greater than or equal to 2"),
+        ({"problem": PROBLEM, "colour": 1}, "colour: Extra inputs"),
+    ],
+)
 def test_cli_bad_spec_is_one_line_naming_the_field(tmp_path, capsys, bad, words):
     path = tmp_path / "spec.json"
     path.write_text(json.dumps(bad))
@@ -182,9 +203,18 @@ def test_front_against_stroke(tmp_path, capsys):
     frequency optimum at its stroke, its worst case and stress re-verified on an independent exact curve (1e-9,
     the same computation; stress within the limit to the search tolerance), and no point dominated: a longer
     stroke never keeps a higher worst case. The CLI draws and tabulates it."""
-    spec = {"problem": {"families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]},
-                                      "fixed": {"segments": 4}}], "samples": 5, "starts": 1, "verify_points": 31,
-                        "max_iterations": 10}, "points": 3, "against": "stroke", "strokes": [10, 40]}
+    spec = {
+        "problem": {
+            "families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]}, "fixed": {"segments": 4}}],
+            "samples": 5,
+            "starts": 1,
+            "verify_points": 31,
+            "max_iterations": 10,
+        },
+        "points": 3,
+        "against": "stroke",
+        "strokes": [10, 40],
+    }
     path = tmp_path / "spec.json"
     path.write_text(json.dumps(spec))
     assert main(["pareto", str(path), "--json", "--workers", "1", "--plot", str(tmp_path / "s.png")]) == 0
@@ -202,11 +232,14 @@ def test_front_against_stroke(tmp_path, capsys):
     assert (tmp_path / "s.png").stat().st_size > 10_000
 
 
-@pytest.mark.parametrize("extra,words", [
-    ({"against": "stroke"}, "strokes: with against 'stroke'"),
-    ({"strokes": [10, 20]}, "strokes: only with against 'stroke'"),
-    ({"against": "stroke", "strokes": [10, 20], "check": {}}, "check: the NSGA-II check covers"),
-])
+@pytest.mark.parametrize(
+    "extra,words",
+    [
+        ({"against": "stroke"}, "strokes: with against 'stroke'"),
+        ({"strokes": [10, 20]}, "strokes: only with against 'stroke'"),
+        ({"against": "stroke", "strokes": [10, 20], "check": {}}, "check: the NSGA-II check covers"),
+    ],
+)
 def test_stroke_spec_errors_name_the_field(extra, words):
     with pytest.raises(ValueError, match=words):
         ParetoSpec.model_validate({"problem": PROBLEM, **extra})

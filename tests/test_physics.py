@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 import pytest
-
 from flexopt.model import Analysis, scene_from_dict, template
 from flexopt.model.modal import modes_at
 from flexopt.model.statics import walk
@@ -124,8 +123,14 @@ def test_euler_buckling_truncates_the_curve():
     d_cr = math.pi**2 * ref.T**2 / (48 * ref.L)
     sc = _scene()
     d = sc.model_dump(mode="json")
-    d["stroke"] = {"kind": "translation", "node": "tip", "axis": [1, 0, 0], "start": -2.2 * d_cr, "stop": 0.0,
-                   "points": 12}
+    d["stroke"] = {
+        "kind": "translation",
+        "node": "tip",
+        "axis": [1, 0, 0],
+        "start": -2.2 * d_cr,
+        "stop": 0.0,
+        "points": 12,
+    }
     c = Analysis(scene_from_dict(d)).frequency_curve()
     assert c.status == "truncated"
     (f,) = c.failures
@@ -138,14 +143,22 @@ def test_euler_buckling_truncates_the_curve():
 def test_truss_reaction_is_exact():
     """A single truss pulled along its axis: elongation = displacement, so the force is EA d / L exactly."""
     E, A, L = 70e9, 1e-6, 0.5
-    scene = scene_from_dict({
-        "materials": [{"name": "al", "E": E, "G": 26e9, "density": 2700, "allowable_stress": 1e8}],
-        "nodes": [{"name": "a", "position": [0, 0, 0]}, {"name": "b", "position": [L, 0, 0]}],
-        "elements": [{"kind": "truss", "name": "bar", "nodes": ["a", "b"], "material": "al", "area": A}],
-        "supports": [{"node": "a"}, {"node": "b", "dofs": ["y", "z"]}],
-        "stroke": {"kind": "translation", "node": "b", "axis": [1, 0, 0], "start": -1e-3, "stop": 1e-3,
-                   "points": 5},
-    })
+    scene = scene_from_dict(
+        {
+            "materials": [{"name": "al", "E": E, "G": 26e9, "density": 2700, "allowable_stress": 1e8}],
+            "nodes": [{"name": "a", "position": [0, 0, 0]}, {"name": "b", "position": [L, 0, 0]}],
+            "elements": [{"kind": "truss", "name": "bar", "nodes": ["a", "b"], "material": "al", "area": A}],
+            "supports": [{"node": "a"}, {"node": "b", "dofs": ["y", "z"]}],
+            "stroke": {
+                "kind": "translation",
+                "node": "b",
+                "axis": [1, 0, 0],
+                "start": -1e-3,
+                "stop": 1e-3,
+                "points": 5,
+            },
+        }
+    )
     c = Analysis(scene).frequency_curve()
     assert c.status == "complete"
     np.testing.assert_allclose(c.drive_reaction, E * A * c.stroke / L, rtol=1e-9)  # exact up to rounding

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from flexopt.model import frequency_curve, template
 
 
@@ -67,8 +66,11 @@ def test_top_level_curve_is_the_model_curve(tmp_path) -> None:
     ref = frequency_curve(scene)
     path = tmp_path / "leaf.json"
     path.write_text(scene.model_dump_json())
-    for got in (flexopt.curve("leaf-spring", points=3, segments=4), flexopt.curve(json.loads(path.read_text())),
-                flexopt.curve(path)):
+    for got in (
+        flexopt.curve("leaf-spring", points=3, segments=4),
+        flexopt.curve(json.loads(path.read_text())),
+        flexopt.curve(path),
+    ):
         np.testing.assert_array_equal(got.parasitic_hz, ref.parasitic_hz)
 
 
@@ -89,7 +91,9 @@ def test_example_notebook_executes(tmp_path) -> None:
     from pathlib import Path
 
     nb = jupytext.read(Path(__file__).resolve().parent.parent / "examples" / "notebook.py")
-    client = nbclient.NotebookClient(nb, timeout=600, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}})
+    client = nbclient.NotebookClient(
+        nb, timeout=600, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}}
+    )
     client.execute()
     outputs = [o for cell in nb.cells if cell.cell_type == "code" for o in cell.get("outputs", [])]
     assert not [o for o in outputs if o.get("output_type") == "error"]

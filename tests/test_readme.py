@@ -46,7 +46,8 @@ def test_every_block_is_run_or_opts_out_for_a_listed_reason() -> None:
             continue
         reasons = b.mark.removeprefix("skip: ").split(", ")
         assert b.mark.startswith("skip: ") and set(reasons) <= OPT_OUT, (
-            f"{b}: marker '{b.mark}' is neither 'ci' nor 'skip: ' with reasons from {sorted(OPT_OUT)}")
+            f"{b}: marker '{b.mark}' is neither 'ci' nor 'skip: ' with reasons from {sorted(OPT_OUT)}"
+        )
 
 
 def _case(b: Block) -> None:
@@ -75,20 +76,27 @@ def test_ci_block_is_what_ci_runs() -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("block", [b for b in blocks(README) if b.lang == "sh" and b.mark != "ci"
-                                   and not _uses_server(b)], ids=str)
+@pytest.mark.parametrize(
+    "block", [b for b in blocks(README) if b.lang == "sh" and b.mark != "ci" and not _uses_server(b)], ids=str
+)
 def test_shell_block_runs(block: Block, tmp_path: Path) -> None:
     _case(block)
-    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}",
-           "MPLBACKEND": "Agg"}
+    env = {
+        **os.environ,
+        "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}",
+        "MPLBACKEND": "Agg",
+    }
     for command in _commands(block.body):
-        r = subprocess.run(["bash", "-c", command], cwd=tmp_path, env=env, capture_output=True, text=True,
-                           timeout=900, check=False)
+        r = subprocess.run(
+            ["bash", "-c", command], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900, check=False
+        )
         assert r.returncode == _expected_exit(command), (
-            f"{block}: `{command}` exited {r.returncode}, expected {_expected_exit(command)}\n{r.stderr[-2000:]}")
+            f"{block}: `{command}` exited {r.returncode}, expected {_expected_exit(command)}\n{r.stderr[-2000:]}"
+        )
 
 
 # --- blocks that talk to a server ---------------------------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def server_url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
@@ -97,15 +105,17 @@ def server_url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
 
     from .test_service import _Server
 
-    settings = Settings(data_dir=tmp_path_factory.mktemp("data"), max_concurrent=1, max_jobs=1, job_workers=1,
-                        request_timeout=300)
+    settings = Settings(
+        data_dir=tmp_path_factory.mktemp("data"), max_concurrent=1, max_jobs=1, job_workers=1, request_timeout=300
+    )
     with _Server(settings) as server:
         yield server.url
 
 
 def _job_id(output: str) -> str | None:
     m = re.search(r"^location: /v1/[a-z-]+/([0-9a-f-]+)", output, re.M | re.I) or re.search(
-        r'"id":\s*"([0-9a-f-]+)"', output)
+        r'"id":\s*"([0-9a-f-]+)"', output
+    )
     return m[1] if m else None
 
 
@@ -131,8 +141,14 @@ def test_curl_block_runs_against_a_server(block: Block, server_url: str, tmp_pat
                 assert job is not None, f"{block}: `{command}` names JOB_ID before any job was submitted"
                 command = command.replace("JOB_ID", job)
             # the HTTP status on a line of its own after the body (-w), so that every answer is checked
-            r = subprocess.run(["bash", "-c", command + " -w '\\n%{http_code}\\n'" if "> " not in command else
-                                command], cwd=tmp_path, capture_output=True, text=True, timeout=300, check=False)
+            r = subprocess.run(
+                ["bash", "-c", command + " -w '\\n%{http_code}\\n'" if "> " not in command else command],
+                cwd=tmp_path,
+                capture_output=True,
+                text=True,
+                timeout=300,
+                check=False,
+            )
             assert r.returncode == 0, f"{block}: `{command}` exited {r.returncode}: {r.stderr}"
             if "> " not in command:
                 body, status = r.stdout.rstrip("\n").rsplit("\n", 1)
@@ -149,10 +165,12 @@ def test_curl_block_runs_against_a_server(block: Block, server_url: str, tmp_pat
 @pytest.mark.parametrize("block", [b for b in _all() if b.lang == "python" and _uses_server(b)], ids=str)
 def test_python_block_runs_against_a_server(block: Block, server_url: str, tmp_path: Path) -> None:
     _case(block)
-    code = block.body.replace("http://127.0.0.1:8000", server_url).replace("localhost:8000",
-                                                                            server_url.removeprefix("http://"))
-    r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=900,
-                       check=False)
+    code = block.body.replace("http://127.0.0.1:8000", server_url).replace(
+        "localhost:8000", server_url.removeprefix("http://")
+    )
+    r = subprocess.run(
+        [sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=900, check=False
+    )
     try:
         assert r.returncode == 0, f"{block} failed:\n{r.stderr[-3000:]}"
     finally:

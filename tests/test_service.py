@@ -19,8 +19,8 @@ pytest.importorskip("fastapi")
 pytest.importorskip("uvicorn")
 
 import uvicorn  # noqa: E402
-
 from flexopt.service.api.app import create_app, openapi_json  # noqa: E402
+from flexopt.service.api.settings import Settings  # noqa: E402
 from flexopt.service.client import (  # noqa: E402
     Client,
     InvalidInput,
@@ -30,7 +30,6 @@ from flexopt.service.client import (  # noqa: E402
     Unauthorized,
 )
 from flexopt.service.client import ComputeTimeout as ClientTimeout  # noqa: E402
-from flexopt.service.api.settings import Settings  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -47,8 +46,9 @@ class _Server:
     def __init__(self, settings: Settings) -> None:
         self.port = _free_port()
         self.url = f"http://127.0.0.1:{self.port}"
-        config = uvicorn.Config(create_app(settings), host="127.0.0.1", port=self.port, log_level="warning",
-                                lifespan="on", ws="none")
+        config = uvicorn.Config(
+            create_app(settings), host="127.0.0.1", port=self.port, log_level="warning", lifespan="on", ws="none"
+        )
         self.server = uvicorn.Server(config)
         self.thread = threading.Thread(target=self.server.run, daemon=True)
 
@@ -94,6 +94,7 @@ def client(server: _Server) -> Iterator[Client]:
 
 
 # --- endpoints ---------------------------------------------------------------------------------------------
+
 
 def test_health(client: Client) -> None:
     h = client.health()
@@ -149,6 +150,7 @@ def test_diagnosis(client: Client, server: _Server) -> None:
 
 
 # --- errors ------------------------------------------------------------------------------------------------
+
 
 def test_invalid_scene_names_field(client: Client) -> None:
     scene = client.template_scene("leaf-spring")
@@ -260,7 +262,9 @@ def test_queue_waits_for_a_slot(start: Callable[..., _Server]) -> None:
 
 
 def test_problem_details_shape(server: _Server) -> None:
-    r = httpx.post(f"{server.url}/v1/frequency-curve", content=b"{not json", headers={"content-type": "application/json"})
+    r = httpx.post(
+        f"{server.url}/v1/frequency-curve", content=b"{not json", headers={"content-type": "application/json"}
+    )
     assert r.status_code == 422 and r.headers["content-type"] == "application/problem+json"
     body = r.json()
     assert set(body) == {"type", "title", "status", "detail", "errors"} and body["detail"]
@@ -268,10 +272,13 @@ def test_problem_details_shape(server: _Server) -> None:
 
 # --- client and schema -------------------------------------------------------------------------------------
 
+
 def test_client_import_is_light() -> None:
-    code = ("import sys, flexopt.client; "
-            "bad = [m for m in ('casadi', 'fastapi', 'uvicorn', 'model', 'starlette') if m in sys.modules]; "
-            "print(bad); sys.exit(1 if bad else 0)")
+    code = (
+        "import sys, flexopt.client; "
+        "bad = [m for m in ('casadi', 'fastapi', 'uvicorn', 'model', 'starlette') if m in sys.modules]; "
+        "print(bad); sys.exit(1 if bad else 0)"
+    )
     r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=60, check=False)
     assert r.returncode == 0, f"importing flexopt.client loaded {r.stdout.strip()} {r.stderr}"
 
@@ -279,7 +286,8 @@ def test_client_import_is_light() -> None:
 def test_openapi_committed_and_current() -> None:
     committed = (ROOT / "service" / "openapi.json").read_text()
     assert json.loads(committed) == json.loads(openapi_json()), (
-        "service/openapi.json is stale: regenerate with `python -m flexopt.service.api.app > service/openapi.json`")
+        "service/openapi.json is stale: regenerate with `python -m flexopt.service.api.app > service/openapi.json`"
+    )
 
 
 def test_cli_registers_serve() -> None:
@@ -325,8 +333,11 @@ def test_retry_honours_retry_after() -> None:
     def handler(request: httpx.Request) -> httpx.Response:
         calls.append(time.monotonic())
         if len(calls) == 1:
-            return httpx.Response(503, headers={"Retry-After": "0"},
-                                  json={"title": "Service unavailable", "status": 503, "detail": "busy"})
+            return httpx.Response(
+                503,
+                headers={"Retry-After": "0"},
+                json={"title": "Service unavailable", "status": 503, "detail": "busy"},
+            )
         return httpx.Response(200, json={"status": "ok", "version": "x", "api_version": "1", "methods": ["exact"]})
 
     with Client("http://test", transport=httpx.MockTransport(handler), backoff=5.0) as c:
@@ -336,8 +347,9 @@ def test_retry_honours_retry_after() -> None:
 
 def test_flexopt_serve_subprocess() -> None:
     port = _free_port()
-    proc = subprocess.Popen([sys.executable, "-m", "flexopt.service.cli", "serve", "--port", str(port), "--log-level",
-                             "warning"], cwd=ROOT)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "flexopt.service.cli", "serve", "--port", str(port), "--log-level", "warning"], cwd=ROOT
+    )
     try:
         deadline = time.monotonic() + 30
         while True:

@@ -15,22 +15,30 @@ import pytest
 pytest.importorskip("uvicorn")
 schemathesis = pytest.importorskip("schemathesis")
 
+from flexopt.service.api.settings import Settings  # noqa: E402
 from hypothesis import HealthCheck, settings  # noqa: E402
 from schemathesis.checks import not_a_server_error, response_schema_conformance  # noqa: E402
 
-from flexopt.service.api.settings import Settings  # noqa: E402
 from tests.test_service import _Server  # noqa: E402
 
 # The committed schema (kept equal to the app's by test_service.test_openapi_committed_and_current).
 schema = schemathesis.openapi.from_dict(
-    json.loads((Path(__file__).resolve().parents[1] / "service" / "openapi.json").read_text()))
+    json.loads((Path(__file__).resolve().parents[1] / "service" / "openapi.json").read_text())
+)
 
 
 @pytest.fixture(scope="module")
 def base_url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     # Small limits keep the heavy endpoints cheap if a generated scene happens to be valid.
-    with _Server(Settings(request_timeout=5.0, max_stroke_points=11, max_cost=2.0, cache_size=0,
-                          data_dir=tmp_path_factory.mktemp("data"))) as srv:
+    with _Server(
+        Settings(
+            request_timeout=5.0,
+            max_stroke_points=11,
+            max_cost=2.0,
+            cache_size=0,
+            data_dir=tmp_path_factory.mktemp("data"),
+        )
+    ) as srv:
         yield srv.url
 
 
@@ -70,9 +78,18 @@ def test_mutated_template_scenes_never_5xx(tmp_path_factory: pytest.TempPathFact
 
     rng = random.Random(13)
     seen: Counter[int] = Counter()
-    with _Server(Settings(executor="thread", request_timeout=5.0, max_cost=1.0, cache_size=0,
-                          data_dir=tmp_path_factory.mktemp("fuzz"))) as srv, httpx.Client(base_url=srv.url,
-                                                                                          timeout=60) as c:
+    with (
+        _Server(
+            Settings(
+                executor="thread",
+                request_timeout=5.0,
+                max_cost=1.0,
+                cache_size=0,
+                data_dir=tmp_path_factory.mktemp("fuzz"),
+            )
+        ) as srv,
+        httpx.Client(base_url=srv.url, timeout=60) as c,
+    ):
         names = [t["name"] for t in c.get("/v1/templates").json()]
         methods = c.get("/health").json()["methods"]
         bases = {n: c.post(f"/v1/templates/{n}/scene").json() for n in names}
@@ -86,8 +103,11 @@ def test_mutated_template_scenes_never_5xx(tmp_path_factory: pytest.TempPathFact
                         d = scene
                         for k in path[:-1]:
                             d = d[k]
-                        d[path[-1]] = rng.choice(EXTREMES) if isinstance(d[path[-1]], float) else rng.choice(
-                            (0, -1, 10**6, 2**63))
+                        d[path[-1]] = (
+                            rng.choice(EXTREMES)
+                            if isinstance(d[path[-1]], float)
+                            else rng.choice((0, -1, 10**6, 2**63))
+                        )
                     body = {"scene": scene, "method": method, "stroke": [0.0, 0.5 * rng.random()]}
                     r = c.post("/v1/frequency-curve", json=body)
                     seen[r.status_code] += 1
@@ -102,6 +122,7 @@ def test_mutated_template_scenes_never_5xx(tmp_path_factory: pytest.TempPathFact
 
 
 # -- the built-in templates as they come, deep nesting, unknown names, frequencies (issue 29) ------------------
+
 
 def _deep(depth: int) -> object:
     out: object = []
@@ -125,14 +146,23 @@ def test_templates_as_they_come_deep_nesting_and_names_never_5xx(tmp_path_factor
     1, 3 and 7: 500s on truss12 and on deep nesting; fast methods' negative frequencies as complete)."""
     import httpx
 
-    with _Server(Settings(executor="thread", request_timeout=20.0, max_cost=5.0, max_stroke_points=11,
-                          data_dir=tmp_path_factory.mktemp("templates"))) as srv, \
-            httpx.Client(base_url=srv.url, timeout=60) as c:
+    with (
+        _Server(
+            Settings(
+                executor="thread",
+                request_timeout=20.0,
+                max_cost=5.0,
+                max_stroke_points=11,
+                data_dir=tmp_path_factory.mktemp("templates"),
+            )
+        ) as srv,
+        httpx.Client(base_url=srv.url, timeout=60) as c,
+    ):
         names = [t["name"] for t in c.get("/v1/templates").json()]
         methods = c.get("/health").json()["methods"]
         scenes = {n: c.post(f"/v1/templates/{n}/scene").json() for n in names}
         bodies: list[tuple[str, dict]] = []
-        for n, scene in scenes.items():
+        for _n, scene in scenes.items():
             if scene.get("stroke"):  # a few points keep the exact method cheap
                 scene = {**scene, "stroke": {**scene["stroke"], "points": 5}}
             bodies += [("/v1/frequency-curve", {"scene": scene, "method": m}) for m in methods]
@@ -146,8 +176,11 @@ def test_templates_as_they_come_deep_nesting_and_names_never_5xx(tmp_path_factor
         bodies += [(route, {"scene": unknown}) for route in ("/v1/frequency-curve", "/v1/modes", "/v1/diagnosis")]
         for route, body in bodies:
             r = c.post(route, json=body)
-            what = (route, body.get("method"), body["scene"].get("name") if isinstance(body["scene"].get("name"),
-                                                                                       str) else "nested")
+            what = (
+                route,
+                body.get("method"),
+                body["scene"].get("name") if isinstance(body["scene"].get("name"), str) else "nested",
+            )
             assert r.status_code < 500 or r.status_code == 504, (*what, r.status_code, r.text[:300])
             if r.status_code >= 400:
                 assert r.json()["detail"].strip(), r.text
@@ -156,5 +189,8 @@ def test_templates_as_they_come_deep_nesting_and_names_never_5xx(tmp_path_factor
                 out = r.json()
                 bad = [f for f in _frequencies(out) if f is not None and not f >= 0]
                 assert not bad or out.get("warnings") or out.get("status") != "complete", (
-                    *what, "negative or NaN frequencies without a warning", bad[:3])
+                    *what,
+                    "negative or NaN frequencies without a warning",
+                    bad[:3],
+                )
         assert any(r == "/v1/frequency-curve" and b["scene"] is unknown for r, b in bodies)

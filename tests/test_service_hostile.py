@@ -32,12 +32,15 @@ def _unknown_names(nodes: int, pad: int = 0) -> dict:
     d = template("leaf-spring").model_dump(mode="json")
     node, el = d["nodes"][0], d["elements"][0]
     d["nodes"] = [{**node, "name": f"node_{i:05d}" + "a" * pad, "position": [i * 1e-3, 0, 0]} for i in range(nodes)]
-    d["elements"] = [{**el, "name": f"e{i}", "nodes": [f"nod_{i:05d}x" + "a" * pad, f"nxde_{i:05d}" + "a" * pad]}
-                     for i in range(nodes)]
+    d["elements"] = [
+        {**el, "name": f"e{i}", "nodes": [f"nod_{i:05d}x" + "a" * pad, f"nxde_{i:05d}" + "a" * pad]}
+        for i in range(nodes)
+    ]
     return d
 
 
 # -- item 3: one request froze every route ------------------------------------------------------------------
+
 
 def test_did_you_mean_work_is_bounded_per_scene(monkeypatch: pytest.MonkeyPatch) -> None:
     """Issue 29 item 3: every unknown name was compared with every node name (400 x 200 ratios here, 40,000
@@ -97,6 +100,7 @@ def test_scenes_are_validated_off_the_event_loop(client: httpx.Client, monkeypat
 
 # -- item 4: the cost limit and the compute slots -----------------------------------------------------------
 
+
 def _segments(name: str, segments: object, **scene: object) -> dict:
     d = template(name).model_dump(mode="json")
     for e in d["elements"]:
@@ -117,18 +121,31 @@ def test_auto_segments_costed_at_the_worst_mesh_they_may_reach() -> None:
     auto = Scene.model_validate(_segments("cross-spring-pivot", "auto", mesh_tolerance=1e-9))
     with pytest.raises(guards.TooCostly, match="'auto' may refine to 128 per beam"):
         guards.check_cost(auto, None, settings)
-    few = Scene.model_validate(_segments("leaf-spring", "auto", stroke={**template("leaf-spring").model_dump(
-        mode="json")["stroke"], "points": 3}))
+    few = Scene.model_validate(
+        _segments(
+            "leaf-spring", "auto", stroke={**template("leaf-spring").model_dump(mode="json")["stroke"], "points": 3}
+        )
+    )
     guards.check_cost(few, None, settings)  # a small auto request still fits
 
 
 def test_timed_out_request_frees_its_slot(tmp_path: Path) -> None:
     """Issue 29 item 4: a computation past the time limit is ended with its worker process, so the next
     request gets the slot (it failed before: 429 while the abandoned computation ran on)."""
-    settings = Settings(executor="process", max_concurrent=1, request_timeout=8.0, queue_timeout=0, max_cost=1e9,
-                        data_dir=tmp_path, api_keys="")
-    slow = {"scene": _segments("cross-spring-pivot", 128), "method": "exact",  # minutes of work
-            "stroke": [-45 + 0.09 * i for i in range(1001)]}
+    settings = Settings(
+        executor="process",
+        max_concurrent=1,
+        request_timeout=8.0,
+        queue_timeout=0,
+        max_cost=1e9,
+        data_dir=tmp_path,
+        api_keys="",
+    )
+    slow = {
+        "scene": _segments("cross-spring-pivot", 128),
+        "method": "exact",  # minutes of work
+        "stroke": [-45 + 0.09 * i for i in range(1001)],
+    }
     quick = {"scene": template("leaf-spring").model_dump(mode="json")}
     with _Server(settings) as srv, httpx.Client(base_url=srv.url, timeout=120) as c:
         assert c.post("/v1/diagnosis", json=quick).status_code == 200  # the worker is up
@@ -139,6 +156,7 @@ def test_timed_out_request_frees_its_slot(tmp_path: Path) -> None:
 
 
 # -- item 2: what the server retains; item 9: the cache per key ---------------------------------------------
+
 
 def test_response_cache_levels_off_in_bytes() -> None:
     """Issue 29 item 2: the response cache was bounded in entries only (256 curves with shapes, PNGs or GIFs
@@ -175,10 +193,16 @@ def test_result_cache_is_per_api_key(tmp_path: Path) -> None:
 
 # -- item 8: slow clients and oversized uploads -------------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def small_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[_Server]:
-    settings = Settings(executor="thread", data_dir=tmp_path_factory.mktemp("slow"), api_keys="", body_timeout=1.0,
-                        max_body_bytes=100_000)
+    settings = Settings(
+        executor="thread",
+        data_dir=tmp_path_factory.mktemp("slow"),
+        api_keys="",
+        body_timeout=1.0,
+        max_body_bytes=100_000,
+    )
     with _Server(settings) as srv:
         yield srv
 
@@ -192,8 +216,10 @@ def test_chunked_upload_past_the_limit_is_cut_at_the_limit(small_server: _Server
     """A chunked upload larger than the limit gets its 413 and the connection closed once the limit is passed:
     the server stops reading (it failed before: read to the end, a 50 MB upload 145 s, behind its 413)."""
     s = _connect(small_server)
-    s.sendall(b"POST /v1/diagnosis HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
-              b"Transfer-Encoding: chunked\r\n\r\n")
+    s.sendall(
+        b"POST /v1/diagnosis HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
+        b"Transfer-Encoding: chunked\r\n\r\n"
+    )
     chunk = b"%x\r\n%s\r\n" % (16_384, b" " * 16_384)
     sent = 0
     try:
@@ -212,8 +238,10 @@ def test_slow_body_gets_408_and_the_connection_closed(small_server: _Server) -> 
     """A client that announces a body and never sends it is answered 408 after body_timeout (1 s here) and
     disconnected (it failed before: the connection stayed open, the request waiting for good)."""
     s = _connect(small_server)
-    s.sendall(b"POST /v1/diagnosis HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
-              b"Content-Length: 500\r\n\r\n{\"scene\"")
+    s.sendall(
+        b"POST /v1/diagnosis HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
+        b'Content-Length: 500\r\n\r\n{"scene"'
+    )
     reply = b""
     while chunk := s.recv(65536):  # until the server closes (a socket timeout of 10 s fails the test)
         reply += chunk
@@ -223,11 +251,14 @@ def test_slow_body_gets_408_and_the_connection_closed(small_server: _Server) -> 
 
 # -- item 8: /ready tells the truth about the store and the disk --------------------------------------------
 
+
 def test_ready_503_when_the_sqlite_file_is_deleted(tmp_path: Path) -> None:
     """Deleting the SQLite file under a running server: /ready 503 naming it, and submissions 503 (it failed
     before: /ready 200, every later job failed after three lost runs)."""
-    with _Server(Settings(executor="thread", data_dir=tmp_path, api_keys="")) as srv, \
-            httpx.Client(base_url=srv.url, timeout=30) as c:
+    with (
+        _Server(Settings(executor="thread", data_dir=tmp_path, api_keys="")) as srv,
+        httpx.Client(base_url=srv.url, timeout=30) as c,
+    ):
         assert c.get("/ready").status_code == 200
         (tmp_path / "jobs.sqlite").unlink()
         r = c.get("/ready")
@@ -236,8 +267,7 @@ def test_ready_503_when_the_sqlite_file_is_deleted(tmp_path: Path) -> None:
         assert c.post("/v1/optimisations", json=spec).status_code == 503
 
 
-def test_ready_503_when_the_data_directory_cannot_be_written(tmp_path: Path,
-                                                              monkeypatch: pytest.MonkeyPatch) -> None:
+def test_ready_503_when_the_data_directory_cannot_be_written(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """A full disk (writes in the data directory fail with ENOSPC, simulated at open): /ready 503 naming the
     directory (it failed before: 200 while submissions got 503)."""
     import builtins
@@ -251,8 +281,10 @@ def test_ready_503_when_the_data_directory_cannot_be_written(tmp_path: Path,
             raise OSError(errno.ENOSPC, "No space left on device")
         return real_open(file, *args, **kw)
 
-    with _Server(Settings(executor="thread", data_dir=tmp_path, api_keys="")) as srv, \
-            httpx.Client(base_url=srv.url, timeout=30) as c:
+    with (
+        _Server(Settings(executor="thread", data_dir=tmp_path, api_keys="")) as srv,
+        httpx.Client(base_url=srv.url, timeout=30) as c,
+    ):
         assert c.get("/ready").status_code == 200
         monkeypatch.setattr(builtins, "open", full)
         r = c.get("/ready")

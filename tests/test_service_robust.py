@@ -23,8 +23,9 @@ import pytest
 uvicorn = pytest.importorskip("uvicorn")
 
 from flexopt.service.api.app import create_app, openapi_json  # noqa: E402
-from flexopt.service.logs import JsonLogFormatter  # noqa: E402
 from flexopt.service.api.settings import Settings  # noqa: E402
+from flexopt.service.logs import JsonLogFormatter  # noqa: E402
+
 from tests.test_service import _free_port, _Server  # noqa: E402
 
 
@@ -78,8 +79,9 @@ def test_wire_guides_with_fast_methods(url: str, name: str, method: str) -> None
     """Audit finding 1: a 500 on unmodified templates (a (5,) to (6,) broadcast in the fast methods). The wire
     guides keep the drive free in their eigen analysis, which the locked-drive Taylor and manifold methods
     cannot model (model/methods/auto.py): those answer 422 naming stroke.drive and the fix; auto computes."""
-    r = httpx.post(f"{url}/v1/frequency-curve", json={"scene": _scene(url, name, points=5), "method": method},
-                   timeout=60)
+    r = httpx.post(
+        f"{url}/v1/frequency-curve", json={"scene": _scene(url, name, points=5), "method": method}, timeout=60
+    )
     assert r.status_code != 500
     if method == "auto":
         assert r.status_code == 200, r.text
@@ -124,8 +126,9 @@ def _raw(port: int, requests: list[bytes]) -> list[bytes]:
             while b"\r\n\r\n" not in data:
                 data += s.recv(65536)
             head, _, body = data.partition(b"\r\n\r\n")
-            length = int(next(line.split(b":")[1] for line in head.split(b"\r\n")
-                              if line.lower().startswith(b"content-length")))
+            length = int(
+                next(line.split(b":")[1] for line in head.split(b"\r\n") if line.lower().startswith(b"content-length"))
+            )
             while len(body) < length:
                 body += s.recv(65536)
             out.append(head + b"\r\n\r\n" + body)
@@ -137,8 +140,9 @@ def test_wrong_content_type_415_and_bad_bytes_400(url: str) -> None:
     assert r.status_code == 415 and "application/json" in r.json()["detail"]
     r = httpx.post(f"{url}/v1/optimisations", data={"a": "b"})  # a form
     assert r.status_code == 415
-    r = httpx.post(f"{url}/v1/frequency-curve", content=b'{"scene": "\xff\xfe"}',
-                   headers={"Content-Type": "application/json"})
+    r = httpx.post(
+        f"{url}/v1/frequency-curve", content=b'{"scene": "\xff\xfe"}', headers={"Content-Type": "application/json"}
+    )
     assert r.status_code == 400 and "UTF-8" in r.json()["detail"]
     r = httpx.post(f"{url}/v1/templates/leaf-spring/scene")  # no body at all: fine
     assert r.status_code == 200
@@ -175,7 +179,8 @@ def test_request_id_and_structured_log(url: str, caplog: pytest.LogCaptureFixtur
         deadline = time.monotonic() + 10.0
         want = {"abc-123", other.headers["x-request-id"]}
         while time.monotonic() < deadline and not want <= {
-                getattr(rec, "request_id", None) for rec in caplog.records if getattr(rec, "event", None) == "request"}:
+            getattr(rec, "request_id", None) for rec in caplog.records if getattr(rec, "event", None) == "request"
+        }:
             time.sleep(0.05)
     assert r.headers["x-request-id"] == "abc-123" and len(other.headers["x-request-id"]) == 32
     recs = {rec.request_id: rec for rec in caplog.records if getattr(rec, "event", None) == "request"}

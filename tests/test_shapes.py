@@ -13,11 +13,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from flexopt.model import Analysis, template
 from flexopt.model.shapes import shapes_at
 from flexopt.service import plots
 from flexopt.service.cli.main import main
+
 from tests import references as ref
 from tests.helpers import coarse
 
@@ -54,8 +54,10 @@ def _master_vector(d: dict, mode: dict, masters: tuple[str, ...]) -> np.ndarray:
     return np.concatenate(out)
 
 
-@pytest.mark.parametrize("name, stroke", [("leaf-spring", 0.0), ("leaf-spring", 30.0),
-                                          ("parallel-leaf-spring", None), ("cross-spring-pivot", 20.0)])
+@pytest.mark.parametrize(
+    "name, stroke",
+    [("leaf-spring", 0.0), ("leaf-spring", 30.0), ("parallel-leaf-spring", None), ("cross-spring-pivot", 20.0)],
+)
 def test_modes_are_mass_normalised_against_the_models_mass_matrix(name: str, stroke: float | None) -> None:
     an = Analysis(template(name, points=3))
     if stroke is None:
@@ -116,7 +118,7 @@ def test_body_pose_and_stress_utilisation_are_reported() -> None:
     axis = np.asarray(spec.axis, dtype=float) / np.linalg.norm(spec.axis)
     com0 = np.asarray(an.scene.bodies[0].center_of_mass)
     assert (np.asarray(body["position"]) - com0) @ axis == pytest.approx(s_max, rel=1e-9)
-    for name, st in d["stress"].items():
+    for _name, st in d["stress"].items():
         assert st["utilisation"] == pytest.approx(st["von_mises"] / st["allowable"], rel=1e-12)
         assert 0 < st["utilisation"]
     # an allowable stress below the stress at that stroke must produce a stress warning
@@ -138,8 +140,26 @@ def test_cli_modes_json_plot_gif_and_vtk(tmp_path: Path, capsys: pytest.CaptureF
     from PIL import Image
 
     png, gif, vtk = tmp_path / "m.png", tmp_path / "m.gif", tmp_path / "vtk"
-    code = main(["modes", "--template", "leaf-spring", "--set", "points=3", "--set", "stroke=20", "--at-stroke", "10",
-                 "--json", "--plot", str(png), "--animate", str(gif), "--vtk", str(vtk)])
+    code = main(
+        [
+            "modes",
+            "--template",
+            "leaf-spring",
+            "--set",
+            "points=3",
+            "--set",
+            "stroke=20",
+            "--at-stroke",
+            "10",
+            "--json",
+            "--plot",
+            str(png),
+            "--animate",
+            str(gif),
+            "--vtk",
+            str(vtk),
+        ]
+    )
     assert code == 0
     d = json.loads(capsys.readouterr().out)
     assert d["stroke"] == 10.0 and set(d["nodes"]) >= {"root", "tip"} and len(d["modes"]) == 6
@@ -152,7 +172,8 @@ def test_cli_modes_json_plot_gif_and_vtk(tmp_path: Path, capsys: pytest.CaptureF
     assert len(files) == 3 and (vtk / "series.pvd").exists()
     mesh = meshio.read(files[1])  # stroke 0 of -20, 0, 20
     assert "mode_2_translation" in mesh.point_data and mesh.point_data["mode_2_hz"][0] == pytest.approx(
-        ref.TORSION_FREE_WARPING.value, rel=ref.TORSION_FREE_WARPING.rtol)
+        ref.TORSION_FREE_WARPING.value, rel=ref.TORSION_FREE_WARPING.rtol
+    )
     tip = np.argmin(np.linalg.norm(mesh.points - [ref.L, 0, 0], axis=1))
     assert np.linalg.norm(mesh.points[tip] - [ref.L, 0, 0]) < 1e-12, "stroke 0: the tip at its reference"
     assert "quad" in mesh.cells_dict and len(mesh.cells_dict["quad"]) == 10, "the leaf as 10 plate quads"
@@ -170,7 +191,6 @@ def test_http_modes_and_curve_shapes() -> None:
     import asyncio
 
     import httpx
-
     from flexopt.service.api.app import create_app
     from flexopt.service.api.settings import Settings
 
@@ -184,8 +204,9 @@ def test_http_modes_and_curve_shapes() -> None:
             d = r.json()
             assert d["modes"][1]["label"] == "parasitic"
             ref.TORSION_FREE_WARPING.check(d["modes"][1]["hz"])
-            r = await c.post("/v1/modes", json={"scene": scene, "at_stroke": 0, "mode": 1},
-                             headers={"Accept": "image/png"})
+            r = await c.post(
+                "/v1/modes", json={"scene": scene, "at_stroke": 0, "mode": 1}, headers={"Accept": "image/png"}
+            )
             assert r.status_code == 200 and r.headers["content-type"] == "image/png" and r.content[:4] == b"\x89PNG"
             r = await c.post("/v1/modes", json={"scene": scene, "at_stroke": 1e4})
             assert r.status_code == 422 and "no stable equilibrium" in r.json()["detail"]
@@ -233,18 +254,35 @@ def test_curve_plot_highlights_the_parasitic_and_marks_the_stress_limit(leaf: An
     util = next(line for line in ax2.get_lines() if line.get_label() == "leaf")
     assert np.allclose(util.get_ydata(), np.array(cv["max_von_mises"]["leaf"]) / cv["allowable_stress"]["leaf"])
     assert "w 40 mm" in fig._suptitle.get_text() and "t 0.5 mm" in fig._suptitle.get_text()
-    cv["warnings"] = [{"kind": "stress", "message": "member 'leaf' over the limit", "element": "leaf",
-                       "stroke_range": None, "value": 1.2}]
+    cv["warnings"] = [
+        {
+            "kind": "stress",
+            "message": "member 'leaf' over the limit",
+            "element": "leaf",
+            "stroke_range": None,
+            "value": 1.2,
+        }
+    ]
     fig = plots.curve_figure(cv, log=False)
     assert fig.axes[0].get_yscale() == "linear"
     assert any("over the limit" in t.get_text() for t in fig.texts), "warnings are shown on the figure"
 
 
 def test_curve_plot_of_a_curve_lost_at_once_says_why() -> None:
-    d = {"scene": "x", "method": "exact", "stroke": [], "stroke_unit": "deg", "stroke_kind": "rotation",
-         "parasitic_hz": [], "modes_hz": [], "mode_labels": [], "max_von_mises": {"leaf": []},
-         "allowable_stress": {"leaf": 1e8}, "warnings": [],
-         "failures": [{"reason": "unstable", "stroke": 0.1, "last_converged": 0.0, "message": "lost at 0.1 deg"}]}
+    d = {
+        "scene": "x",
+        "method": "exact",
+        "stroke": [],
+        "stroke_unit": "deg",
+        "stroke_kind": "rotation",
+        "parasitic_hz": [],
+        "modes_hz": [],
+        "mode_labels": [],
+        "max_von_mises": {"leaf": []},
+        "allowable_stress": {"leaf": 1e8},
+        "warnings": [],
+        "failures": [{"reason": "unstable", "stroke": 0.1, "last_converged": 0.0, "message": "lost at 0.1 deg"}],
+    }
     fig = plots.curve_figure(d)
     assert any("[truncated] lost at 0.1 deg" in t.get_text() for t in fig.texts)
 
@@ -288,8 +326,9 @@ def test_modes_carry_the_scene_checks_and_provenance() -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name, stroke", [("cartwheel-hinge", 45.0), ("cross-spring-pivot", -33.0),
-                                          ("parallel-leaf-spring", 0.01)])
+@pytest.mark.parametrize(
+    "name, stroke", [("cartwheel-hinge", 45.0), ("cross-spring-pivot", -33.0), ("parallel-leaf-spring", 0.01)]
+)
 def test_modes_at_a_stroke_are_the_curves_modes_there_with_its_labels(name: str, stroke: float) -> None:
     """Issue 26 item 3: ``modes --at-stroke`` showed other modes than the curve at that stroke (the cartwheel
     at 45 deg: the curve's sixth branch, 352 Hz, left out and a 2,116 Hz mode shown). The modes at a stroke

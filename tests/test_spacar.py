@@ -20,10 +20,13 @@ def _curve(scene, stroke):
     return Analysis(scene).frequency_curve(np.asarray(stroke, dtype=float), mesh_error=False)
 
 
-@pytest.mark.parametrize("fixture, numbering", [
-    ("seed_leaf_3node.dat", "X 3i-2, R 3i-1 (three SPACAR nodes per point)"),
-    ("seed_leaf_2node.dat", "X 2i-1, R 2i (two SPACAR nodes per point)"),
-])
+@pytest.mark.parametrize(
+    "fixture, numbering",
+    [
+        ("seed_leaf_3node.dat", "X 3i-2, R 3i-1 (three SPACAR nodes per point)"),
+        ("seed_leaf_2node.dat", "X 2i-1, R 2i (two SPACAR nodes per point)"),
+    ],
+)
 def test_hand_written_seed_leaf_is_the_native_leaf(fixture, numbering):
     """The hand-written seed leaf (numbers derived in the file's comments) in either numbering gives the native
     leaf-spring template's frequencies (4 segments, an independent path: rectangle -> section -> material)
@@ -38,16 +41,25 @@ def test_hand_written_seed_leaf_is_the_native_leaf(fixture, numbering):
     np.testing.assert_allclose(got.drive_reaction, ref.drive_reaction, rtol=1e-9)
     vm = next(iter(got.max_von_mises.values()))
     if fixture.startswith("seed_leaf_3"):  # with CROSSDIM, the section's geometry: stresses as the native leaf's
-        np.testing.assert_allclose(max(np.nanmax(v) for v in got.max_von_mises.values()),
-                                   max(np.nanmax(v) for v in ref.max_von_mises.values()), rtol=1e-6)
+        np.testing.assert_allclose(
+            max(np.nanmax(v) for v in got.max_von_mises.values()),
+            max(np.nanmax(v) for v in ref.max_von_mises.values()),
+            rtol=1e-6,
+        )
     else:
         assert np.all(np.isnan(vm)) and any("stresses are not available" in n for n in imp.notes)
 
 
-@pytest.mark.parametrize("name, numbering", [
-    ("cross-spring-pivot", 2), ("cross-spring-pivot", 3), ("folded-sheet-guide-5", 2), ("wire-guide-5", 3),
-    ("cartwheel-hinge", 2),
-])
+@pytest.mark.parametrize(
+    "name, numbering",
+    [
+        ("cross-spring-pivot", 2),
+        ("cross-spring-pivot", 3),
+        ("folded-sheet-guide-5", 2),
+        ("wire-guide-5", 3),
+        ("cartwheel-hinge", 2),
+    ],
+)
 def test_export_then_import_gives_the_same_frequencies(name, numbering):
     """Issue 28 item 5: importing the export gives the same frequencies to 1e-9 (stroke from 0: a SPACAR input
     starts at the reference), in both numberings; the drive left free in the eigen analysis (wire guide)
@@ -64,14 +76,20 @@ def test_export_then_import_gives_the_same_frequencies(name, numbering):
 def test_export_keeps_loads_and_gravity():
     """A ramped force and gravity survive the round trip (XF + DELXF, GRAVITY): same frequencies to 1e-9."""
     sc = template("leaf-spring", segments=4, points=3)
-    sc = scene_from_dict({**sc.model_dump(mode="json"), "stroke": {**sc.stroke.model_dump(mode="json"), "start": 0.0},
-                          "gravity": [0.0, 0.0, -9.81],
-                          "loads": [{"node": "tip", "ramp": {"start": [0.0, 0.0, -0.1], "stop": [0.2, 0.0, -0.3]}}]})
+    sc = scene_from_dict(
+        {
+            **sc.model_dump(mode="json"),
+            "stroke": {**sc.stroke.model_dump(mode="json"), "start": 0.0},
+            "gravity": [0.0, 0.0, -9.81],
+            "loads": [{"node": "tip", "ramp": {"start": [0.0, 0.0, -0.1], "stop": [0.2, 0.0, -0.3]}}],
+        }
+    )
     text = write_dat(sc)
     assert "DELXF" in text and "GRAVITY" in text
     back = scene_from_dict(read_dat(text).scene)
-    np.testing.assert_allclose(_curve(back, sc.stroke.values()).modes_hz, _curve(sc, sc.stroke.values()).modes_hz,
-                               rtol=1e-9)
+    np.testing.assert_allclose(
+        _curve(back, sc.stroke.values()).modes_hz, _curve(sc, sc.stroke.values()).modes_hz, rtol=1e-9
+    )
 
 
 def test_truss_of_seed_002_is_diagnosed_as_the_paper_says():
@@ -86,29 +104,41 @@ def test_truss_of_seed_002_is_diagnosed_as_the_paper_says():
     np.testing.assert_allclose(moves, [0.5] * 4, rtol=1e-9)
 
 
-@pytest.mark.parametrize("text, words", [
-    ("X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nFOO 1 2\n", "line 4: FOO: unknown keyword"),
-    ("X 1 0 0 0\nBEAM 1 1 2 3 4 0 1 0\n",
-     "line 2: BEAM: element 1: node 3 is used as a translational node but never declared"),
-    ("X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 1 0 0\n", "line 3: BEAM: element 1: Oy = (1.0, 0.0, 0.0) is parallel"),
-    ("X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nXF 4 1 2 3 4 5\n",
-     "line 4: XF: node 4 is rotational: a moment (5 values read)"),
-    ("X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nXF 4 0 1 0 0\n", "4 Euler-parameter values (before 2017)"),
-    ("X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nRLSE 1 3\n", "line 4: RLSE: released deformations"),
-    ("X 1 0 0 0\nX 3 1 0 0\nX 5 2 0 0\nBEAM 1 1 2 3 4 0 1 0\nBEAM 2 3 6 5 7 0 1 0\n",
-     "line 5: BEAM: element 2: translational node 3 carries two rotational nodes (4 and 6) that no HINGE joins"),
-    ("X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nDYNE 1 1 2 3 4 5 6\nESTIFF 1 1 1 1\n",
-     "line 5: ESTIFF: element 1 is a beam: give EA GJ EIy EIz"),
-    ("X 1 0 0 0\nX 2 1 two 0\n", "line 2: X: '2 1 two 0' is not a list of numbers"),
-])
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ("X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nFOO 1 2\n", "line 4: FOO: unknown keyword"),
+        (
+            "X 1 0 0 0\nBEAM 1 1 2 3 4 0 1 0\n",
+            "line 2: BEAM: element 1: node 3 is used as a translational node but never declared",
+        ),
+        ("X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 1 0 0\n", "line 3: BEAM: element 1: Oy = (1.0, 0.0, 0.0) is parallel"),
+        (
+            "X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nXF 4 1 2 3 4 5\n",
+            "line 4: XF: node 4 is rotational: a moment (5 values read)",
+        ),
+        ("X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nXF 4 0 1 0 0\n", "4 Euler-parameter values (before 2017)"),
+        ("X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nRLSE 1 3\n", "line 4: RLSE: released deformations"),
+        (
+            "X 1 0 0 0\nX 3 1 0 0\nX 5 2 0 0\nBEAM 1 1 2 3 4 0 1 0\nBEAM 2 3 6 5 7 0 1 0\n",
+            "line 5: BEAM: element 2: translational node 3 carries two rotational nodes (4 and 6) that no HINGE joins",
+        ),
+        (
+            "X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nDYNE 1 1 2 3 4 5 6\nESTIFF 1 1 1 1\n",
+            "line 5: ESTIFF: element 1 is a beam: give EA GJ EIy EIz",
+        ),
+        ("X 1 0 0 0\nX 2 1 two 0\n", "line 2: X: '2 1 two 0' is not a list of numbers"),
+    ],
+)
 def test_bad_lines_name_line_keyword_and_why(text, words):
     with pytest.raises(SceneError) as info:
         read_dat(text)
     assert words in str(info.value)
 
 
-BAD = ("X 1 0 0 0\nX 3 1 0 0\nX 5 2 0 0\nBEAM 1 1 2 3 4 0 1 0\nBEAM 2 3 6 5 7 0 1 0\nRLSE 1 3\nFOO 2\n"
-       "HINGE 3 4 6 0 0 1\n")
+BAD = (
+    "X 1 0 0 0\nX 3 1 0 0\nX 5 2 0 0\nBEAM 1 1 2 3 4 0 1 0\nBEAM 2 3 6 5 7 0 1 0\nRLSE 1 3\nFOO 2\nHINGE 3 4 6 0 0 1\n"
+)
 
 
 def test_every_unmappable_line_is_reported_at_once():
@@ -124,17 +154,23 @@ def test_every_unmappable_line_is_reported_at_once():
 def _strip_frame() -> dict:
     strip = {"kind": "rectangular", "width": 0.01, "thickness": 0.001}
     return {
-        "name": "four-bar", "materials": [{"name": "steel", "E": 210e9, "G": 79e9, "density": 7800,
-                                           "allowable_stress": 5e8}],
-        "nodes": [{"name": "A", "position": [0, 0, 0]}, {"name": "B1", "position": [0, 0.04, 0]},
-                  {"name": "B2", "position": [0, 0.04, 0]}, {"name": "C", "position": [0.08, 0.04, 0]},
-                  {"name": "D", "position": [0.08, 0, 0]}],
-        "elements": [{"kind": "beam", "name": n, "nodes": e, "material": "steel", "section": strip,
-                      "y_axis": [0, 0, 1]}
-                     for n, e in (("crank", ["A", "B1"]), ("coupler", ["B2", "C"]), ("rocker", ["D", "C"]))],
+        "name": "four-bar",
+        "materials": [{"name": "steel", "E": 210e9, "G": 79e9, "density": 7800, "allowable_stress": 5e8}],
+        "nodes": [
+            {"name": "A", "position": [0, 0, 0]},
+            {"name": "B1", "position": [0, 0.04, 0]},
+            {"name": "B2", "position": [0, 0.04, 0]},
+            {"name": "C", "position": [0.08, 0.04, 0]},
+            {"name": "D", "position": [0.08, 0, 0]},
+        ],
+        "elements": [
+            {"kind": "beam", "name": n, "nodes": e, "material": "steel", "section": strip, "y_axis": [0, 0, 1]}
+            for n, e in (("crank", ["A", "B1"]), ("coupler", ["B2", "C"]), ("rocker", ["D", "C"]))
+        ],
         "joints": [{"name": "pin", "nodes": ["B1", "B2"], "axis": [0, 0, 1]}],
         "supports": [{"node": "A", "dofs": ["x", "y", "z", "rx", "ry"]}, {"node": "D"}],
-        "stroke": {"kind": "rotation", "node": "A", "axis": [0, 0, 1], "start": 0, "stop": 5, "points": 6}}
+        "stroke": {"kind": "rotation", "node": "A", "axis": [0, 0, 1], "start": 0, "stop": 5, "points": 6},
+    }
 
 
 def test_four_bar_with_one_hinge_is_the_native_frame():
@@ -213,10 +249,22 @@ def test_spacar_light_tables_port_line_by_line():
     scene = load_scene(DATA / "seed_leaf_light.yaml")
     ref = _curve(template("leaf-spring", segments=4), [0.0, 11.25, 22.5, 33.75, 45.0])
     np.testing.assert_allclose(_curve(scene, scene.stroke.values()).modes_hz, ref.modes_hz, rtol=1e-9)
-    eprops = [{"elems": [1], "emod": 210e9, "smod": 79e9, "dens": 7800, "cshape": "rect", "dim": [0.04, 0.0005],
-               "orien": [0, 1, 0], "nbeams": 4, "flex": [1, 2, 3, 4, 5, 6]}]
-    imp = spacar_light(np.array([[0, 0, 0], [0.1, 0, 0]]), np.array([[1, 2]]), {1: {"fix": True},
-                                                                                2: {"rot_y": np.pi / 4}}, eprops)
+    eprops = [
+        {
+            "elems": [1],
+            "emod": 210e9,
+            "smod": 79e9,
+            "dens": 7800,
+            "cshape": "rect",
+            "dim": [0.04, 0.0005],
+            "orien": [0, 1, 0],
+            "nbeams": 4,
+            "flex": [1, 2, 3, 4, 5, 6],
+        }
+    ]
+    imp = spacar_light(
+        np.array([[0, 0, 0], [0.1, 0, 0]]), np.array([[1, 2]]), {1: {"fix": True}, 2: {"rot_y": np.pi / 4}}, eprops
+    )
     assert scene_from_dict(imp.scene).stroke.stop == pytest.approx(45.0, rel=1e-12)
     with pytest.raises(SceneError, match=r"nprops\(2\): fields \['moment'\] are not mapped"):
         spacar_light([[0, 0, 0], [0.1, 0, 0]], [[1, 2]], [{"fix": True}, {"moment": [0, 1, 0]}], eprops)

@@ -49,6 +49,21 @@ def test_mypy(tmp_path: Path) -> None:
         os.symlink(ROOT / sub, stage / sub)
     shutil.copy(ROOT / "pyproject.toml", tmp_path / "pyproject.toml")
     env = {**os.environ, "MYPYPATH": str(tmp_path)}
-    run = _run([*cmd, "--config-file", str(tmp_path / "pyproject.toml"), "--cache-dir", str(tmp_path / ".mypy"),
-                "-p", "flexopt.service", "-p", "flexopt.optim", "-p", "flexopt.model"], tmp_path, env)
+    run = _run(
+        [
+            *cmd,
+            "--config-file",
+            str(tmp_path / "pyproject.toml"),
+            "--cache-dir",
+            str(tmp_path / ".mypy"),
+            "-p",
+            "flexopt.service",
+            "-p",
+            "flexopt.optim",
+            "-p",
+            "flexopt.model",
+        ],
+        tmp_path,
+        env,
+    )
     assert run.returncode == 0, run.stdout[-5000:] + run.stderr[-2000:]

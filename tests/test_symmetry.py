@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from flexopt.model import Analysis, scene_from_dict, template
 from flexopt.model.symmetry import stroke_symmetry
 
@@ -79,8 +78,9 @@ def _tilted_axis(d: dict) -> dict:
     return d
 
 
-@pytest.mark.parametrize("change", [_nudge_node, _one_thicker, _com_off, _twisted_section, _partial_support,
-                                    _tilted_axis])
+@pytest.mark.parametrize(
+    "change", [_nudge_node, _one_thicker, _com_off, _twisted_section, _partial_support, _tilted_axis]
+)
 def test_any_asymmetry_means_no_symmetry(change) -> None:  # noqa: ANN001
     assert stroke_symmetry(scene_from_dict(_pivot())) is not None
     assert stroke_symmetry(scene_from_dict(change(_pivot()))) is None
@@ -144,8 +144,14 @@ def test_one_side_and_image_indices_match_their_plain_definitions() -> None:
         return out
 
     rng = np.random.default_rng(7)
-    grids = [np.linspace(-0.785, 0.785, 91), np.linspace(-0.785, 0.785, 90), np.linspace(0, 0.5, 7),
-             np.linspace(-0.3, 0.0, 5), np.array([-0.2, -0.2 * (1 + 3e-16), 0.1, 0.2]), np.zeros(1)]
+    grids = [
+        np.linspace(-0.785, 0.785, 91),
+        np.linspace(-0.785, 0.785, 90),
+        np.linspace(0, 0.5, 7),
+        np.linspace(-0.3, 0.0, 5),
+        np.array([-0.2, -0.2 * (1 + 3e-16), 0.1, 0.2]),
+        np.zeros(1),
+    ]
     grids += [np.round(rng.uniform(-1, 1, rng.integers(1, 40)), rng.integers(1, 4)) for _ in range(50)]
     for g in grids:
         pos = one_side(g)

@@ -17,8 +17,15 @@ import textwrap
 import pytest
 
 # every variable through which a BLAS, LAPACK or OpenMP library reads its thread count, and flexopt's own
-_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
-              "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS", "FLEXOPT_BLAS_THREADS")
+_VARIABLES = (
+    "OPENBLAS_NUM_THREADS",
+    "OMP_NUM_THREADS",
+    "MKL_NUM_THREADS",
+    "BLIS_NUM_THREADS",
+    "VECLIB_MAXIMUM_THREADS",
+    "NUMEXPR_NUM_THREADS",
+    "FLEXOPT_BLAS_THREADS",
+)
 pytestmark = pytest.mark.slow
 
 
@@ -39,8 +46,15 @@ def blas_counts(case: dict) -> dict:
 
 
 def _run(code: str, timeout: float = 300) -> dict:
-    out = subprocess.run([sys.executable, "-c", code], env=_clean_env(), capture_output=True, check=False,
-                         text=True, timeout=timeout, cwd=_ROOT)
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        env=_clean_env(),
+        capture_output=True,
+        check=False,
+        text=True,
+        timeout=timeout,
+        cwd=_ROOT,
+    )
     assert out.returncode == 0, out.stderr[-3000:]
     return json.loads(out.stdout.strip().splitlines()[-1])
 
@@ -63,7 +77,9 @@ _PRELUDE = textwrap.dedent("""
 
 
 def test_python_api_computes_on_one_thread_and_restores_the_users_setting() -> None:
-    got = _run(_PRELUDE + textwrap.dedent("""
+    got = _run(
+        _PRELUDE
+        + textwrap.dedent("""
         from flexopt.model import Analysis, template
         from flexopt.model.methods import frequency_curve
 
@@ -81,21 +97,27 @@ def test_python_api_computes_on_one_thread_and_restores_the_users_setting() -> N
         frequency_curve(template("leaf-spring"), method="hermite")
         print(json.dumps({"user": user, "inside": inside, "after_exact": after_exact, "fast": fast,
                           "after_fast": counts()}))
-    """))
+    """)
+    )
     assert got["user"] == [2], f"the user's setting did not take: {got['user']}; the test cannot tell 1 from it"
-    assert got["inside"] and all(c == [1] for c in got["inside"]), \
+    assert got["inside"] and all(c == [1] for c in got["inside"]), (
         f"exact curve computed with BLAS threads {got['inside']} (one expected: model/threads.py)"
-    assert got["fast"] and all(c == [1] for c in got["fast"]), \
+    )
+    assert got["fast"] and all(c == [1] for c in got["fast"]), (
         f"hermite computed with BLAS threads {got['fast']} (one expected)"
-    assert got["after_exact"] == got["user"] and got["after_fast"] == got["user"], \
+    )
+    assert got["after_exact"] == got["user"] and got["after_fast"] == got["user"], (
         f"the user's setting {got['user']} was not restored: {got['after_exact']}, {got['after_fast']}"
+    )
 
 
 def test_concurrent_calls_keep_the_limit_until_the_last_leaves() -> None:
     """Thread A and thread B compute at once; A returns while B still computes. A naive context (each call
     saves and restores) gives B the user's threads back in the middle of its curve, and leaves the process
     at one thread after both."""
-    got = _run(_PRELUDE + textwrap.dedent("""
+    got = _run(
+        _PRELUDE
+        + textwrap.dedent("""
         from flexopt.model import Analysis, template
 
         both_in = threading.Barrier(2, timeout=120)
@@ -123,24 +145,30 @@ def test_concurrent_calls_keep_the_limit_until_the_last_leaves() -> None:
         tb = threading.Thread(target=lambda: an_b.frequency_curve(visit=visit_b, mirror=False))
         ta.start(); tb.start(); ta.join(); tb.join()
         print(json.dumps({"user": user, "A": seen["A"], "B": seen["B"], "after": counts()}))
-    """))
+    """)
+    )
     assert got["user"] == [2]
-    assert got["A"] and got["B"] and all(c == [1] for c in got["A"] + got["B"]), \
+    assert got["A"] and got["B"] and all(c == [1] for c in got["A"] + got["B"]), (
         f"a concurrent call computed with other than one BLAS thread: A {got['A']}, B {got['B']}"
+    )
     assert got["after"] == got["user"], f"after both calls the process has {got['after']}, not the user's {got['user']}"
 
 
 def test_pool_workers_compute_on_one_thread() -> None:
     """A batch on the default process pool: each worker limits itself at its start, the caller is untouched."""
-    got = _run(_PRELUDE + textwrap.dedent("""
+    got = _run(
+        _PRELUDE
+        + textwrap.dedent("""
         from flexopt.optim.batch import run_cases
 
         if __name__ == "__main__":
             recs = run_cases([{"i": 0}, {"i": 1}], "tests.test_threads:blas_counts", workers=2)
             print(json.dumps({"user": user, "workers": [r.get("result", r) for r in recs], "after": counts()}))
-    """))
-    assert got["workers"] and all(r.get("counts") == [1] for r in got["workers"]), \
+    """)
+    )
+    assert got["workers"] and all(r.get("counts") == [1] for r in got["workers"]), (
         f"pool workers' BLAS threads: {got['workers']}"
+    )
     assert got["after"] == got["user"] == [2]
 
 
@@ -162,7 +190,9 @@ def test_a_bad_thread_setting_is_one_line_naming_the_variable() -> None:
 def test_cli_limits_its_whole_process() -> None:
     """``flexopt curve``: one thread inside the compute, and the process (and any child it starts: the
     variables) stays limited after it, since the process is flexopt's."""
-    got = _run(_PRELUDE + textwrap.dedent("""
+    got = _run(
+        _PRELUDE
+        + textwrap.dedent("""
         import os
         import flexopt.model.analysis as a
         from flexopt.service.cli.main import main
@@ -175,7 +205,8 @@ def test_cli_limits_its_whole_process() -> None:
         code = main(["curve", "--template", "leaf-spring", "--set", "points=5", "--set", "segments=4"])
         print(json.dumps({"code": code, "user": user, "inside": inside, "after": counts(),
                           "env": os.environ.get("OPENBLAS_NUM_THREADS")}))
-    """))
+    """)
+    )
     assert got["code"] == 0 and got["user"] == [2]
     assert got["inside"] and all(c == [1] for c in got["inside"]), f"CLI computed with {got['inside']}"
     assert got["after"] == [1] and got["env"] == "1", f"the CLI's process is not limited: {got}"
@@ -184,7 +215,9 @@ def test_cli_limits_its_whole_process() -> None:
 def test_server_lifespan_limits_the_process() -> None:
     """``flexopt serve``'s application: from its start, the server process is limited (its worker and job
     processes too: they limit themselves, and inherit the variables); a request still answers."""
-    got = _run(_PRELUDE + textwrap.dedent("""
+    got = _run(
+        _PRELUDE
+        + textwrap.dedent("""
         import os, tempfile
         from fastapi.testclient import TestClient
         from flexopt.model import template
@@ -199,7 +232,8 @@ def test_server_lifespan_limits_the_process() -> None:
             r = client.post("/v1/frequency-curve", json={"scene": scene})
         print(json.dumps({"user": user, "during": during, "env": env, "status": r.status_code,
                           "curve": r.json().get("status")}))
-    """))
+    """)
+    )
     assert got["user"] == [2]
     assert got["during"] == [1] and got["env"] == "1", f"the server's process is not limited: {got}"
     assert got["status"] == 200 and got["curve"] == "complete"

@@ -8,31 +8,41 @@ import re
 
 import numpy as np
 import pytest
-
 from flexopt.model import Analysis
 from flexopt.model.errors import SceneError
 from flexopt.model.templates import TEMPLATES, template
-from flexopt.optim.topology import (FAMILIES, canonical, enumerate_topologies, family_of, parse, screen_scene,
-                                    screen_topology)
+from flexopt.optim.topology import (
+    FAMILIES,
+    canonical,
+    enumerate_topologies,
+    family_of,
+    parse,
+    screen_scene,
+    screen_topology,
+)
 from flexopt.optim.topology.grammar import canonical_guide, enumerate_guides, parse_guide
 from flexopt.optim.topology.screen import screen_guide
+
 from tests.references import CONSTRAINT_COUNTS
 
 
-@pytest.mark.parametrize("n, s, free_crossing, expected", [
-    # one stage, at most 2 leaves, planes + and -: stacked '+' (~ '-': mirror x), '++' (~ '--'), '+-' (~ '-+':
-    # mirror x, also mirror z), in-plane 'x+-': 1 + 2 + 1 = 4
-    (2, 1, False, 4),
-    # and each with the crossing fraction designed ('@') or not: 2 x 4 = 8
-    (2, 1, True, 8),
-    # three leaves in one stage add '+++' (~ '---'), '++-' (~ '--+' mirror x, '-++' mirror z, '+--' both), '+-+'
-    # (~ '-+-'), and the double-width middle '+-2+' (~ '-+2-'): 4 more, no in-plane crossing of three leaves in
-    # two planes: 4 + 4 = 8
-    (3, 1, False, 8),
-    # two stages of one leaf each: (+,+) ~ (-,-), (+,-) ~ (-,+) (mirror x; no mirror z: the second stage's single
-    # layer sits above the first's): 2 more than (2, 1): 4 + 2 = 6
-    (2, 2, False, 6),
-])
+@pytest.mark.parametrize(
+    "n, s, free_crossing, expected",
+    [
+        # one stage, at most 2 leaves, planes + and -: stacked '+' (~ '-': mirror x), '++' (~ '--'), '+-' (~ '-+':
+        # mirror x, also mirror z), in-plane 'x+-': 1 + 2 + 1 = 4
+        (2, 1, False, 4),
+        # and each with the crossing fraction designed ('@') or not: 2 x 4 = 8
+        (2, 1, True, 8),
+        # three leaves in one stage add '+++' (~ '---'), '++-' (~ '--+' mirror x, '-++' mirror z, '+--' both), '+-+'
+        # (~ '-+-'), and the double-width middle '+-2+' (~ '-+2-'): 4 more, no in-plane crossing of three leaves in
+        # two planes: 4 + 4 = 8
+        (3, 1, False, 8),
+        # two stages of one leaf each: (+,+) ~ (-,-), (+,-) ~ (-,+) (mirror x; no mirror z: the second stage's single
+        # layer sits above the first's): 2 more than (2, 1): 4 + 2 = 6
+        (2, 2, False, 6),
+    ],
+)
 def test_generator_counts(n: int, s: int, free_crossing: bool, expected: int) -> None:
     tops = enumerate_topologies(n, s, planes="+-", free_crossing=free_crossing)
     assert len(tops) == expected, [str(t) for t in tops]
@@ -67,9 +77,13 @@ def test_descriptors_round_trip_to_scenes() -> None:
         scene = template("topology-hinge", topology=str(t))
         assert scene.name == f"topology {t}"
         assert sum(e.name.count("l") > 0 for e in scene.elements) >= t.flexures
-    for bad, words in (("+-", "must start with 'R:'"), ("R:+*", "'*' is not a leaf plane"),
-                       ("R:x++", "different planes"), ("R:+-|", "stage 2 has no leaves"),
-                       ("R:x+r-", "cannot cross in one plane")):
+    for bad, words in (
+        ("+-", "must start with 'R:'"),
+        ("R:+*", "'*' is not a leaf plane"),
+        ("R:x++", "different planes"),
+        ("R:+-|", "stage 2 has no leaves"),
+        ("R:x+r-", "cannot cross in one plane"),
+    ):
         with pytest.raises(SceneError, match=words.replace("(", r"\(")):
             parse(bad)
 
@@ -151,13 +165,16 @@ def test_guides_generated_and_screened() -> None:
 
 
 def test_spec_errors_name_the_field() -> None:
+    from flexopt.optim.topology import TopologySpec
     from pydantic import ValidationError
 
-    from flexopt.optim.topology import TopologySpec
-
-    for bad, field in (({"max_flexure": 3}, "max_flexure"), ({"planes": "+x"}, "planes"),
-                       ({"topologies": ["R:+*"]}, "topologies"), ({"format": "flexopt-problem"}, "format"),
-                       ({"motion": "translation", "topologies": ["R:+-@"]}, "topologies")):
+    for bad, field in (
+        ({"max_flexure": 3}, "max_flexure"),
+        ({"planes": "+x"}, "planes"),
+        ({"topologies": ["R:+*"]}, "topologies"),
+        ({"format": "flexopt-problem"}, "format"),
+        ({"motion": "translation", "topologies": ["R:+-@"]}, "topologies"),
+    ):
         with pytest.raises(ValidationError) as exc:
             TopologySpec.model_validate(bad)
         assert exc.value.errors()[0]["loc"][0] == field
@@ -197,8 +214,21 @@ def test_search_restricted_to_a_family_reproduces_its_optimum(tmp_path, capsys) 
     f = tmp_path / "spec.json"
     f.write_text(json.dumps(raw))
     store = tmp_path / "store"
-    code = main(["topology", str(f), "--json", "--workers", "1", "--scenes", str(tmp_path / "sc"),
-                 "--plot", str(tmp_path / "rank.png"), "--store", str(store)])
+    code = main(
+        [
+            "topology",
+            str(f),
+            "--json",
+            "--workers",
+            "1",
+            "--scenes",
+            str(tmp_path / "sc"),
+            "--plot",
+            str(tmp_path / "rank.png"),
+            "--store",
+            str(store),
+        ]
+    )
     out = json.loads(capsys.readouterr().out)
     assert code == 0, out
     best = out["best"]
@@ -223,10 +253,12 @@ def test_search_restricted_to_a_family_reproduces_its_optimum(tmp_path, capsys) 
 def test_designed_crossing_at_the_midpoint_is_marked_as_the_same_design() -> None:
     from flexopt.optim.topology.rank import _mark_same_designs
 
-    recs = [{"topology": "R:+-|-+", "status": "optimised", "design": {"length": 0.06}},
-            {"topology": "R:+-@|-+", "status": "optimised", "design": {"crossing": 0.5004}},
-            {"topology": "R:+-@", "status": "optimised", "design": {"crossing": 0.58}},
-            {"topology": "R:+-|-+@", "status": "failed", "design": None}]
+    recs = [
+        {"topology": "R:+-|-+", "status": "optimised", "design": {"length": 0.06}},
+        {"topology": "R:+-@|-+", "status": "optimised", "design": {"crossing": 0.5004}},
+        {"topology": "R:+-@", "status": "optimised", "design": {"crossing": 0.58}},
+        {"topology": "R:+-|-+@", "status": "failed", "design": None},
+    ]
     _mark_same_designs(recs)
     assert [r["same_design_as"] for r in recs] == [None, "R:+-|-+", None, None]
 
@@ -235,8 +267,10 @@ def test_the_spec_imports_without_casadi() -> None:
     import subprocess
     import sys
 
-    code = ("import sys; from flexopt.optim.topology import TopologySpec; TopologySpec(topologies=None)\n"
-            "bad = [m for m in ('casadi', 'scipy') if m in sys.modules]; print(bad); sys.exit(1 if bad else 0)")
+    code = (
+        "import sys; from flexopt.optim.topology import TopologySpec; TopologySpec(topologies=None)\n"
+        "bad = [m for m in ('casadi', 'scipy') if m in sys.modules]; print(bad); sys.exit(1 if bad else 0)"
+    )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False)
     assert r.returncode == 0, f"the spec loaded {r.stdout.strip()} {r.stderr}"
 

@@ -26,8 +26,16 @@ def test_per_stage_dimensions_keep_todays_scenes() -> None:
     today's, and giving them stage 1's values gives the same scene."""
     for d in ("R:+-@", "R:+-|-+", "R:x+-|+-@", "R:-+2-@", "R:+r-r|-+"):
         base = template("topology-hinge", topology=d).model_dump()
-        same = template("topology-hinge", topology=d, length_s2=0.05, width_s2=0.02, thickness_s2=0.3e-3,
-                        angle_s2=90.0, thickness_s1l1=0.3e-3, thickness_s2l2=0.3e-3).model_dump()
+        same = template(
+            "topology-hinge",
+            topology=d,
+            length_s2=0.05,
+            width_s2=0.02,
+            thickness_s2=0.3e-3,
+            angle_s2=90.0,
+            thickness_s1l1=0.3e-3,
+            thickness_s2l2=0.3e-3,
+        ).model_dump()
         assert same == base, d
 
 
@@ -37,8 +45,15 @@ def test_per_stage_dimensions_place_the_stages_by_hand() -> None:
     from the top is s2l1, s1l1, s1l2, s2l2 (stage 2's first half above stage 1), height 2 w1 + 2 w2 + 3 g =
     66 mm, so s2l1 sits at z = 33 - 5 = 28 mm and s1l1 at z = 33 - 10 - 2 - 10 = 11 mm; the '-' leaf of stage
     2 runs from (sin 30 L2/2, -cos 30 L2/2) to its mirror through the axis."""
-    sc = template("topology-hinge", topology="R:+-|-+", length_s2=0.04, width_s2=0.01, angle_s2=60.0,
-                  thickness_s2=0.2e-3, thickness_s2l1=0.25e-3)
+    sc = template(
+        "topology-hinge",
+        topology="R:+-|-+",
+        length_s2=0.04,
+        width_s2=0.01,
+        angle_s2=60.0,
+        thickness_s2=0.2e-3,
+        thickness_s2l1=0.25e-3,
+    )
     p = _pos(sc)
     np.testing.assert_allclose(p["s2l1_0"], [0.5 * 0.02, -np.cos(np.pi / 6) * 0.02, 0.028], atol=1e-12)
     np.testing.assert_allclose(p["s2l1_1"], [-0.5 * 0.02, np.cos(np.pi / 6) * 0.02, 0.028], atol=1e-12)
@@ -48,21 +63,41 @@ def test_per_stage_dimensions_place_the_stages_by_hand() -> None:
     assert sec == {"s1l1": (0.02, 0.3e-3), "s1l2": (0.02, 0.3e-3), "s2l1": (0.01, 0.25e-3), "s2l2": (0.01, 0.2e-3)}
 
 
-@pytest.mark.parametrize("descriptor, dimensions, expected", [
-    # shared: length, thickness, width, angle (4); designed crossing adds 'crossing'
-    ("R:+-|-+", "shared", ["length", "thickness", "width", "angle"]),
-    # per stage: stage 2 adds its own four (8)
-    ("R:+-|-+", "stage", ["length", "thickness", "width", "angle", "length_s2", "thickness_s2", "width_s2",
-                          "angle_s2"]),
-    # per leaf: each of the 4 leaves its thickness in place of its stage's (2 x (length, 2 thicknesses, width,
-    # angle) = 10)
-    ("R:+-|-+", "leaf", ["length", "thickness_s1l1", "thickness_s1l2", "width", "angle", "length_s2",
-                         "thickness_s2l1", "thickness_s2l2", "width_s2", "angle_s2"]),
-    # one stage: 'stage' is 'shared'; a stage of radial leaves only has no angle of its own
-    ("R:+-@", "stage", ["length", "thickness", "width", "angle", "crossing"]),
-    ("R:+-|0", "stage", ["length", "thickness", "width", "angle", "length_s2", "thickness_s2", "width_s2"]),
-    ("R:+r-r", "leaf", ["length", "thickness_s1l1", "thickness_s1l2", "width", "angle", "rigid_fraction"]),
-])
+@pytest.mark.parametrize(
+    "descriptor, dimensions, expected",
+    [
+        # shared: length, thickness, width, angle (4); designed crossing adds 'crossing'
+        ("R:+-|-+", "shared", ["length", "thickness", "width", "angle"]),
+        # per stage: stage 2 adds its own four (8)
+        (
+            "R:+-|-+",
+            "stage",
+            ["length", "thickness", "width", "angle", "length_s2", "thickness_s2", "width_s2", "angle_s2"],
+        ),
+        # per leaf: each of the 4 leaves its thickness in place of its stage's (2 x (length, 2 thicknesses, width,
+        # angle) = 10)
+        (
+            "R:+-|-+",
+            "leaf",
+            [
+                "length",
+                "thickness_s1l1",
+                "thickness_s1l2",
+                "width",
+                "angle",
+                "length_s2",
+                "thickness_s2l1",
+                "thickness_s2l2",
+                "width_s2",
+                "angle_s2",
+            ],
+        ),
+        # one stage: 'stage' is 'shared'; a stage of radial leaves only has no angle of its own
+        ("R:+-@", "stage", ["length", "thickness", "width", "angle", "crossing"]),
+        ("R:+-|0", "stage", ["length", "thickness", "width", "angle", "length_s2", "thickness_s2", "width_s2"]),
+        ("R:+r-r", "leaf", ["length", "thickness_s1l1", "thickness_s1l2", "width", "angle", "rigid_fraction"]),
+    ],
+)
 def test_design_parameters_by_hand(descriptor: str, dimensions: str, expected: list[str]) -> None:
     assert design_parameters(parse(descriptor), dimensions) == expected
 
@@ -80,17 +115,21 @@ def test_design_parameters_are_template_parameters_and_traceable() -> None:
         ds = trace_template("topology-hinge", fam.params(fam.default_x()), fam.names)
         for j, name in enumerate(fam.names):
             moved = any(np.any(np.asarray(n["position"]) != 0) for n in ds.dscene[j]["nodes"]) or any(
-                e["section"]["width"] != 0 or e["section"]["thickness"] != 0 for e in ds.dscene[j]["elements"])
+                e["section"]["width"] != 0 or e["section"]["thickness"] != 0 for e in ds.dscene[j]["elements"]
+            )
             assert moved, (d, name)
 
 
-@pytest.mark.parametrize("n, s, expected", [
-    # one stage of at most 2 leaves, pruned: '+' and '++' cross nothing (no '@'); '+-', '+-@', 'x+-', 'x+-@':
-    # 2 + 4 = 6 (8 unpruned: tests/test_topology.py)
-    (2, 1, 6),
-    # two stages of one leaf each add (+,+) and (+,-), neither with '@' (a single leaf crosses nothing): 6 + 2 = 8
-    (2, 2, 8),
-])
+@pytest.mark.parametrize(
+    "n, s, expected",
+    [
+        # one stage of at most 2 leaves, pruned: '+' and '++' cross nothing (no '@'); '+-', '+-@', 'x+-', 'x+-@':
+        # 2 + 4 = 6 (8 unpruned: tests/test_topology.py)
+        (2, 1, 6),
+        # two stages of one leaf each add (+,+) and (+,-), neither with '@' (a single leaf crosses nothing): 6 + 2 = 8
+        (2, 2, 8),
+    ],
+)
 def test_pruned_enumeration_counts_by_hand(n: int, s: int, expected: int) -> None:
     tops = enumerate_topologies(n, s, prune=True)
     assert len(tops) == expected, [str(t) for t in tops]
@@ -128,10 +167,20 @@ def test_bounds_say_where_they_come_from() -> None:
     assert any("width is on its upper bound, which is the envelope's height" in m for m in msgs), msgs
     assert not any("widen them" in m for m in msgs), msgs
     # a family without origins keeps the old advice
-    plain = Problem.model_validate({"families": [{"template": "cross-spring-pivot",
-                                                  "design": {"width": [0.01, 0.04]}}]})
-    msgs = [w.message for w in _case_warnings(_Family(plain, plain.families[0]), 0, "optimal", "", {},
-                                              {"active_bounds": {"width": "upper"}, "active_kinds": [], "active": []})]
+    plain = Problem.model_validate(
+        {"families": [{"template": "cross-spring-pivot", "design": {"width": [0.01, 0.04]}}]}
+    )
+    msgs = [
+        w.message
+        for w in _case_warnings(
+            _Family(plain, plain.families[0]),
+            0,
+            "optimal",
+            "",
+            {},
+            {"active_bounds": {"width": "upper"}, "active_kinds": [], "active": []},
+        )
+    ]
     assert any("widen them" in m for m in msgs)
 
 
@@ -194,9 +243,21 @@ def test_schedule_matches_the_exhaustive_run_and_refinement_keeps_the_order(tmp_
     from flexopt.optim.topology import run_topology_search
     from flexopt.optim.topology.rank import refine_case
 
-    base = {"max_flexures": 3, "max_stages": 2, "dimensions": "shared", "segments": 6, "samples": 5, "starts": 1,
-            "verify_points": 31, "refine_rounds": 0, "max_iterations": 20, "refine_points": 9,
-            "refine_tolerance": 5e-3, "promote_min": 5, "promote": 0.1}
+    base = {
+        "max_flexures": 3,
+        "max_stages": 2,
+        "dimensions": "shared",
+        "segments": 6,
+        "samples": 5,
+        "starts": 1,
+        "verify_points": 31,
+        "refine_rounds": 0,
+        "max_iterations": 20,
+        "refine_points": 9,
+        "refine_tolerance": 5e-3,
+        "promote_min": 5,
+        "promote": 0.1,
+    }
     store = tmp_path / "store"
     full = run_topology_search({**base, "schedule": "exhaustive"}, workers=2, store=store, echo=False)
     sched = run_topology_search(base, workers=2, store=store, echo=False)
@@ -207,19 +268,30 @@ def test_schedule_matches_the_exhaustive_run_and_refinement_keeps_the_order(tmp_
     assert sched["ranking"][0] == distinct[0]
     assert sched["ranking"][:5] == distinct[:5], (sched["ranking"], distinct)
     sby = {r["topology"]: r for r in sched["candidates"]}
-    designs = [tuple(round(v, 6) for v in sby[n]["design"].values()) + (n.replace("@", ""),)
-               for n in sched["ranking"]]
+    designs = [tuple(round(v, 6) for v in sby[n]["design"].values()) + (n.replace("@", ""),) for n in sched["ranking"]]
     assert len(set(designs)) == len(designs)
     # the top 5 at 4x the refined mesh: same order
     top = [sby[n] for n in sched["ranking"][:5]]
     fine = []
     for r in top:
         ref = r["refined"]
-        params = {**candidate_problem(parse(r["topology"]), TopologySpec(**base)).families[0].fixed, **r["design"],
-                  "body_mass": 0.1, "stroke": 45.0}
-        out = refine_case({"params": params, "stroke": 45.0, "points": base["refine_points"],
-                           "extra": [r["stroke_at_worst"]], "segments": 4 * max(ref["segments_used"]),
-                           "tolerance": None, "safety_factor": 1.5})
+        params = {
+            **candidate_problem(parse(r["topology"]), TopologySpec(**base)).families[0].fixed,
+            **r["design"],
+            "body_mass": 0.1,
+            "stroke": 45.0,
+        }
+        out = refine_case(
+            {
+                "params": params,
+                "stroke": 45.0,
+                "points": base["refine_points"],
+                "extra": [r["stroke_at_worst"]],
+                "segments": 4 * max(ref["segments_used"]),
+                "tolerance": None,
+                "safety_factor": 1.5,
+            }
+        )
         fine.append(out["worst_hz"])
     assert all(a > b for a, b in itertools.pairwise(fine)), (sched["ranking"][:5], fine)
 
@@ -254,12 +326,21 @@ def test_a_guide_is_shape_optimised_like_a_hinge() -> None:
     from flexopt.model.curve import Analysis
     from flexopt.optim.topology import run_topology_search
 
-    spec = {"motion": "translation", "topologies": ["T:z--,z-+,z+0,y-0,y+0"], "optimise_guides": 1, "segments": 4,
-            "samples": 5, "starts": 1, "verify_points": 31, "refine_rounds": 0}
+    spec = {
+        "motion": "translation",
+        "topologies": ["T:z--,z-+,z+0,y-0,y+0"],
+        "optimise_guides": 1,
+        "segments": 4,
+        "samples": 5,
+        "starts": 1,
+        "verify_points": 31,
+        "refine_rounds": 0,
+    }
     res = run_topology_search(spec, workers=1, echo=False)
     best = res["best"]
     assert best["optimised"] and best["stress_ratio"] <= 1 + 1e-3 and res["counts"]["optimised"] == 1
-    start = Analysis(template("wire-guide-topology", topology="T:z--,z-+,z+0,y-0,y+0", segments=4,
-                              points=31)).frequency_curve()
+    start = Analysis(
+        template("wire-guide-topology", topology="T:z--,z-+,z+0,y-0,y+0", segments=4, points=31)
+    ).frequency_curve()
     assert best["worst_case_hz"] >= float(np.min(start.parasitic_hz)) * (1 - 1e-3)
     assert "wire_length" in best["bound_origins"]

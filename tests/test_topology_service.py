@@ -15,12 +15,20 @@ pytest.importorskip("sqlalchemy")
 from flexopt.optim.topology.spec import TopologySpec  # noqa: E402
 from flexopt.service.client import AsyncClient, Client, InvalidInput, NotFound  # noqa: E402
 from flexopt.service.schemas import Job  # noqa: E402
+
 from tests.test_jobs import _cases, _server, _until  # noqa: E402
 
 # one hinge that survives the filter (the cross-spring pivot's leaves, optimised) and one the filter rejects
 # (both leaves in one plane: a mechanism); a few seconds in all
-TINY = {"topologies": ["R:+-", "R:++"], "segments": 4, "samples": 5, "verify_points": 31, "refine_rounds": 1,
-        "starts": 1, "refine_segments": None}  # no refined verification: the cases are the screen's and the search's
+TINY = {
+    "topologies": ["R:+-", "R:++"],
+    "segments": 4,
+    "samples": 5,
+    "verify_points": 31,
+    "refine_rounds": 1,
+    "starts": 1,
+    "refine_segments": None,
+}  # no refined verification: the cases are the screen's and the search's
 
 
 def test_topology_search_job_over_http(tmp_path: Path) -> None:
@@ -30,13 +38,19 @@ def test_topology_search_job_over_http(tmp_path: Path) -> None:
         ex = httpx.get(f"{srv.url}/v1/topology-searches/example", headers=a_hdr)
         assert ex.status_code == 200 and ex.json() == TopologySpec().model_dump(mode="json")
         # a bad field: 422 naming it, and no job created
-        for body, field in (({**TINY, "max_flexure": 3}, "max_flexure"), ({**TINY, "planes": "+x"}, "planes"),
-                            ({**TINY, "topologies": ["R:+*"]}, "topologies")):
+        for body, field in (
+            ({**TINY, "max_flexure": 3}, "max_flexure"),
+            ({**TINY, "planes": "+x"}, "planes"),
+            ({**TINY, "topologies": ["R:+*"]}, "topologies"),
+        ):
             r = httpx.post(f"{srv.url}/v1/topology-searches", json=body, headers=a_hdr)
             assert r.status_code == 422, r.text
             assert r.json()["errors"][0]["loc"][:2] == ["body", field], r.json()
-        r = httpx.post(f"{srv.url}/v1/topology-searches", content='{"stroke": Infinity}',
-                       headers={**a_hdr, "Content-Type": "application/json"})
+        r = httpx.post(
+            f"{srv.url}/v1/topology-searches",
+            content='{"stroke": Infinity}',
+            headers={**a_hdr, "Content-Type": "application/json"},
+        )
         assert r.status_code == 422 and r.json()["errors"][0]["loc"][:2] == ["body", "stroke"], r.text
         assert httpx.get(f"{srv.url}/v1/topology-searches", headers=a_hdr).json()["total"] == 0
 
@@ -51,8 +65,14 @@ def test_topology_search_job_over_http(tmp_path: Path) -> None:
         assert httpx.delete(f"{srv.url}/v1/topology-searches/{job_id}", headers=b_hdr).status_code == 404
         assert httpx.get(f"{srv.url}/v1/topology-searches", headers=b_hdr).json()["total"] == 0
 
-        job = _until(lambda: (j := httpx.get(f"{srv.url}/v1/topology-searches/{job_id}", headers=a_hdr).json())
-                     ["status"] in ("succeeded", "failed", "cancelled") and j, timeout=180)
+        job = _until(
+            lambda: (
+                (j := httpx.get(f"{srv.url}/v1/topology-searches/{job_id}", headers=a_hdr).json())["status"]
+                in ("succeeded", "failed", "cancelled")
+                and j
+            ),
+            timeout=180,
+        )
         assert job["status"] == "succeeded", job
         res = job["result"]
         assert job["progress"]["done"] == job["progress"]["total"] == 1, "one optimised case: one start of 'R:+-'"
@@ -64,9 +84,16 @@ def test_topology_search_job_over_http(tmp_path: Path) -> None:
         page = httpx.get(f"{srv.url}/v1/topology-searches", headers=a_hdr).json()
         assert page["total"] == 1 and page["items"][0]["id"] == job_id
         # an optimisation job is not a topology search
-        opt = httpx.post(f"{srv.url}/v1/optimisations", headers=a_hdr, json={
-            "families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]}}], "samples": 5,
-            "starts": 1, "max_iterations": 3}).json()
+        opt = httpx.post(
+            f"{srv.url}/v1/optimisations",
+            headers=a_hdr,
+            json={
+                "families": [{"template": "leaf-spring", "design": {"thickness": [3e-4, 6e-4]}}],
+                "samples": 5,
+                "starts": 1,
+                "max_iterations": 3,
+            },
+        ).json()
         assert httpx.get(f"{srv.url}/v1/topology-searches/{opt['id']}", headers=a_hdr).status_code == 404
         assert httpx.get(f"{srv.url}/v1/topology-searches", headers=a_hdr).json()["total"] == 1
         httpx.delete(f"{srv.url}/v1/optimisations/{opt['id']}", headers=a_hdr)
@@ -115,8 +142,8 @@ def test_async_client_submits_and_cancels_a_topology_search(tmp_path: Path) -> N
 
 @pytest.mark.slow
 def test_restarted_topology_search_resumes_from_its_finished_cases(tmp_path: Path) -> None:
-    from flexopt.service.jobs.store import JobStore
     from flexopt.service.api.settings import Settings
+    from flexopt.service.jobs.store import JobStore
 
     spec = {**TINY, "topologies": ["R:+-", "R:+-@"], "starts": 4}  # 8 cases of a second or two each
     srv = _server(tmp_path)

@@ -21,14 +21,26 @@ pytest.importorskip("uvicorn")
 sync_api = pytest.importorskip("playwright.sync_api", reason="playwright for Python is not installed")
 
 import uvicorn  # noqa: E402
-
 from flexopt.service.api.app import create_app  # noqa: E402
 from flexopt.service.api.settings import Settings  # noqa: E402
 
-CHROMIUM = next((p for p in (os.environ.get("FLEXOPT_CHROMIUM"), shutil.which("chromium"),
-                             shutil.which("chromium-browser"), "/usr/bin/chromium") if p and os.path.exists(p)), None)
-pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="no chromium binary (apt-get install chromium; or set "
-                                                         "FLEXOPT_CHROMIUM): the browser tests need one")
+CHROMIUM = next(
+    (
+        p
+        for p in (
+            os.environ.get("FLEXOPT_CHROMIUM"),
+            shutil.which("chromium"),
+            shutil.which("chromium-browser"),
+            "/usr/bin/chromium",
+        )
+        if p and os.path.exists(p)
+    ),
+    None,
+)
+pytestmark = pytest.mark.skipif(
+    CHROMIUM is None,
+    reason="no chromium binary (apt-get install chromium; or set FLEXOPT_CHROMIUM): the browser tests need one",
+)
 
 
 def _free_port() -> int:
@@ -42,8 +54,9 @@ def url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     """A real uvicorn on 127.0.0.1 (thread executor: no process pool to spawn)."""
     port = _free_port()
     settings = Settings(executor="thread", api_keys="", data_dir=tmp_path_factory.mktemp("data"))
-    server = uvicorn.Server(uvicorn.Config(create_app(settings), host="127.0.0.1", port=port, log_level="warning",
-                                           lifespan="on", ws="none"))
+    server = uvicorn.Server(
+        uvicorn.Config(create_app(settings), host="127.0.0.1", port=port, log_level="warning", lifespan="on", ws="none")
+    )
     thread = threading.Thread(target=server.run, daemon=True)
     thread.start()
     deadline = time.monotonic() + 10
@@ -59,16 +72,21 @@ def url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
 def browser() -> Iterator[object]:
     with sync_api.sync_playwright() as p:
         try:
-            b = p.chromium.launch(executable_path=CHROMIUM, headless=True,
-                                  args=["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"])
+            b = p.chromium.launch(
+                executable_path=CHROMIUM,
+                headless=True,
+                args=["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"],
+            )
         except Exception as exc:  # noqa: BLE001 - a browser that cannot start is a skip, said why
             pytest.skip(f"chromium at {CHROMIUM} does not start: {exc}")
         yield b
         b.close()
 
 
-CSP_WATCH = ("window.__csp = []; document.addEventListener('securitypolicyviolation', "
-             "(e) => window.__csp.push(`${e.violatedDirective} ${e.blockedURI}`));")
+CSP_WATCH = (
+    "window.__csp = []; document.addEventListener('securitypolicyviolation', "
+    "(e) => window.__csp.push(`${e.violatedDirective} ${e.blockedURI}`));"
+)
 
 
 @pytest.fixture
@@ -80,7 +98,6 @@ def shots(tmp_path: Path) -> Path:
 
 def test_page_computes_leaf_curve_and_shows_a_mode(url: str, browser: object, shots: Path) -> None:
     import httpx
-
     from flexopt.model import template
 
     page = browser.new_page(viewport={"width": 1400, "height": 1500})
@@ -92,32 +109,40 @@ def test_page_computes_leaf_curve_and_shows_a_mode(url: str, browser: object, sh
     page.goto(f"{url}/?template=leaf-spring")
     curve = page.get_by_test_id("curve")
     # the curve is drawn when plotly has put its traces on the container
-    page.wait_for_function("() => { const d = document.querySelector('[data-testid=curve]'); "
-                           "return d && d.data && d.data.length > 0; }", timeout=30_000)
+    page.wait_for_function(
+        "() => { const d = document.querySelector('[data-testid=curve]'); return d && d.data && d.data.length > 0; }",
+        timeout=30_000,
+    )
     plotted = page.evaluate("""() => {
         const d = document.querySelector('[data-testid=curve]').data.find(t => t.name === 'first parasitic');
         const i = d.x.findIndex(x => x === 0);
         return {x: d.x[i], y: d.y[i]};
     }""")
-    api = httpx.post(f"{url}/v1/frequency-curve", json={"scene": template("leaf-spring").model_dump(mode="json")},
-                     timeout=60).json()
+    api = httpx.post(
+        f"{url}/v1/frequency-curve", json={"scene": template("leaf-spring").model_dump(mode="json")}, timeout=60
+    ).json()
     i0 = api["stroke"].index(0.0)
     assert plotted["x"] == 0.0
     assert plotted["y"] == pytest.approx(api["parasitic_hz"][i0], rel=1e-12), "plotted first parasitic at stroke 0"
     assert curve.locator(".main-svg").count() > 0, "plotly drew no SVG in the curve container"
     # click the curve's point at stroke 0: the page computes and shows the structure and modes there
     box = curve.bounding_box()
-    at = page.evaluate("""([x, y]) => {
+    at = page.evaluate(
+        """([x, y]) => {
         const gd = document.querySelector('[data-testid=curve]'), L = gd._fullLayout;
         return [L.xaxis._offset + L.xaxis.l2p(x), L.yaxis._offset + L.yaxis.l2p(y)];
-    }""", [0.0, plotted["y"]])
+    }""",
+        [0.0, plotted["y"]],
+    )
     page.mouse.move(box["x"] + at[0], box["y"] + at[1])
     page.mouse.click(box["x"] + at[0], box["y"] + at[1])
     page.get_by_test_id("mode-2").wait_for(timeout=30_000)
     page.get_by_test_id("mode-2").click()
-    page.wait_for_function("() => { const d = document.querySelector('[data-testid=shape]'); "
-                           "return d && d.data && d.data.filter(t => t.type === 'mesh3d').length >= 2; }",
-                           timeout=30_000)
+    page.wait_for_function(
+        "() => { const d = document.querySelector('[data-testid=shape]'); "
+        "return d && d.data && d.data.filter(t => t.type === 'mesh3d').length >= 2; }",
+        timeout=30_000,
+    )
     shapes = page.evaluate("() => window.flexopt.shapes")
     assert shapes["stroke"] == 0.0
     assert shapes["modes"][1]["label"] == "parasitic"
@@ -132,8 +157,9 @@ def test_page_computes_leaf_curve_and_shows_a_mode(url: str, browser: object, sh
     page.close()
 
 
-CURVE_DRAWN = ("() => { const d = document.querySelector('[data-testid=curve]'); "
-               "return d && d.data && d.data.length > 0; }")
+CURVE_DRAWN = (
+    "() => { const d = document.querySelector('[data-testid=curve]'); return d && d.data && d.data.length > 0; }"
+)
 
 
 def test_bad_field_shows_its_problem_beside_it_and_units_are_read(url: str, browser: object, shots: Path) -> None:
@@ -163,7 +189,8 @@ def test_bad_field_shows_its_problem_beside_it_and_units_are_read(url: str, brow
         assert "failed" in page.get_by_test_id("status").inner_text()
         assert page.evaluate("() => window.flexopt.curve") is None
         assert page.evaluate("() => !(document.querySelector('[data-testid=curve]').data || []).length"), (
-            "the previous design's curve is still drawn")
+            "the previous design's curve is still drawn"
+        )
         assert "field(s) marked" in page.get_by_test_id("curve-note").inner_text()
         if typed:
             page.locator("#design").screenshot(path=str(shots / "web_field_error.png"))
@@ -230,9 +257,15 @@ def test_pivot_camera_sees_every_leaf_and_frames_the_structure(url: str, browser
     rows, cols = np.nonzero(orange)
     assert rows.size > 2000, "the mode shape is hardly visible"
     margin = 4
-    assert rows.min() >= margin and cols.min() >= margin and rows.max() < img.shape[0] - margin and (
-        cols.max() < img.shape[1] - margin), f"the structure touches the view's edge: rows {rows.min()}-{rows.max()} " \
-                                             f"of {img.shape[0]}, columns {cols.min()}-{cols.max()} of {img.shape[1]}"
+    assert (
+        rows.min() >= margin
+        and cols.min() >= margin
+        and rows.max() < img.shape[0] - margin
+        and (cols.max() < img.shape[1] - margin)
+    ), (
+        f"the structure touches the view's edge: rows {rows.min()}-{rows.max()} "
+        f"of {img.shape[0]}, columns {cols.min()}-{cols.max()} of {img.shape[1]}"
+    )
     page.close()
 
 
@@ -260,16 +293,50 @@ def test_server_strings_render_as_text(url: str, browser: object, tmp_path: Path
     assert attack in page.locator("#curve .gtitle").text_content()
     page.evaluate("() => loadModes(0)")
     page.get_by_test_id("mode-1").wait_for(timeout=30_000)
-    fake = {"id": attack, "status": attack, "error": attack, "progress": {"done": 1, "total": 2}, "partial": [],
-            "result": {"ranking": [{"template": attack, "worst_hz": 1.0, "zero_stroke_hz": 2.0,
-                                    "design": {attack: 1e-4}, "active_bounds": {attack: "upper"}}],
-                       "families": [], "warnings": [{"kind": attack, "message": attack}]}}
+    fake = {
+        "id": attack,
+        "status": attack,
+        "error": attack,
+        "progress": {"done": 1, "total": 2},
+        "partial": [],
+        "result": {
+            "ranking": [
+                {
+                    "template": attack,
+                    "worst_hz": 1.0,
+                    "zero_stroke_hz": 2.0,
+                    "design": {attack: 1e-4},
+                    "active_bounds": {attack: "upper"},
+                }
+            ],
+            "families": [],
+            "warnings": [{"kind": attack, "message": attack}],
+        },
+    }
     page.evaluate("(job) => renderJob(job)", fake)
-    topo = {"id": attack, "status": attack, "error": attack, "progress": {},
-            "result": {"counts": {"generated": 1, "rejected": 0, "untraceable": 0, "optimised": 1, "failed": 0},
-                       "best": {"topology": attack}, "ranking": [attack], "spec": {"motion": "rotation"},
-                       "candidates": [{"topology": attack, "family": attack, "dof": attack, "overconstraints": attack,
-                                       "status": attack, "reason": attack, "scene": scene}]}}
+    topo = {
+        "id": attack,
+        "status": attack,
+        "error": attack,
+        "progress": {},
+        "result": {
+            "counts": {"generated": 1, "rejected": 0, "untraceable": 0, "optimised": 1, "failed": 0},
+            "best": {"topology": attack},
+            "ranking": [attack],
+            "spec": {"motion": "rotation"},
+            "candidates": [
+                {
+                    "topology": attack,
+                    "family": attack,
+                    "dof": attack,
+                    "overconstraints": attack,
+                    "status": attack,
+                    "reason": attack,
+                    "scene": scene,
+                }
+            ],
+        },
+    }
     page.evaluate("(job) => renderTopology(job)", topo)
     page.wait_for_timeout(300)
     assert page.locator("img").count() == 0, "server text was parsed as markup"
@@ -320,14 +387,24 @@ def test_optimisation_from_the_page_shows_progress_and_ranking(url: str, browser
     page = browser.new_page(viewport={"width": 1400, "height": 1100})
     page.goto(f"{url}/")
     page.wait_for_function("() => document.querySelectorAll('#template option').length > 0")
-    tiny = {"families": [{"template": "cross-spring-pivot", "design": {"thickness": [1e-4, 4e-4]}}], "stroke": 10,
-            "samples": 3, "modes": 1, "starts": 1, "max_iterations": 30, "refine_rounds": 0, "verify_points": 31}
+    tiny = {
+        "families": [{"template": "cross-spring-pivot", "design": {"thickness": [1e-4, 4e-4]}}],
+        "stroke": 10,
+        "samples": 3,
+        "modes": 1,
+        "starts": 1,
+        "max_iterations": 30,
+        "refine_rounds": 0,
+        "verify_points": 31,
+    }
     # enough iterations to converge: an unconverged start is not ranked (optim), and a job without any ranked
     # optimum ends 'failed' with the reasons (service.jobs)
     page.fill("#problem", json.dumps(tiny))
     page.get_by_test_id("optimise").click()
-    page.wait_for_function("() => window.flexopt.job && ['succeeded', 'failed', 'cancelled']"
-                           ".includes(window.flexopt.job.status)", timeout=120_000)
+    page.wait_for_function(
+        "() => window.flexopt.job && ['succeeded', 'failed', 'cancelled'].includes(window.flexopt.job.status)",
+        timeout=120_000,
+    )
     job = page.evaluate("() => window.flexopt.job")
     assert job["status"] == "succeeded", job.get("error")
     assert "1 of 1 cases" in page.get_by_test_id("opt-progress").inner_text()
@@ -337,8 +414,9 @@ def test_optimisation_from_the_page_shows_progress_and_ranking(url: str, browser
     # issue 26 item 6: the design with its unit, and whether it sits on a bound of its box (1e-4 to 4e-4 m)
     t = best["design"]["thickness"]
     side = (best["active_bounds"] or {}).get("thickness")
-    want = f"thickness {t * 1e3:.4g} mm" + (f" (at its {side} bound {4e-4 * 1e3 if side == 'upper' else 1e-4 * 1e3:.4g} mm)"
-                                            if side else "")
+    want = f"thickness {t * 1e3:.4g} mm" + (
+        f" (at its {side} bound {4e-4 * 1e3 if side == 'upper' else 1e-4 * 1e3:.4g} mm)" if side else ""
+    )
     assert cells[4] == want
     page.locator("section", has=page.get_by_test_id("ranking")).screenshot(path=str(shots / "web_optimisation.png"))
     page.close()
@@ -354,12 +432,20 @@ def test_topology_search_from_the_page_shows_ranking_with_thumbnails(url: str, b
     page.goto(f"{url}/")
     page.wait_for_function("() => document.querySelector('#topo-spec').value.length > 0")
     assert json.loads(page.input_value("#topo-spec")) == TopologySpec().model_dump(mode="json"), "the defaults"
-    tiny = {"topologies": ["R:+-", "R:++"], "segments": 4, "samples": 5, "verify_points": 31, "refine_rounds": 1,
-            "starts": 1}
+    tiny = {
+        "topologies": ["R:+-", "R:++"],
+        "segments": 4,
+        "samples": 5,
+        "verify_points": 31,
+        "refine_rounds": 1,
+        "starts": 1,
+    }
     page.fill("#topo-spec", json.dumps(tiny))
     page.get_by_test_id("topology").click()
-    page.wait_for_function("() => window.flexopt.topoJob && ['succeeded', 'failed', 'cancelled']"
-                           ".includes(window.flexopt.topoJob.status)", timeout=180_000)
+    page.wait_for_function(
+        "() => window.flexopt.topoJob && ['succeeded', 'failed', 'cancelled'].includes(window.flexopt.topoJob.status)",
+        timeout=180_000,
+    )
     job = page.evaluate("() => window.flexopt.topoJob")
     assert job["status"] == "succeeded", job.get("error")
     table = page.get_by_test_id("topo-ranking")

@@ -23,8 +23,11 @@ def test_page_references_only_served_assets() -> None:
 
 
 def test_wheel_contains_the_page_and_its_assets(tmp_path: Path) -> None:
-    subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w",
-                    str(tmp_path), str(ROOT)], check=True, capture_output=True)
+    subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(tmp_path), str(ROOT)],
+        check=True,
+        capture_output=True,
+    )
     wheel = next(tmp_path.glob("flexopt-*.whl"))
     names = set(zipfile.ZipFile(wheel).namelist())
     for f in STATIC.rglob("*"):

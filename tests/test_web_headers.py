@@ -13,7 +13,6 @@ from pathlib import Path
 
 import httpx
 import pytest
-
 from flexopt.service.api.app import create_app
 from flexopt.service.api.settings import Settings
 
@@ -69,8 +68,17 @@ def test_loopback_hosts_are_served_by_default(app: object, host: str) -> None:
     assert _get(app, "/health", host).status_code == 200
 
 
-@pytest.mark.parametrize("host", ["attacker.example", "attacker.example:8000", "127.0.0.1.attacker.example",
-                                  "localhost.attacker.example:80", "", "[::2]:8000"])
+@pytest.mark.parametrize(
+    "host",
+    [
+        "attacker.example",
+        "attacker.example:8000",
+        "127.0.0.1.attacker.example",
+        "localhost.attacker.example:80",
+        "",
+        "[::2]:8000",
+    ],
+)
 def test_other_hosts_get_400_naming_the_setting(app: object, host: str) -> None:
     """DNS rebinding: a page on attacker.example, its name re-pointed at 127.0.0.1, sends Host attacker.example."""
     for path in ("/", "/health", "/v1/templates", "/static/app.js"):

@@ -11,5 +11,15 @@ from __future__ import annotations
 from .auto import AUTO_ORDER, METHODS, curve_with_method, estimate_error, expansion_curve, frequency_curve
 from .taylor import ModalDerivatives, hessian_second_derivative, mass_derivatives, modal_derivatives
 
-__all__ = ["METHODS", "AUTO_ORDER", "curve_with_method", "estimate_error", "expansion_curve", "frequency_curve", "ModalDerivatives",
-           "hessian_second_derivative", "mass_derivatives", "modal_derivatives"]
+__all__ = [
+    "METHODS",
+    "AUTO_ORDER",
+    "curve_with_method",
+    "estimate_error",
+    "expansion_curve",
+    "frequency_curve",
+    "ModalDerivatives",
+    "hessian_second_derivative",
+    "mass_derivatives",
+    "modal_derivatives",
+]

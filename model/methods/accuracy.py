@@ -63,8 +63,9 @@ def check_strokes(values: np.ndarray) -> np.ndarray:
     return np.array(sorted(set(out)))
 
 
-def estimates(stroke: np.ndarray, f_method: np.ndarray, checks: np.ndarray, f_checks: np.ndarray,
-              f_exact: np.ndarray) -> np.ndarray:
+def estimates(
+    stroke: np.ndarray, f_method: np.ndarray, checks: np.ndarray, f_checks: np.ndarray, f_exact: np.ndarray
+) -> np.ndarray:
     """The estimated relative error (p,) of the first parasitic frequencies ``f_method`` at ``stroke`` (see the
     module docstring), from the method's ``f_checks`` and the exact ``f_exact`` at the ``checks`` (NaN where
     the exact curve has no point)."""
@@ -115,23 +116,40 @@ def limit(curve: FrequencyCurve, est: np.ndarray, tolerance: float) -> Frequency
         if not len(over):
             continue
         first = idx[over[0]]
-        keep[idx[over[0]:]] = False
+        keep[idx[over[0] :]] = False
         last = float(s[idx[over[0] - 1]]) if over[0] > 0 else 0.0
         e = est[first]
-        why = ("a negative or non-finite frequency" if not np.isfinite(curve.parasitic_hz[first])
-               or curve.parasitic_hz[first] <= 0 else f"an estimated error of {e:.3g}" if np.isfinite(e)
-               else "no bound on its error (at a check stroke beyond it the method's frequency is negative or "
-                    "not finite, or the exact curve has no point)")
-        failures.append(Failure(
-            reason="accuracy", stroke=float(s[first]), last_converged=last,
-            message=f"method '{curve.method}' is an expansion about stroke 0 and holds to the tolerance "
-                    f"{tolerance:g} only up to {last:g} {unit}: at {float(s[first]):g} {unit} it has {why}; "
-                    f"the points from there on are left out (use method 'hermite' or 'exact' for them)"))
+        why = (
+            "a negative or non-finite frequency"
+            if not np.isfinite(curve.parasitic_hz[first]) or curve.parasitic_hz[first] <= 0
+            else f"an estimated error of {e:.3g}"
+            if np.isfinite(e)
+            else "no bound on its error (at a check stroke beyond it the method's frequency is negative or "
+            "not finite, or the exact curve has no point)"
+        )
+        failures.append(
+            Failure(
+                reason="accuracy",
+                stroke=float(s[first]),
+                last_converged=last,
+                message=f"method '{curve.method}' is an expansion about stroke 0 and holds to the tolerance "
+                f"{tolerance:g} only up to {last:g} {unit}: at {float(s[first]):g} {unit} it has {why}; "
+                f"the points from there on are left out (use method 'hermite' or 'exact' for them)",
+            )
+        )
     kept = est[keep]
     solver = {**curve.solver, "estimated_error": float(kept.max()) if len(kept) else 0.0, "tolerance": tolerance}
     if keep.all():
         return replace(curve, solver=solver)
-    return replace(curve, stroke=s[keep], modes_hz=curve.modes_hz[keep], mode_labels=curve.mode_labels[keep],
-                   parasitic_hz=curve.parasitic_hz[keep], drive_reaction=curve.drive_reaction[keep],
-                   max_von_mises={k: v[keep] for k, v in curve.max_von_mises.items()},
-                   status="truncated", failures=tuple(failures), solver=solver)
+    return replace(
+        curve,
+        stroke=s[keep],
+        modes_hz=curve.modes_hz[keep],
+        mode_labels=curve.mode_labels[keep],
+        parasitic_hz=curve.parasitic_hz[keep],
+        drive_reaction=curve.drive_reaction[keep],
+        max_von_mises={k: v[keep] for k, v in curve.max_von_mises.items()},
+        status="truncated",
+        failures=tuple(failures),
+        solver=solver,
+    )

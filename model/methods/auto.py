@@ -32,8 +32,9 @@ AUTO_ORDER = ("fd1", "fd2", "reduced", "manifold", "exact")  # candidates of est
 
 
 @limited()  # one BLAS thread while it computes (model.threads)
-def frequency_curve(obj: Scene | MeshAnalysis, method: str = "auto", tolerance: float = 0.01,
-                    stroke: np.ndarray | None = None) -> FrequencyCurve:
+def frequency_curve(
+    obj: Scene | MeshAnalysis, method: str = "auto", tolerance: float = 0.01, stroke: np.ndarray | None = None
+) -> FrequencyCurve:
     """Stroke-dependent frequencies by ``method`` (one of :data:`METHODS`).
 
     ``exact``: continuation + eigen at every point. ``fd1``: eq. 10 (first order). ``fd2``: second-order
@@ -67,11 +68,20 @@ def _frequency_curve(an: MeshAnalysis, method: str, tolerance: float, stroke: np
         # first step); under loads or gravity it is not stress-free, so only the exact curve applies
         if method == "auto":
             curve = an.frequency_curve(values)
-            return replace(curve, solver={**curve.solver, "auto_method": "exact", "auto_estimate": 0.0,
-                                          "auto_tolerance": tolerance,
-                                          "auto_rejected": "fast methods (the scene has loads or gravity)"})
-        raise FlexoptError(f"method '{method}' expands about a stress-free reference, but scene '{an.scene.name}' "
-                           "has loads or gravity: use method 'exact' or 'auto'")
+            return replace(
+                curve,
+                solver={
+                    **curve.solver,
+                    "auto_method": "exact",
+                    "auto_estimate": 0.0,
+                    "auto_tolerance": tolerance,
+                    "auto_rejected": "fast methods (the scene has loads or gravity)",
+                },
+            )
+        raise FlexoptError(
+            f"method '{method}' expands about a stress-free reference, but scene '{an.scene.name}' "
+            "has loads or gravity: use method 'exact' or 'auto'"
+        )
     if method == "hermite":
         return hermite_frequency_curve(an, values, tolerance)[0]
     if method == "auto":
@@ -79,9 +89,11 @@ def _frequency_curve(an: MeshAnalysis, method: str, tolerance: float, stroke: np
     if spec.drive == "free":
         # the Taylor and manifold methods analyse modes with the drive locked (model.methods.taylor): on a
         # scene whose eigen analysis keeps the drive free they would answer a different question
-        raise FlexoptError(f"method '{method}' computes modes with the drive locked, but scene '{an.scene.name}' "
-                           "asks for the drive free in its eigen analysis (stroke.drive: free): use method "
-                           "'exact', 'hermite' or 'auto', or set stroke.drive to 'locked'")
+        raise FlexoptError(
+            f"method '{method}' computes modes with the drive locked, but scene '{an.scene.name}' "
+            "asks for the drive free in its eigen analysis (stroke.drive: free): use method "
+            "'exact', 'hermite' or 'auto', or set stroke.drive to 'locked'"
+        )
     curve, est = expansion_curve(an, method, values)
     return limit(curve, est, tolerance)
 
@@ -98,8 +110,7 @@ def expansion_curve(an: MeshAnalysis, method: str, values: np.ndarray) -> tuple[
     eta = np.asarray(an.scene.stroke.to_internal(both), dtype=float)
     # a structure with fewer locked DOFs than requested modes has only that many (wire guides: 5 of 6)
     n_rep = min(an.scene.modes, len(an.system.free) - an.system.n_con)
-    extra: dict = {"build_seconds": prep.md.build_seconds, "exact_checks": len(checks),
-                   "check_seconds": check_seconds}
+    extra: dict = {"build_seconds": prep.md.build_seconds, "exact_checks": len(checks), "check_seconds": check_seconds}
     if method in ("fd1", "fd2"):
         hz, labels, par = taylor_curve(prep, eta, 1 if method == "fd1" else 2, n_rep)
     else:
@@ -164,17 +175,28 @@ def _auto(an: MeshAnalysis, values: np.ndarray, tolerance: float) -> FrequencyCu
     per_side = max(int(np.sum(internal > 0)), int(np.sum(internal < 0)))
     tried: dict = {}
     if per_side >= AUTO_MIN_POINTS and tolerance < AUTO_MIN_TOLERANCE:
-        tried = {"auto_rejected": f"hermite (tolerance {tolerance:g} below {AUTO_MIN_TOLERANCE:g}: the exact curve "
-                                  "is cheaper there)"}
+        tried = {
+            "auto_rejected": f"hermite (tolerance {tolerance:g} below {AUTO_MIN_TOLERANCE:g}: the exact curve "
+            "is cheaper there)"
+        }
     elif per_side >= AUTO_MIN_POINTS:
         curve, extra = hermite_frequency_curve(an, values, tolerance, max_samples=max(4, per_side // 3), fill=True)
         if curve.method == "hermite" and extra["converged"] and extra["estimated_error"] <= tolerance:
             how = "hermite" + ("+exact" if extra["exact_points"] else "")
-            return replace(curve, solver={**curve.solver, "seconds": time.perf_counter() - t0,
-                                          "auto_method": how, "auto_estimate": extra["estimated_error"],
-                                          "auto_tolerance": tolerance})
-        tried = {"auto_rejected": f"hermite (estimated error {extra.get('estimated_error', float('nan')):.3g}, "
-                                  f"{extra.get('samples', 0)} samples)"}
+            return replace(
+                curve,
+                solver={
+                    **curve.solver,
+                    "seconds": time.perf_counter() - t0,
+                    "auto_method": how,
+                    "auto_estimate": extra["estimated_error"],
+                    "auto_tolerance": tolerance,
+                },
+            )
+        tried = {
+            "auto_rejected": f"hermite (estimated error {extra.get('estimated_error', float('nan')):.3g}, "
+            f"{extra.get('samples', 0)} samples)"
+        }
     elif an.scene.stroke.drive == "locked" and not an.system.n_con:
         # short curves (e.g. an optimiser's screening grid): the cheapest Taylor or manifold method whose
         # estimated error (:mod:`.accuracy`, from exact check points) meets the tolerance at every point
@@ -188,13 +210,33 @@ def _auto(an: MeshAnalysis, values: np.ndarray, tolerance: float) -> FrequencyCu
             est[m] = float(e.max()) if len(e) else 0.0
             if est[m] <= tolerance:
                 cur = limit(cur, e, tolerance)
-                return replace(cur, solver={**cur.solver, "seconds": time.perf_counter() - t0, "auto_method": m,
-                                            "auto_estimate": est[m], "auto_tolerance": tolerance})
-        tried = {"auto_rejected": "fd1, fd2, reduced, manifold (estimated errors "
-                                  + ", ".join(f"{est[m]:.3g}" for m in AUTO_ORDER[:-1]) + ")"}
+                return replace(
+                    cur,
+                    solver={
+                        **cur.solver,
+                        "seconds": time.perf_counter() - t0,
+                        "auto_method": m,
+                        "auto_estimate": est[m],
+                        "auto_tolerance": tolerance,
+                    },
+                )
+        tried = {
+            "auto_rejected": "fd1, fd2, reduced, manifold (estimated errors "
+            + ", ".join(f"{est[m]:.3g}" for m in AUTO_ORDER[:-1])
+            + ")"
+        }
     cur = an.frequency_curve(values)
-    return replace(cur, solver={**cur.solver, "seconds": time.perf_counter() - t0, "auto_method": "exact",
-                                "auto_estimate": 0.0, "auto_tolerance": tolerance, **tried})
+    return replace(
+        cur,
+        solver={
+            **cur.solver,
+            "seconds": time.perf_counter() - t0,
+            "auto_method": "exact",
+            "auto_estimate": 0.0,
+            "auto_tolerance": tolerance,
+            **tried,
+        },
+    )
 
 
 def estimate_error(an: MeshAnalysis, values: np.ndarray) -> dict[str, float]:
@@ -218,7 +260,8 @@ def estimate_error(an: MeshAnalysis, values: np.ndarray) -> dict[str, float]:
     return est
 
 
-def curve_with_method(analysis: MeshAnalysis, method: str, tolerance: float = 0.01,
-                      stroke: np.ndarray | None = None) -> FrequencyCurve:
+def curve_with_method(
+    analysis: MeshAnalysis, method: str, tolerance: float = 0.01, stroke: np.ndarray | None = None
+) -> FrequencyCurve:
     """CLI entry point: :func:`frequency_curve` on a ready :class:`MeshAnalysis` (result has ``.method`` set)."""
     return frequency_curve(analysis, method, tolerance, stroke)

@@ -64,10 +64,10 @@ import numpy as np
 from ..analysis import MeshAnalysis
 from ..errors import FlexoptError
 from ..modal import Modes, assign, mac_matrix, modes_at
+from ..rotations import skew
 from ..statics import Equilibrium, StepFailure, path_curvature, solve_point, walk
 from ..symmetry import image_indices, one_side
 from .common import CLUSTER_GAP, _curve_from
-from ..rotations import skew
 from .taylor import _multiple, _projected_mass_slope
 
 __all__ = ["hermite_curve", "stroke_slopes", "HermiteResult"]
@@ -195,7 +195,9 @@ def _hz(mu: np.ndarray) -> np.ndarray:
 class _Side:
     """Samples on one side of stroke 0 and their tracked branches."""
 
-    def __init__(self, an: MeshAnalysis, first: _Sample, k: int, drive: str, curvature: np.ndarray | None = None) -> None:
+    def __init__(
+        self, an: MeshAnalysis, first: _Sample, k: int, drive: str, curvature: np.ndarray | None = None
+    ) -> None:
         self.an, self.k, self.drive = an, k, drive
         self.samples = [first]
         self.lam = self.slope = np.zeros((0, k))
@@ -239,8 +241,11 @@ class _Side:
             h = end.s - start.s
             u = (s_new - start.s) / h
             delta = sys.difference(end.eq.state, start.eq.state)
-            step = (u * (1 - u) ** 2 * h) * start.eq.tangent + (u * u * (3 - 2 * u)) * delta \
+            step = (
+                (u * (1 - u) ** 2 * h) * start.eq.tangent
+                + (u * u * (3 - 2 * u)) * delta
                 + (u * u * (u - 1) * h) * end.eq.tangent
+            )
             try:
                 eq = solve_point(sys, sys.update(start.eq.state, step), s_new, an.options, start.s)
             except StepFailure:
@@ -376,8 +381,15 @@ class _Side:
         def seen(e: Equilibrium) -> None:
             self.visited[float(e.stroke)] = e
 
-        fail = walk(sys, np.linspace(0.0, smax, 5)[1:], an.options, accept, start=first.eq,
-                    on_step=seen, curvature=self.curvature)
+        fail = walk(
+            sys,
+            np.linspace(0.0, smax, 5)[1:],
+            an.options,
+            accept,
+            start=first.eq,
+            on_step=seen,
+            curvature=self.curvature,
+        )
         if fail is not None:
             raise _Fallback(fail.message)
         if not flat[0]:
@@ -434,8 +446,15 @@ class _Side:
                 if smp.labels is None:
                     smp.labels = self.an.label_modes(m, smp.eq.tangent)[0]
                 # interpolated variable: mu = 1 / lambda (see module docstring), and its slope
-                hit = self._tracked[key] = (perm, groups, 1.0 / w2, -smp.slope[perm] / w2**2,
-                                            [smp.labels[j] for j in perm], match, full)
+                hit = self._tracked[key] = (
+                    perm,
+                    groups,
+                    1.0 / w2,
+                    -smp.slope[perm] / w2**2,
+                    [smp.labels[j] for j in perm],
+                    match,
+                    full,
+                )
             perm, groups, mu, dmu, lab, match, full = hit
             if match is not None:
                 mac.append(match)
@@ -496,8 +515,9 @@ def _follows(p: _Sample, q: _Sample) -> bool:
     if lp is None or lq is None:
         return lp is None and lq is None
     F = mac_matrix(p.modes, q.modes)  # (mode at p, mode at q)
-    return _cluster_share(F[lp], q.modes.omega2, lq) >= MAC_MIN and _cluster_share(F[:, lq], p.modes.omega2,
-                                                                                     lp) >= MAC_MIN
+    return (
+        _cluster_share(F[lp], q.modes.omega2, lq) >= MAC_MIN and _cluster_share(F[:, lq], p.modes.omega2, lp) >= MAC_MIN
+    )
 
 
 def _cluster_share(row: np.ndarray, lam: np.ndarray, j: int) -> float:
@@ -619,10 +639,22 @@ def _frame(side: _Side, S: np.ndarray) -> _Frame:
     basis = _basis(a_, b_, x)
     A = _interpolate(basis, mu[:-1], mu[1:], d[:-1], d[1:])  # (I, 16, k)
     left = np.abs(x - a_[:, None]) <= np.abs(b_[:, None] - x)
-    return _Frame(S=S, mu=mu, d=d, P=P, sure=np.asarray(side.mac, dtype=float) >= MAC_MIN,
-                  filled=np.array([x.filled for x in side.samples]), x=x, basis=basis, left=left,
-                  par=np.where(left[:, :, None], P[:-1, None, :], P[1:, None, :]),
-                  low=np.where(P, _hz(mu), np.inf).argmin(axis=1), has=P.any(axis=1), A=A, hz_a=_hz(A))
+    return _Frame(
+        S=S,
+        mu=mu,
+        d=d,
+        P=P,
+        sure=np.asarray(side.mac, dtype=float) >= MAC_MIN,
+        filled=np.array([x.filled for x in side.samples]),
+        x=x,
+        basis=basis,
+        left=left,
+        par=np.where(left[:, :, None], P[:-1, None, :], P[1:, None, :]),
+        low=np.where(P, _hz(mu), np.inf).argmin(axis=1),
+        has=P.any(axis=1),
+        A=A,
+        hz_a=_hz(A),
+    )
 
 
 def _uncertain(fr: _Frame) -> tuple[np.ndarray, np.ndarray]:
@@ -683,8 +715,9 @@ def _apply_pairs(fr: _Frame, pairs: tuple, inf: np.ndarray, unc: np.ndarray) -> 
     return R, aR, bRr, r1, r2
 
 
-def _compare(fr: _Frame, pairs: tuple, quintic: list[np.ndarray], cmp: np.ndarray, in_r: tuple,
-             crossing: tuple) -> np.ndarray:
+def _compare(
+    fr: _Frame, pairs: tuple, quintic: list[np.ndarray], cmp: np.ndarray, in_r: tuple, crossing: tuple
+) -> np.ndarray:
     """The largest relative difference (I,) of the reported interpolant's first parasitic frequency from the
     comparison interpolants of :func:`_errors` (in r, the quintic, the pair form on ``cmp``), over the interior
     points; ``in_r``: what :func:`_apply_pairs` returns; ``crossing``: the swapped intervals and their single
@@ -738,8 +771,9 @@ def _compare(fr: _Frame, pairs: tuple, quintic: list[np.ndarray], cmp: np.ndarra
     return est
 
 
-def _crossings(basis: tuple, mu: np.ndarray, d: np.ndarray, unc: np.ndarray,
-               rows: np.ndarray | None = None) -> np.ndarray:
+def _crossings(
+    basis: tuple, mu: np.ndarray, d: np.ndarray, unc: np.ndarray, rows: np.ndarray | None = None
+) -> np.ndarray:
     """The lowest frequency (I, p) of the cubics through every pairing (j at S_i, l at S_i+1) of the branches
     ``unc`` (I, k) marks uncertain across each interval (``rows``: the intervals, all by default); inf where
     an interval has no such pairing. Only the pairings that exist are evaluated (a few per interval)."""
@@ -753,8 +787,7 @@ def _crossings(basis: tuple, mu: np.ndarray, d: np.ndarray, unc: np.ndarray,
     jj, ll = j[ci], l[ci]
     g = ri if rows is None else rows[ri]  # the intervals' indices into the samples
     b = tuple(c[ri] for c in basis)
-    cand = _hz(_interpolate(b, mu[g, jj][:, None], mu[g + 1, ll][:, None], d[g, jj][:, None],
-                            d[g + 1, ll][:, None]))
+    cand = _hz(_interpolate(b, mu[g, jj][:, None], mu[g + 1, ll][:, None], d[g, jj][:, None], d[g + 1, ll][:, None]))
     first = np.flatnonzero(np.r_[True, ri[1:] != ri[:-1]])  # ri is sorted: each interval's run of pairings
     out[ri[first]] = np.minimum.reduceat(cand[..., 0], first, axis=0)
     return out
@@ -766,8 +799,7 @@ def _no_pairs(S: np.ndarray) -> tuple:
     return S.tobytes(), np.zeros(n, dtype=bool), none, none, None, None
 
 
-def _pair_forms(S: np.ndarray, mu: np.ndarray, d: np.ndarray, P: np.ndarray, macs: list,
-                want: np.ndarray) -> tuple:
+def _pair_forms(S: np.ndarray, mu: np.ndarray, d: np.ndarray, P: np.ndarray, macs: list, want: np.ndarray) -> tuple:
     """Which intervals take the pair form: among ``want`` (I,), those where both ends have two parasitic
     branches and the two lowest at S_i (``ia``, branches, lowest first) and at S_i+1 (``ib``) span the same
     subspace: every mode of either pair has a MAC share of at least ``MAC_MIN`` in the other pair (the sum of
@@ -830,8 +862,9 @@ def _pair_roots(V: np.ndarray) -> tuple[np.ndarray, ...]:
     return hi[..., 0], lo[..., 0], np.maximum(lo[..., 1], 1e-300) ** -2.0, np.maximum(hi[..., 1], 1e-300) ** -2.0
 
 
-def _put_pair(A: np.ndarray, R: np.ndarray, left: np.ndarray, ia: np.ndarray, ib: np.ndarray, m1: np.ndarray,
-              m2: np.ndarray) -> None:
+def _put_pair(
+    A: np.ndarray, R: np.ndarray, left: np.ndarray, ia: np.ndarray, ib: np.ndarray, m1: np.ndarray, m2: np.ndarray
+) -> None:
     """Writes the pair form into the pair's branches of the intervals ``R`` of ``A`` (I, p, k): at each point
     the lowest branch of the nearer sample takes ``m1`` (the lower frequency) and its second ``m2``
     (``left`` (R, p): the point is nearer S_i)."""
@@ -864,8 +897,9 @@ def _interpolate(basis: tuple, y0: np.ndarray, y1: np.ndarray, d0: np.ndarray, d
     return h00 * y0[:, None, :] + h10 * h * d0[:, None, :] + h01 * y1[:, None, :] + h11 * h * d1[:, None, :]
 
 
-def _quintic_all(S: np.ndarray, y: np.ndarray, dy: np.ndarray, i: np.ndarray, nb: np.ndarray, x: np.ndarray,
-                 cubic: np.ndarray) -> np.ndarray:
+def _quintic_all(
+    S: np.ndarray, y: np.ndarray, dy: np.ndarray, i: np.ndarray, nb: np.ndarray, x: np.ndarray, cubic: np.ndarray
+) -> np.ndarray:
     """The polynomial of degree 5 through the values ``y`` and slopes ``dy`` (rows: samples, columns:
     branches) at the samples ``i``, ``i + 1`` and ``nb`` (arrays over intervals), at ``x`` (I, p): (I, p, k).
     ``cubic``: the cubic Hermite interpolant on [S_i, S_i+1] at ``x``. The two differ by ``w(s) (alpha + beta
@@ -875,10 +909,15 @@ def _quintic_all(S: np.ndarray, y: np.ndarray, dy: np.ndarray, i: np.ndarray, nb
     h = b - a
     u = (t - a) / h
     # the cubic and its slope at t (the Hermite basis evaluated outside [0, 1])
-    ct = ((1 + 2 * u) * (1 - u) ** 2 * y[i] + u * (1 - u) ** 2 * h * dy[i] + u * u * (3 - 2 * u) * y[i + 1]
-          + u * u * (u - 1) * h * dy[i + 1])
-    dct = ((6 * u * u - 6 * u) * (y[i] - y[i + 1]) / h + (3 * u * u - 4 * u + 1) * dy[i]
-           + (3 * u * u - 2 * u) * dy[i + 1])
+    ct = (
+        (1 + 2 * u) * (1 - u) ** 2 * y[i]
+        + u * (1 - u) ** 2 * h * dy[i]
+        + u * u * (3 - 2 * u) * y[i + 1]
+        + u * u * (u - 1) * h * dy[i + 1]
+    )
+    dct = (
+        (6 * u * u - 6 * u) * (y[i] - y[i + 1]) / h + (3 * u * u - 4 * u + 1) * dy[i] + (3 * u * u - 2 * u) * dy[i + 1]
+    )
     wt, dwt = (t - a) ** 2 * (t - b) ** 2, 2 * (t - a) * (t - b) * (2 * t - a - b)
     g = (y[nb] - ct) / wt
     beta = (dy[nb] - dct - dwt * g) / wt
@@ -912,8 +951,11 @@ def _refine(side: _Side, s_req: np.ndarray, tolerance: float, max_samples: int |
     h_min = abs(smax) / 64.0
     while True:
         est = side.estimates()
-        todo = [iv for iv, e in est.items() if (e > tolerance or (iv in side.coarse and iv not in side.checked))
-                and abs(iv[1] - iv[0]) > h_min * 1.5]
+        todo = [
+            iv
+            for iv, e in est.items()
+            if (e > tolerance or (iv in side.coarse and iv not in side.checked)) and abs(iv[1] - iv[0]) > h_min * 1.5
+        ]
         if not todo or (max_samples is not None and len(side.samples) - 1 >= max_samples):
             return est
         # every interval of the round probed against the tracked branches of its start, then the
@@ -944,8 +986,14 @@ def _fill(side: _Side, est: dict, s_req: np.ndarray, tolerance: float) -> int:
     return n
 
 
-def hermite_curve(an: MeshAnalysis, internal: np.ndarray, tolerance: float, max_samples: int | None = None,
-                  mirror: bool = True, fill: bool = False) -> HermiteResult | None:
+def hermite_curve(
+    an: MeshAnalysis,
+    internal: np.ndarray,
+    tolerance: float,
+    max_samples: int | None = None,
+    mirror: bool = True,
+    fill: bool = False,
+) -> HermiteResult | None:
     """Frequencies at the internal strokes ``internal`` by adaptive exact samples and cubic Hermite branches.
 
     Returns ``None`` when a sample cannot be computed (the continuation fails or an equilibrium is
@@ -964,8 +1012,16 @@ def hermite_curve(an: MeshAnalysis, internal: np.ndarray, tolerance: float, max_
         if res is None:
             return None
         idx = image_indices(pos, internal)  # every |s| is in pos by construction
-        return HermiteResult(res.hz[idx], res.labels[idx], res.parasitic[idx], res.estimate, res.samples,
-                             res.converged, an.symmetry.describe(), res.filled)
+        return HermiteResult(
+            res.hz[idx],
+            res.labels[idx],
+            res.parasitic[idx],
+            res.estimate,
+            res.samples,
+            res.converged,
+            an.symmetry.describe(),
+            res.filled,
+        )
     sys = an.system
     spec = an.scene.stroke
     drive = spec.drive
@@ -1011,8 +1067,9 @@ def hermite_curve(an: MeshAnalysis, internal: np.ndarray, tolerance: float, max_
     return HermiteResult(hz, labels, par, estimate, used, converged, filled=filled)
 
 
-def hermite_frequency_curve(an: MeshAnalysis, values: np.ndarray, tolerance: float,
-                            max_samples: int | None = None, fill: bool = False):
+def hermite_frequency_curve(
+    an: MeshAnalysis, values: np.ndarray, tolerance: float, max_samples: int | None = None, fill: bool = False
+):
     """The ``hermite`` method as a :class:`~model.results.FrequencyCurve`; the exact curve when a sample fails.
 
     ``solver`` reports the exact samples used, the estimated max relative error (of the interpolated
@@ -1028,17 +1085,25 @@ def hermite_frequency_curve(an: MeshAnalysis, values: np.ndarray, tolerance: flo
         return ex, {"fallback": "exact (a sample's equilibrium could not be computed)"}
     if not np.all(np.isfinite(res.hz)):
         raise FlexoptError("the hermite interpolation produced non-finite frequencies; use method 'exact'")
-    extra = {"samples": res.samples, "estimated_error": res.estimate, "tolerance": tolerance,
-             "converged": res.converged}
+    extra = {
+        "samples": res.samples,
+        "estimated_error": res.estimate,
+        "tolerance": tolerance,
+        "converged": res.converged,
+    }
     if fill:
         extra["exact_points"] = res.filled
     if res.mirrored is not None:
         extra["mirrored"] = f"negative strokes from positive ones by the design's symmetry ({res.mirrored})"
-    conv = {"method": "hermite: exact equilibria, eigenpairs and d(lambda)/ds at the samples, cubic Hermite "
-                      "interpolation of each tracked branch's 1/omega^2 between them"
-                      + (f"; {res.filled} requested points in intervals that missed the tolerance computed "
-                         "exactly" if res.filled else ""),
-            "drive_reaction": "not computed by this method (NaN)"}
-    curve = _curve_from(an, "hermite", values, res.hz, res.labels, res.parasitic, time.perf_counter() - t0, extra,
-                        conv)
+    conv = {
+        "method": "hermite: exact equilibria, eigenpairs and d(lambda)/ds at the samples, cubic Hermite "
+        "interpolation of each tracked branch's 1/omega^2 between them"
+        + (
+            f"; {res.filled} requested points in intervals that missed the tolerance computed exactly"
+            if res.filled
+            else ""
+        ),
+        "drive_reaction": "not computed by this method (NaN)",
+    }
+    curve = _curve_from(an, "hermite", values, res.hz, res.labels, res.parasitic, time.perf_counter() - t0, extra, conv)
     return curve, extra

@@ -44,7 +44,6 @@ def _reduced_basis(sys: System, md: ModalDerivatives, k: int) -> np.ndarray:
     return V
 
 
-
 def eigen_curve(prep: _Prepared, eta: np.ndarray, reduced: bool, n_rep: int) -> tuple:
     """Frequencies at ``eta`` on the quadratic manifold: full (``reduced`` False) or reduced eigen solves."""
     import scipy.linalg as sla  # lazily, as in _reduced_basis
@@ -75,5 +74,3 @@ def eigen_curve(prep: _Prepared, eta: np.ndarray, reduced: bool, n_rep: int) -> 
         lab, pz = an.label_modes(modes)
         hz[p], labels[p], par[p] = modes.hz[:n_rep], np.array(lab[:n_rep], dtype=object), pz
     return hz, labels, par, drive_dev
-
-

@@ -71,8 +71,15 @@ from ..modal import Modes
 from ..statics import Equilibrium, solve_point
 from .common import CLUSTER_GAP, _hz
 
-__all__ = ["ModalDerivatives", "modal_derivatives", "hessian_second_derivative", "mass_derivatives", "mass_slope",
-           "projected_mass_slope", "taylor_curve"]
+__all__ = [
+    "ModalDerivatives",
+    "modal_derivatives",
+    "hessian_second_derivative",
+    "mass_derivatives",
+    "mass_slope",
+    "projected_mass_slope",
+    "taylor_curve",
+]
 
 
 def hessian_second_derivative(sys: System, st: State, v: np.ndarray) -> np.ndarray:
@@ -85,8 +92,10 @@ def hessian_second_derivative(sys: System, st: State, v: np.ndarray) -> np.ndarr
     sys.fill_inputs(st)
     vg = sys.to_global(np.asarray(v, dtype=float))
     out = np.zeros(N * N)
-    for fn, inputs, dofs, flat in ((_el.beam_d4, sys.beam_in, sys.beam_dofs_full, sys.beam_flat),
-                                   (_el.truss_d4, sys.truss_in, sys.truss_dofs_full, sys.truss_flat)):
+    for fn, inputs, dofs, flat in (
+        (_el.beam_d4, sys.beam_in, sys.beam_dofs_full, sys.beam_flat),
+        (_el.truss_d4, sys.truss_in, sys.truss_dofs_full, sys.truss_flat),
+    ):
         if not len(inputs):
             continue
         arg = np.hstack([inputs, vg[dofs]])
@@ -170,8 +179,17 @@ def _projected_mass_slope(sys: System, st: State, R1: np.ndarray, P: np.ndarray)
     return 0.5 * (M1 + M1.T)
 
 
-def _to_reference_chart(sys: System, K: np.ndarray, M: np.ndarray, K1: np.ndarray, K2: np.ndarray,
-                        M1: np.ndarray, M2: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple:
+def _to_reference_chart(
+    sys: System,
+    K: np.ndarray,
+    M: np.ndarray,
+    K1: np.ndarray,
+    K2: np.ndarray,
+    M1: np.ndarray,
+    M2: np.ndarray,
+    a: np.ndarray,
+    b: np.ndarray,
+) -> tuple:
     """Put stiffness and mass derivatives along ``xi(eta) = a eta + 1/2 b eta^2`` in one chart.
 
     ``K1, K2`` (from the kernels) are derivatives of the Hessian in the exponential chart of the
@@ -220,7 +238,7 @@ def _to_reference_chart(sys: System, K: np.ndarray, M: np.ndarray, K1: np.ndarra
         G2 = T.T @ Gg @ T
     # K_ref = J^T K' J + G  =>  derivatives of K' (the exact method's chart) along the path
     Kn1 = K1 - (J1.T @ K + K @ J1)
-    Kn2 = (K2 - G2 - 2.0 * (J1.T @ Kn1 + Kn1 @ J1) - (J2.T @ K + K @ J2) - 2.0 * J1.T @ K @ J1)
+    Kn2 = K2 - G2 - 2.0 * (J1.T @ Kn1 + Kn1 @ J1) - (J2.T @ K + K @ J2) - 2.0 * J1.T @ K @ J1
     sym = lambda X: 0.5 * (X + X.T)  # noqa: E731
     return sym(Kn1), sym(Kn2), M1, M2
 
@@ -305,7 +323,7 @@ class ModalDerivatives:
                     B = r[None, :, None] * D * r[None, None, :]
                     out[:, c] = np.sort(1.0 / np.linalg.eigvalsh(0.5 * (B + B.transpose(0, 2, 1)))[:, ::-1], axis=1)
                     continue
-            A = (np.diag(lam0)[None] + e3 * a1[None] + (0.5 * e3**2 * a2[None] if order == 2 else 0.0))
+            A = np.diag(lam0)[None] + e3 * a1[None] + (0.5 * e3**2 * a2[None] if order == 2 else 0.0)
             out[:, c] = np.linalg.eigvalsh(0.5 * (A + A.transpose(0, 2, 1)))
         return out
 
@@ -349,8 +367,9 @@ def _multiple(lam: np.ndarray, gap: float) -> list[np.ndarray]:
     return out
 
 
-def _perturbation(sys: System, M: np.ndarray, Kff: np.ndarray, K1: np.ndarray, K2: np.ndarray, M1: np.ndarray,
-                  M2: np.ndarray) -> tuple:
+def _perturbation(
+    sys: System, M: np.ndarray, Kff: np.ndarray, K1: np.ndarray, K2: np.ndarray, M1: np.ndarray, M2: np.ndarray
+) -> tuple:
     """All locked modes at the reference and the (quasi-)degenerate perturbation of their eigenvalues along
     the path (module docstring): ``w``, ``phi``, the clusters, their ``A1``, ``A2``, ``gamma``, ``gamma2`` and
     the outside-cluster mode-shape derivatives, from the stiffness and mass derivatives in the exact method's
@@ -394,8 +413,9 @@ def _perturbation(sys: System, M: np.ndarray, Kff: np.ndarray, K1: np.ndarray, K
     return w, phi, clusters, A1s, A2s, gamma, gamma2, dyn
 
 
-def modal_derivatives(an: MeshAnalysis, eq0: Equilibrium | None = None, n_theta: int | None = None,
-                      labeller=None) -> ModalDerivatives:
+def modal_derivatives(
+    an: MeshAnalysis, eq0: Equilibrium | None = None, n_theta: int | None = None, labeller=None
+) -> ModalDerivatives:
     """Modes, modal derivatives (eq. 6) and first and second frequency derivatives at stroke 0.
 
     Parameters
@@ -422,8 +442,10 @@ def modal_derivatives(an: MeshAnalysis, eq0: Equilibrium | None = None, n_theta:
     if eq0 is None:
         eq0 = solve_point(sys, sys.reference_state(), 0.0, an.options, 0.0)
     if sys.n_con:
-        raise FlexoptError("modal derivatives do not support rigid deformations (constraints) yet; "
-                           "use method='exact' or make the elements flexible")
+        raise FlexoptError(
+            "modal derivatives do not support rigid deformations (constraints) yet; "
+            "use method='exact' or make the elements flexible"
+        )
     f, d = sys.free, sys.drive
     K = eq0.ev.H
     M = sys.mass(eq0.state)
@@ -432,9 +454,11 @@ def modal_derivatives(an: MeshAnalysis, eq0: Equilibrium | None = None, n_theta:
     try:
         cho = sla.cho_factor(Kff)
     except np.linalg.LinAlgError as exc:
-        raise FlexoptError("the tangent stiffness with the drive locked is singular or indefinite at stroke 0 "
-                           "(a mechanism or an unstable reference): support the structure, or use "
-                           "method='exact'") from exc
+        raise FlexoptError(
+            "the tangent stiffness with the drive locked is singular or indefinite at stroke 0 "
+            "(a mechanism or an unstable reference): support the structure, or use "
+            "method='exact'"
+        ) from exc
 
     def solve(b: np.ndarray) -> np.ndarray:
         return sla.cho_solve(cho, b)
@@ -456,9 +480,22 @@ def modal_derivatives(an: MeshAnalysis, eq0: Equilibrium | None = None, n_theta:
     theta = np.zeros((sys.n, r))
     theta[f] = -solve((K1 @ phi[:, :r])[f])  # eq. 6: theta_ij = -K^-1 dK/deta_j phi_i
     labels, _ = an.label_modes(Modes(w, phi, M))
-    return ModalDerivatives(w, phi, M, phi_j, theta_jj, theta, gamma, gamma2, tuple(clusters),
-                            tuple(A1s), tuple(A2s), tuple(labels), time.perf_counter() - t0, dyn[:, :r])
-
+    return ModalDerivatives(
+        w,
+        phi,
+        M,
+        phi_j,
+        theta_jj,
+        theta,
+        gamma,
+        gamma2,
+        tuple(clusters),
+        tuple(A1s),
+        tuple(A2s),
+        tuple(labels),
+        time.perf_counter() - t0,
+        dyn[:, :r],
+    )
 
 
 @dataclass
@@ -480,7 +517,6 @@ def _prepare(an: MeshAnalysis) -> _Prepared:
     return an.expansion
 
 
-
 def taylor_curve(prep: _Prepared, eta: np.ndarray, order: int, n_rep: int) -> tuple:
     """fd1 (``order`` 1, eq. 10) or fd2 (second order): Taylor estimates of every branch at ``eta``."""
     md = prep.md
@@ -495,5 +531,3 @@ def taylor_curve(prep: _Prepared, eta: np.ndarray, order: int, n_rep: int) -> tu
     hz = np.take_along_axis(hz_all, idx, axis=1)
     labels = lab0[idx]
     return hz, labels, par
-
-

@@ -13,13 +13,37 @@ from typing import Any
 
 from .spec import TopologySpec, example_spec
 
-__all__ = ["FAMILIES", "Leaf", "Stage", "Topology", "canonical", "design_parameters", "enumerate_topologies",
-           "family_of", "parse", "screen_scene", "screen_topology", "TopologySpec", "example_spec",
-           "run_topology_search"]
+__all__ = [
+    "FAMILIES",
+    "Leaf",
+    "Stage",
+    "Topology",
+    "canonical",
+    "design_parameters",
+    "enumerate_topologies",
+    "family_of",
+    "parse",
+    "screen_scene",
+    "screen_topology",
+    "TopologySpec",
+    "example_spec",
+    "run_topology_search",
+]
 
-_LAZY = {"FAMILIES": "grammar", "Leaf": "grammar", "Stage": "grammar", "Topology": "grammar", "canonical": "grammar",
-         "design_parameters": "grammar", "enumerate_topologies": "grammar", "family_of": "grammar", "parse": "grammar",
-         "screen_scene": "screen", "screen_topology": "screen", "run_topology_search": "rank"}
+_LAZY = {
+    "FAMILIES": "grammar",
+    "Leaf": "grammar",
+    "Stage": "grammar",
+    "Topology": "grammar",
+    "canonical": "grammar",
+    "design_parameters": "grammar",
+    "enumerate_topologies": "grammar",
+    "family_of": "grammar",
+    "parse": "grammar",
+    "screen_scene": "screen",
+    "screen_topology": "screen",
+    "run_topology_search": "rank",
+}
 
 
 def __getattr__(name: str) -> Any:

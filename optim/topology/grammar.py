@@ -56,9 +56,24 @@ from dataclasses import dataclass
 
 from ...model.templates import guide_layout, topology_layout
 
-__all__ = ["Leaf", "Stage", "Topology", "parse", "canonical", "family_of", "enumerate_topologies", "FAMILIES",
-           "design_parameters", "DIMENSIONS", "crosses", "GuideTopology", "parse_guide", "canonical_guide", "enumerate_guides",
-           "GUIDE_PLACES"]
+__all__ = [
+    "Leaf",
+    "Stage",
+    "Topology",
+    "parse",
+    "canonical",
+    "family_of",
+    "enumerate_topologies",
+    "FAMILIES",
+    "design_parameters",
+    "DIMENSIONS",
+    "crosses",
+    "GuideTopology",
+    "parse_guide",
+    "canonical_guide",
+    "enumerate_guides",
+    "GUIDE_PLACES",
+]
 
 
 @dataclass(frozen=True, order=True)
@@ -115,9 +130,15 @@ class Topology:
 
     def to_dict(self) -> dict:
         """A JSON form: the descriptor, counts and stages."""
-        return {"descriptor": str(self), "flexures": self.flexures, "stages": len(self.stages),
-                "layout": [{"leaves": [str(lf) for lf in s.leaves], "inplane": s.inplane,
-                            "free_crossing": s.free_crossing} for s in self.stages]}
+        return {
+            "descriptor": str(self),
+            "flexures": self.flexures,
+            "stages": len(self.stages),
+            "layout": [
+                {"leaves": [str(lf) for lf in s.leaves], "inplane": s.inplane, "free_crossing": s.free_crossing}
+                for s in self.stages
+            ],
+        }
 
 
 def parse(descriptor: str) -> Topology:
@@ -128,14 +149,22 @@ def parse(descriptor: str) -> Topology:
     SceneError
         A malformed descriptor, with the position and what is allowed there.
     """
-    return Topology(tuple(Stage(tuple(Leaf(p, m, r) for p, m, r in st["leaves"]), st["inplane"], st["free_crossing"])
-                          for st in topology_layout(descriptor)))
+    return Topology(
+        tuple(
+            Stage(tuple(Leaf(p, m, r) for p, m, r in st["leaves"]), st["inplane"], st["free_crossing"])
+            for st in topology_layout(descriptor)
+        )
+    )
 
 
 def _mirror_x(t: Topology) -> Topology:
     swap = {"+": "-", "-": "+", "0": "0"}
-    return Topology(tuple(Stage(tuple(Leaf(swap[lf.plane], lf.width, lf.reinforced) for lf in s.leaves), s.inplane,
-                                s.free_crossing) for s in t.stages))
+    return Topology(
+        tuple(
+            Stage(tuple(Leaf(swap[lf.plane], lf.width, lf.reinforced) for lf in s.leaves), s.inplane, s.free_crossing)
+            for s in t.stages
+        )
+    )
 
 
 def _mirror_z(t: Topology) -> Topology | None:
@@ -158,8 +187,12 @@ def canonical(t: Topology | str) -> Topology:
 
 #: The hand-made families as descriptors (their scenes agree with the family templates to round-off:
 #: tests/test_topology.py).
-FAMILIES: dict[str, str] = {"cross-spring-pivot": "R:+-@", "cartwheel-hinge": "R:x+-",
-                            "three-fold-cross-hinge": "R:-+2-@", "double-cross-hinge": "R:+-|-+"}
+FAMILIES: dict[str, str] = {
+    "cross-spring-pivot": "R:+-@",
+    "cartwheel-hinge": "R:x+-",
+    "three-fold-cross-hinge": "R:-+2-@",
+    "double-cross-hinge": "R:+-|-+",
+}
 _FAMILY_OF = {str(canonical(d)): name for name, d in FAMILIES.items()}
 
 
@@ -220,8 +253,9 @@ def crosses(stage: Stage) -> bool:
     return len({lf.plane for lf in stage.leaves}) >= 2
 
 
-def _stage_patterns(k: int, planes: str, inplane: bool, free_crossing: bool, reinforce: bool,
-                    prune: bool = False) -> list[Stage]:
+def _stage_patterns(
+    k: int, planes: str, inplane: bool, free_crossing: bool, reinforce: bool, prune: bool = False
+) -> list[Stage]:
     """Every stage of ``k`` leaves: stacked sequences of planes (and, for an odd mirror-symmetric stack whose
     middle leaf differs from its neighbours, the variant with a double-width middle leaf: the three-fold
     principle of equal width per plane), in-plane crossings of ``k`` different planes; each with the
@@ -234,7 +268,7 @@ def _stage_patterns(k: int, planes: str, inplane: bool, free_crossing: bool, rei
         if k % 2 and k > 1 and seq == seq[::-1] and seq[m] != seq[m - 1]:
             variants.append(tuple(Leaf(p, 2 if i == m else 1) for i, p in enumerate(seq)))
         for leaves in variants:
-            for rein in ((False, True) if reinforce else (False,)):
+            for rein in (False, True) if reinforce else (False,):
                 lv = tuple(Leaf(lf.plane, lf.width, rein) for lf in leaves)
                 designed = free_crossing and not (prune and len(set(seq)) < 2)
                 out += [Stage(lv, False, fc) for fc in ((False, True) if designed else (False,))]
@@ -245,8 +279,15 @@ def _stage_patterns(k: int, planes: str, inplane: bool, free_crossing: bool, rei
     return out
 
 
-def enumerate_topologies(max_flexures: int, max_stages: int, planes: str = "+-", inplane: bool = True,
-                         free_crossing: bool = True, reinforce: bool = False, prune: bool = False) -> list[Topology]:
+def enumerate_topologies(
+    max_flexures: int,
+    max_stages: int,
+    planes: str = "+-",
+    inplane: bool = True,
+    free_crossing: bool = True,
+    reinforce: bool = False,
+    prune: bool = False,
+) -> list[Topology]:
     """Every topology with at most ``max_flexures`` leaves in at most ``max_stages`` stages, one per symmetry
     class (canonical form), sorted by (flexures, stages, descriptor).
 
@@ -264,7 +305,9 @@ def enumerate_topologies(max_flexures: int, max_stages: int, planes: str = "+-",
     if not set(planes) <= set("+-0") or not planes:
         raise ValueError(f"planes must be a non-empty subset of '+-0', got {planes!r}")
     seen: dict[str, Topology] = {}
-    per_k = {k: _stage_patterns(k, planes, inplane, free_crossing, reinforce, prune) for k in range(1, max_flexures + 1)}
+    per_k = {
+        k: _stage_patterns(k, planes, inplane, free_crossing, reinforce, prune) for k in range(1, max_flexures + 1)
+    }
     for s in range(1, max_stages + 1):
         for sizes in itertools.product(range(1, max_flexures + 1), repeat=s):
             if sum(sizes) > max_flexures:

@@ -45,13 +45,21 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from ...model.threads import limited
 from ..problem import Family, Problem, Ratio
 from .grammar import Topology, canonical, design_parameters, enumerate_topologies, family_of, parse
 from .spec import TopologySpec, example_spec
-from ...model.threads import limited
 
-__all__ = ["TopologySpec", "example_spec", "run_topology_search", "design_space", "bound_origins",
-           "candidate_problem", "family_problem", "refine_case"]
+__all__ = [
+    "TopologySpec",
+    "example_spec",
+    "run_topology_search",
+    "design_space",
+    "bound_origins",
+    "candidate_problem",
+    "family_problem",
+    "refine_case",
+]
 
 _GAP = 0.002  # the template's gap between layers [m]
 _SAME_CROSSING = 0.02  # a first-pass crossing this close to 0.5 reduces to the midpoint variant
@@ -73,21 +81,33 @@ def _boxes(t: Topology, spec: TopologySpec) -> dict[str, tuple[float, float, str
     env = spec.envelope
     n, wsum = _layers(t)
     height = 2 * env.half_height if env.half_height is not None else 0.1
-    h_origin = ("the envelope's height" if env.half_height is not None else "0.1 m (no envelope height: the "
-                "search's own)") + f" shared by the stack's {n} layer{'s' * (n > 1)} and {n - 1} gap{'s' * (n != 2)}"
+    h_origin = (
+        "the envelope's height" if env.half_height is not None else "0.1 m (no envelope height: the search's own)"
+    ) + f" shared by the stack's {n} layer{'s' * (n > 1)} and {n - 1} gap{'s' * (n != 2)}"
     w_hi = (height - (n - 1) * _GAP) / wsum
     w_lo = min(0.005, 0.5 * w_hi)
     w_lo_origin = "5 mm, the search's smallest width" if w_lo == 0.005 else "half the width the envelope allows"
     t_lo = max(spec.min_thickness, 5e-5)
     box: dict[str, tuple[float, float, str, str]] = {
-        "length": (0.02, 2 * env.radius, "20 mm, the search's shortest leaf",
-                   "twice the envelope's radius (a leaf across the axis)"),
-        "thickness": (t_lo, 1e-3, "the minimum manufacturable thickness (min_thickness)" if t_lo == spec.min_thickness
-                      else "50 um, the search's thinnest leaf", "1 mm, the search's thickest leaf"),
+        "length": (
+            0.02,
+            2 * env.radius,
+            "20 mm, the search's shortest leaf",
+            "twice the envelope's radius (a leaf across the axis)",
+        ),
+        "thickness": (
+            t_lo,
+            1e-3,
+            "the minimum manufacturable thickness (min_thickness)"
+            if t_lo == spec.min_thickness
+            else "50 um, the search's thinnest leaf",
+            "1 mm, the search's thickest leaf",
+        ),
         "width": (w_lo, w_hi, w_lo_origin, h_origin),
         "angle": (30.0, 150.0, "30 deg, the search's range of plane angles", "150 deg, the search's range"),
         "crossing": (0.15, 0.85, "0.15, the search's range of crossing fractions", "0.85, the search's range"),
-        "rigid_fraction": (0.1, 0.6, "0.1, the search's range of rigid fractions", "0.6, the search's range")}
+        "rigid_fraction": (0.1, 0.6, "0.1, the search's range of rigid fractions", "0.6, the search's range"),
+    }
     sums = _stage_width_sums(t)
     for k in range(1, len(t.stages)):
         box[f"length_s{k + 1}"] = box["length"]
@@ -97,8 +117,12 @@ def _boxes(t: Topology, spec: TopologySpec) -> dict[str, tuple[float, float, str
         for k in range(len(t.stages)):
             hi = (height - (n - 1) * _GAP - (wsum - sums[k]) * w_lo) / sums[k]
             key = "width" if k == 0 else f"width_s{k + 1}"
-            box[key] = (w_lo, hi, w_lo_origin, h_origin + (", the other stages at their smallest width"
-                                                           if len(t.stages) > 1 else ""))
+            box[key] = (
+                w_lo,
+                hi,
+                w_lo_origin,
+                h_origin + (", the other stages at their smallest width" if len(t.stages) > 1 else ""),
+            )
     for k, st in enumerate(t.stages):
         for i in range(len(st.leaves)):
             box[f"thickness_s{k + 1}l{i + 1}"] = box["thickness"]
@@ -127,16 +151,27 @@ def _ratios(t: Topology, spec: TopologySpec) -> list[Ratio]:
         length, width = "length" + tag, "width" + tag
         if spec.min_length_over_width is not None:
             m = max(lf.width for lf in st.leaves)
-            out[(length, width, m)] = Ratio(numerator=length, denominator=width, minimum=spec.min_length_over_width,
-                                            factor=float(m), reason="leaves longer than wide: beams, not plates")
+            out[(length, width, m)] = Ratio(
+                numerator=length,
+                denominator=width,
+                minimum=spec.min_length_over_width,
+                factor=float(m),
+                reason="leaves longer than wide: beams, not plates",
+            )
         if spec.min_length_over_thickness is not None:
-            th = [f"thickness_s{k + 1}l{i + 1}" for i in range(len(st.leaves))] if spec.dimensions == "leaf" else \
-                ["thickness" + tag]
+            th = (
+                [f"thickness_s{k + 1}l{i + 1}" for i in range(len(st.leaves))]
+                if spec.dimensions == "leaf"
+                else ["thickness" + tag]
+            )
             for name in th:
                 if name in names:
-                    out[(length, name, 1)] = Ratio(numerator=length, denominator=name,
-                                                   minimum=spec.min_length_over_thickness,
-                                                   reason="leaves longer than thick")
+                    out[(length, name, 1)] = Ratio(
+                        numerator=length,
+                        denominator=name,
+                        minimum=spec.min_length_over_thickness,
+                        reason="leaves longer than thick",
+                    )
     return list(out.values())
 
 
@@ -146,19 +181,51 @@ def candidate_problem(t: Topology, spec: TopologySpec, first_pass: bool = False)
     r = (2 * spec.body_inertia / spec.body_mass) ** 0.5  # the template's inertia m r^2 / 2
     if first_pass and spec.first_pass_dimensions != "same":
         spec = spec.model_copy(update={"dimensions": spec.first_pass_dimensions})
-    fam = Family(template="topology-hinge", design=design_space(t, spec), origins=bound_origins(t, spec),
-                 ratios=_ratios(t, spec),
-                 fixed={"topology": str(t), "segments": spec.first_pass_segments if first_pass else spec.segments,
-                        "body_radius": r, "mid_mass": spec.intermediate_mass, "gap": _GAP})
+    fam = Family(
+        template="topology-hinge",
+        design=design_space(t, spec),
+        origins=bound_origins(t, spec),
+        ratios=_ratios(t, spec),
+        fixed={
+            "topology": str(t),
+            "segments": spec.first_pass_segments if first_pass else spec.segments,
+            "body_radius": r,
+            "mid_mass": spec.intermediate_mass,
+            "gap": _GAP,
+        },
+    )
     if first_pass:
-        return Problem(families=[fam], stroke=spec.stroke, samples=spec.first_pass_samples,
-                       safety_factor=spec.safety_factor, min_thickness=spec.min_thickness, envelope=spec.envelope,
-                       body_mass=spec.body_mass, solver=spec.solver, starts=1, seed=spec.seed,
-                       max_iterations=spec.first_pass_iterations, refine_rounds=0, verify_points=31, preview=False)
-    return Problem(families=[fam], stroke=spec.stroke, samples=spec.samples, safety_factor=spec.safety_factor,
-                   min_thickness=spec.min_thickness, envelope=spec.envelope, body_mass=spec.body_mass,
-                   solver=spec.solver, starts=spec.starts, seed=spec.seed, max_iterations=spec.max_iterations,
-                   refine_rounds=spec.refine_rounds, verify_points=spec.verify_points)
+        return Problem(
+            families=[fam],
+            stroke=spec.stroke,
+            samples=spec.first_pass_samples,
+            safety_factor=spec.safety_factor,
+            min_thickness=spec.min_thickness,
+            envelope=spec.envelope,
+            body_mass=spec.body_mass,
+            solver=spec.solver,
+            starts=1,
+            seed=spec.seed,
+            max_iterations=spec.first_pass_iterations,
+            refine_rounds=0,
+            verify_points=31,
+            preview=False,
+        )
+    return Problem(
+        families=[fam],
+        stroke=spec.stroke,
+        samples=spec.samples,
+        safety_factor=spec.safety_factor,
+        min_thickness=spec.min_thickness,
+        envelope=spec.envelope,
+        body_mass=spec.body_mass,
+        solver=spec.solver,
+        starts=spec.starts,
+        seed=spec.seed,
+        max_iterations=spec.max_iterations,
+        refine_rounds=spec.refine_rounds,
+        verify_points=spec.verify_points,
+    )
 
 
 def family_problem(name: str, descriptor: str, spec: TopologySpec) -> dict:
@@ -185,8 +252,15 @@ def _candidates(spec: TopologySpec) -> list[Topology]:
             c = canonical(d)
             seen.setdefault(str(c), c)
         return list(seen.values())
-    return enumerate_topologies(spec.max_flexures, spec.max_stages, spec.planes, spec.inplane, spec.free_crossing,
-                                spec.reinforcement, prune=spec.prune)
+    return enumerate_topologies(
+        spec.max_flexures,
+        spec.max_stages,
+        spec.planes,
+        spec.inplane,
+        spec.free_crossing,
+        spec.reinforcement,
+        prune=spec.prune,
+    )
 
 
 def refine_case(case: dict) -> dict:
@@ -216,16 +290,24 @@ def refine_case(case: dict) -> dict:
     curve = an.frequency_curve(stroke=grid, mesh_error=True)
     out = _curve_summary(curve, len(grid))
     used = sorted({e.segments for e in an.scene.elements if isinstance(e, Beam)})
-    out.update(segments=seg, segments_used=used, auto_note=an.auto_note, mesh_error=curve.mesh_error,
-               tolerance=case["tolerance"] if seg == "auto" else None,
-               warnings=[w.to_dict() for w in curve.warnings])
+    out.update(
+        segments=seg,
+        segments_used=used,
+        auto_note=an.auto_note,
+        mesh_error=curve.mesh_error,
+        tolerance=case["tolerance"] if seg == "auto" else None,
+        warnings=[w.to_dict() for w in curve.warnings],
+    )
     if "worst_hz" in out:
         mats = {m.name: m for m in an.scene.materials}
         allow = min(mats[e.material].allowable_stress for e in an.scene.elements)
         peak = np.nan_to_num(np.array([curve.max_von_mises[m] for m in curve.max_von_mises]), nan=-np.inf)
         im, ip = np.unravel_index(int(np.argmax(peak)), peak.shape)
-        out.update(stress_ratio=float(peak[im, ip]) * float(case["safety_factor"]) / allow,
-                   member_at_max_stress=list(curve.max_von_mises)[im], stroke_at_max_stress=float(curve.stroke[ip]))
+        out.update(
+            stress_ratio=float(peak[im, ip]) * float(case["safety_factor"]) / allow,
+            member_at_max_stress=list(curve.max_von_mises)[im],
+            stroke_at_max_stress=float(curve.stroke[ip]),
+        )
     return out
 
 
@@ -236,8 +318,14 @@ class _Tracker:
 
     def __init__(self, progress: Callable[[dict], None] | None, generated: int, echo: bool) -> None:
         self.progress, self.echo, self.tty = progress, echo, sys.stderr.isatty()
-        self.counts = {"generated": generated, "screened": 0, "passed": 0, "first_pass": 0, "optimised": 0,
-                       "verified": 0}
+        self.counts = {
+            "generated": generated,
+            "screened": 0,
+            "passed": 0,
+            "first_pass": 0,
+            "optimised": 0,
+            "verified": 0,
+        }
         self.best: dict | None = None
         self.t0 = time.perf_counter()
 
@@ -247,12 +335,15 @@ class _Tracker:
 
     def line(self, phase: str, done: int | None = None, total: int | None = None) -> str:
         c = self.counts
-        best = (f", best {self.best['topology']} {self.best['worst_hz']:.2f} Hz ({self.best['phase']})"
-                if self.best else "")
+        best = (
+            f", best {self.best['topology']} {self.best['worst_hz']:.2f} Hz ({self.best['phase']})" if self.best else ""
+        )
         where = f" {done}/{total}" if total is not None else ""
-        return (f"topology search {time.perf_counter() - self.t0:.0f} s: {phase}{where}: generated {c['generated']}, "
-                f"screened {c['screened']}, passed {c['passed']}, first pass {c['first_pass']}, optimised "
-                f"{c['optimised']}, verified {c['verified']}{best}")
+        return (
+            f"topology search {time.perf_counter() - self.t0:.0f} s: {phase}{where}: generated {c['generated']}, "
+            f"screened {c['screened']}, passed {c['passed']}, first pass {c['first_pass']}, optimised "
+            f"{c['optimised']}, verified {c['verified']}{best}"
+        )
 
     def event(self, phase: str, ev: dict) -> None:
         out = {k: v for k, v in ev.items() if k != "record"}
@@ -268,8 +359,11 @@ class _Tracker:
 
 
 def _best_hz(results: list[dict]) -> float | None:
-    ok = [r["verified"]["worst_hz"] for r in results if r.get("status") == "optimal"
-          and (r.get("verified") or {}).get("worst_hz") is not None]
+    ok = [
+        r["verified"]["worst_hz"]
+        for r in results
+        if r.get("status") == "optimal" and (r.get("verified") or {}).get("worst_hz") is not None
+    ]
     return max(ok) if ok else None
 
 
@@ -285,9 +379,16 @@ def _first_pass_score(r: dict, tol: float = 1e-3) -> float | None:
 
 
 @limited()  # one BLAS thread while it computes (model.threads)
-def run_topology_search(spec: TopologySpec | dict, *, executor: Any = None, workers: int | None = None,
-                        store: Any = None, progress: Callable[[dict], None] | None = None, cancel: Any = None,
-                        echo: bool = True) -> dict:
+def run_topology_search(
+    spec: TopologySpec | dict,
+    *,
+    executor: Any = None,
+    workers: int | None = None,
+    store: Any = None,
+    progress: Callable[[dict], None] | None = None,
+    cancel: Any = None,
+    echo: bool = True,
+) -> dict:
     """Generate, screen, optimise, verify and rank hinge topologies (the unit of work a service job calls;
     the schedule is the module docstring's).
 
@@ -335,8 +436,9 @@ def run_topology_search(spec: TopologySpec | dict, *, executor: Any = None, work
     own = executor is None
     ex = process_pool(workers) if own else executor
 
-    def batch(phase: str, cases: list[dict], fn: str, on_record: Callable[[int, dict], None] | None = None
-              ) -> list[dict]:
+    def batch(
+        phase: str, cases: list[dict], fn: str, on_record: Callable[[int, dict], None] | None = None
+    ) -> list[dict]:
         pos: dict[str, list[int]] = {}
         if not cases:
             return []
@@ -361,7 +463,7 @@ def run_topology_search(spec: TopologySpec | dict, *, executor: Any = None, work
         for t in tops:
             members.setdefault(screen_key(t), []).append(str(t))
         keys = sorted(members)
-        chunks = [keys[i:i + _SCREEN_CHUNK] for i in range(0, len(keys), _SCREEN_CHUNK)]
+        chunks = [keys[i : i + _SCREEN_CHUNK] for i in range(0, len(keys), _SCREEN_CHUNK)]
         verdicts: dict[str, dict] = {}
         untraceable: dict[str, str] = {}
 
@@ -369,12 +471,24 @@ def run_topology_search(spec: TopologySpec | dict, *, executor: Any = None, work
             if "verdicts" in rec:
                 verdicts.update(rec["verdicts"])
                 track.counts["screened"] = sum(1 for t in tops if screen_key(t) in verdicts)
-                track.counts["passed"] = sum(1 for t in tops if verdicts.get(screen_key(t), {}).get("status")
-                                             == "accepted")
+                track.counts["passed"] = sum(
+                    1 for t in tops if verdicts.get(screen_key(t), {}).get("status") == "accepted"
+                )
 
-        res = batch("screen", [{"descriptors": c, "allow_overconstraints": spec.allow_overconstraints,
-                                "members": {k: members[k] for k in c}, "dimensions": spec.dimensions}
-                               for c in chunks], "flexopt.optim.topology.screen:screen_case", screened)
+        res = batch(
+            "screen",
+            [
+                {
+                    "descriptors": c,
+                    "allow_overconstraints": spec.allow_overconstraints,
+                    "members": {k: members[k] for k in c},
+                    "dimensions": spec.dimensions,
+                }
+                for c in chunks
+            ],
+            "flexopt.optim.topology.screen:screen_case",
+            screened,
+        )
         for r in res:
             if "verdicts" not in r:
                 raise RuntimeError(f"the screen failed: {r.get('kind')}: {r.get('error')}")
@@ -384,13 +498,27 @@ def run_topology_search(spec: TopologySpec | dict, *, executor: Any = None, work
         pending: list[int] = []
         for t in tops:
             sc = verdicts[screen_key(t)]
-            rec = {"topology": str(t), "family": family_of(t), "flexures": t.flexures, "stages": len(t.stages),
-                   "dof": sc["dof"], "intended_dof": 1 + sc["intended_motions"],
-                   "overconstraints": sc["overconstraints"], "self_stress": sc["self_stress"],
-                   "release": sc["release"], "free_motions": sc["free_motions"],
-                   "status": "rejected" if sc["status"] == "rejected" else "pending", "reason": sc["reason"],
-                   "worst_case_hz": None, "zero_stroke_hz": None, "ratio": None, "design": None,
-                   "same_design_as": None, "first_pass": None, "refined": None}
+            rec = {
+                "topology": str(t),
+                "family": family_of(t),
+                "flexures": t.flexures,
+                "stages": len(t.stages),
+                "dof": sc["dof"],
+                "intended_dof": 1 + sc["intended_motions"],
+                "overconstraints": sc["overconstraints"],
+                "self_stress": sc["self_stress"],
+                "release": sc["release"],
+                "free_motions": sc["free_motions"],
+                "status": "rejected" if sc["status"] == "rejected" else "pending",
+                "reason": sc["reason"],
+                "worst_case_hz": None,
+                "zero_stroke_hz": None,
+                "ratio": None,
+                "design": None,
+                "same_design_as": None,
+                "first_pass": None,
+                "refined": None,
+            }
             if rec["status"] == "pending":
                 if str(t) in untraceable:
                     rec.update(status="untraceable", reason=untraceable[str(t)])
@@ -414,10 +542,14 @@ def run_topology_search(spec: TopologySpec | dict, *, executor: Any = None, work
             score: dict[int, float] = {}
             for i, r in zip(pending, res):
                 fs = _first_pass_score(r)
-                records[i]["first_pass"] = {"status": r.get("status", "failed"), "score_hz": fs,
-                                            "worst_hz": (r.get("verified") or {}).get("worst_hz"),
-                                            "stress_ratio": (r.get("verified") or {}).get("stress_ratio"),
-                                            "design": r.get("design"), "message": r.get("message") or r.get("error")}
+                records[i]["first_pass"] = {
+                    "status": r.get("status", "failed"),
+                    "score_hz": fs,
+                    "worst_hz": (r.get("verified") or {}).get("worst_hz"),
+                    "stress_ratio": (r.get("verified") or {}).get("stress_ratio"),
+                    "design": r.get("design"),
+                    "message": r.get("message") or r.get("error"),
+                }
                 if fs is not None:
                     score[i] = fs
             if spec.prune:
@@ -430,9 +562,11 @@ def run_topology_search(spec: TopologySpec | dict, *, executor: Any = None, work
                     j = by_name.get(base)
                     if j is None or j == i:
                         continue
-                    records[i].update(status="pruned", same_design_as=base,
-                                      reason=f"its first pass crosses at {d['crossing']:.3f}, the midpoint: it "
-                                      f"reduces to {base}")
+                    records[i].update(
+                        status="pruned",
+                        same_design_as=base,
+                        reason=f"its first pass crosses at {d['crossing']:.3f}, the midpoint: it reduces to {base}",
+                    )
                     if i in score:
                         score[j] = max(score.get(j, -math.inf), score.pop(i))
             ranked_first = sorted(score, key=lambda i: -score[i])
@@ -441,9 +575,12 @@ def run_topology_search(spec: TopologySpec | dict, *, executor: Any = None, work
             for i in pending:
                 if records[i]["status"] == "pending" and i not in promoted:
                     fp = records[i]["first_pass"]
-                    records[i].update(status="first pass", reason="not promoted: its first pass ranks below the "
-                                      f"best {n_full}" if fp["score_hz"] is not None else
-                                      f"not promoted: its first pass failed ({fp['message']})")
+                    records[i].update(
+                        status="first pass",
+                        reason=f"not promoted: its first pass ranks below the best {n_full}"
+                        if fp["score_hz"] is not None
+                        else f"not promoted: its first pass failed ({fp['message']})",
+                    )
         seconds["first_pass"] = time.perf_counter() - t1
         # 3. full pass
         t2 = time.perf_counter()
@@ -476,11 +613,23 @@ def run_topology_search(spec: TopologySpec | dict, *, executor: Any = None, work
             ref_cases = []
             for i in done:
                 r = records[i]
-                params = {**full_probs[i].families[0].fixed, **r["design"], "body_mass": spec.body_mass,
-                          "stroke": spec.stroke}
-                ref_cases.append({"params": params, "stroke": spec.stroke, "points": spec.refine_points,
-                                  "extra": [r["stroke_at_worst"]], "segments": spec.refine_segments,
-                                  "tolerance": spec.refine_tolerance, "safety_factor": spec.safety_factor})
+                params = {
+                    **full_probs[i].families[0].fixed,
+                    **r["design"],
+                    "body_mass": spec.body_mass,
+                    "stroke": spec.stroke,
+                }
+                ref_cases.append(
+                    {
+                        "params": params,
+                        "stroke": spec.stroke,
+                        "points": spec.refine_points,
+                        "extra": [r["stroke_at_worst"]],
+                        "segments": spec.refine_segments,
+                        "tolerance": spec.refine_tolerance,
+                        "safety_factor": spec.safety_factor,
+                    }
+                )
 
             def refined(k: int, rec: dict) -> None:
                 track.counts["verified"] += 1
@@ -493,12 +642,16 @@ def run_topology_search(spec: TopologySpec | dict, *, executor: Any = None, work
         if own:
             ex.shutdown(wait=True, cancel_futures=True)
     ranked = sorted((r for r in records if r["status"] == "optimised"), key=_rank_key)
-    counts = {"generated": len(records), "rejected": sum(r["status"] == "rejected" for r in records),
-              "untraceable": sum(r["status"] == "untraceable" for r in records),
-              "pruned": sum(r["status"] == "pruned" for r in records),
-              "first_pass": sum(r["first_pass"] is not None for r in records),
-              "promoted": len(promoted), "optimised": len(ranked),
-              "failed": sum(r["status"] == "failed" for r in records)}
+    counts = {
+        "generated": len(records),
+        "rejected": sum(r["status"] == "rejected" for r in records),
+        "untraceable": sum(r["status"] == "untraceable" for r in records),
+        "pruned": sum(r["status"] == "pruned" for r in records),
+        "first_pass": sum(r["first_pass"] is not None for r in records),
+        "promoted": len(promoted),
+        "optimised": len(ranked),
+        "failed": sum(r["status"] == "failed" for r in records),
+    }
     seconds["total"] = time.perf_counter() - t0
     return _result(spec, records, ranked, counts, seconds)
 
@@ -516,24 +669,50 @@ def _refined(rec: dict, r: dict, spec: TopologySpec, tol: float = 1e-3) -> None:
     if "worst_hz" not in r:
         why = r.get("error") or "; ".join(r.get("failures", [])) or "incomplete curve"
         rec["refined"] = {"status": "failed", "reason": why, "feasible": False, "worst_hz": None}
-        rec.setdefault("warnings", []).append({"kind": "notice", "message": f"{rec['topology']}: the refined "
-                                               f"verification failed ({why}); it is ranked last"})
+        rec.setdefault("warnings", []).append(
+            {
+                "kind": "notice",
+                "message": f"{rec['topology']}: the refined verification failed ({why}); it is ranked last",
+            }
+        )
         return
     feasible = r["stress_ratio"] <= 1 + tol
-    rec["refined"] = {"status": "complete", "worst_hz": r["worst_hz"], "zero_stroke_hz": r["zero_stroke_hz"],
-                      "ratio": r["ratio"], "stroke_at_worst": r["stroke_at_worst"], "stress_ratio": r["stress_ratio"],
-                      "member_at_max_stress": r["member_at_max_stress"], "feasible": feasible,
-                      "mesh_error": r["mesh_error"], "segments": r["segments"], "segments_used": r["segments_used"],
-                      "tolerance": r["tolerance"], "points": r["points"],
-                      "change": r["worst_hz"] / rec["worst_case_hz"] - 1}
+    rec["refined"] = {
+        "status": "complete",
+        "worst_hz": r["worst_hz"],
+        "zero_stroke_hz": r["zero_stroke_hz"],
+        "ratio": r["ratio"],
+        "stroke_at_worst": r["stroke_at_worst"],
+        "stress_ratio": r["stress_ratio"],
+        "member_at_max_stress": r["member_at_max_stress"],
+        "feasible": feasible,
+        "mesh_error": r["mesh_error"],
+        "segments": r["segments"],
+        "segments_used": r["segments_used"],
+        "tolerance": r["tolerance"],
+        "points": r["points"],
+        "change": r["worst_hz"] / rec["worst_case_hz"] - 1,
+    }
     notes = rec.setdefault("warnings", [])
     if not feasible:
-        notes.append({"kind": "stress", "message": f"{rec['topology']}: on the refined mesh the peak stress is "
-                      f"{r['stress_ratio']:.3f} times allowable / safety_factor in {r['member_at_max_stress']}: "
-                      "beyond the limit; ranked after the feasible candidates", "value": r["stress_ratio"]})
+        notes.append(
+            {
+                "kind": "stress",
+                "message": f"{rec['topology']}: on the refined mesh the peak stress is "
+                f"{r['stress_ratio']:.3f} times allowable / safety_factor in {r['member_at_max_stress']}: "
+                "beyond the limit; ranked after the feasible candidates",
+                "value": r["stress_ratio"],
+            }
+        )
     if r["mesh_error"] is not None and r["tolerance"] is not None and r["mesh_error"] > r["tolerance"]:
-        notes.append({"kind": "mesh", "message": f"{rec['topology']}: the refined mesh's estimated error "
-                      f"{r['mesh_error']:.2g} is above the tolerance {r['tolerance']:g}", "value": r["mesh_error"]})
+        notes.append(
+            {
+                "kind": "mesh",
+                "message": f"{rec['topology']}: the refined mesh's estimated error "
+                f"{r['mesh_error']:.2g} is above the tolerance {r['tolerance']:g}",
+                "value": r["mesh_error"],
+            }
+        )
     for w in r.get("warnings", []):
         if w.get("kind") not in ("stress", "mesh"):
             notes.append(dict(w, message=f"{rec['topology']} (refined): {w['message']}"))
@@ -558,44 +737,75 @@ def _fill(rec: dict, starts: list[dict]) -> None:
     """A candidate's record from its starts' results: the best start that is optimal (converged, verified,
     feasible), else the reason none is."""
     ok = [r for r in starts if r.get("status") == "optimal" and (r.get("verified") or {}).get("worst_hz") is not None]
-    rec["starts"] = [{"start": r.get("start"), "status": r.get("status", "failed"),
-                      "message": r.get("message") or r.get("error"),
-                      "worst_hz": (r.get("verified") or {}).get("worst_hz"), "seconds": r.get("seconds")}
-                     for r in starts]
+    rec["starts"] = [
+        {
+            "start": r.get("start"),
+            "status": r.get("status", "failed"),
+            "message": r.get("message") or r.get("error"),
+            "worst_hz": (r.get("verified") or {}).get("worst_hz"),
+            "seconds": r.get("seconds"),
+        }
+        for r in starts
+    ]
     if not ok:
         why = "; ".join(f"start {s['start']}: {s['status']} ({s['message']})" for s in rec["starts"])
         rec.update(status="failed", reason=f"no start reached a converged, verified, feasible optimum: {why}")
         return
     b = max(ok, key=lambda r: r["verified"]["worst_hz"])
     v = b["verified"]
-    rec.update(status="optimised", reason=None, worst_case_hz=v["worst_hz"], zero_stroke_hz=v["zero_stroke_hz"],
-               stroke_at_worst=v["stroke_at_worst"],
-               ratio=v["ratio"], design=b["design"], stress_ratio=v["stress_ratio"],
-               kkt_residual=b["optimality"]["kkt_residual"], active_bounds=b["optimality"]["active_bounds"],
-               moving_mass=b.get("moving_mass"), scene=v.get("scene"), curve={"stroke": v.get("stroke"),
-                                                                              "parasitic_hz": v.get("parasitic_hz")},
-               warnings=b.get("warnings", []))
+    rec.update(
+        status="optimised",
+        reason=None,
+        worst_case_hz=v["worst_hz"],
+        zero_stroke_hz=v["zero_stroke_hz"],
+        stroke_at_worst=v["stroke_at_worst"],
+        ratio=v["ratio"],
+        design=b["design"],
+        stress_ratio=v["stress_ratio"],
+        kkt_residual=b["optimality"]["kkt_residual"],
+        active_bounds=b["optimality"]["active_bounds"],
+        moving_mass=b.get("moving_mass"),
+        scene=v.get("scene"),
+        curve={"stroke": v.get("stroke"), "parasitic_hz": v.get("parasitic_hz")},
+        warnings=b.get("warnings", []),
+    )
 
 
 #: A guide's design space: the wires' side and length, and where each bound comes from.
 GUIDE_DESIGN = {"wire_diameter": (5e-4, 2e-3), "wire_length": (0.02, 0.06)}
-GUIDE_ORIGINS = {"wire_diameter": ("0.5 mm, the search's thinnest wire", "2 mm, the search's thickest wire"),
-                 "wire_length": ("20 mm, the search's shortest wire", "60 mm, the search's longest wire")}
+GUIDE_ORIGINS = {
+    "wire_diameter": ("0.5 mm, the search's thinnest wire", "2 mm, the search's thickest wire"),
+    "wire_length": ("20 mm, the search's shortest wire", "60 mm, the search's longest wire"),
+}
 
 
 def guide_problem(descriptor: str, spec: TopologySpec) -> Problem:
     """The one-family problem of a guide (template ``wire-guide-topology``): its worst-case parasitic
     frequency over +-``guide_stroke`` under the stress limit, wire side and length designed."""
-    fam = Family(template="wire-guide-topology", design=dict(GUIDE_DESIGN), origins=dict(GUIDE_ORIGINS),
-                 fixed={"topology": descriptor, "segments": spec.segments})
-    return Problem(families=[fam], stroke=spec.guide_stroke, samples=spec.samples, safety_factor=spec.safety_factor,
-                   min_thickness=spec.min_thickness, solver=spec.solver, starts=spec.starts, seed=spec.seed,
-                   max_iterations=spec.max_iterations, refine_rounds=spec.refine_rounds,
-                   verify_points=spec.verify_points)
+    fam = Family(
+        template="wire-guide-topology",
+        design=dict(GUIDE_DESIGN),
+        origins=dict(GUIDE_ORIGINS),
+        fixed={"topology": descriptor, "segments": spec.segments},
+    )
+    return Problem(
+        families=[fam],
+        stroke=spec.guide_stroke,
+        samples=spec.samples,
+        safety_factor=spec.safety_factor,
+        min_thickness=spec.min_thickness,
+        solver=spec.solver,
+        starts=spec.starts,
+        seed=spec.seed,
+        max_iterations=spec.max_iterations,
+        refine_rounds=spec.refine_rounds,
+        verify_points=spec.verify_points,
+    )
 
 
-def _guide_search(spec: TopologySpec, executor: Any = None, workers: int | None = None, store: Any = None,
-                  cancel: Any = None) -> dict:
+def _guide_search(
+    spec: TopologySpec, executor: Any = None, workers: int | None = None, store: Any = None, cancel: Any = None
+) -> dict:
     """Straight guides: every arrangement of up to ``max_flexures`` wires (or the listed descriptors) screened;
     the accepted ones ranked by the condition number of their scaled D_cc (smaller: further from a singular,
     compliant arrangement). With ``optimise_guides`` N, the best N by conditioning are shape-optimised like
@@ -612,39 +822,61 @@ def _guide_search(spec: TopologySpec, executor: Any = None, workers: int | None 
     records = []
     for g in guides:
         sc = screen_guide(g, spec.allow_overconstraints)
-        records.append({"topology": str(g), "family": None, "flexures": g.flexures, "stages": 1, "dof": sc["dof"],
-                        "intended_dof": 1, "overconstraints": sc["overconstraints"], "self_stress": sc["self_stress"],
-                        "release": sc["release"], "free_motions": sc["free_motions"],
-                        "condition_number": sc["condition_number"],
-                        "status": "accepted" if sc["status"] == "accepted" else "rejected", "reason": sc["reason"],
-                        "worst_case_hz": None, "zero_stroke_hz": None, "ratio": None, "design": None})
+        records.append(
+            {
+                "topology": str(g),
+                "family": None,
+                "flexures": g.flexures,
+                "stages": 1,
+                "dof": sc["dof"],
+                "intended_dof": 1,
+                "overconstraints": sc["overconstraints"],
+                "self_stress": sc["self_stress"],
+                "release": sc["release"],
+                "free_motions": sc["free_motions"],
+                "condition_number": sc["condition_number"],
+                "status": "accepted" if sc["status"] == "accepted" else "rejected",
+                "reason": sc["reason"],
+                "worst_case_hz": None,
+                "zero_stroke_hz": None,
+                "ratio": None,
+                "design": None,
+            }
+        )
     ranked = sorted((r for r in records if r["status"] == "accepted"), key=lambda r: r["condition_number"])
     t1 = time.perf_counter()
-    chosen = ranked[:spec.optimise_guides]
+    chosen = ranked[: spec.optimise_guides]
     if chosen:
         from ..batch import run_cases
         from ..search import cases as problem_cases
 
         probs = [guide_problem(r["topology"], spec) for r in chosen]
         batch = [c for p in probs for c in problem_cases(p)]
-        res = run_cases(batch, "flexopt.optim.search:run_case", executor=executor, workers=workers, store=store,
-                        cancel=cancel)
+        res = run_cases(
+            batch, "flexopt.optim.search:run_case", executor=executor, workers=workers, store=store, cancel=cancel
+        )
         for k, r in enumerate(chosen):
-            _fill(r, res[k * spec.starts:(k + 1) * spec.starts])
+            _fill(r, res[k * spec.starts : (k + 1) * spec.starts])
             r["bound_origins"] = {n: list(v) for n, v in GUIDE_ORIGINS.items()}
             if r["status"] == "optimised":
                 r["status"] = "accepted"  # the screen's verdict; 'optimised' below says it was optimised too
                 r["optimised"] = True
         done = sorted((r for r in chosen if r.get("optimised")), key=lambda r: -r["worst_case_hz"])
         ranked = done + [r for r in ranked if not r.get("optimised")]
-    counts = {"generated": len(records), "rejected": len(records) - len(ranked), "untraceable": 0,
-              "optimised": sum(bool(r.get("optimised")) for r in records), "accepted": len(ranked),
-              "failed": sum(r["status"] == "failed" for r in records)}
+    counts = {
+        "generated": len(records),
+        "rejected": len(records) - len(ranked),
+        "untraceable": 0,
+        "optimised": sum(bool(r.get("optimised")) for r in records),
+        "accepted": len(ranked),
+        "failed": sum(r["status"] == "failed" for r in records),
+    }
     return _result(spec, records, ranked, counts, {"screen": t1 - t0, "optimise": time.perf_counter() - t1})
 
 
-def _result(spec: TopologySpec, records: list[dict], ranked: list[dict], counts: dict[str, int],
-            seconds: dict[str, float]) -> dict:
+def _result(
+    spec: TopologySpec, records: list[dict], ranked: list[dict], counts: dict[str, int], seconds: dict[str, float]
+) -> dict:
     """The search's JSON answer (hinges and guides alike): counts with the rejections by reason, every
     candidate, the ranking and the best."""
     rejected_by: dict[str, int] = {}
@@ -652,9 +884,19 @@ def _result(spec: TopologySpec, records: list[dict], ranked: list[dict], counts:
         if r["status"] == "rejected":
             kind = r["reason"].split(":", 1)[0]
             rejected_by[kind] = rejected_by.get(kind, 0) + 1
-    counts_out: dict[str, Any] = {"generated": counts["generated"], "rejected": counts["rejected"],
-                                  "rejected_by": rejected_by,
-                                  **{k: v for k, v in counts.items() if k not in ("generated", "rejected")}}
-    return {"format": "flexopt-topology-result", "version": 1, "spec": spec.model_dump(mode="json"),
-            "counts": counts_out, "candidates": records, "ranking": [r["topology"] for r in ranked],
-            "best": ranked[0] if ranked else None, "seconds": seconds}
+    counts_out: dict[str, Any] = {
+        "generated": counts["generated"],
+        "rejected": counts["rejected"],
+        "rejected_by": rejected_by,
+        **{k: v for k, v in counts.items() if k not in ("generated", "rejected")},
+    }
+    return {
+        "format": "flexopt-topology-result",
+        "version": 1,
+        "spec": spec.model_dump(mode="json"),
+        "counts": counts_out,
+        "candidates": records,
+        "ranking": [r["topology"] for r in ranked],
+        "best": ranked[0] if ranked else None,
+        "seconds": seconds,
+    }

@@ -27,7 +27,6 @@ from ...model.diagnosis import diagnose
 from ...model.scene import Scene
 from ...model.structure import compile_scene
 from ...model.templates import template
-
 from .grammar import GuideTopology, Topology
 
 __all__ = ["screen_scene", "screen_topology", "screen_guide", "name_motion", "screen_key", "screen_case", "traceable"]
@@ -106,7 +105,7 @@ def screen_scene(scene: Scene, intended: list[str] | None = None, allow_overcons
     """
     d = diagnose(scene, kinematic=True)
     A = _allowed(d, scene, intended or [])
-    null = d.V[:, d.rank:]  # free motions, scaled columns
+    null = d.V[:, d.rank :]  # free motions, scaled columns
     if A.shape[1]:
         Q, _ = np.linalg.qr(A)
         rest = null - Q @ (Q.T @ null)
@@ -123,21 +122,31 @@ def screen_scene(scene: Scene, intended: list[str] | None = None, allow_overcons
     n_free = extra.shape[1]
     missing = max(n_intended - (null.shape[1] - n_free), 0)  # an intended motion that is locked
     stress = [sorted(mode) for mode in d.static_modes]
-    out = {"dof": 1 + null.shape[1], "free_motions": free, "intended_motions": null.shape[1] - n_free,
-           "overconstraints": d.statically_indeterminate,
-           "self_stress": [f"self-stress among {', '.join(els)}" for els in stress],
-           "release": [list(r) for r in d.release_candidates], "classification": d.classification,
-           "m": d.m, "n": d.n, "rank": d.rank, "almost_singular": d.almost_singular,
-           "condition_number": d.condition_number if d.rank else None}
+    out = {
+        "dof": 1 + null.shape[1],
+        "free_motions": free,
+        "intended_motions": null.shape[1] - n_free,
+        "overconstraints": d.statically_indeterminate,
+        "self_stress": [f"self-stress among {', '.join(els)}" for els in stress],
+        "release": [list(r) for r in d.release_candidates],
+        "classification": d.classification,
+        "m": d.m,
+        "n": d.n,
+        "rank": d.rank,
+        "almost_singular": d.almost_singular,
+        "condition_number": d.condition_number if d.rank else None,
+    }
     reason = None
     if free:
         reason = f"underconstrained: {n_free} free motion{'s' * (n_free > 1)}: " + "; ".join(free)
     elif missing:
         reason = f"{missing} intended rotation{'s' * (missing > 1)} of the intermediate parts locked"
     elif d.statically_indeterminate and not allow_overconstraints:
-        reason = (f"overconstrained: {d.statically_indeterminate} self-stress state"
-                  f"{'s' * (d.statically_indeterminate > 1)} ({'; '.join(out['self_stress'])}) and the spec "
-                  "rejects overconstraints")
+        reason = (
+            f"overconstrained: {d.statically_indeterminate} self-stress state"
+            f"{'s' * (d.statically_indeterminate > 1)} ({'; '.join(out['self_stress'])}) and the spec "
+            "rejects overconstraints"
+        )
     out.update(status="rejected" if reason else "accepted", reason=reason)
     return out
 
@@ -155,11 +164,23 @@ def screen_guide(g: GuideTopology, allow_overconstraints: bool = True) -> dict:
     five motions besides the stroke."""
     if g.flexures < 5:
         n = 5 - g.flexures
-        return {"dof": 1 + n, "free_motions": [], "intended_motions": 0, "overconstraints": None, "self_stress": [],
-                "release": [], "classification": None, "m": None, "n": None, "rank": None, "almost_singular": None,
-                "condition_number": None,
-                "status": "rejected", "reason": f"underconstrained: {g.flexures} wires fix at most {g.flexures} of "
-                f"the 5 motions besides the stroke (at least {n} free)"}
+        return {
+            "dof": 1 + n,
+            "free_motions": [],
+            "intended_motions": 0,
+            "overconstraints": None,
+            "self_stress": [],
+            "release": [],
+            "classification": None,
+            "m": None,
+            "n": None,
+            "rank": None,
+            "almost_singular": None,
+            "condition_number": None,
+            "status": "rejected",
+            "reason": f"underconstrained: {g.flexures} wires fix at most {g.flexures} of "
+            f"the 5 motions besides the stroke (at least {n} free)",
+        }
     scene = template("wire-guide-topology", topology=str(g), segments=1)
     return screen_scene(scene, [], allow_overconstraints)
 

@@ -21,79 +21,145 @@ class TopologySpec(BaseModel):
     format: Literal["flexopt-topology"] = "flexopt-topology"
     version: Literal[1] = 1
     motion: Literal["rotation", "translation"] = Field(
-        default="rotation", description="the intended motion: 'rotation' about the z axis through the origin "
+        default="rotation",
+        description="the intended motion: 'rotation' about the z axis through the origin "
         "(hinges of leaf flexures, screened, optimised and ranked) or 'translation' along x (straight guides of "
         "wire flexures: screened and ranked by the condition number of their constraints; no shape "
-        "optimisation yet)")
-    stroke: PositiveFloat = Field(default=45.0, le=180.0, description="half range of the rotation [deg] "
-                                  "(rotation only)")
-    envelope: Envelope = Field(default_factory=lambda: Envelope(radius=0.035, half_height=0.02),
-                               description="the cylinder around the axis every candidate must fit in [m]")
-    safety_factor: float = Field(default=1.5, ge=1.0, le=20.0, description="von Mises stress below allowable / "
-                                 "safety_factor (steel: 600 MPa allowable)")
+        "optimisation yet)",
+    )
+    stroke: PositiveFloat = Field(
+        default=45.0, le=180.0, description="half range of the rotation [deg] (rotation only)"
+    )
+    envelope: Envelope = Field(
+        default_factory=lambda: Envelope(radius=0.035, half_height=0.02),
+        description="the cylinder around the axis every candidate must fit in [m]",
+    )
+    safety_factor: float = Field(
+        default=1.5,
+        ge=1.0,
+        le=20.0,
+        description="von Mises stress below allowable / safety_factor (steel: 600 MPa allowable)",
+    )
     body_mass: PositiveFloat = Field(default=0.1, description="moving-body (rotor) mass [kg]")
-    body_inertia: PositiveFloat = Field(default=2e-5, description="rotor inertia about each axis through its "
-                                        "centre of mass [kg m^2] (the families' 0.1 kg x (20 mm)^2 / 2)")
-    intermediate_mass: PositiveFloat = Field(default=0.02, description="mass of each intermediate body [kg] "
-                                             "(inertia as the rotor's per unit mass)")
+    body_inertia: PositiveFloat = Field(
+        default=2e-5,
+        description="rotor inertia about each axis through its "
+        "centre of mass [kg m^2] (the families' 0.1 kg x (20 mm)^2 / 2)",
+    )
+    intermediate_mass: PositiveFloat = Field(
+        default=0.02, description="mass of each intermediate body [kg] (inertia as the rotor's per unit mass)"
+    )
     max_flexures: int = Field(default=6, ge=1, le=6, description="at most this many leaf flexures")
     max_stages: int = Field(default=3, ge=1, le=3, description="at most this many stages in series")
     dimensions: Literal["shared", "stage", "leaf"] = Field(
-        default="stage", description="how each candidate's dimensions are designed: 'shared' (one length, "
+        default="stage",
+        description="how each candidate's dimensions are designed: 'shared' (one length, "
         "thickness, width and plane angle for every stage), 'stage' (each stage its own) or 'leaf' (each stage "
-        "its own, and each leaf its own thickness)")
-    prune: bool = Field(default=True, description="leave out duplicates before optimising: a designed crossing "
-                        "('@') on a stage whose leaves cross nothing, and (after the first pass) a designed "
-                        "crossing that ends at the midpoint when its midpoint variant is a candidate too")
+        "its own, and each leaf its own thickness)",
+    )
+    prune: bool = Field(
+        default=True,
+        description="leave out duplicates before optimising: a designed crossing "
+        "('@') on a stage whose leaves cross nothing, and (after the first pass) a designed "
+        "crossing that ends at the midpoint when its midpoint variant is a candidate too",
+    )
     schedule: Literal["multi-fidelity", "exhaustive"] = Field(
-        default="multi-fidelity", description="'multi-fidelity': every survivor gets one cheap pass (one start, "
+        default="multi-fidelity",
+        description="'multi-fidelity': every survivor gets one cheap pass (one start, "
         "first_pass_samples, first_pass_segments, no refinement) and only the most promising (promote) get "
-        "the full starts; 'exhaustive': every survivor gets the full starts")
-    first_pass_segments: int = Field(default=4, ge=2, le=40, description="beam elements per leaf of the first "
-                                     "pass")
-    first_pass_samples: int = Field(default=3, ge=3, le=61, description="stroke samples of the first pass (3: "
-                                    "the stroke's ends and zero, two after the mirror symmetry)")
+        "the full starts; 'exhaustive': every survivor gets the full starts",
+    )
+    first_pass_segments: int = Field(default=4, ge=2, le=40, description="beam elements per leaf of the first pass")
+    first_pass_samples: int = Field(
+        default=3,
+        ge=3,
+        le=61,
+        description="stroke samples of the first pass (3: the stroke's ends and zero, two after the mirror symmetry)",
+    )
     first_pass_dimensions: Literal["shared", "stage", "leaf", "same"] = Field(
-        default="shared", description="the design space of the first pass: 'shared' (the fewest parameters, "
+        default="shared",
+        description="the design space of the first pass: 'shared' (the fewest parameters, "
         "the cheapest: it ranks topologies, the full pass then designs them under 'dimensions') or 'same' "
-        "(the full pass's)")
-    first_pass_iterations: int = Field(default=15, ge=1, le=500, description="solver iterations of the first "
-                                       "pass")
-    promote: float = Field(default=0.04, gt=0, le=1, description="fraction of the first pass's candidates (best "
-                           "first) given the full starts")
-    promote_min: int = Field(default=8, ge=1, le=10000, description="at least this many are given the full "
-                             "starts (a search with this many survivors or fewer skips the first pass)")
+        "(the full pass's)",
+    )
+    first_pass_iterations: int = Field(default=15, ge=1, le=500, description="solver iterations of the first pass")
+    promote: float = Field(
+        default=0.04,
+        gt=0,
+        le=1,
+        description="fraction of the first pass's candidates (best first) given the full starts",
+    )
+    promote_min: int = Field(
+        default=8,
+        ge=1,
+        le=10000,
+        description="at least this many are given the full "
+        "starts (a search with this many survivors or fewer skips the first pass)",
+    )
     refine_segments: int | Literal["auto"] | None = Field(
-        default="auto", description="the mesh every ranked optimum is verified on before it is ranked: 'auto' "
+        default="auto",
+        description="the mesh every ranked optimum is verified on before it is ranked: 'auto' "
         "(refined until the estimated discretisation error of the first parasitic frequency is within "
-        "refine_tolerance), a number of beam elements per leaf, or null (ranked on the search's mesh)")
-    refine_tolerance: float = Field(default=2e-3, gt=0, le=0.1, description="discretisation error aimed at by "
-                                    "refine_segments 'auto' (relative)")
-    refine_points: int = Field(default=31, ge=5, le=2001, description="stroke points of the refined "
-                               "verification (and the stroke of the search's verified minimum)")
+        "refine_tolerance), a number of beam elements per leaf, or null (ranked on the search's mesh)",
+    )
+    refine_tolerance: float = Field(
+        default=2e-3, gt=0, le=0.1, description="discretisation error aimed at by refine_segments 'auto' (relative)"
+    )
+    refine_points: int = Field(
+        default=31,
+        ge=5,
+        le=2001,
+        description="stroke points of the refined verification (and the stroke of the search's verified minimum)",
+    )
     min_length_over_width: float | None = Field(
-        default=None, gt=0, le=100, description="validity constraint: every leaf at least this many times as "
-        "long as it is wide (beam theory; e.g. 2 excludes plate-like leaves); null: no constraint")
+        default=None,
+        gt=0,
+        le=100,
+        description="validity constraint: every leaf at least this many times as "
+        "long as it is wide (beam theory; e.g. 2 excludes plate-like leaves); null: no constraint",
+    )
     min_length_over_thickness: float | None = Field(
-        default=None, gt=0, le=10000, description="validity constraint: every leaf at least this many times as "
-        "long as it is thick; null: no constraint")
-    optimise_guides: int = Field(default=0, ge=0, le=256, description="translation only: shape-optimise the "
-                                 "best this many accepted guides (by the condition number of D_cc) for their "
-                                 "worst-case parasitic frequency over guide_stroke, and rank them by it before "
-                                 "the others; 0: rank by conditioning only")
-    guide_stroke: PositiveFloat = Field(default=0.002, le=0.05, description="half range of a guide's translation "
-                                        "[m] (translation only)")
-    planes: str = Field(default="+-", description="leaf planes to place: a subset of '+-0' ('+' and '-' at "
-                        "+-angle/2 about the axis, '0' radial)")
+        default=None,
+        gt=0,
+        le=10000,
+        description="validity constraint: every leaf at least this many times as "
+        "long as it is thick; null: no constraint",
+    )
+    optimise_guides: int = Field(
+        default=0,
+        ge=0,
+        le=256,
+        description="translation only: shape-optimise the "
+        "best this many accepted guides (by the condition number of D_cc) for their "
+        "worst-case parasitic frequency over guide_stroke, and rank them by it before "
+        "the others; 0: rank by conditioning only",
+    )
+    guide_stroke: PositiveFloat = Field(
+        default=0.002, le=0.05, description="half range of a guide's translation [m] (translation only)"
+    )
+    planes: str = Field(
+        default="+-",
+        description="leaf planes to place: a subset of '+-0' ('+' and '-' at +-angle/2 about the axis, '0' radial)",
+    )
     inplane: bool = Field(default=True, description="also generate leaves crossing in one plane (joined)")
     free_crossing: bool = Field(default=True, description="also generate designed crossing fractions ('@')")
     reinforcement: bool = Field(default=False, description="also generate stages of leaves with a rigid middle")
-    allow_overconstraints: bool = Field(default=True, description="accept candidates with self-stress states "
-                                        "(monolithic hinges live with them); false rejects them")
-    topologies: list[str] | None = Field(default=None, max_length=256, description="search only these "
-                                         "descriptors (e.g. ['R:+-@']) instead of the enumeration")
-    starts: int = Field(default=2, ge=1, le=16, description="optimiser starts per candidate (the first from the "
-                        "template's defaults clipped into the bounds, then a scrambled Halton sequence)")
+    allow_overconstraints: bool = Field(
+        default=True,
+        description="accept candidates with self-stress states (monolithic hinges live with them); false rejects them",
+    )
+    topologies: list[str] | None = Field(
+        default=None,
+        max_length=256,
+        description="search only these descriptors (e.g. ['R:+-@']) instead of the enumeration",
+    )
+    starts: int = Field(
+        default=2,
+        ge=1,
+        le=16,
+        description="optimiser starts per candidate (the first from the "
+        "template's defaults clipped into the bounds, then a scrambled Halton sequence)",
+    )
     seed: int = Field(default=0, ge=0, description="seed of the starts (deterministic)")
     segments: int = Field(default=8, ge=2, le=40, description="beam elements per leaf in the optimisation")
     samples: int = Field(default=9, ge=3, le=61, description="stroke samples of the search")

@@ -14,8 +14,20 @@ shows the package's own names only.
 
 from __future__ import annotations
 
-__all__ = ["__version__", "curve", "modes", "diagnose", "optimise", "template", "load",
-           "model", "optim", "service", "client", "api"]
+__all__ = [
+    "__version__",
+    "curve",
+    "modes",
+    "diagnose",
+    "optimise",
+    "template",
+    "load",
+    "model",
+    "optim",
+    "service",
+    "client",
+    "api",
+]
 
 _API = ("curve", "modes", "diagnose", "optimise", "template", "load")
 _SUBPACKAGES = ("model", "optim", "service", "client", "api")

@@ -32,8 +32,8 @@ def template(name: str, **params: Any) -> Scene:
 def load(scene: Scene | dict | str | Path, **params: Any) -> Scene:
     """A scene from any of the forms the top-level calls accept: a Scene (returned as it is), a dict in the
     scene format, a path to a scene file, or a template's name (``params`` are its parameters)."""
-    from .model import Scene as _Scene
     from .model import TEMPLATES, load_scene, scene_from_dict
+    from .model import Scene as _Scene
 
     if isinstance(scene, _Scene):
         if params:
@@ -47,23 +47,25 @@ def load(scene: Scene | dict | str | Path, **params: Any) -> Scene:
         return template(scene, **params)
     path = Path(scene)
     if not path.exists():
-        raise FileNotFoundError(f"no scene file '{scene}' and no template of that name; templates: "
-                                f"{', '.join(sorted(TEMPLATES))}")
+        raise FileNotFoundError(
+            f"no scene file '{scene}' and no template of that name; templates: {', '.join(sorted(TEMPLATES))}"
+        )
     if params:
         raise TypeError("template parameters apply to a template's name, not to a scene file")
     return load_scene(path)
 
 
-def curve(scene: Scene | dict | str | Path, method: str = "exact", tolerance: float = 0.01,
-          stroke: Any = None, **params: Any) -> FrequencyCurve:
+def curve(
+    scene: Scene | dict | str | Path, method: str = "exact", tolerance: float = 0.01, stroke: Any = None, **params: Any
+) -> FrequencyCurve:
     """The stroke-dependent frequency curve of ``scene`` by ``method`` (``exact``, ``hermite``, ``auto``,
     ``fd1``, ``fd2``, ``manifold``, ``reduced``; see the methods page), with its warnings and mesh estimate.
 
     ``stroke``: stroke values in the scene's stroke unit (default: the scene's own range and points).
     """
-    from .model.curve import curve_with_method  # the curve pipeline: segments 'auto', mesh_error, warnings
-
     import numpy as np
+
+    from .model.curve import curve_with_method  # the curve pipeline: segments 'auto', mesh_error, warnings
 
     values = None if stroke is None else np.asarray(stroke, dtype=float)
     return curve_with_method(load(scene, **params), method, tolerance, values)
@@ -77,8 +79,9 @@ def modes(scene: Scene | dict | str | Path, at_stroke: float = 0.0, **params: An
     return shapes_at(Analysis(load(scene, **params)), at_stroke)
 
 
-def diagnose(scene: Scene | dict | str | Path, at_stroke: float | None = None, kinematic: bool | None = None,
-             **params: Any) -> ConstraintDiagnosis:
+def diagnose(
+    scene: Scene | dict | str | Path, at_stroke: float | None = None, kinematic: bool | None = None, **params: Any
+) -> ConstraintDiagnosis:
     """The exact-constraint diagnosis (D_cc, its SVD, free motions and self-stresses) of ``scene``."""
     from .model import diagnose as _diagnose
 

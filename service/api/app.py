@@ -57,10 +57,14 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         finally:
             rt.stop()
 
-    app = FastAPIOffline(title="flexopt", version=_package_version(), lifespan=lifespan,
-                         description="Large-stroke flexure hinges: templates, scenes, stroke-dependent natural "
-                                     "frequencies and exact-constraint diagnosis. Errors are RFC 9457 problem "
-                                     "details.")
+    app = FastAPIOffline(
+        title="flexopt",
+        version=_package_version(),
+        lifespan=lifespan,
+        description="Large-stroke flexure hinges: templates, scenes, stroke-dependent natural "
+        "frequencies and exact-constraint diagnosis. Errors are RFC 9457 problem "
+        "details.",
+    )
     # The runtime also exists before startup so that in-process tools (schema export) work without a lifespan.
     app.state.runtime = Runtime(settings)
     errors.install(app)
@@ -74,10 +78,15 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         return Response()
 
     _NOT_READY: dict[int | str, dict[str, Any]] = {
-        503: {"model": Problem, "description": "not ready; detail says what is missing"}}
+        503: {"model": Problem, "description": "not ready; detail says what is missing"}
+    }
 
-    @app.get("/ready", response_model=Health, responses=_NOT_READY,
-             summary="Readiness: the job store answers, the job dispatcher runs, the worker pool is up")
+    @app.get(
+        "/ready",
+        response_model=Health,
+        responses=_NOT_READY,
+        summary="Readiness: the job store answers, the job dispatcher runs, the worker pool is up",
+    )
     async def ready(request: Request) -> Health:
         why = await asyncio.to_thread(runtime(request).not_ready)
         if why:
@@ -123,7 +132,10 @@ def _openapi(app: FastAPI) -> dict[str, Any]:
     for req in ("FrequencyCurveRequest", "DiagnosisRequest", "ModesRequest"):
         props = comps.get(req, {}).get("properties", {})
         if "scene" in props:
-            props["scene"] = {"$ref": "#/components/schemas/Scene", "description": props["scene"].get("description", "")}
+            props["scene"] = {
+                "$ref": "#/components/schemas/Scene",
+                "description": props["scene"].get("description", ""),
+            }
     comps.pop("HTTPValidationError", None)
     comps.pop("ValidationError", None)
     # two models are called Problem (the error body and optim's problem): pydantic names them Problem-Input
@@ -158,7 +170,8 @@ def _openapi(app: FastAPI) -> dict[str, Any]:
         by_id = {op["operationId"]: op for op in doc["paths"].get("/v1/optimisations/{job_id}", {}).values()}
         submit["responses"]["202"]["links"] = {
             op_id.split("_v1_")[0]: {"operationId": op_id, "parameters": {"job_id": "$response.body#/id"}}
-            for op_id in sorted(by_id)}
+            for op_id in sorted(by_id)
+        }
     add_examples(doc)
     app.openapi_schema = doc
     return doc

@@ -39,10 +39,21 @@ __all__ = ["Busy", "ComputeTimeout", "ERRORS", "HEAVY", "JOBS", "problem", "inst
 
 log = logging.getLogger("flexopt.service")
 
-_TITLES = {400: "Bad request", 401: "Unauthorized", 404: "Not found", 405: "Method not allowed", 408: "Request timeout",
-           413: "Payload too large", 415: "Unsupported media type", 422: "Unprocessable content",
-           429: "Too many requests", 500: "Internal server error", 503: "Service unavailable",
-           504: "Gateway timeout", 406: "Not acceptable"}
+_TITLES = {
+    400: "Bad request",
+    401: "Unauthorized",
+    404: "Not found",
+    405: "Method not allowed",
+    408: "Request timeout",
+    413: "Payload too large",
+    415: "Unsupported media type",
+    422: "Unprocessable content",
+    429: "Too many requests",
+    500: "Internal server error",
+    503: "Service unavailable",
+    504: "Gateway timeout",
+    406: "Not acceptable",
+}
 
 
 ERRORS: dict[int | str, dict[str, Any]] = {
@@ -58,7 +69,8 @@ HEAVY: dict[int | str, dict[str, Any]] = {
 }
 #: the responses of a route that reads or writes the job store
 JOBS: dict[int | str, dict[str, Any]] = {
-    503: {"model": Problem, "description": "the job store is unavailable; see Retry-After"}}
+    503: {"model": Problem, "description": "the job store is unavailable; see Retry-After"}
+}
 
 
 class Busy(Exception):
@@ -66,24 +78,29 @@ class Busy(Exception):
 
     def __init__(self, retry_after: int, limit: int) -> None:
         self.retry_after = retry_after
-        super().__init__(f"the server is running its limit of {limit} concurrent computations; "
-                         f"retry after {retry_after} s")
+        super().__init__(
+            f"the server is running its limit of {limit} concurrent computations; retry after {retry_after} s"
+        )
 
 
 class ComputeTimeout(Exception):
     """A synchronous computation exceeded the per-request time limit."""
 
     def __init__(self, limit: float) -> None:
-        super().__init__(f"the computation exceeded the server's time limit of {limit:g} s; use fewer stroke "
-                         f"points, a cheaper method, or a smaller model")
+        super().__init__(
+            f"the computation exceeded the server's time limit of {limit:g} s; use fewer stroke "
+            f"points, a cheaper method, or a smaller model"
+        )
 
 
-def problem(status: int, detail: str, errors: list[FieldError] | None = None,
-            headers: dict[str, str] | None = None) -> JSONResponse:
+def problem(
+    status: int, detail: str, errors: list[FieldError] | None = None, headers: dict[str, str] | None = None
+) -> JSONResponse:
     """A problem-details response."""
     body = Problem(title=_TITLES.get(status, "Error"), status=status, detail=detail, errors=errors or [])
-    return JSONResponse(body.model_dump(mode="json"), status_code=status, headers=headers,
-                        media_type="application/problem+json")
+    return JSONResponse(
+        body.model_dump(mode="json"), status_code=status, headers=headers, media_type="application/problem+json"
+    )
 
 
 def _loc(loc: Any) -> list[str | int]:
@@ -124,9 +141,9 @@ def _summary(errors: list[FieldError]) -> str:
 
 def install(app: FastAPI) -> None:
     """Register every exception handler on ``app``."""
+    from ...model.errors import FlexoptError, KernelBuildError, SceneError
     from ..jobs.store import KeyReused, StoreUnavailable, TooManyJobs
     from .guards import TooCostly
-    from ...model.errors import FlexoptError, KernelBuildError, SceneError
 
     @app.exception_handler(RequestValidationError)
     async def _request_validation(_: Request, exc: RequestValidationError) -> JSONResponse:

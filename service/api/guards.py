@@ -27,8 +27,16 @@ from ..jobs.worker import ComputationFailed
 from ..schemas import OptimisationProblem
 from .settings import Settings
 
-__all__ = ["TooCostly", "admit", "check_cost", "check_problem", "key_checker", "nonfinite", "scene_from",
-           "seconds_per_point"]
+__all__ = [
+    "TooCostly",
+    "admit",
+    "check_cost",
+    "check_problem",
+    "key_checker",
+    "nonfinite",
+    "scene_from",
+    "seconds_per_point",
+]
 
 
 def seconds_per_point(dofs: int) -> float:
@@ -46,8 +54,11 @@ def key_checker(settings: Settings) -> Callable[..., None]:
 
     Declared through ``APIKeyHeader`` so the OpenAPI document shows the security scheme.
     """
-    header = APIKeyHeader(name=settings.api_key_header, auto_error=False,
-                          description="API key; required only when the server has FLEXOPT_API_KEYS set")
+    header = APIKeyHeader(
+        name=settings.api_key_header,
+        auto_error=False,
+        description="API key; required only when the server has FLEXOPT_API_KEYS set",
+    )
 
     def require_key(request: Request, given: str | None = Security(header)) -> None:
         keys = settings.keys()
@@ -55,8 +66,11 @@ def key_checker(settings: Settings) -> Callable[..., None]:
             request.state.owner = ""
             return
         if not any(hmac.compare_digest((given or "").encode(), k.encode()) for k in keys):
-            raise HTTPException(401, f"missing or invalid API key: send it in the '{settings.api_key_header}' "
-                                     "header", headers={"WWW-Authenticate": "ApiKey"})
+            raise HTTPException(
+                401,
+                f"missing or invalid API key: send it in the '{settings.api_key_header}' header",
+                headers={"WWW-Authenticate": "ApiKey"},
+            )
         from ..jobs.store import owner_of
 
         request.state.owner = owner_of(given)  # jobs belong to the key that submitted them
@@ -79,8 +93,13 @@ def scene_from(data: dict[str, Any]) -> Any:
         found = exc.errors(include_url=False)
         errs = [{**e, "loc": ("body", "scene", *e["loc"])} for e in clean_errors(found[:MAX_ERRORS])]
         if len(found) > MAX_ERRORS:  # a body of 40,000 unknown fields answers in 0.1 s, not 10 s of messages
-            errs.append({"loc": ("body", "scene"), "type": "value_error",
-                         "msg": f"{len(found) - MAX_ERRORS} more errors not listed; fix the ones above first"})
+            errs.append(
+                {
+                    "loc": ("body", "scene"),
+                    "type": "value_error",
+                    "msg": f"{len(found) - MAX_ERRORS} more errors not listed; fix the ones above first",
+                }
+            )
         raise RequestValidationError(errs) from None
     except Exception as exc:  # noqa: BLE001 - a validator's arithmetic broke on extreme numbers: named, not a 500
         _, err = worker.broken(exc, data)
@@ -144,8 +163,15 @@ def check_cost(scene: Any, stroke: list[float] | None, settings: Settings) -> No
     else:  # no stroke (a scene for the diagnosis only): the model names the field (422), costed as one point
         points, loc = 1, ("body", "scene", "stroke")
     if not 1 <= points <= settings.max_stroke_points:
-        raise RequestValidationError([{"loc": loc, "type": "value_error",
-                                       "msg": f"{points} stroke points; give 1 to {settings.max_stroke_points}"}])
+        raise RequestValidationError(
+            [
+                {
+                    "loc": loc,
+                    "type": "value_error",
+                    "msg": f"{points} stroke points; give 1 to {settings.max_stroke_points}",
+                }
+            ]
+        )
     dofs = _dofs(scene)
     seconds = seconds_per_point(dofs) * points
     what = f"{dofs} degrees of freedom x {points} stroke points"
@@ -157,18 +183,24 @@ def check_cost(scene: Any, stroke: list[float] | None, settings: Settings) -> No
         n, dofs = meshes[-1]
         refine = sum(seconds_per_point(d) for _, d in meshes) * (2 * ESTIMATE_POINTS + 1)
         seconds = seconds_per_point(dofs) * points + refine
-        what = (f"segments 'auto' may refine to {n} per beam: {dofs} degrees of freedom x {points} stroke points, "
-                f"plus {refine:.0f} s of refinement")
+        what = (
+            f"segments 'auto' may refine to {n} per beam: {dofs} degrees of freedom x {points} stroke points, "
+            f"plus {refine:.0f} s of refinement"
+        )
     if seconds > settings.max_cost:
-        raise TooCostly(seconds, f"estimated cost {seconds:.0f} s ({what}) exceeds this server's limit of "
-                                 f"{settings.max_cost:g} s for a request; send 'Prefer: respond-async' to run it "
-                                 "as a job, or use fewer stroke points or fewer (explicit) segments")
+        raise TooCostly(
+            seconds,
+            f"estimated cost {seconds:.0f} s ({what}) exceeds this server's limit of "
+            f"{settings.max_cost:g} s for a request; send 'Prefer: respond-async' to run it "
+            "as a job, or use fewer stroke points or fewer (explicit) segments",
+        )
 
 
 async def admit(data: dict[str, Any], stroke: list[float] | None, settings: Settings) -> Any:
     """The validated scene of a request whose cost :func:`check_cost` accepts, both checked in a worker thread:
     validation is pure Python whose time grows with the body (up to about a second for 1 MB), and on the event
     loop it held every route, ``/health`` included (issue 29 item 3)."""
+
     def both() -> Any:
         scene = scene_from(data)
         check_cost(scene, stroke, settings)
@@ -209,13 +241,17 @@ def check_problem(spec: OptimisationProblem) -> None:
             built = _Family(spec, fam)
         except FlexoptError as exc:
             path = str(exc).split(":")[0].removeprefix("families[].").split(".")  # e.g. design.thickness
-            raise bad(("families", i, *path) if path[0] in ("template", "design") else ("families", i),
-                      str(exc)) from None
+            raise bad(
+                ("families", i, *path) if path[0] in ("template", "design") else ("families", i), str(exc)
+            ) from None
         defaults = TEMPLATES[fam.template][1]
         for k in fam.design:
             if not isinstance(defaults[k], float):
-                raise bad(("families", i, "design", k), f"'{k}' is not a real-valued parameter of template "
-                          f"'{fam.template}' (default {defaults[k]!r}); set it in 'fixed' instead")
+                raise bad(
+                    ("families", i, "design", k),
+                    f"'{k}' is not a real-valued parameter of template "
+                    f"'{fam.template}' (default {defaults[k]!r}); set it in 'fixed' instead",
+                )
         for corner in (0.0, 1.0):
             params = built.params(np.full(len(built.names), corner))
             try:
@@ -225,16 +261,23 @@ def check_problem(spec: OptimisationProblem) -> None:
                 field = exc.field or exc.message.split(":")[0]  # a pydantic error's path leads the message
                 parts = [p for p in re.split(r"[.\[\]]", field.removeprefix("template.")) if p][-1:]
                 key = parts[0] if parts else ""
-                loc = ("families", i, "fixed", key) if key in fam.fixed else (
-                    ("families", i, "design", key) if key in fam.design else ("families", i))
-                raise bad(loc, f"{exc.message} (at the {'lower' if corner == 0 else 'upper'} corner of the design "
-                               "box)") from None
+                loc = (
+                    ("families", i, "fixed", key)
+                    if key in fam.fixed
+                    else (("families", i, "design", key) if key in fam.design else ("families", i))
+                )
+                raise bad(
+                    loc, f"{exc.message} (at the {'lower' if corner == 0 else 'upper'} corner of the design box)"
+                ) from None
             except FlexoptError as exc:
                 raise bad(("families", i), str(exc)) from None
             except (ArithmeticError, ValueError) as exc:  # a bound such as 1e308 overflows the section's
                 # arithmetic: named, not a 500 (issue 29 item 8)
                 side = "lower" if corner == 0 else "upper"
                 values = ", ".join(f"{k} = {params[k]:g}" for k in fam.design)
-                raise bad(("families", i, "design"), f"the scene at the {side} corner of the design box ({values}) "
-                          f"cannot be computed ({type(exc).__name__}: numbers out of range); narrow the bounds "
-                          "to physical values") from None
+                raise bad(
+                    ("families", i, "design"),
+                    f"the scene at the {side} corner of the design box ({values}) "
+                    f"cannot be computed ({type(exc).__name__}: numbers out of range); narrow the bounds "
+                    "to physical values",
+                ) from None

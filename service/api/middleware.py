@@ -66,14 +66,23 @@ class RequestLog:
         except Exception:  # noqa: BLE001 - logged with its traceback; the client gets a problem body
             log.exception("unhandled error", extra={"request_id": rid})
             if not started:
-                await errors.problem(500, "internal error; the server log has the details "
-                                          f"(request id {rid})")(scope, receive, send_with_id)
+                await errors.problem(500, f"internal error; the server log has the details (request id {rid})")(
+                    scope, receive, send_with_id
+                )
         finally:
             route = scope.get("route")
-            log.info("request", extra={"event": "request", "request_id": rid, "method": scope["method"],
-                                       "route": getattr(route, "path", None), "path": scope["path"],
-                                       "status": status,
-                                       "duration_ms": round(1000 * (time.perf_counter() - t0), 2)})
+            log.info(
+                "request",
+                extra={
+                    "event": "request",
+                    "request_id": rid,
+                    "method": scope["method"],
+                    "route": getattr(route, "path", None),
+                    "path": scope["path"],
+                    "status": status,
+                    "duration_ms": round(1000 * (time.perf_counter() - t0), 2),
+                },
+            )
 
 
 def host_name(header: str) -> str:
@@ -109,8 +118,11 @@ class AllowedHosts:
             return
         shown = (raw[:100] + "...") if len(raw) > 100 else raw
         what = f"host '{shown}' is not served here" if raw else "the request has no Host header"
-        await errors.problem(400, f"{what}: this server answers to {self.shown}; add the name clients use to "
-                                  "FLEXOPT_ALLOWED_HOSTS (comma-separated) to serve it")(scope, receive, send)
+        await errors.problem(
+            400,
+            f"{what}: this server answers to {self.shown}; add the name clients use to "
+            "FLEXOPT_ALLOWED_HOSTS (comma-separated) to serve it",
+        )(scope, receive, send)
 
 
 class FrameBlock:
@@ -128,8 +140,11 @@ class FrameBlock:
             if msg["type"] == "http.response.start":
                 headers = list(msg.get("headers", []))
                 names = {k.lower() for k, _ in headers}
-                for name, value in ((b"x-frame-options", b"DENY"), (b"x-content-type-options", b"nosniff"),
-                                    (b"content-security-policy", b"frame-ancestors 'none'")):
+                for name, value in (
+                    (b"x-frame-options", b"DENY"),
+                    (b"x-content-type-options", b"nosniff"),
+                    (b"content-security-policy", b"frame-ancestors 'none'"),
+                ):
                     if name not in names:
                         headers.append((name, value))
                 msg = {**msg, "headers": headers}
@@ -154,8 +169,10 @@ class JsonOnly:
         has_body = b"transfer-encoding" in headers or (length is not None and length.strip() not in (b"", b"0"))
         if has_body and not _JSON.match(media):
             shown = media or "none"
-            await errors.problem(415, f"Content-Type '{shown}' is not accepted: send the body as JSON with "
-                                      "'Content-Type: application/json'")(scope, receive, send)
+            await errors.problem(
+                415,
+                f"Content-Type '{shown}' is not accepted: send the body as JSON with 'Content-Type: application/json'",
+            )(scope, receive, send)
             return
         await self.app(scope, receive, send)
 
@@ -187,8 +204,9 @@ class BodyLimit:
             try:
                 msg = await asyncio.wait_for(receive(), max(0.0, deadline - asyncio.get_running_loop().time()))
             except TimeoutError:
-                await errors.problem(408, f"the request body was not received within {self.timeout:g} s; send it "
-                                          "at once", headers=close)(scope, receive, send)
+                await errors.problem(
+                    408, f"the request body was not received within {self.timeout:g} s; send it at once", headers=close
+                )(scope, receive, send)
                 return
             if msg["type"] == "http.disconnect":
                 return

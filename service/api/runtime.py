@@ -152,8 +152,11 @@ class Runtime:
         except concurrent.futures.BrokenExecutor:  # the worker running it died (killed, out of memory)
             if self.pools and self.pools[slot] is pool:  # not yet replaced by the next user of the slot
                 self._new_pool(slot)
-            raise ComputationFailed([], "the worker process computing this request died (out of memory or "
-                                        "killed); retry, or use fewer stroke points or a smaller model") from None
+            raise ComputationFailed(
+                [],
+                "the worker process computing this request died (out of memory or "
+                "killed); retry, or use fewer stroke points or a smaller model",
+            ) from None
         if not ok:
             worker.raise_error(payload)
         return payload
@@ -169,8 +172,9 @@ class Runtime:
         ctx = multiprocessing.get_context("spawn")  # never fork the threaded server
         # A worker is replaced after WORKER_TASKS computations: the compiled kernels and caches of the
         # distinct scenes it met go with it (issue 29 item 2: memory grew over a fuzzing run).
-        self.pools[slot] = concurrent.futures.ProcessPoolExecutor(1, mp_context=ctx, initializer=worker.warm_up,
-                                                                  max_tasks_per_child=WORKER_TASKS)
+        self.pools[slot] = concurrent.futures.ProcessPoolExecutor(
+            1, mp_context=ctx, initializer=worker.warm_up, max_tasks_per_child=WORKER_TASKS
+        )
 
     def start(self) -> None:
         """Open the job store (a corrupt one raises ``store.StoreCorrupt``), start the pool and the dispatcher."""
@@ -273,13 +277,17 @@ def job_store(request: Request) -> Any:
     return store
 
 
-async def submit_job(request: Request, response: Response, body: dict, idempotency_key: str | None,
-                     collection: str) -> Job:
+async def submit_job(
+    request: Request, response: Response, body: dict, idempotency_key: str | None, collection: str
+) -> Job:
     """Store a job (or find the one this idempotency key made), point Location at it, log a new one."""
-    job, created = await asyncio.to_thread(job_store(request).submit, body, idempotency_key, request.state.owner,
-                                           runtime(request).settings.max_active_jobs)
+    job, created = await asyncio.to_thread(
+        job_store(request).submit, body, idempotency_key, request.state.owner, runtime(request).settings.max_active_jobs
+    )
     response.headers["Location"] = f"/v1/{collection}/{job['id']}"
     if created:
-        log.info("job submitted", extra={"event": "job.submitted", "job_id": job["id"],
-                                         "request_id": request.state.request_id})
+        log.info(
+            "job submitted",
+            extra={"event": "job.submitted", "job_id": job["id"], "request_id": request.state.request_id},
+        )
     return Job(**job)

@@ -24,15 +24,27 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     fmt.add_argument("--json", action="store_true", help="print a JSON object")
     fmt.add_argument("--csv", action="store_true", help="print CSV")
     c.add_argument("--plot", metavar="FILE.png", help="draw frequency against stroke")
-    c.add_argument("--log-frequency", action="store_true",
-                   help="logarithmic frequency axis in --plot (default: chosen when modes span > 8x)")
+    c.add_argument(
+        "--log-frequency",
+        action="store_true",
+        help="logarithmic frequency axis in --plot (default: chosen when modes span > 8x)",
+    )
     c.add_argument("--progress", action="store_true", help="show progress on stderr even when not a terminal")
-    c.add_argument("--method", choices=METHODS, default="exact",
-                   help="exact (continuation + eigen), Taylor fd1/fd2, quadratic manifold, reduced, hermite, or auto")
-    c.add_argument("--tolerance", type=float, default=0.01,
-                   help="relative error allowed on the first parasitic frequency (for --method hermite and auto)")
-    c.add_argument("--strict", action="store_true",
-                   help="exit 3 when the result has a warning of kind stress, validity or units")
+    c.add_argument(
+        "--method",
+        choices=METHODS,
+        default="exact",
+        help="exact (continuation + eigen), Taylor fd1/fd2, quadratic manifold, reduced, hermite, or auto",
+    )
+    c.add_argument(
+        "--tolerance",
+        type=float,
+        default=0.01,
+        help="relative error allowed on the first parasitic frequency (for --method hermite and auto)",
+    )
+    c.add_argument(
+        "--strict", action="store_true", help="exit 3 when the result has a warning of kind stress, validity or units"
+    )
     c.set_defaults(func=_cmd_curve)
     return c
 

@@ -18,12 +18,26 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     from .scene_args import add_scene_arguments
 
     add_scene_arguments(d)
-    d.add_argument("--at-stroke", type=float, default=None, metavar="VALUE",
-                   help="diagnose the equilibrium at this stroke value (stroke unit); default: the reference")
-    d.add_argument("--kinematic", dest="kinematic", action="store_true", default=None,
-                   help="kinematic idealisation (flexures keep only compliant deformations)")
-    d.add_argument("--declared", dest="kinematic", action="store_false",
-                   help="use the scene's declared rigid deformations, not the kinematic idealisation")
+    d.add_argument(
+        "--at-stroke",
+        type=float,
+        default=None,
+        metavar="VALUE",
+        help="diagnose the equilibrium at this stroke value (stroke unit); default: the reference",
+    )
+    d.add_argument(
+        "--kinematic",
+        dest="kinematic",
+        action="store_true",
+        default=None,
+        help="kinematic idealisation (flexures keep only compliant deformations)",
+    )
+    d.add_argument(
+        "--declared",
+        dest="kinematic",
+        action="store_false",
+        help="use the scene's declared rigid deformations, not the kinematic idealisation",
+    )
     d.add_argument("--json", action="store_true", help="print a JSON object")
     d.add_argument("--plot", metavar="FILE.png", help="draw the structure, free motions and self-stresses")
     d.set_defaults(func=_cmd_diagnose)
@@ -52,8 +66,10 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     else:
         print(diag.report())
         if imported is not None:
-            print(f"SPACAR degrees of freedom (inputs and dynamic deformations, as its log counts them): "
-                  f"{imported.spacar_dof}")
+            print(
+                f"SPACAR degrees of freedom (inputs and dynamic deformations, as its log counts them): "
+                f"{imported.spacar_dof}"
+            )
     if args.plot:
         plot_diagnosis(scene, diag, args.plot)
         print(f"plot written to {args.plot}", file=sys.stderr)

@@ -36,8 +36,10 @@ class _Version(argparse.Action):
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="flexopt", description="Large-stroke flexure design: frequency curves "
-                                "over the stroke of SPACAR-style flexure models.")
+    p = argparse.ArgumentParser(
+        prog="flexopt",
+        description="Large-stroke flexure design: frequency curves over the stroke of SPACAR-style flexure models.",
+    )
     p.add_argument("--version", action=_Version)
     sub = p.add_subparsers(dest="command", required=True)
     for command in COMMANDS:

@@ -19,15 +19,25 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
     d = subparsers.add_parser("modes", help="deflected structure and mode shapes at a stroke value")
     add_scene_arguments(d)
-    d.add_argument("--at-stroke", type=float, default=0.0, metavar="S",
-                   help="stroke value in the scene's stroke unit (default 0)")
+    d.add_argument(
+        "--at-stroke", type=float, default=0.0, metavar="S", help="stroke value in the scene's stroke unit (default 0)"
+    )
     d.add_argument("--json", action="store_true", help="print the shapes as a JSON object")
-    d.add_argument("--mode", type=int, default=None, metavar="K",
-                   help="mode drawn by --plot/--animate (1-based; default: the first parasitic mode)")
+    d.add_argument(
+        "--mode",
+        type=int,
+        default=None,
+        metavar="K",
+        help="mode drawn by --plot/--animate (1-based; default: the first parasitic mode)",
+    )
     d.add_argument("--plot", metavar="FILE.png", help="draw the deflected structure with the mode overlaid")
     d.add_argument("--animate", metavar="FILE.gif", help="write the mode oscillating about the deflected state")
-    d.add_argument("--vtk", metavar="DIR", help="write the deflected structure at every stroke point of the scene's "
-                   "grid, mode shapes as point data (VTU files and a ParaView .pvd series)")
+    d.add_argument(
+        "--vtk",
+        metavar="DIR",
+        help="write the deflected structure at every stroke point of the scene's "
+        "grid, mode shapes as point data (VTU files and a ParaView .pvd series)",
+    )
     d.set_defaults(func=_cmd_modes)
     return d
 
@@ -45,10 +55,11 @@ def _table(d: dict) -> str:
 
     unit = "N m" if d["stroke_kind"] == "rotation" else "N"
     reaction = "not computed" if d["drive_reaction"] is None else f"{d['drive_reaction']:.4g} {unit}"
-    lines = [f"scene '{d['scene']}' at stroke {d['stroke']:.6g} {d['stroke_unit']} (drive reaction {reaction}); "
-             "modes by frequency, numbered as --mode takes them",
-             f"{'mode':>4} {'Hz':>11} {'label':>10}  dominant motion (share of the squared nodal "
-             "rotations/translations)"]
+    lines = [
+        f"scene '{d['scene']}' at stroke {d['stroke']:.6g} {d['stroke_unit']} (drive reaction {reaction}); "
+        "modes by frequency, numbered as --mode takes them",
+        f"{'mode':>4} {'Hz':>11} {'label':>10}  dominant motion (share of the squared nodal rotations/translations)",
+    ]
     pts = np.array(list(d["nodes"].values()))
     size = float(np.ptp(pts, axis=0).max())
     by_frequency = sorted(range(len(d["modes"])), key=lambda i: (d["modes"][i]["hz"] is None, d["modes"][i]["hz"]))
@@ -118,8 +129,9 @@ def write_vtk(shapes: list[dict], directory: str) -> list[str]:
                 for i in chain:
                     extra += [P[i] - R[i] @ y0, P[i] + R[i] @ y0]
                     edge_of += [i, i]
-                quads += [[base + 2 * j, base + 2 * j + 2, base + 2 * j + 3, base + 2 * j + 1]
-                          for j in range(len(chain) - 1)]
+                quads += [
+                    [base + 2 * j, base + 2 * j + 2, base + 2 * j + 3, base + 2 * j + 1] for j in range(len(chain) - 1)
+                ]
         pts = np.vstack([P, *extra]) if extra else P
         owner = np.concatenate([np.arange(len(P)), np.array(edge_of, dtype=int)])
         point_data = {}
@@ -140,8 +152,11 @@ def write_vtk(shapes: list[dict], directory: str) -> list[str]:
         entries.append(f'    <DataSet timestep="{d["stroke"]:.10g}" file="{os.path.basename(path)}"/>')
     pvd = os.path.join(directory, "series.pvd")
     with open(pvd, "w") as fh:
-        fh.write('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n'
-                 + "\n".join(entries) + "\n  </Collection>\n</VTKFile>\n")
+        fh.write(
+            '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n'
+            + "\n".join(entries)
+            + "\n  </Collection>\n</VTKFile>\n"
+        )
     return [*paths, pvd]
 
 

@@ -21,8 +21,13 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     o.add_argument("--workers", type=int, default=None, help="local worker processes (default: CPU count)")
     o.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://host:8786")
     o.add_argument("--store", metavar="DIR", help="write each finished case here; rerun to resume")
-    o.add_argument("--no-worker-timeout", type=float, default=60.0, metavar="SECONDS",
-                   help="with --scheduler: stop when the cluster has had no workers this long (default 60)")
+    o.add_argument(
+        "--no-worker-timeout",
+        type=float,
+        default=60.0,
+        metavar="SECONDS",
+        help="with --scheduler: stop when the cluster has had no workers this long (default 60)",
+    )
     o.add_argument("--json", action="store_true", help="print the whole result as JSON")
     o.add_argument("--plot", metavar="FILE.png", help="frequency against stroke before and after, per family")
     o.add_argument("--scenes", metavar="DIR", help="write the scene JSON of each family's optimum here")
@@ -83,8 +88,14 @@ def _cmd_optimise(args: argparse.Namespace) -> int:
     prob = read_spec(args.spec, Problem)
     executor = executor_for(args.scheduler)
     try:
-        result = optimise(prob, executor=executor, workers=args.workers, store=args.store,
-                          no_worker_timeout=args.no_worker_timeout, progress=case_lines("optimise"))
+        result = optimise(
+            prob,
+            executor=executor,
+            workers=args.workers,
+            store=args.store,
+            no_worker_timeout=args.no_worker_timeout,
+            progress=case_lines("optimise"),
+        )
     except NoWorkers as exc:  # exit code 4: the cluster, not the input (2) nor a warning (3, curve --strict)
         print(f"error: {exc}", file=sys.stderr)
         return 4
@@ -146,10 +157,14 @@ def _table(result: dict) -> str:
             continue
         v = b["verified"]
         design = design_text(b["design"], fam["template"], boxes.get(fam["template"]))
-        lines.append(f"{ranked[fam['template']]:>4}  {fam['template']:<25} {v['worst_hz']:>10.2f} {v['zero_stroke_hz']:>10.2f}"
-                     f"  {v['ratio']:>10.3f}  {v['stress_ratio']:>12.3f}  {b['status']:<10}  {design}")
-    lines.append(f"verified on {result['problem']['verify_points']} exact stroke points per family; stress limit = "
-                 f"allowable / {result['problem']['safety_factor']}")
+        lines.append(
+            f"{ranked[fam['template']]:>4}  {fam['template']:<25} {v['worst_hz']:>10.2f} {v['zero_stroke_hz']:>10.2f}"
+            f"  {v['ratio']:>10.3f}  {v['stress_ratio']:>12.3f}  {b['status']:<10}  {design}"
+        )
+    lines.append(
+        f"verified on {result['problem']['verify_points']} exact stroke points per family; stress limit = "
+        f"allowable / {result['problem']['safety_factor']}"
+    )
     lines += [f"warning ({w['kind']}): {w['message']}" for w in result.get("warnings", [])]
     return "\n".join(lines)
 

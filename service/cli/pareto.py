@@ -68,12 +68,20 @@ def _table(result: dict) -> str:
         design = ", ".join(f"{k}={v:.4g}" for k, v in p["design"].items())
         what = ends.get(id(p), f"level {p['level']:.4g}" if p["level"] is not None else "")
         what = f"K {p['drive_stiffness']:.4g} {unit}" if stroke else what
-        lines.append(f"{p['stroke' if stroke else 'drive_stiffness']:>26.5g}  {p['worst_hz']:>10.3f} {p['zero_stroke_hz']:>10.3f}  "
-                     f"{p['stress_ratio']:>12.3f}  {what:<18} {design}")
+        lines.append(
+            f"{p['stroke' if stroke else 'drive_stiffness']:>26.5g}  {p['worst_hz']:>10.3f} {p['zero_stroke_hz']:>10.3f}  "
+            f"{p['stress_ratio']:>12.3f}  {what:<18} {design}"
+        )
     prob = result["spec"]["problem"]
-    lines.append(f"{len(result['points'])} verified points on {prob['verify_points']} exact stroke points each; "
-                 + ("the frequency optimum at each stroke" if stroke else
-                    "drive stiffness = peak drive over the stroke / its half range") + f"; {result['seconds']:.1f} s")
+    lines.append(
+        f"{len(result['points'])} verified points on {prob['verify_points']} exact stroke points each; "
+        + (
+            "the frequency optimum at each stroke"
+            if stroke
+            else "drive stiffness = peak drive over the stroke / its half range"
+        )
+        + f"; {result['seconds']:.1f} s"
+    )
     if result.get("check"):
         lines.append(result["check"]["summary"])
     lines += [f"warning ({w['kind']}): {w['message']}" for w in result.get("warnings", [])]

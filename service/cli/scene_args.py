@@ -23,12 +23,20 @@ def parse_sets(items: Sequence[str]) -> dict[str, str]:
 
 def add_scene_arguments(p: argparse.ArgumentParser, default_template: str | None = None) -> None:
     """The scene arguments of every command that analyses one: a file, or ``--template`` with ``--set``."""
-    p.add_argument("scene", nargs="?", help="scene JSON file or SPACAR .dat model" + (
-        f" (default: the built-in {default_template} template)" if default_template else ""))
+    p.add_argument(
+        "scene",
+        nargs="?",
+        help="scene JSON file or SPACAR .dat model"
+        + (f" (default: the built-in {default_template} template)" if default_template else ""),
+    )
     p.add_argument("--template", metavar="NAME", help="use a built-in template instead of a file")
-    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a template parameter; numbers in SI (stroke in deg) or with a unit, "
-                   "e.g. --set thickness=0.3mm")
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a template parameter; numbers in SI (stroke in deg) or with a unit, e.g. --set thickness=0.3mm",
+    )
 
 
 def scene_from_args(args: argparse.Namespace, default_template: str | None = None):  # noqa: ANN201 - Scene

@@ -65,20 +65,34 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     # 3 s to end; job processes get settings.job_stop_timeout more (see Dockerfile's stop grace).
     shown = "127.0.0.1" if args.host in ("0.0.0.0", "::") else args.host
     shown = f"[{shown}]" if ":" in shown else shown
-    print(f"flexopt serve: the page at http://{shown}:{args.port}/ (API documentation at /docs); Ctrl+C stops",
-          file=sys.stderr, flush=True)
-    uvicorn.run(create_app(settings), host=args.host, port=args.port, log_level=args.log_level,
-                log_config=log_config(args.log_level), access_log=False, timeout_graceful_shutdown=3,
-                http=head_timeout_protocol(settings.head_timeout))
+    print(
+        f"flexopt serve: the page at http://{shown}:{args.port}/ (API documentation at /docs); Ctrl+C stops",
+        file=sys.stderr,
+        flush=True,
+    )
+    uvicorn.run(
+        create_app(settings),
+        host=args.host,
+        port=args.port,
+        log_level=args.log_level,
+        log_config=log_config(args.log_level),
+        access_log=False,
+        timeout_graceful_shutdown=3,
+        http=head_timeout_protocol(settings.head_timeout),
+    )
     return 0
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     """Register the ``serve`` subcommand."""
     s = subparsers.add_parser("serve", help="run the HTTP service (settings from FLEXOPT_* environment variables)")
-    s.add_argument("--host", default="127.0.0.1", help="interface to listen on (0.0.0.0 in a container; the "
-                   "Host names the server answers to are FLEXOPT_ALLOWED_HOSTS, default the loopback names, plus "
-                   "this address when it is a specific one)")
+    s.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="interface to listen on (0.0.0.0 in a container; the "
+        "Host names the server answers to are FLEXOPT_ALLOWED_HOSTS, default the loopback names, plus "
+        "this address when it is a specific one)",
+    )
     s.add_argument("--port", type=int, default=8000, help="TCP port")
     s.add_argument("--log-level", default="info", choices=["critical", "error", "warning", "info", "debug"])
     s.set_defaults(func=_cmd_serve)

@@ -21,8 +21,13 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     e = subparsers.add_parser("export", help="write a scene as a SPACAR .dat model (stdout)")
     add_scene_arguments(e)
     e.add_argument("--to", choices=["dat"], default="dat", help="the format (dat: SPACAR input file)")
-    e.add_argument("--numbering", type=int, choices=[2, 3], default=2,
-                   help="SPACAR nodes per point: 2 (X 2i-1, R 2i) or 3 (X 3i-2, R 3i-1, as SPACAR Light)")
+    e.add_argument(
+        "--numbering",
+        type=int,
+        choices=[2, 3],
+        default=2,
+        help="SPACAR nodes per point: 2 (X 2i-1, R 2i) or 3 (X 3i-2, R 3i-1, as SPACAR Light)",
+    )
     e.set_defaults(func=_cmd_export)
     return i
 
@@ -34,8 +39,11 @@ def _cmd_import(args: argparse.Namespace) -> int:
     print(scene.model_dump_json(indent=2))
     if not args.quiet:
         mapped = ", ".join(f"{k} {v}" for k, v in sorted(imp.mapped.items()))
-        print(f"# imported {args.model}: {mapped}; node numbering: {imp.numbering}; SPACAR degrees of freedom "
-              f"(inputs and dynamic deformations): {imp.spacar_dof}", file=sys.stderr)
+        print(
+            f"# imported {args.model}: {mapped}; node numbering: {imp.numbering}; SPACAR degrees of freedom "
+            f"(inputs and dynamic deformations): {imp.spacar_dof}",
+            file=sys.stderr,
+        )
         for note in imp.notes:
             print(f"# note: {note}", file=sys.stderr)
     return 0

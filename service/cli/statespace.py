@@ -17,10 +17,20 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     p = subparsers.add_parser("statespace", help="state-space model (A, B, C, D) about the equilibrium at a stroke")
     add_scene_arguments(p)
     p.add_argument("--at-stroke", type=float, default=0.0, metavar="VALUE", help="stroke value (stroke unit)")
-    p.add_argument("--input", action="append", required=True, metavar="NAME.fx",
-                   help="a force (fx, fy, fz) or moment (mx, my, mz) on a node or body; repeat for more")
-    p.add_argument("--output", action="append", required=True, metavar="NAME.z",
-                   help="a position (x, y, z), rotation (rx, ry, rz) or rate (vx.., wx..) of a node or body")
+    p.add_argument(
+        "--input",
+        action="append",
+        required=True,
+        metavar="NAME.fx",
+        help="a force (fx, fy, fz) or moment (mx, my, mz) on a node or body; repeat for more",
+    )
+    p.add_argument(
+        "--output",
+        action="append",
+        required=True,
+        metavar="NAME.z",
+        help="a position (x, y, z), rotation (rx, ry, rz) or rate (vx.., wx..) of a node or body",
+    )
     p.add_argument("--damping", type=float, default=0.01, help="modal damping ratio of every mode (default 0.01)")
     p.add_argument("--modes", type=int, default=None, help="keep the lowest N modes (default: all)")
     p.add_argument("--bode", metavar="FMIN:FMAX:N", help="also a frequency response table (Hz, log spaced)")

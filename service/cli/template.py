@@ -26,9 +26,11 @@ def _cmd_template(args: argparse.Namespace) -> int:
 
     if args.name is None or args.list:
         for name in sorted(TEMPLATES):
-            params = ", ".join((f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}")
-                               + (f" {parameter_unit(name, k)}" if parameter_unit(name, k) else "")
-                               for k, v in template_parameters(name).items())
+            params = ", ".join(
+                (f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}")
+                + (f" {parameter_unit(name, k)}" if parameter_unit(name, k) else "")
+                for k, v in template_parameters(name).items()
+            )
             print(f"{name}: {params}")
         return 0
     scene = template(args.name, **parse_sets(args.set))

@@ -20,9 +20,15 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Add the ``topology`` subcommand to an argparse subparsers object."""
     o = subparsers.add_parser("topology", help="topology search: generate, screen, optimise and rank hinges")
     o.add_argument("spec", nargs="?", help="search spec JSON (format flexopt-topology; see --example)")
-    o.add_argument("--example", nargs="?", const="default", choices=["default", "quick"], default=None,
-                   help="print the default spec (the broad space: 6 leaves, 3 stages, each stage its own "
-                   "dimensions) or, with 'quick', the quick one (4 leaves, 2 stages, shared dimensions) and exit")
+    o.add_argument(
+        "--example",
+        nargs="?",
+        const="default",
+        choices=["default", "quick"],
+        default=None,
+        help="print the default spec (the broad space: 6 leaves, 3 stages, each stage its own "
+        "dimensions) or, with 'quick', the quick one (4 leaves, 2 stages, shared dimensions) and exit",
+    )
     o.add_argument("--workers", type=int, default=None, help="local worker processes (default: CPU count)")
     o.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://host:8786")
     o.add_argument("--store", metavar="DIR", help="write each finished case here; rerun to resume")
@@ -54,8 +60,9 @@ def _cmd_topology(args: argparse.Namespace) -> int:
 
     executor = executor_for(args.scheduler)
     try:
-        result = run_topology_search(spec, executor=executor, workers=args.workers, store=args.store,
-                                     progress=case_lines("topology"))
+        result = run_topology_search(
+            spec, executor=executor, workers=args.workers, store=args.store, progress=case_lines("topology")
+        )
     except NoWorkers as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 3
@@ -83,21 +90,28 @@ def table(result: dict) -> str:
     c = result["counts"]
     by = ", ".join(f"{n} {k}" for k, n in sorted(c["rejected_by"].items()))
     sec = result["seconds"]
-    passes = (f", first pass {c['first_pass']}, pruned {c['pruned']}, full pass {c['promoted']}"
-              if "first_pass" in c else "")
-    head = (f"{c['generated']} topologies generated, {c['rejected']} rejected ({by or 'none'}), "
-            f"{c['untraceable']} untraceable{passes}, {c['optimised']} optimised, {c['failed']} failed "
-            f"(screen {sec['screen']:.1f} s, first pass {sec.get('first_pass', 0.0):.1f} s, optimisation "
-            f"{sec['optimise']:.1f} s, refined verification {sec.get('refine', 0.0):.1f} s)")
-    columns = ("rank  topology          family                   dof  self-stress  worst [Hz]  zero [Hz]  worst/zero  "
-               "stress  mesh error  KKT      design (bound: origin)")
+    passes = (
+        f", first pass {c['first_pass']}, pruned {c['pruned']}, full pass {c['promoted']}" if "first_pass" in c else ""
+    )
+    head = (
+        f"{c['generated']} topologies generated, {c['rejected']} rejected ({by or 'none'}), "
+        f"{c['untraceable']} untraceable{passes}, {c['optimised']} optimised, {c['failed']} failed "
+        f"(screen {sec['screen']:.1f} s, first pass {sec.get('first_pass', 0.0):.1f} s, optimisation "
+        f"{sec['optimise']:.1f} s, refined verification {sec.get('refine', 0.0):.1f} s)"
+    )
+    columns = (
+        "rank  topology          family                   dof  self-stress  worst [Hz]  zero [Hz]  worst/zero  "
+        "stress  mesh error  KKT      design (bound: origin)"
+    )
     lines = [head, columns]
     by_name = {r["topology"]: r for r in result["candidates"]}
     if result["spec"]["motion"] == "translation":
         lines[0] += f", {c['accepted']} accepted (guides: screened, not optimised)"
         lines[1] = "rank  guide                          self-stress  condition number of D_cc"
-        lines += [f"{i:>4}  {n:<30} {by_name[n]['overconstraints']:>11}  {by_name[n]['condition_number']:.4g}"
-                  for i, n in enumerate(result["ranking"][:50], start=1)]
+        lines += [
+            f"{i:>4}  {n:<30} {by_name[n]['overconstraints']:>11}  {by_name[n]['condition_number']:.4g}"
+            for i, n in enumerate(result["ranking"][:50], start=1)
+        ]
         if len(result["ranking"]) > 50:
             lines.append(f"      ... {len(result['ranking']) - 50} more (--json lists every candidate)")
         rej = [r for r in result["candidates"] if r["status"] == "rejected"]
@@ -133,13 +147,16 @@ def table(result: dict) -> str:
         ratio = ref.get("ratio", r["ratio"])
         stress = ref.get("stress_ratio", r.get("stress_ratio"))
         me = f"{ref['mesh_error']:.1e}" if ref.get("mesh_error") is not None else "-"
-        lines.append(f"{i:>4}  {name:<17} {r['family'] or '-':<24} {r['dof']:>3}  {r['overconstraints']:>11}  "
-                     f"{worst:>10.2f} {zero:>10.2f}  {ratio:>10.3f}  {stress:>6.3f}  {me:>10}  "
-                     f"{r['kkt_residual']:.1e}  {design}")
+        lines.append(
+            f"{i:>4}  {name:<17} {r['family'] or '-':<24} {r['dof']:>3}  {r['overconstraints']:>11}  "
+            f"{worst:>10.2f} {zero:>10.2f}  {ratio:>10.3f}  {stress:>6.3f}  {me:>10}  "
+            f"{r['kkt_residual']:.1e}  {design}"
+        )
         lines += [f"      ! {w['message']}" for w in r.get("warnings", []) if w.get("kind") in ("stress", "mesh")]
     if any(by_name[n].get("refined") for n in result["ranking"]):
-        lines.append("      (worst, zero, worst/zero and stress on the refined mesh: refine_segments, "
-                     "refine_tolerance)")
+        lines.append(
+            "      (worst, zero, worst/zero and stress on the refined mesh: refine_segments, refine_tolerance)"
+        )
     for r in result["candidates"]:
         if r["status"] in ("failed", "untraceable"):
             lines.append(f"   -  {r['topology']:<17} {r['family'] or '-':<24} {r['status']}: {r['reason']}")
@@ -166,10 +183,15 @@ def plot_ranking(result: dict, path: str) -> None:
     fig, ax = plt.subplots(figsize=(max(6.0, 0.35 * len(rows) + 2), 4.2))
     xs = range(len(rows))
     ax.bar(xs, [r["zero_stroke_hz"] for r in rows], color="0.85", label="zero stroke")
-    ax.bar(xs, [r["worst_case_hz"] for r in rows], color=["C3" if r["family"] else "C0" for r in rows],
-           label="worst case over the stroke (red: a hand-made family)")
-    ax.set_xticks(list(xs), [r["topology"] + (f"\n{r['family']}" if r["family"] else "") for r in rows],
-                  rotation=90, fontsize=7)
+    ax.bar(
+        xs,
+        [r["worst_case_hz"] for r in rows],
+        color=["C3" if r["family"] else "C0" for r in rows],
+        label="worst case over the stroke (red: a hand-made family)",
+    )
+    ax.set_xticks(
+        list(xs), [r["topology"] + (f"\n{r['family']}" if r["family"] else "") for r in rows], rotation=90, fontsize=7
+    )
     ax.set_ylabel("first parasitic frequency [Hz]")
     ax.set_yscale("log")
     ax.legend(fontsize=8)

@@ -48,7 +48,7 @@ def _pgid(pid: int) -> int | None:
         stat = Path(f"/proc/{pid}/stat").read_text()
     except OSError:
         return None
-    return int(stat[stat.rindex(")") + 2:].split()[2])
+    return int(stat[stat.rindex(")") + 2 :].split()[2])
 
 
 def _token(pid: int) -> str | None:
@@ -58,7 +58,7 @@ def _token(pid: int) -> str | None:
     except OSError:
         return None
     prefix = f"{RUN_TOKEN}=".encode()
-    return next((v[len(prefix):].decode(errors="replace") for v in env.split(b"\0") if v.startswith(prefix)), None)
+    return next((v[len(prefix) :].decode(errors="replace") for v in env.split(b"\0") if v.startswith(prefix)), None)
 
 
 def end_run(pgid: int, token: str, sig: int = signal.SIGKILL) -> int:
@@ -140,8 +140,12 @@ class Dispatcher:
                 self._tick()
             except Exception as exc:  # noqa: BLE001 - a busy or unreachable database: log, back off, retry
                 self.last_error = str(exc).splitlines()[0][:300] if str(exc) else type(exc).__name__
-                log.warning("job dispatcher: %s; retrying in %.1f s", self.last_error, backoff,
-                            extra={"event": "dispatcher.error"})
+                log.warning(
+                    "job dispatcher: %s; retrying in %.1f s",
+                    self.last_error,
+                    backoff,
+                    extra={"event": "dispatcher.error"},
+                )
                 self._stop.wait(backoff)
                 backoff = min(30.0, backoff * 2)
                 continue
@@ -161,11 +165,27 @@ class Dispatcher:
             if new is None:  # the job process wrote its verdict
                 job = self.store.get(jid) or {}
                 level = logging.WARNING if job.get("status") == "failed" else logging.INFO
-                log.log(level, "job ended", extra={"event": f"job.{job.get('status', 'ended')}", "job_id": jid,
-                                                   "attempt": attempt, "exit_code": code, "error": job.get("error")})
+                log.log(
+                    level,
+                    "job ended",
+                    extra={
+                        "event": f"job.{job.get('status', 'ended')}",
+                        "job_id": jid,
+                        "attempt": attempt,
+                        "exit_code": code,
+                        "error": job.get("error"),
+                    },
+                )
             else:
-                log.warning("job run lost", extra={"event": f"job.{'requeued' if new == 'queued' else new}",
-                                                   "job_id": jid, "attempt": attempt, "exit_code": code})
+                log.warning(
+                    "job run lost",
+                    extra={
+                        "event": f"job.{'requeued' if new == 'queued' else new}",
+                        "job_id": jid,
+                        "attempt": attempt,
+                        "exit_code": code,
+                    },
+                )
         for job in self.store.expired():
             if job["id"] in self.procs:
                 continue
@@ -175,24 +195,38 @@ class Dispatcher:
                 end_run(int(pid), f"{job['id']}:{job['attempts']}")  # only processes proven to be that run
             new = self.store.requeue(job["id"], job["attempts"], "the job's lease expired (its process is gone)")
             if new is not None:
-                log.warning("job lease expired", extra={"event": f"job.{'requeued' if new == 'queued' else new}",
-                                                        "job_id": job["id"], "attempt": job["attempts"]})
+                log.warning(
+                    "job lease expired",
+                    extra={
+                        "event": f"job.{'requeued' if new == 'queued' else new}",
+                        "job_id": job["id"],
+                        "attempt": job["attempts"],
+                    },
+                )
         while len(self.procs) < self.max_jobs and not self._stop.is_set():
             queued = self.store.next_queued(self.holder)
             if queued is None:
                 break
             job = queued
-            env: dict[str, Any] = dict(os.environ, **{RUN_TOKEN: f"{job['id']}:{job['attempts']}"},
-                                       FLEXOPT_DATABASE_URL=self.store.url,
-                                       FLEXOPT_DATA_DIR=str(self.store.data_dir),
-                                       FLEXOPT_LEASE_SECONDS=str(self.store.lease_seconds))
+            env: dict[str, Any] = dict(
+                os.environ,
+                **{RUN_TOKEN: f"{job['id']}:{job['attempts']}"},
+                FLEXOPT_DATABASE_URL=self.store.url,
+                FLEXOPT_DATA_DIR=str(self.store.data_dir),
+                FLEXOPT_LEASE_SECONDS=str(self.store.lease_seconds),
+            )
             if self.workers:
                 env["FLEXOPT_JOB_WORKERS"] = str(self.workers)
-            p = subprocess.Popen([sys.executable, "-m", "flexopt.service.jobs", "run", job["id"],
-                                  str(job["attempts"])], env=env, start_new_session=True)
+            p = subprocess.Popen(
+                [sys.executable, "-m", "flexopt.service.jobs", "run", job["id"], str(job["attempts"])],
+                env=env,
+                start_new_session=True,
+            )
             self.procs[job["id"]] = (p, job["attempts"])
-            log.info("job started", extra={"event": "job.started", "job_id": job["id"], "attempt": job["attempts"],
-                                           "pid": p.pid})
+            log.info(
+                "job started",
+                extra={"event": "job.started", "job_id": job["id"], "attempt": job["attempts"], "pid": p.pid},
+            )
 
     def _started(self, jid: str) -> bool:
         """Whether the job process has taken the lease over (until then the dispatcher keeps it alive)."""

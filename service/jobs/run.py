@@ -45,10 +45,16 @@ RETRY = 75
 
 def _summary(case: dict) -> dict:
     v = case.get("verified", {})
-    return {"id": case.get("id"), "family": case.get("family"), "start": case.get("start"),
-            "status": case.get("status", "failed" if "error" in case else None),
-            "worst_hz": v.get("worst_hz", case.get("worst_hz")), "ratio": v.get("ratio"), "design": case.get("design"),
-            "error": case.get("error")}
+    return {
+        "id": case.get("id"),
+        "family": case.get("family"),
+        "start": case.get("start"),
+        "status": case.get("status", "failed" if "error" in case else None),
+        "worst_hz": v.get("worst_hz", case.get("worst_hz")),
+        "ratio": v.get("ratio"),
+        "design": case.get("design"),
+        "error": case.get("error"),
+    }
 
 
 def _all_failed(result: dict) -> str | None:
@@ -56,8 +62,11 @@ def _all_failed(result: dict) -> str | None:
     fams = result.get("families", [])
     if not fams or any(f.get("best") is not None for f in fams):
         return None
-    reasons = [f"{f.get('template')} start {x.get('start')}: {x.get('message') or x.get('status')}"
-               for f in fams for x in f.get("failed", [])]
+    reasons = [
+        f"{f.get('template')} start {x.get('start')}: {x.get('message') or x.get('status')}"
+        for f in fams
+        for x in f.get("failed", [])
+    ]
     return "every case failed: " + "; ".join(reasons[:5]) + (" ..." if len(reasons) > 5 else "")
 
 
@@ -67,8 +76,11 @@ def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
     from ...optim import optimise
     from ...optim.batch import BatchCancelled
 
-    store = JobStore(os.environ["FLEXOPT_DATABASE_URL"], Path(os.environ["FLEXOPT_DATA_DIR"]),
-                     float(os.environ.get("FLEXOPT_LEASE_SECONDS", "15")))
+    store = JobStore(
+        os.environ["FLEXOPT_DATABASE_URL"],
+        Path(os.environ["FLEXOPT_DATA_DIR"]),
+        float(os.environ.get("FLEXOPT_LEASE_SECONDS", "15")),
+    )
     holder = f"{HOST}:{os.getpid()}:job"  # a job process leads its own process group (its pool workers)
     job = store.row(job_id)
     if job is None or job["attempts"] != attempt:
@@ -115,10 +127,17 @@ def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
             pass
         try:  # best effort: a database busy for longer than its timeout must not fail the optimisation
             # a topology search adds its phase, its counts (screened, passed, ...) and the best so far
-            shown = {"done": event["done"], "total": event["total"],
-                     **{k: event[k] for k in ("phase", "counts", "best") if k in event}}
-            store.update(job_id, attempt, progress=json.dumps(finite(shown), allow_nan=False),
-                         partial=json.dumps(finite(partial), allow_nan=False))
+            shown = {
+                "done": event["done"],
+                "total": event["total"],
+                **{k: event[k] for k in ("phase", "counts", "best") if k in event},
+            }
+            store.update(
+                job_id,
+                attempt,
+                progress=json.dumps(finite(shown), allow_nan=False),
+                partial=json.dumps(finite(partial), allow_nan=False),
+            )
         except StoreUnavailable:  # the next case's progress writes it again
             log.warning("job %s: progress not written", job_id)
 
@@ -150,8 +169,9 @@ def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
         return 0
     except RuntimeError as exc:
         if isinstance(exc.__cause__, cf.BrokenExecutor) or interrupted.is_set():
-            log.warning("job %s: run %d lost a worker process; finished cases are stored, the job is retried",
-                        job_id, attempt)
+            log.warning(
+                "job %s: run %d lost a worker process; finished cases are stored, the job is retried", job_id, attempt
+            )
             return RETRY
         store.update(job_id, attempt, status="failed", error=f"{type(exc).__name__}: {exc}")
         return 1

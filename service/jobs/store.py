@@ -33,11 +33,22 @@ from typing import Any, TypeVar
 from sqlalchemy import Float, Integer, String, Text, create_engine, event, func, inspect, select, text
 from sqlalchemy import delete as sql_delete
 from sqlalchemy import update as sql_update
-from sqlalchemy.exc import DatabaseError, IntegrityError, OperationalError, SQLAlchemyError
+from sqlalchemy.exc import DatabaseError, IntegrityError, SQLAlchemyError
 from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column
 
-__all__ = ["ACTIVE", "MAX_ATTEMPTS", "MAX_CRASHES", "STATUSES", "Job", "JobStore", "KeyReused", "StoreCorrupt",
-           "StoreUnavailable", "TooManyJobs", "owner_of"]
+__all__ = [
+    "ACTIVE",
+    "MAX_ATTEMPTS",
+    "MAX_CRASHES",
+    "STATUSES",
+    "Job",
+    "JobStore",
+    "KeyReused",
+    "StoreCorrupt",
+    "StoreUnavailable",
+    "TooManyJobs",
+    "owner_of",
+]
 
 #: Crashed runs of a job (its job process or a pool worker killed, out of memory, its lease expired) before
 #: it is failed: the stated policy, named in the job's error. A run interrupted by a graceful server stop
@@ -73,8 +84,10 @@ class KeyReused(Exception):
     """An ``Idempotency-Key`` already names a job of this owner with a different problem."""
 
     def __init__(self, key: str, job_id: str) -> None:
-        super().__init__(f"Idempotency-Key '{key}' was already used for job {job_id} with a different problem; "
-                         "use a new key for a new problem")
+        super().__init__(
+            f"Idempotency-Key '{key}' was already used for job {job_id} with a different problem; "
+            "use a new key for a new problem"
+        )
         self.job_id = job_id
 
 
@@ -125,18 +138,31 @@ class Job(_Base):
 
     def to_dict(self) -> dict[str, Any]:
         kind = next((k for k in KINDS if f'"kind": "{k}"' in (self.spec or "")), "optimisation")
-        return {"id": self.id, "kind": kind, "status": self.status, "progress": json.loads(self.progress or "{}"),
-                "partial": json.loads(self.partial or "[]"),
-                "result": json.loads(self.result) if self.result else None, "error": self.error,
-                "attempts": self.attempts, "created": self.created, "updated": self.updated}
+        return {
+            "id": self.id,
+            "kind": kind,
+            "status": self.status,
+            "progress": json.loads(self.progress or "{}"),
+            "partial": json.loads(self.partial or "[]"),
+            "result": json.loads(self.result) if self.result else None,
+            "error": self.error,
+            "attempts": self.attempts,
+            "created": self.created,
+            "updated": self.updated,
+        }
 
 
 #: kinds of job besides an optimisation, marked by a ``"kind"`` key in the stored spec
 KINDS = ("frequency-curve", "topology-search", "pareto-front")
 
 # columns added after the first release: added to an older database at start (all nullable or defaulted)
-_ADDED = {"owner": "VARCHAR(64) NOT NULL DEFAULT ''", "lease_holder": "VARCHAR(300)", "lease_until": "FLOAT",
-          "crashes": "INTEGER NOT NULL DEFAULT 0", "started": "FLOAT"}
+_ADDED = {
+    "owner": "VARCHAR(64) NOT NULL DEFAULT ''",
+    "lease_holder": "VARCHAR(300)",
+    "lease_until": "FLOAT",
+    "crashes": "INTEGER NOT NULL DEFAULT 0",
+    "started": "FLOAT",
+}
 
 
 def _now() -> str:
@@ -157,8 +183,9 @@ class JobStore:
         self.url, self.data_dir, self.lease_seconds = url, Path(data_dir), lease_seconds
         self.data_dir.mkdir(parents=True, exist_ok=True)
         sqlite = url.startswith("sqlite")
-        self.engine = create_engine(url, connect_args={"check_same_thread": False, "timeout": 5} if sqlite else {},
-                                    pool_pre_ping=not sqlite)
+        self.engine = create_engine(
+            url, connect_args={"check_same_thread": False, "timeout": 5} if sqlite else {}, pool_pre_ping=not sqlite
+        )
         if sqlite:
             event.listen(self.engine, "connect", _sqlite_pragmas)
         try:
@@ -168,11 +195,15 @@ class JobStore:
         except DatabaseError as exc:
             where = url.removeprefix("sqlite:///") if sqlite else url.split("@")[-1]
             if sqlite and "not a database" in str(exc) or "malformed" in str(exc):
-                raise StoreCorrupt(f"the job store {where} is not a readable database ({str(exc.orig)[:80]}); "
-                                   "move it aside (jobs are lost, finished cases in cases/ are kept) or restore "
-                                   "a backup, then start again") from None
-            raise StoreCorrupt(f"the job store {where} cannot be opened ({str(getattr(exc, 'orig', exc))[:120]});"
-                               " check FLEXOPT_DATABASE_URL and that the database is running") from None
+                raise StoreCorrupt(
+                    f"the job store {where} is not a readable database ({str(exc.orig)[:80]}); "
+                    "move it aside (jobs are lost, finished cases in cases/ are kept) or restore "
+                    "a backup, then start again"
+                ) from None
+            raise StoreCorrupt(
+                f"the job store {where} cannot be opened ({str(getattr(exc, 'orig', exc))[:120]});"
+                " check FLEXOPT_DATABASE_URL and that the database is running"
+            ) from None
 
     def _add_columns(self) -> None:
         have = {c["name"] for c in inspect(self.engine).get_columns("jobs")}
@@ -204,9 +235,13 @@ class JobStore:
     def _same_file(self) -> None:
         """:class:`StoreUnavailable` when the SQLite file opened at start is no longer the one in place."""
         if self.url.startswith("sqlite:///") and self._identity() != self._file:
-            raise StoreUnavailable(OSError(f"the database file {self.url.removeprefix('sqlite:///')} was deleted "
-                                           "or replaced under the running server; restore it and restart the "
-                                           "server"))
+            raise StoreUnavailable(
+                OSError(
+                    f"the database file {self.url.removeprefix('sqlite:///')} was deleted "
+                    "or replaced under the running server; restore it and restart the "
+                    "server"
+                )
+            )
 
     @_guarded
     def ping(self) -> None:
@@ -224,8 +259,9 @@ class JobStore:
                 conn.execute(select(func.count()).select_from(Job).where(Job.id == ""))
 
     @_guarded
-    def submit(self, spec: dict, idempotency_key: str | None, owner: str = "",
-               max_active: int | None = None) -> tuple[dict, bool]:
+    def submit(
+        self, spec: dict, idempotency_key: str | None, owner: str = "", max_active: int | None = None
+    ) -> tuple[dict, bool]:
         """Store a new queued job; with a known idempotency key (of this owner) return that job instead.
 
         Returns ``(job, created)``. Raises :class:`KeyReused` when the key names a job with a different spec,
@@ -245,14 +281,28 @@ class JobStore:
                 if old is not None:
                     return same(old)
             if max_active is not None:
-                n = s.scalar(select(func.count()).select_from(Job).where(Job.owner == owner,
-                                                                          Job.status.in_(ACTIVE))) or 0
+                n = (
+                    s.scalar(select(func.count()).select_from(Job).where(Job.owner == owner, Job.status.in_(ACTIVE)))
+                    or 0
+                )
                 if n >= max_active:
-                    raise TooManyJobs(f"{n} jobs of this API key are queued or running (limit {max_active}); "
-                                        "wait for one to finish or cancel one")
+                    raise TooManyJobs(
+                        f"{n} jobs of this API key are queued or running (limit {max_active}); "
+                        "wait for one to finish or cancel one"
+                    )
             now = _now()
-            job = Job(id=str(uuid.uuid4()), status="queued", spec=json.dumps(spec), idempotency_key=scoped,
-                      progress="{}", partial="[]", attempts=0, created=now, updated=now, owner=owner)
+            job = Job(
+                id=str(uuid.uuid4()),
+                status="queued",
+                spec=json.dumps(spec),
+                idempotency_key=scoped,
+                progress="{}",
+                partial="[]",
+                attempts=0,
+                created=now,
+                updated=now,
+                owner=owner,
+            )
             s.add(job)
             try:
                 s.commit()
@@ -280,21 +330,34 @@ class JobStore:
             job = s.get(Job, job_id)
             if job is None:
                 return None
-            return {**job.to_dict(), "spec": job.spec, "owner": job.owner, "lease_holder": job.lease_holder,
-                    "lease_until": job.lease_until}
+            return {
+                **job.to_dict(),
+                "spec": job.spec,
+                "owner": job.owner,
+                "lease_holder": job.lease_holder,
+                "lease_until": job.lease_until,
+            }
 
     @_guarded
-    def page(self, offset: int, limit: int, owner: str | None = None,
-             status: str | None = None, kind: str | None = None) -> tuple[list[dict], int]:
+    def page(
+        self, offset: int, limit: int, owner: str | None = None, status: str | None = None, kind: str | None = None
+    ) -> tuple[list[dict], int]:
         """Jobs newest first (of ``owner``, with ``status``, of ``kind`` (one of :data:`KINDS`), when given) and
         how many there are in all."""
-        where = [w for w in (Job.owner == owner if owner is not None else None,
-                             Job.status == status if status else None,
-                             Job.spec.contains(f'"kind": "{kind}"') if kind else None) if w is not None]
+        where = [
+            w
+            for w in (
+                Job.owner == owner if owner is not None else None,
+                Job.status == status if status else None,
+                Job.spec.contains(f'"kind": "{kind}"') if kind else None,
+            )
+            if w is not None
+        ]
         with Session(self.engine) as s:
             total = s.scalar(select(func.count()).select_from(Job).where(*where)) or 0
-            rows = s.scalars(select(Job).where(*where).order_by(Job.created.desc(), Job.id.desc())
-                             .offset(offset).limit(limit)).all()
+            rows = s.scalars(
+                select(Job).where(*where).order_by(Job.created.desc(), Job.id.desc()).offset(offset).limit(limit)
+            ).all()
             return [r.to_dict() for r in rows], int(total)
 
     def _set(self, job_id: str, where: tuple, **fields: Any) -> bool:
@@ -315,8 +378,12 @@ class JobStore:
     @_guarded
     def heartbeat(self, job_id: str, attempt: int, holder: str) -> bool:
         """Renew the lease of run ``attempt``; False when that run no longer owns the job."""
-        return self._set(job_id, (Job.attempts == attempt, Job.status.in_(("running", "cancelling"))),
-                         lease_holder=holder, lease_until=time.time() + self.lease_seconds)
+        return self._set(
+            job_id,
+            (Job.attempts == attempt, Job.status.in_(("running", "cancelling"))),
+            lease_holder=holder,
+            lease_until=time.time() + self.lease_seconds,
+        )
 
     @_guarded
     def cancel(self, job_id: str, owner: str | None = None) -> dict | None:
@@ -349,8 +416,9 @@ class JobStore:
             # another job recorded stays
             with Session(self.engine) as s:
                 for cid in {p.get("id") for p in job["partial"] if isinstance(p.get("id"), str)}:
-                    if cid.isalnum() and not s.scalar(select(func.count()).select_from(Job)
-                                                      .where(Job.partial.contains(f'"{cid}"'))):
+                    if cid.isalnum() and not s.scalar(
+                        select(func.count()).select_from(Job).where(Job.partial.contains(f'"{cid}"'))
+                    ):
                         (self.case_dir() / f"{cid}.json").unlink(missing_ok=True)
         elif spec and not shared:  # its cases are no other job's (a case's id covers the whole problem)
             for path in self.case_files(json.loads(spec)):
@@ -378,20 +446,38 @@ class JobStore:
         """
         while True:
             with Session(self.engine) as s:
-                queued = s.execute(select(Job.id, Job.owner, Job.attempts).where(Job.status == "queued")
-                                   .order_by(Job.created, Job.id).limit(500)).all()
+                queued = s.execute(
+                    select(Job.id, Job.owner, Job.attempts)
+                    .where(Job.status == "queued")
+                    .order_by(Job.created, Job.id)
+                    .limit(500)
+                ).all()
                 if not queued:
                     return None
                 owners = {q.owner for q in queued}
-                running = dict(s.execute(select(Job.owner, func.count()).where(
-                    Job.status.in_(("running", "cancelling")), Job.owner.in_(owners)).group_by(Job.owner)).all())
-                served = dict(s.execute(select(Job.owner, func.max(Job.started)).where(
-                    Job.owner.in_(owners)).group_by(Job.owner)).all())
+                running = dict(
+                    s.execute(
+                        select(Job.owner, func.count())
+                        .where(Job.status.in_(("running", "cancelling")), Job.owner.in_(owners))
+                        .group_by(Job.owner)
+                    ).all()
+                )
+                served = dict(
+                    s.execute(
+                        select(Job.owner, func.max(Job.started)).where(Job.owner.in_(owners)).group_by(Job.owner)
+                    ).all()
+                )
             job_id, _, attempts = min(queued, key=lambda q: (running.get(q.owner, 0), served.get(q.owner) or 0.0))
             now = time.time()
-            if self._set(job_id, (Job.status == "queued", Job.attempts == attempts), status="running",
-                         attempts=attempts + 1, lease_holder=holder, lease_until=now + self.lease_seconds,
-                         started=now):
+            if self._set(
+                job_id,
+                (Job.status == "queued", Job.attempts == attempts),
+                status="running",
+                attempts=attempts + 1,
+                lease_holder=holder,
+                lease_until=now + self.lease_seconds,
+                started=now,
+            ):
                 return self.row(job_id)
             # cancelled (or claimed by another server) in the meantime: look again
 
@@ -411,13 +497,25 @@ class JobStore:
         if status == "cancelling":
             new, extra = "cancelled", {}
         elif crashes >= MAX_CRASHES:
-            new, extra = "failed", {"error": f"{reason}, {crashes} times: a job whose run crashes {MAX_CRASHES} "
-                                             "times is failed (the policy; graceful server restarts are not "
-                                             "counted); finished cases are kept: resubmit to resume from them"}
+            new, extra = (
+                "failed",
+                {
+                    "error": f"{reason}, {crashes} times: a job whose run crashes {MAX_CRASHES} "
+                    "times is failed (the policy; graceful server restarts are not "
+                    "counted); finished cases are kept: resubmit to resume from them"
+                },
+            )
         else:
             new, extra = "queued", {}
-        ok = self._set(job_id, (Job.attempts == attempt, Job.status == status), status=new, crashes=crashes,
-                       lease_holder=None, lease_until=None, **extra)
+        ok = self._set(
+            job_id,
+            (Job.attempts == attempt, Job.status == status),
+            status=new,
+            crashes=crashes,
+            lease_holder=None,
+            lease_until=None,
+            **extra,
+        )
         return new if ok else None
 
     @_guarded
@@ -425,6 +523,9 @@ class JobStore:
         """Running or cancelling jobs whose lease has run out (their run is gone)."""
         now = time.time() if now is None else now
         with Session(self.engine) as s:
-            rows = s.scalars(select(Job).where(Job.status.in_(("running", "cancelling")),
-                                               (Job.lease_until.is_(None)) | (Job.lease_until < now))).all()
+            rows = s.scalars(
+                select(Job).where(
+                    Job.status.in_(("running", "cancelling")), (Job.lease_until.is_(None)) | (Job.lease_until < now)
+                )
+            ).all()
             return [{"id": j.id, "attempts": j.attempts, "lease_holder": j.lease_holder} for j in rows]

@@ -7,7 +7,6 @@ boundary as data and are rebuilt by :func:`raise_error` in the server.
 
 from __future__ import annotations
 
-import io
 import json
 import math
 from typing import Any
@@ -49,8 +48,11 @@ def _png(curve: Any, scene: dict | None = None) -> bytes:
 
 
 def _error(exc: Exception) -> Outcome:
-    return False, {"kind": type(exc).__name__, "field": getattr(exc, "field", ""),
-                   "message": getattr(exc, "message", str(exc))}
+    return False, {
+        "kind": type(exc).__name__,
+        "field": getattr(exc, "field", ""),
+        "message": getattr(exc, "message", str(exc)),
+    }
 
 
 #: Magnitudes outside [TINY, HUGE] are reported as the likely cause when a computation breaks: far beyond
@@ -86,18 +88,26 @@ def broken(exc: Exception, scene: dict) -> Outcome:
     """A computation that broke on a valid scene (overflow, division by zero, a failed solve): name the
     scene's extreme numbers as the likely cause, or the scene as a whole."""
     fields = _extreme_fields(scene)
-    where = (f"; check {', '.join(fields[:5])}: outside the range [{TINY:g}, {HUGE:g}] in SI units"
-             if fields else "; check that the scene's sizes, materials and stroke are physically plausible")
-    return False, {"kind": "ComputationError", "field": fields[:5],
-                   "message": f"the scene could not be computed ({_in_words(exc)}){where}"}
+    where = (
+        f"; check {', '.join(fields[:5])}: outside the range [{TINY:g}, {HUGE:g}] in SI units"
+        if fields
+        else "; check that the scene's sizes, materials and stroke are physically plausible"
+    )
+    return False, {
+        "kind": "ComputationError",
+        "field": fields[:5],
+        "message": f"the scene could not be computed ({_in_words(exc)}){where}",
+    }
 
 
 #: what Python's arithmetic errors mean for a scene, in words (their own texts, e.g. "(34, 'Numerical result out
 #: of range')", and their class names say nothing to a user)
-_ARITHMETIC = ((OverflowError, "a number grew beyond double precision"),
-               (ZeroDivisionError, "a division by zero"),
-               (FloatingPointError, "a floating-point operation failed"),
-               (RecursionError, "the input is nested too deeply"))
+_ARITHMETIC = (
+    (OverflowError, "a number grew beyond double precision"),
+    (ZeroDivisionError, "a division by zero"),
+    (FloatingPointError, "a floating-point operation failed"),
+    (RecursionError, "the input is nested too deeply"),
+)
 
 
 def _in_words(exc: Exception) -> str:
@@ -172,9 +182,14 @@ def _configurations(an: Any, stroke: Any) -> dict:
     if not found:
         return {"members": {}, "bodies": {}, "points": []}
     first = found[0]
-    return {"members": first.members, "bodies": first.bodies,
-            "points": [configuration_dict(sh.node_names, list(sh.bodies), sh.members, sh.allowable_stress,
-                                          sh.configuration) for sh in found]}
+    return {
+        "members": first.members,
+        "bodies": first.bodies,
+        "points": [
+            configuration_dict(sh.node_names, list(sh.bodies), sh.members, sh.allowable_stress, sh.configuration)
+            for sh in found
+        ],
+    }
 
 
 def modes(spec: str) -> Outcome:
@@ -249,8 +264,9 @@ def state_space(spec: str) -> Outcome:
 
     s = json.loads(spec)
     try:
-        ss = linearise(Scene.model_validate(s["scene"]), s["at_stroke"], s["inputs"], s["outputs"], s["damping"],
-                       s["modes"])
+        ss = linearise(
+            Scene.model_validate(s["scene"]), s["at_stroke"], s["inputs"], s["outputs"], s["damping"], s["modes"]
+        )
         out = {**ss.to_dict(), "static_gain": ss.static_gain().tolist()}
         if s.get("frequencies_hz"):
             mag, ph = frequency_response(ss, s["frequencies_hz"])

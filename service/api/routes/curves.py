@@ -40,44 +40,80 @@ def router(prefix: str) -> APIRouter:
         "/frequency-curve",
         summary="Stroke-dependent natural frequencies of a scene",
         response_model=FrequencyCurveOut,
-        responses={200: {"content": {"text/csv": {"schema": {"type": "string"}},
-                                     "image/png": {"schema": {"type": "string", "format": "binary"}}},
-                         "description": "JSON by default; CSV with Accept: text/csv; PNG with Accept: image/png"},
-                   202: {"model": Job, "description": "too costly for a request and 'Prefer: respond-async' sent: "
-                                                      "run as a job (Location; its result is the curve's JSON)"},
-                   **HEAVY},
+        responses={
+            200: {
+                "content": {
+                    "text/csv": {"schema": {"type": "string"}},
+                    "image/png": {"schema": {"type": "string", "format": "binary"}},
+                },
+                "description": "JSON by default; CSV with Accept: text/csv; PNG with Accept: image/png",
+            },
+            202: {
+                "model": Job,
+                "description": "too costly for a request and 'Prefer: respond-async' sent: "
+                "run as a job (Location; its result is the curve's JSON)",
+            },
+            **HEAVY,
+        },
     )
     async def frequency_curve(req: FrequencyCurveRequest, request: Request) -> Response:
         rt = runtime(request)
         if req.stroke is not None and not 1 <= len(req.stroke) <= rt.settings.max_stroke_points:
-            raise RequestValidationError([{"loc": ("body", "stroke"), "type": "value_error",
-                                           "msg": f"give 1 to {rt.settings.max_stroke_points} stroke values"}])
+            raise RequestValidationError(
+                [
+                    {
+                        "loc": ("body", "stroke"),
+                        "type": "value_error",
+                        "msg": f"give 1 to {rt.settings.max_stroke_points} stroke values",
+                    }
+                ]
+            )
         media = _accepted(request)
         # one cache per API key: a hit is never another key's computation, whose speed would tell that key's
         # scenes to this one (issue 29 item 9)
         try:
-            key = hashlib.sha256(json.dumps([request.state.owner, req.model_dump(mode="json"), media],
-                                            sort_keys=True).encode()).hexdigest()
+            key = hashlib.sha256(
+                json.dumps([request.state.owner, req.model_dump(mode="json"), media], sort_keys=True).encode()
+            ).hexdigest()
         except (ValueError, RecursionError):  # nested too deeply to serialise: the scene's validation says where
             await asyncio.to_thread(scene_from, req.scene)
-            raise RequestValidationError([{"loc": ("body", "scene"), "type": "value_error",
-                                           "msg": "nested too deeply; a scene is a few levels deep"}]) from None
+            raise RequestValidationError(
+                [
+                    {
+                        "loc": ("body", "scene"),
+                        "type": "value_error",
+                        "msg": "nested too deeply; a scene is a few levels deep",
+                    }
+                ]
+            ) from None
         hit = rt.cached(key)  # only validated scenes are ever stored, so a hit needs no re-validation
         if hit is None:
             scene = await asyncio.to_thread(scene_from, req.scene)  # off the event loop (issue 29 item 3)
-            spec = {"scene": scene.model_dump(mode="json"), "stroke": req.stroke, "method": req.method,
-                    "tolerance": req.tolerance, "media": media, "shapes": req.shapes}
+            spec = {
+                "scene": scene.model_dump(mode="json"),
+                "stroke": req.stroke,
+                "method": req.method,
+                "tolerance": req.tolerance,
+                "media": media,
+                "shapes": req.shapes,
+            }
             try:
                 await asyncio.to_thread(check_cost, scene, req.stroke, rt.settings)
             except TooCostly as exc:  # large models go to a job when the client accepts an asynchronous answer
                 if "respond-async" not in request.headers.get("prefer", "") or exc.seconds > rt.settings.max_job_cost:
                     raise HTTPException(413, str(exc)) from None
-                job, _ = await asyncio.to_thread(job_store(request).submit,
-                                                 {**spec, "kind": "frequency-curve", "media": "application/json"},
-                                                 None, request.state.owner, rt.settings.max_active_jobs)
-                return JSONResponse(Job(**job).model_dump(mode="json"), status_code=202,
-                                    headers={"Location": f"/v1/optimisations/{job['id']}",
-                                             "Preference-Applied": "respond-async"})
+                job, _ = await asyncio.to_thread(
+                    job_store(request).submit,
+                    {**spec, "kind": "frequency-curve", "media": "application/json"},
+                    None,
+                    request.state.owner,
+                    rt.settings.max_active_jobs,
+                )
+                return JSONResponse(
+                    Job(**job).model_dump(mode="json"),
+                    status_code=202,
+                    headers={"Location": f"/v1/optimisations/{job['id']}", "Preference-Applied": "respond-async"},
+                )
             hit = await rt.run(worker.curve, json.dumps(spec))
             rt.store(key, hit)
         return Response(hit, media_type=media)

@@ -29,11 +29,17 @@ def router(prefix: str) -> APIRouter:
         "/modes",
         summary="Deflected structure and mode shapes at a stroke value",
         response_model=ModesOut,
-        responses={200: {"content": {"image/png": {"schema": {"type": "string", "format": "binary"}},
-                                     "image/gif": {"schema": {"type": "string", "format": "binary"}}},
-                         "description": "JSON by default; a 3D view with Accept: image/png; the mode animated "
-                                        "with Accept: image/gif"},
-                   **HEAVY},
+        responses={
+            200: {
+                "content": {
+                    "image/png": {"schema": {"type": "string", "format": "binary"}},
+                    "image/gif": {"schema": {"type": "string", "format": "binary"}},
+                },
+                "description": "JSON by default; a 3D view with Accept: image/png; the mode animated "
+                "with Accept: image/gif",
+            },
+            **HEAVY,
+        },
     )
     async def modes(req: ModesRequest, request: Request) -> Response:
         accept = request.headers.get("accept", "")

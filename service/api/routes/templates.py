@@ -21,8 +21,11 @@ def _parameter_info(name: str, default: Any, unit: str | None = None) -> Paramet
 
         from ....model.scene import RectangularSection
 
-        choices = get_args(RectangularSection.model_fields[name].annotation) if (
-            name in RectangularSection.model_fields) else ()
+        choices = (
+            get_args(RectangularSection.model_fields[name].annotation)
+            if (name in RectangularSection.model_fields)
+            else ()
+        )
         bounds = f"one of {', '.join(choices)}" if choices else "string"
         return ParameterInfo(name=name, type="string", default=default, bounds=bounds)
     if isinstance(default, int):
@@ -49,8 +52,9 @@ def _template_info(name: str) -> TemplateInfo:
     from ....model.templates import parameter_unit
 
     params = template_parameters(name)
-    return TemplateInfo(name=name, parameters=[_parameter_info(k, v, parameter_unit(name, k))
-                                               for k, v in params.items()])
+    return TemplateInfo(
+        name=name, parameters=[_parameter_info(k, v, parameter_unit(name, k)) for k, v in params.items()]
+    )
 
 
 def router(prefix: str) -> APIRouter:
@@ -63,8 +67,12 @@ def router(prefix: str) -> APIRouter:
 
         return [_template_info(n) for n in sorted(TEMPLATES)]
 
-    @r.get("/templates/{name}", response_model=TemplateInfo, summary="One template: parameters, defaults, bounds",
-           responses={404: {"model": Problem}})
+    @r.get(
+        "/templates/{name}",
+        response_model=TemplateInfo,
+        summary="One template: parameters, defaults, bounds",
+        responses={404: {"model": Problem}},
+    )
     async def get_template(name: str) -> TemplateInfo:
         from ....model import TEMPLATES
 
@@ -72,8 +80,12 @@ def router(prefix: str) -> APIRouter:
             raise HTTPException(404, _unknown_template(name))
         return _template_info(name)
 
-    @r.post("/templates/{name}/scene", summary="The scene of a template with parameters overridden",
-            response_model=dict[str, Any], responses={404: {"model": Problem}, **ERRORS})
+    @r.post(
+        "/templates/{name}/scene",
+        summary="The scene of a template with parameters overridden",
+        response_model=dict[str, Any],
+        responses={404: {"model": Problem}, **ERRORS},
+    )
     async def template_scene(name: str, body: TemplateSceneRequest | None = None) -> JSONResponse:
         from ....model import TEMPLATES, template
         from ....model.errors import SceneError
