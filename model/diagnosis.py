@@ -113,6 +113,30 @@ def _static_modes(U: np.ndarray, rank: int, row_parts: list[tuple[str, str]], ro
     return stat_modes, releases
 
 
+def _configuration(scene: Scene, s: Structure, full: Structure, at_stroke: float | None
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Positions and rotations of ``s``'s masters: the reference configuration, or the equilibrium at
+    ``at_stroke`` (solved on the ``full`` structure, its masters that ``s`` keeps)."""
+    if at_stroke is None:
+        return s.master_pos.copy(), np.tile(np.eye(3), (len(s.master_names), 1, 1))
+    Xf, Rf = _state_at(scene, at_stroke)
+    keep = [full.master_names.index(m) for m in s.master_names]
+    return Xf[keep], Rf[keep]
+
+
+def _scaled_svd(scene: Scene, D: np.ndarray, trans: np.ndarray
+                ) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+    """The characteristic length (the largest distance between scene nodes), D scaled by it (eq. 11), its SVD
+    (U, singular values, V) and rank."""
+    pos = np.array([n.position for n in scene.nodes], dtype=float)
+    Lc = float(np.sqrt(((pos[:, None, :] - pos[None, :, :]) ** 2).sum(-1).max()))
+    c = np.where(trans, Lc, 1.0)
+    Dh = D * c / Lc
+    U, sv, Vt = np.linalg.svd(Dh)
+    rank = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
+    return Lc, Dh, U, sv, Vt.T, rank
+
+
 @limited()  # one BLAS thread while it computes (model.threads)
 def diagnose(scene: Scene, at_stroke: float | None = None, kinematic: bool | None = None) -> ConstraintDiagnosis:
     """Exact-constraint diagnosis of a scene (seed 002, section 3).
@@ -152,21 +176,10 @@ def diagnose(scene: Scene, at_stroke: float | None = None, kinematic: bool | Non
     if T.shape[1] == 0:
         raise SceneError("supports", "every nodal coordinate is supported or driven: D_cc has no columns; "
                          "remove supports from the moving parts")
-    if at_stroke is None:
-        X, R = s.master_pos.copy(), np.tile(np.eye(3), (len(s.master_names), 1, 1))
-    else:
-        Xf, Rf = _state_at(scene, at_stroke)
-        keep = [full.master_names.index(m) for m in s.master_names]
-        X, R = Xf[keep], Rf[keep]
+    X, R = _configuration(scene, s, full, at_stroke)
     Dfull = jacobian_rows(s, X, R, rows)
     D = Dfull @ T
-    pos = np.array([n.position for n in scene.nodes], dtype=float)
-    Lc = float(np.sqrt(((pos[:, None, :] - pos[None, :, :]) ** 2).sum(-1).max()))
-    c = np.where(trans, Lc, 1.0)
-    Dh = D * c / Lc
-    U, sv, Vt = np.linalg.svd(Dh)
-    rank = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
-    V = Vt.T
+    Lc, Dh, U, sv, V, rank = _scaled_svd(scene, D, trans)
     mcount, ncount = D.shape
     kin_modes = _kinematic_modes(s, V, T, rank, col_masters)
     stat_modes, releases = _static_modes(U, rank, row_parts, row_labels)

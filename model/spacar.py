@@ -92,35 +92,215 @@ def _numbers(tokens: list[str], line: int, keyword: str, errors: _Errors) -> lis
         return None
 
 
-def read_dat(text: str, name: str = "spacar") -> SpacarImport:
-    """Read a SPACAR ``.dat`` model (see the module docstring) into a scene dict and a report.
+@dataclass
+class _Reader:
+    """What :func:`read_dat` has read so far and made of it: the lines' contents per keyword, the line being read
+    (``ln``, ``kw``, its numbers ``v`` and ``ints`` when all are integers), then the roles of the node numbers and
+    the scene's parts as they are assembled (one method per step, in the order :func:`read_dat` calls them)."""
 
-    Raises
-    ------
-    SceneError
-        Listing every line that cannot be mapped, each with its number, keyword and why.
-    """
-    err = _Errors()
-    X: dict[int, tuple[list[float], int]] = {}
-    beams: list[tuple] = []
-    trusses: list[tuple] = []
-    dyne: dict[int, set[int]] = {}
-    estiff: dict[int, tuple[list[float], int]] = {}
-    em: dict[int, tuple[list[float], int]] = {}
-    fixes: list[tuple[int, list[int], int]] = []
-    inputs: list[tuple[int, list[int], int]] = []
-    delinp: list[tuple[int, int, float, int]] = []
-    dynx: list[tuple[int, list[int], int]] = []
-    rlse: dict[int, list[tuple[list[int], int]]] = {}
-    hinges: list[tuple[int, int, int, list[float], int]] = []
-    xf: dict[int, tuple[list[float], int]] = {}
-    delxf: dict[int, tuple[list[float], int]] = {}
-    xm: dict[int, tuple[list[float], int]] = {}
-    crossdim: dict[int, tuple[float, float]] = {}
+    err: _Errors = field(default_factory=_Errors)
+    X: dict[int, tuple[list[float], int]] = field(default_factory=dict)
+    beams: list[tuple] = field(default_factory=list)
+    trusses: list[tuple] = field(default_factory=list)
+    dyne: dict[int, set[int]] = field(default_factory=dict)
+    estiff: dict[int, tuple[list[float], int]] = field(default_factory=dict)
+    em: dict[int, tuple[list[float], int]] = field(default_factory=dict)
+    fixes: list[tuple[int, list[int], int]] = field(default_factory=list)
+    inputs: list[tuple[int, list[int], int]] = field(default_factory=list)
+    delinp: list[tuple[int, int, float, int]] = field(default_factory=list)
+    dynx: list[tuple[int, list[int], int]] = field(default_factory=list)
+    rlse: dict[int, list[tuple[list[int], int]]] = field(default_factory=dict)
+    hinges: list[tuple[int, int, int, list[float], int]] = field(default_factory=list)
+    xf: dict[int, tuple[list[float], int]] = field(default_factory=dict)
+    delxf: dict[int, tuple[list[float], int]] = field(default_factory=dict)
+    xm: dict[int, tuple[list[float], int]] = field(default_factory=dict)
+    crossdim: dict[int, tuple[float, float]] = field(default_factory=dict)
     gravity: list[float] | None = None
     steps: int | None = None
-    mapped: dict[str, int] = {}
-    notes: list[str] = []
+    mapped: dict[str, int] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    # the line being read
+    ln: int = 0
+    kw: str = ""
+    v: list[float] = field(default_factory=list)
+    ints: list[int] | None = None
+    # assembled
+    r_of: dict[int, int] = field(default_factory=dict)  # X -> its first R
+    x_of: dict[int, int] = field(default_factory=dict)  # R -> X
+    #: a second R at an X (R -> (X, element, line)): a HINGE must join it
+    extra: dict[int, tuple[int, int, int]] = field(default_factory=dict)
+    numbering: str = ""
+    joints: list[dict] = field(default_factory=list)
+    hinged: set[int] = field(default_factory=set)
+    elements: list[dict] = field(default_factory=list)
+    materials: list[dict] = field(default_factory=list)
+    rigid_links: list[tuple[int, int, int]] = field(default_factory=list)  # (Ne, Xp, Xq): no flexible deformation
+    spacar_dof: int = 0
+    parent: dict[int, int] = field(default_factory=dict)  # union-find of the rigid bodies' X nodes
+    bodies: list[dict] = field(default_factory=list)
+    carrier: dict[int, str] = field(default_factory=dict)
+    fixed: dict[int, set[str]] = field(default_factory=dict)
+    fixed_extra: dict[str, set[str]] = field(default_factory=dict)  # rotation fixes of a hinged point's second R
+    fix_line: dict[int, int] = field(default_factory=dict)
+    stroke: dict | None = None
+    supports: list[dict] = field(default_factory=list)
+    loads: list[dict] = field(default_factory=list)
+
+    def need(self, count: int, form: str, at_least: bool = False) -> bool:
+        """Whether the line being read has ``count`` numbers after its keyword (``at_least``: that many or more);
+        if not, the error naming the expected ``form``."""
+        v = self.v
+        ok = len(v) >= count if at_least else len(v) == count
+        if not ok:
+            self.err.add(self.ln, self.kw, f"expected '{form}' ({'at least ' if at_least else ''}{count} numbers after "
+                         f"the keyword), got {len(v)}")
+        return ok
+
+    def visual_line(self, ln: int, kw: str, tokens: list[str]) -> None:
+        """A line inside the VISUALIZATION block: CROSSDIM is mapped, the others only noted."""
+        if kw == "CROSSDIM":
+            v = _numbers(tokens, ln, kw, self.err)
+            if v is not None:
+                if len(v) != 3:
+                    self.err.add(ln, kw, f"expected 'CROSSDIM Ne w t' (3 numbers), got {len(v)}")
+                else:
+                    self.crossdim[int(v[0])] = (v[1], v[2])
+                    self.mapped[kw] = self.mapped.get(kw, 0) + 1
+        else:
+            self.notes.append(f"line {ln}: {kw} (visualisation only; nothing in the model)")
+
+    # --- names and roles of node numbers
+    @staticmethod
+    def nname(xn: int) -> str:
+        return f"n{xn}"
+
+    def rname(self, rn: int) -> str:
+        """The flexopt node of R node ``rn``: its X node's, or a node of its own where a HINGE joins a second
+        rotational node to the same point."""
+        return f"n{self.x_of[rn]}r{rn}" if rn in self.extra else self.nname(self.x_of[rn])
+
+    def role(self, n: int) -> str:
+        return "X" if n in self.X else ("R" if n in self.x_of else "?")
+
+    def find(self, a: int) -> int:
+        parent = self.parent
+        parent.setdefault(a, a)
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+
+# --- one handler per keyword: the line being read is r.ln, r.kw, r.v, r.ints
+
+
+def _read_x(r: _Reader) -> None:
+    if r.need(4, "X n x y z"):
+        r.X[int(r.v[0])] = (r.v[1:4], r.ln)
+
+
+def _read_beam(r: _Reader) -> None:
+    v = r.v
+    if r.need(8, "BEAM Ne Xp Rp Xq Rq Oy_x Oy_y Oy_z"):
+        r.beams.append((int(v[0]), int(v[1]), int(v[2]), int(v[3]), int(v[4]), v[5:8], r.ln))
+
+
+def _read_truss(r: _Reader) -> None:
+    v = r.v
+    if r.need(3, "TRUSS Ne Xp Xq"):
+        r.trusses.append((int(v[0]), int(v[1]), int(v[2]), r.ln))
+
+
+def _read_dyne(r: _Reader) -> None:
+    ints = r.ints
+    if r.need(2, "DYNE Ne k...", True) and ints is not None:
+        bad = [k for k in ints[1:] if k not in _MODE]
+        if bad:
+            r.err.add(r.ln, r.kw, f"deformation numbers {bad} are not 1-6")
+        else:
+            r.dyne.setdefault(ints[0], set()).update(ints[1:])
+
+
+def _read_rlse(r: _Reader) -> None:
+    if r.need(2, "RLSE Ne k...", True) and r.ints is not None:
+        r.rlse.setdefault(r.ints[0], []).append((r.ints[1:], r.ln))
+
+
+def _read_estiff(r: _Reader) -> None:
+    if r.need(2, "ESTIFF Ne EA [GJ EIy EIz [Sy Sz [EIw]]]", True):
+        r.estiff[int(r.v[0])] = (r.v[1:], r.ln)
+
+
+def _read_em(r: _Reader) -> None:
+    if r.need(2, "EM Ne rhoA [rho(Iy+Iz) rhoIy rhoIz [rhoIyz [rhoIw]]]", True):
+        r.em[int(r.v[0])] = (r.v[1:], r.ln)
+
+
+def _read_fix(r: _Reader) -> None:
+    if r.need(1, "FIX n [k...]", True) and r.ints is not None:
+        r.fixes.append((r.ints[0], r.ints[1:], r.ln))
+
+
+def _read_inputx(r: _Reader) -> None:
+    if r.need(2, "INPUTX n k...", True) and r.ints is not None:
+        r.inputs.append((r.ints[0], r.ints[1:], r.ln))
+
+
+def _read_dynx(r: _Reader) -> None:
+    if r.need(2, "DYNX n k...", True) and r.ints is not None:
+        r.dynx.append((r.ints[0], r.ints[1:], r.ln))
+
+
+def _read_delinpx(r: _Reader) -> None:
+    v = r.v
+    if r.need(3, "DELINPX n k value"):
+        r.delinp.append((int(v[0]), int(v[1]), v[2], r.ln))
+
+
+def _read_force(r: _Reader) -> None:  # XF and DELXF
+    if r.need(2, f"{r.kw} n f...", True):
+        (r.xf if r.kw == "XF" else r.delxf)[int(r.v[0])] = (r.v[1:], r.ln)
+
+
+def _read_xm(r: _Reader) -> None:
+    if r.need(2, "XM n m  or  XM n Ixx Ixy Ixz Iyy Iyz Izz", True):
+        r.xm[int(r.v[0])] = (r.v[1:], r.ln)
+
+
+def _read_gravity(r: _Reader) -> None:
+    if r.need(3, "GRAVITY gx gy gz"):
+        r.gravity = r.v
+
+
+def _read_iterstep(r: _Reader) -> None:
+    if r.need(1, "ITERSTEP steps ...", True):
+        r.steps = int(r.v[0])
+        if r.steps < 1:
+            r.err.add(r.ln, r.kw, f"{r.steps} load steps; give at least 1")
+
+
+def _read_hinge(r: _Reader) -> None:
+    v = r.v
+    if r.need(6, "HINGE Ne Rp Rq ax ay az"):
+        r.hinges.append((int(v[0]), int(v[1]), int(v[2]), v[3:6], r.ln))
+
+
+#: The mapped keywords outside the VISUALIZATION block (END, HALT and the block itself: :func:`_parse`).
+_KEYWORDS = {"X": _read_x, "BEAM": _read_beam, "TRUSS": _read_truss, "DYNE": _read_dyne, "RLSE": _read_rlse,
+             "ESTIFF": _read_estiff, "EM": _read_em, "FIX": _read_fix, "INPUTX": _read_inputx, "DYNX": _read_dynx,
+             "DELINPX": _read_delinpx, "XF": _read_force, "DELXF": _read_force, "XM": _read_xm,
+             "GRAVITY": _read_gravity, "ITERSTEP": _read_iterstep, "HINGE": _read_hinge}
+#: Keywords known and refused, with why.
+_REFUSED = {
+    "BEAMW": "beams with warping nodes are not supported: flexopt takes warping per member (section 'warping' of a "
+             "rectangular section); use BEAM",
+    "ESIG": "initial stresses are not supported; remove the line (or model the preload as a load)",
+}
+
+
+def _parse(text: str) -> _Reader:
+    """Every line of ``text`` into a :class:`_Reader` (its keyword's handler in ``_KEYWORDS``), errors collected."""
+    r = _Reader()
     vis = False
     for ln, raw in enumerate(text.splitlines(), start=1):
         body = raw.split("#", 1)[0].strip()
@@ -137,102 +317,33 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
             vis = True
             continue
         if vis:
-            if kw == "CROSSDIM":
-                v = _numbers(tok[1:], ln, kw, err)
-                if v is not None:
-                    if len(v) != 3:
-                        err.add(ln, kw, f"expected 'CROSSDIM Ne w t' (3 numbers), got {len(v)}")
-                    else:
-                        crossdim[int(v[0])] = (v[1], v[2])
-                        mapped[kw] = mapped.get(kw, 0) + 1
-            else:
-                notes.append(f"line {ln}: {kw} (visualisation only; nothing in the model)")
+            r.visual_line(ln, kw, tok[1:])
             continue
-        v = _numbers(tok[1:], ln, kw, err)
+        v = _numbers(tok[1:], ln, kw, r.err)
         if v is None:
             continue
-
-        def need(count: int, form: str, at_least: bool = False, v: list[float] = v, ln: int = ln,
-                 kw: str = kw) -> bool:
-            ok = len(v) >= count if at_least else len(v) == count
-            if not ok:
-                err.add(ln, kw, f"expected '{form}' ({'at least ' if at_least else ''}{count} numbers after the "
-                        f"keyword), got {len(v)}")
-            return ok
-
-        ints = [int(x) for x in v] if all(float(x).is_integer() for x in v) else None
-        if kw == "X":
-            if need(4, "X n x y z"):
-                X[int(v[0])] = (v[1:4], ln)
-        elif kw == "BEAM":
-            if need(8, "BEAM Ne Xp Rp Xq Rq Oy_x Oy_y Oy_z"):
-                beams.append((int(v[0]), int(v[1]), int(v[2]), int(v[3]), int(v[4]), v[5:8], ln))
-        elif kw == "TRUSS":
-            if need(3, "TRUSS Ne Xp Xq"):
-                trusses.append((int(v[0]), int(v[1]), int(v[2]), ln))
-        elif kw == "DYNE":
-            if need(2, "DYNE Ne k...", True) and ints is not None:
-                bad = [k for k in ints[1:] if k not in _MODE]
-                if bad:
-                    err.add(ln, kw, f"deformation numbers {bad} are not 1-6")
-                else:
-                    dyne.setdefault(ints[0], set()).update(ints[1:])
-        elif kw == "RLSE":
-            if need(2, "RLSE Ne k...", True) and ints is not None:
-                rlse.setdefault(ints[0], []).append((ints[1:], ln))
-        elif kw == "ESTIFF":
-            if need(2, "ESTIFF Ne EA [GJ EIy EIz [Sy Sz [EIw]]]", True):
-                estiff[int(v[0])] = (v[1:], ln)
-        elif kw == "EM":
-            if need(2, "EM Ne rhoA [rho(Iy+Iz) rhoIy rhoIz [rhoIyz [rhoIw]]]", True):
-                em[int(v[0])] = (v[1:], ln)
-        elif kw == "FIX":
-            if need(1, "FIX n [k...]", True) and ints is not None:
-                fixes.append((ints[0], ints[1:], ln))
-        elif kw == "INPUTX":
-            if need(2, "INPUTX n k...", True) and ints is not None:
-                inputs.append((ints[0], ints[1:], ln))
-        elif kw == "DYNX":
-            if need(2, "DYNX n k...", True) and ints is not None:
-                dynx.append((ints[0], ints[1:], ln))
-        elif kw == "DELINPX":
-            if need(3, "DELINPX n k value"):
-                delinp.append((int(v[0]), int(v[1]), v[2], ln))
-        elif kw in ("XF", "DELXF"):
-            if need(2, f"{kw} n f...", True):
-                (xf if kw == "XF" else delxf)[int(v[0])] = (v[1:], ln)
-        elif kw == "XM":
-            if need(2, "XM n m  or  XM n Ixx Ixy Ixz Iyy Iyz Izz", True):
-                xm[int(v[0])] = (v[1:], ln)
-        elif kw == "GRAVITY":
-            if need(3, "GRAVITY gx gy gz"):
-                gravity = v
-        elif kw == "ITERSTEP":
-            if need(1, "ITERSTEP steps ...", True):
-                steps = int(v[0])
-                if steps < 1:
-                    err.add(ln, kw, f"{steps} load steps; give at least 1")
-        elif kw == "HINGE":
-            if need(6, "HINGE Ne Rp Rq ax ay az"):
-                hinges.append((int(v[0]), int(v[1]), int(v[2]), v[3:6], ln))
-        elif kw == "BEAMW":
-            err.add(ln, kw, "beams with warping nodes are not supported: flexopt takes warping per member "
-                    "(section 'warping' of a rectangular section); use BEAM")
+        r.ln, r.kw, r.v = ln, kw, v
+        r.ints = [int(x) for x in v] if all(float(x).is_integer() for x in v) else None
+        if kw in _REFUSED:
+            r.err.add(ln, kw, _REFUSED[kw])
             continue
-        elif kw == "ESIG":
-            err.add(ln, kw, "initial stresses are not supported; remove the line (or model the preload as a load)")
+        handler = _KEYWORDS.get(kw)
+        if handler is None:
+            r.err.add(ln, kw, "unknown keyword (mapped: X BEAM TRUSS HINGE DYNE RLSE (hinges) ESTIFF EM FIX INPUTX "
+                      "DELINPX DYNX XF DELXF XM GRAVITY ITERSTEP END HALT VISUALIZATION/CROSSDIM)")
             continue
-        else:
-            err.add(ln, kw, "unknown keyword (mapped: X BEAM TRUSS HINGE DYNE RLSE (hinges) ESTIFF EM FIX INPUTX "
-                    "DELINPX DYNX XF DELXF XM GRAVITY ITERSTEP END HALT VISUALIZATION/CROSSDIM)")
-            continue
-        mapped[kw] = mapped.get(kw, 0) + 1
+        handler(r)
+        r.mapped[kw] = r.mapped.get(kw, 0) + 1
+    return r
 
-    # --- roles of node numbers: X declared, R from the beams; a flexopt node per X node
-    r_of: dict[int, int] = {}  # X -> its first R
-    x_of: dict[int, int] = {}  # R -> X
-    extra: dict[int, tuple[int, int, int]] = {}  # a second R at an X (R -> (X, element, line)): a HINGE must join it
-    for ne, xp, rp, xq, rq, oy, ln in beams:
+
+# --- the assembly of the scene from what was read, step by step (each on the reader; errors collected)
+
+
+def _pair_nodes(r: _Reader) -> None:
+    """Roles of node numbers: X declared, R from the beams; a flexopt node per X node; the numbering found."""
+    err, X, r_of, x_of, extra = r.err, r.X, r.r_of, r.x_of, r.extra
+    for ne, xp, rp, xq, rq, oy, ln in r.beams:
         for xn, rn in ((xp, rp), (xq, rq)):
             if xn not in X:
                 err.add(ln, "BEAM", f"element {ne}: node {xn} is used as a translational node but never declared "
@@ -245,32 +356,26 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
             if x_of.setdefault(rn, xn) != xn:
                 err.add(ln, "BEAM", f"element {ne}: rotational node {rn} belongs to two translational nodes "
                         f"({x_of[rn]} and {xn}); give each point its own rotational node")
-    for ne, xp, xq, ln in trusses:
+    for ne, xp, xq, ln in r.trusses:
         for xn in (xp, xq):
             if xn not in X:
                 err.add(ln, "TRUSS", f"element {ne}: node {xn} is used but never declared with 'X {xn} x y z'")
     if r_of:
         pairs = sorted(r_of.items())
-        if all(r == x + 1 for x, r in pairs) and all(x % 2 == 1 for x, _ in pairs):
-            numbering = "X 2i-1, R 2i (two SPACAR nodes per point)"
-        elif all(r == x + 1 for x, r in pairs) and all(x % 3 == 1 for x, _ in pairs):
-            numbering = "X 3i-2, R 3i-1 (three SPACAR nodes per point)"
+        if all(rn == x + 1 for x, rn in pairs) and all(x % 2 == 1 for x, _ in pairs):
+            r.numbering = "X 2i-1, R 2i (two SPACAR nodes per point)"
+        elif all(rn == x + 1 for x, rn in pairs) and all(x % 3 == 1 for x, _ in pairs):
+            r.numbering = "X 3i-2, R 3i-1 (three SPACAR nodes per point)"
         else:
-            numbering = "X and R paired by the beams' connectivity"
+            r.numbering = "X and R paired by the beams' connectivity"
     else:
-        numbering = "translational nodes only"
+        r.numbering = "translational nodes only"
 
-    def nname(xn: int) -> str:
-        return f"n{xn}"
 
-    def rname(rn: int) -> str:
-        """The flexopt node of R node ``rn``: its X node's, or a node of its own where a HINGE joins a second
-        rotational node to the same point."""
-        return f"n{x_of[rn]}r{rn}" if rn in extra else nname(x_of[rn])
-
-    joints: list[dict] = []
-    hinged: set[int] = set()
-    for ne, rp, rq, axis, ln in hinges:
+def _hinge_joints(r: _Reader) -> None:
+    """HINGE lines as ideal revolute joints; a second R node no hinge joins and RLSE of beams are errors."""
+    err, X, x_of, dyne = r.err, r.X, r.x_of, r.dyne
+    for ne, rp, rq, axis, ln in r.hinges:
         if rp not in x_of or rq not in x_of:
             bad = [n for n in (rp, rq) if n not in x_of]
             err.add(ln, "HINGE", f"element {ne}: nodes {bad} are not rotational nodes of any beam")
@@ -280,181 +385,196 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
             err.add(ln, "HINGE", f"element {ne}: rotational nodes {rp} and {rq} sit at different points; a hinge "
                     "joins two rotations at one point (one X node)")
             continue
-        flex = set(dyne.get(ne, set())) | {k for ks, _ in rlse.get(ne, []) for k in ks}
+        flex = set(dyne.get(ne, set())) | {k for ks, _ in r.rlse.get(ne, []) for k in ks}
         if flex != {1}:
             err.add(ln, "HINGE", f"element {ne}: free deformations {sorted(flex) or 'none'}; flexopt maps a hinge "
                     f"whose rotation (deformation 1) is free: 'RLSE {ne} 1' or 'DYNE {ne} 1' (a locked hinge welds the "
                     "rotations: use one R node)")
             continue
-        if ne in estiff:
-            err.add(estiff[ne][1], "ESTIFF", f"element {ne}: a hinge's rotational stiffness is not mapped (flexopt's "
+        if ne in r.estiff:
+            err.add(r.estiff[ne][1], "ESTIFF", f"element {ne}: a hinge's rotational stiffness is not mapped (flexopt's "
                     "joints are ideal); model it as a short flexible beam")
             continue
         if not np.linalg.norm(axis) > 0:
             err.add(ln, "HINGE", f"element {ne}: the axis is the zero vector")
             continue
-        joints.append({"kind": "hinge", "name": f"h{ne}", "nodes": [rname(rp), rname(rq)], "axis": list(axis)})
-        hinged.update((rp, rq))
+        r.joints.append({"kind": "hinge", "name": f"h{ne}", "nodes": [r.rname(rp), r.rname(rq)], "axis": list(axis)})
+        r.hinged.update((rp, rq))
         if ne in dyne:
-            notes.append(f"element {ne}: HINGE with DYNE 1: its rotation is free (a dynamic coordinate, no stiffness)")
-    for rn, (xn, ne, ln) in extra.items():
-        if rn not in hinged:
-            err.add(ln, "BEAM", f"element {ne}: translational node {xn} carries two rotational nodes ({r_of[xn]} and "
+            r.notes.append(f"element {ne}: HINGE with DYNE 1: its rotation is free (a dynamic coordinate, no "
+                           "stiffness)")
+    for rn, (xn, ne, ln) in r.extra.items():
+        if rn not in r.hinged:
+            err.add(ln, "BEAM", f"element {ne}: translational node {xn} carries two rotational nodes ({r.r_of[xn]} and "
                     f"{rn}) that no HINGE joins: a joint between beams (spherical) that flexopt does not model; join "
                     "them with a HINGE or use one rotational node")
-    for ne, items in rlse.items():
-        if ne not in {h[0] for h in hinges}:
+    for ne, items in r.rlse.items():
+        if ne not in {h[0] for h in r.hinges}:
             for _, ln in items:
                 err.add(ln, "RLSE", "released deformations (no stiffness, no constraint) of beams and trusses are not "
                         "supported: flexopt keeps every deformation flexible or rigid; list it in DYNE")
 
-    def role(n: int) -> str:
-        return "X" if n in X else ("R" if n in x_of else "?")
 
-    elements: list[dict] = []
-    materials: list[dict] = []
-    rigid_links: list[tuple[int, int, int]] = []  # (Ne, Xp, Xq): beams with no flexible deformation
+def _unique_elements(r: _Reader) -> None:
     seen_e: set[int] = set()
-    for ne, ln, kw_e in sorted([(b[0], b[-1], "BEAM") for b in beams] + [(t[0], t[-1], "TRUSS") for t in trusses],
-                               key=lambda r: r[1]):
+    for ne, ln, kw_e in sorted([(b[0], b[-1], "BEAM") for b in r.beams] + [(t[0], t[-1], "TRUSS") for t in r.trusses],
+                               key=lambda row: row[1]):
         if ne in seen_e:
-            err.add(ln, kw_e, f"element number {ne} is used twice; number elements uniquely")
+            r.err.add(ln, kw_e, f"element number {ne} is used twice; number elements uniquely")
         seen_e.add(ne)
-    spacar_dof = 0
-    for ne, xp, rp, xq, rq, oy, ln in beams:
-        if xp in X and xq in X:
-            d = np.array(X[xq][0]) - np.array(X[xp][0])
-            y = np.array(oy, dtype=float)
-            if np.linalg.norm(d) == 0:
-                err.add(ln, "BEAM", f"element {ne} has zero length: nodes {xp} and {xq} coincide")
-                continue
-            if np.linalg.norm(y) == 0 or np.linalg.norm(np.cross(d / np.linalg.norm(d), y / np.linalg.norm(y))) < 1e-6:
-                err.add(ln, "BEAM", f"element {ne}: Oy = {tuple(oy)} is parallel to the beam's axis; give the section's "
-                        "y direction across the beam")
-                continue
-        flex = sorted(dyne.get(ne, set()))
-        spacar_dof += len(flex)
-        if not flex:
-            rigid_links.append((ne, xp, xq))
-            if ne in estiff or ne in em:
-                notes.append(f"element {ne}: rigid (no DYNE): its ESTIFF is unused; its EM mass goes to the body")
-            continue
-        if ne not in estiff:
-            err.add(ln, "BEAM", f"element {ne} has flexible deformations {flex} but no ESTIFF line; add 'ESTIFF "
-                    f"{ne} EA GJ EIy EIz'")
-            continue
-        k, kln = estiff[ne]
-        if len(k) < 4:
-            err.add(kln, "ESTIFF", f"element {ne} is a beam: give EA GJ EIy EIz (got {len(k)} numbers)")
-            continue
-        if any(abs(s) > 0 for s in k[4:6]):
-            err.add(kln, "ESTIFF", f"element {ne}: shear flexibilities Sy, Sz = {k[4:6]} are not modelled (the "
-                    "beam is Euler-Bernoulli); set them to 0")
-        if len(k) > 6 and abs(k[6]) > 0:
-            err.add(kln, "ESTIFF", f"element {ne}: warping stiffness EIw = {k[6]} is not modelled per element; "
-                    "set it to 0 (flexopt's rectangular sections take warping per member)")
-        EA, GJ, EIy, EIz = k[:4]
-        if min(EA, GJ, EIy, EIz) <= 0:
-            err.add(kln, "ESTIFF", f"element {ne}: EA, GJ, EIy, EIz must be positive, got {k[:4]}")
-            continue
-        if ne not in em:
-            err.add(ln, "BEAM", f"element {ne} has no EM line: flexopt's beams carry their mass; add 'EM {ne} rhoA'")
-            continue
-        m, mln = em[ne]
-        rhoA = m[0]
-        if rhoA <= 0:
-            err.add(mln, "EM", f"element {ne}: rhoA must be positive, got {rhoA}")
-            continue
-        if len(m) >= 4:
-            # flexopt's rotary inertia is rho (Iy, Iz) of the section: it must be SPACAR's numbers
-            for got, want, what in ((m[2], rhoA * EIy / EA, "rhoIy"), (m[3], rhoA * EIz / EA, "rhoIz"),
-                                    (m[1], m[2] + m[3], "rho(Iy+Iz)")):
-                if abs(got - want) > 1e-6 * max(abs(want), 1e-300):
-                    err.add(mln, "EM", f"element {ne}: {what} = {got:.6g} is not that of the section ({want:.6g} "
-                            "from rhoA and ESTIFF): flexopt derives rotary inertia from the section (a homogeneous "
-                            "material); give consistent numbers")
-                    break
-            if len(m) >= 5 and abs(m[4]) > 0:
-                err.add(mln, "EM", f"element {ne}: a product of inertia rhoIyz = {m[4]} is not modelled; set 0")
-            if len(m) >= 6 and abs(m[5]) > 0:
-                err.add(mln, "EM", f"element {ne}: warping inertia rhoIw = {m[5]} is not modelled; set it to 0")
-        if ne in crossdim:
-            w, t = crossdim[ne]
-            A = w * t
-            E = EA / A
-            Jg = w * t**3 / 3 * (1 - 0.63 * min(w, t) / max(w, t)) if w >= t else t * w**3 / 3 * (1 - 0.63 * w / t)
-            G = GJ / Jg
-            fibres = {"cy": w / 2, "cz": t / 2, "torsion_stress_factor": min(w, t) / Jg}
-        else:
-            E, G = NOMINAL_E, NOMINAL_G
-            A = EA / E
-            fibres = {}
-        section = {"kind": "general", "A": A, "Iy": EIy / E, "Iz": EIz / E, "J": GJ / G, **fibres}
-        mat = f"m{ne}"
-        materials.append({"name": mat, "E": E, "G": G, "density": rhoA / A, "allowable_stress": E * ALLOWABLE_PER_E})
-        rigid = [_MODE[i] for i in range(1, 7) if i not in flex]
-        elements.append({"kind": "beam", "name": f"b{ne}", "nodes": [rname(rp), rname(rq)], "material": mat,
-                         "section": section, "y_axis": list(oy), "segments": 1, "rigid": rigid})
-    for ne, xp, xq, ln in trusses:
-        flex = sorted(dyne.get(ne, set()))
-        if flex and flex != [1]:
-            err.add(ln, "TRUSS", f"element {ne}: a truss has only deformation 1 (elongation), DYNE lists {flex}")
-            continue
-        spacar_dof += len(flex)
-        if not flex and (ne not in estiff or ne not in em):
-            # a rigid truss needs no stiffness; flexopt's trusses carry a section and mass: nominal ones
-            estiff.setdefault(ne, ([NOMINAL_E * 1e-6], ln))
-            em.setdefault(ne, ([7800 * 1e-6], ln))
-            notes.append(f"element {ne}: rigid truss without ESTIFF/EM: a nominal steel section of 1 mm^2 (EA "
-                         f"{NOMINAL_E * 1e-6:g} N, unused: rigid; mass 7.8e-3 kg/m: for a dynamic analysis give its EM)")
-        if ne not in estiff or ne not in em:
-            err.add(ln, "TRUSS", f"element {ne} needs 'ESTIFF {ne} EA' and 'EM {ne} rhoA'")
-            continue
-        EA, rhoA = estiff[ne][0][0], em[ne][0][0]
-        if EA <= 0 or rhoA <= 0:
-            err.add(ln, "TRUSS", f"element {ne}: EA and rhoA must be positive")
-            continue
-        mat = f"m{ne}"
-        materials.append({"name": mat, "E": NOMINAL_E, "G": NOMINAL_G, "density": rhoA * NOMINAL_E / EA,
-                          "allowable_stress": NOMINAL_E * ALLOWABLE_PER_E})
-        elements.append({"kind": "truss", "name": f"t{ne}", "nodes": [nname(xp), nname(xq)], "material": mat,
-                         "area": EA / NOMINAL_E, "rigid": [] if flex else ["elongation"]})
 
-    # --- rigid bodies: nodes joined by rigid beams (union-find), plus nodes carrying lumped mass
-    parent: dict[int, int] = {}
 
-    def find(a: int) -> int:
-        parent.setdefault(a, a)
-        while parent[a] != a:
-            parent[a] = parent[parent[a]]
-            a = parent[a]
-        return a
+def _beam_stiffness(r: _Reader, ne: int, ln: int, flex: list[int]) -> tuple[list[float], list[float], int] | None:
+    """A flexible beam's ESTIFF products (EA, GJ, EIy, EIz), its EM numbers and the EM line; None after an error."""
+    err, estiff, em = r.err, r.estiff, r.em
+    if ne not in estiff:
+        err.add(ln, "BEAM", f"element {ne} has flexible deformations {flex} but no ESTIFF line; add 'ESTIFF "
+                f"{ne} EA GJ EIy EIz'")
+        return None
+    k, kln = estiff[ne]
+    if len(k) < 4:
+        err.add(kln, "ESTIFF", f"element {ne} is a beam: give EA GJ EIy EIz (got {len(k)} numbers)")
+        return None
+    if any(abs(s) > 0 for s in k[4:6]):
+        err.add(kln, "ESTIFF", f"element {ne}: shear flexibilities Sy, Sz = {k[4:6]} are not modelled (the "
+                "beam is Euler-Bernoulli); set them to 0")
+    if len(k) > 6 and abs(k[6]) > 0:
+        err.add(kln, "ESTIFF", f"element {ne}: warping stiffness EIw = {k[6]} is not modelled per element; "
+                "set it to 0 (flexopt's rectangular sections take warping per member)")
+    EA, GJ, EIy, EIz = k[:4]
+    if min(EA, GJ, EIy, EIz) <= 0:
+        err.add(kln, "ESTIFF", f"element {ne}: EA, GJ, EIy, EIz must be positive, got {k[:4]}")
+        return None
+    if ne not in em:
+        err.add(ln, "BEAM", f"element {ne} has no EM line: flexopt's beams carry their mass; add 'EM {ne} rhoA'")
+        return None
+    m, mln = em[ne]
+    rhoA = m[0]
+    if rhoA <= 0:
+        err.add(mln, "EM", f"element {ne}: rhoA must be positive, got {rhoA}")
+        return None
+    if len(m) >= 4:
+        # flexopt's rotary inertia is rho (Iy, Iz) of the section: it must be SPACAR's numbers
+        for got, want, what in ((m[2], rhoA * EIy / EA, "rhoIy"), (m[3], rhoA * EIz / EA, "rhoIz"),
+                                (m[1], m[2] + m[3], "rho(Iy+Iz)")):
+            if abs(got - want) > 1e-6 * max(abs(want), 1e-300):
+                err.add(mln, "EM", f"element {ne}: {what} = {got:.6g} is not that of the section ({want:.6g} "
+                        "from rhoA and ESTIFF): flexopt derives rotary inertia from the section (a homogeneous "
+                        "material); give consistent numbers")
+                break
+        if len(m) >= 5 and abs(m[4]) > 0:
+            err.add(mln, "EM", f"element {ne}: a product of inertia rhoIyz = {m[4]} is not modelled; set 0")
+        if len(m) >= 6 and abs(m[5]) > 0:
+            err.add(mln, "EM", f"element {ne}: warping inertia rhoIw = {m[5]} is not modelled; set it to 0")
+    return k, m, mln
 
-    for _, xp, xq in rigid_links:
-        parent[find(xp)] = find(xq)
+
+def _beam(r: _Reader, ne: int, xp: int, rp: int, xq: int, rq: int, oy: list[float], ln: int) -> None:
+    """One BEAM line as a flexopt beam with its general section and own material, or a rigid link."""
+    err, X = r.err, r.X
+    if xp in X and xq in X:
+        d = np.array(X[xq][0]) - np.array(X[xp][0])
+        y = np.array(oy, dtype=float)
+        if np.linalg.norm(d) == 0:
+            err.add(ln, "BEAM", f"element {ne} has zero length: nodes {xp} and {xq} coincide")
+            return
+        if np.linalg.norm(y) == 0 or np.linalg.norm(np.cross(d / np.linalg.norm(d), y / np.linalg.norm(y))) < 1e-6:
+            err.add(ln, "BEAM", f"element {ne}: Oy = {tuple(oy)} is parallel to the beam's axis; give the section's "
+                    "y direction across the beam")
+            return
+    flex = sorted(r.dyne.get(ne, set()))
+    r.spacar_dof += len(flex)
+    if not flex:
+        r.rigid_links.append((ne, xp, xq))
+        if ne in r.estiff or ne in r.em:
+            r.notes.append(f"element {ne}: rigid (no DYNE): its ESTIFF is unused; its EM mass goes to the body")
+        return
+    got = _beam_stiffness(r, ne, ln, flex)
+    if got is None:
+        return
+    k, m, _ = got
+    EA, GJ, EIy, EIz = k[:4]
+    rhoA = m[0]
+    if ne in r.crossdim:
+        w, t = r.crossdim[ne]
+        A = w * t
+        E = EA / A
+        Jg = w * t**3 / 3 * (1 - 0.63 * min(w, t) / max(w, t)) if w >= t else t * w**3 / 3 * (1 - 0.63 * w / t)
+        G = GJ / Jg
+        fibres = {"cy": w / 2, "cz": t / 2, "torsion_stress_factor": min(w, t) / Jg}
+    else:
+        E, G = NOMINAL_E, NOMINAL_G
+        A = EA / E
+        fibres = {}
+    section = {"kind": "general", "A": A, "Iy": EIy / E, "Iz": EIz / E, "J": GJ / G, **fibres}
+    mat = f"m{ne}"
+    r.materials.append({"name": mat, "E": E, "G": G, "density": rhoA / A, "allowable_stress": E * ALLOWABLE_PER_E})
+    rigid = [_MODE[i] for i in range(1, 7) if i not in flex]
+    r.elements.append({"kind": "beam", "name": f"b{ne}", "nodes": [r.rname(rp), r.rname(rq)], "material": mat,
+                       "section": section, "y_axis": list(oy), "segments": 1, "rigid": rigid})
+
+
+def _truss(r: _Reader, ne: int, xp: int, xq: int, ln: int) -> None:
+    """One TRUSS line as a flexopt truss (a rigid one without ESTIFF/EM: a nominal section)."""
+    err, estiff, em = r.err, r.estiff, r.em
+    flex = sorted(r.dyne.get(ne, set()))
+    if flex and flex != [1]:
+        err.add(ln, "TRUSS", f"element {ne}: a truss has only deformation 1 (elongation), DYNE lists {flex}")
+        return
+    r.spacar_dof += len(flex)
+    if not flex and (ne not in estiff or ne not in em):
+        # a rigid truss needs no stiffness; flexopt's trusses carry a section and mass: nominal ones
+        estiff.setdefault(ne, ([NOMINAL_E * 1e-6], ln))
+        em.setdefault(ne, ([7800 * 1e-6], ln))
+        r.notes.append(f"element {ne}: rigid truss without ESTIFF/EM: a nominal steel section of 1 mm^2 (EA "
+                       f"{NOMINAL_E * 1e-6:g} N, unused: rigid; mass 7.8e-3 kg/m: for a dynamic analysis give its EM)")
+    if ne not in estiff or ne not in em:
+        err.add(ln, "TRUSS", f"element {ne} needs 'ESTIFF {ne} EA' and 'EM {ne} rhoA'")
+        return
+    EA, rhoA = estiff[ne][0][0], em[ne][0][0]
+    if EA <= 0 or rhoA <= 0:
+        err.add(ln, "TRUSS", f"element {ne}: EA and rhoA must be positive")
+        return
+    mat = f"m{ne}"
+    r.materials.append({"name": mat, "E": NOMINAL_E, "G": NOMINAL_G, "density": rhoA * NOMINAL_E / EA,
+                        "allowable_stress": NOMINAL_E * ALLOWABLE_PER_E})
+    r.elements.append({"kind": "truss", "name": f"t{ne}", "nodes": [r.nname(xp), r.nname(xq)], "material": mat,
+                       "area": EA / NOMINAL_E, "rigid": [] if flex else ["elongation"]})
+
+
+def _lumped_masses(r: _Reader) -> tuple[dict[int, float], dict[int, np.ndarray]]:
+    """XM lines: the point mass per X node and the inertia (global axes) of its R node; each joins a body."""
     point_mass: dict[int, float] = {}  # X node -> mass
     point_inertia: dict[int, np.ndarray] = {}  # X node -> inertia of its R node's XM (global axes)
-    for n, (vals, ln) in xm.items():
-        if role(n) == "X":
+    for n, (vals, ln) in r.xm.items():
+        if r.role(n) == "X":
             if len(vals) != 1:
-                err.add(ln, "XM", f"node {n} is translational: give its mass (1 number), got {len(vals)}")
+                r.err.add(ln, "XM", f"node {n} is translational: give its mass (1 number), got {len(vals)}")
             else:
                 point_mass[n] = vals[0]
-                find(n)
-        elif role(n) == "R":
+                r.find(n)
+        elif r.role(n) == "R":
             if len(vals) != 6:
-                err.add(ln, "XM", f"node {n} is rotational: give Ixx Ixy Ixz Iyy Iyz Izz (6 numbers), got {len(vals)}")
+                r.err.add(ln, "XM", f"node {n} is rotational: give Ixx Ixy Ixz Iyy Iyz Izz (6 numbers), got "
+                          f"{len(vals)}")
             else:
                 a, b, c, d, e, f = vals
-                point_inertia[x_of[n]] = np.array([[a, b, c], [b, d, e], [c, e, f]])
-                find(x_of[n])
+                point_inertia[r.x_of[n]] = np.array([[a, b, c], [b, d, e], [c, e, f]])
+                r.find(r.x_of[n])
         else:
-            err.add(ln, "XM", f"node {n} is used by no element")
+            r.err.add(ln, "XM", f"node {n} is used by no element")
+    return point_mass, point_inertia
+
+
+def _bodies(r: _Reader) -> None:
+    """Rigid bodies: nodes joined by rigid beams (union-find), plus nodes carrying lumped mass."""
+    X = r.X
+    for _, xp, xq in r.rigid_links:
+        r.parent[r.find(xp)] = r.find(xq)
+    point_mass, point_inertia = _lumped_masses(r)
     clusters: dict[int, list[int]] = {}
-    for n in parent:
-        clusters.setdefault(find(n), []).append(n)
-    bodies: list[dict] = []
-    carrier: dict[int, str] = {}
+    for n in r.parent:
+        clusters.setdefault(r.find(n), []).append(n)
     for members in clusters.values():
         members = sorted(members)
         # point masses (lumped XM) and the rigid beams' own mass (EM: a rod, rhoA L at its middle)
@@ -462,219 +582,273 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
         for n in members:
             if n in X:
                 pts.append((point_mass.get(n, 0.0), np.array(X[n][0]), point_inertia.get(n, np.zeros((3, 3)))))
-        for ne, xp, xq in rigid_links:
-            if find(xp) == find(members[0]) and ne in em and xp in X and xq in X:
+        for ne, xp, xq in r.rigid_links:
+            if r.find(xp) == r.find(members[0]) and ne in r.em and xp in X and xq in X:
                 p, q = np.array(X[xp][0]), np.array(X[xq][0])
                 L = float(np.linalg.norm(q - p))
-                mass = em[ne][0][0] * L
+                mass = r.em[ne][0][0] * L
                 ex = (q - p) / L
                 pts.append((mass, (p + q) / 2, mass * L**2 / 12 * (np.eye(3) - np.outer(ex, ex))))
         mtot = sum(m for m, _, _ in pts)
         com = sum(m * c for m, c, _ in pts) / mtot if mtot > 0 else np.array(X[members[0]][0])
         J = np.zeros((3, 3))
         for m, c, Jc in pts:
-            r = c - com
-            J += Jc + m * (float(r @ r) * np.eye(3) - np.outer(r, r))
+            rr = c - com
+            J += Jc + m * (float(rr @ rr) * np.eye(3) - np.outer(rr, rr))
         bname = f"body{members[0]}"
-        bodies.append({"name": bname, "mass": mtot, "center_of_mass": list(com), "inertia": J.tolist(),
-                       "nodes": [nname(n) for n in members]})
+        r.bodies.append({"name": bname, "mass": mtot, "center_of_mass": list(com), "inertia": J.tolist(),
+                         "nodes": [r.nname(n) for n in members]})
         for n in members:
-            carrier[n] = bname
+            r.carrier[n] = bname
+    for rn in r.extra:
+        if r.x_of[rn] in r.carrier:
+            r.err.add(r.extra[rn][2], "BEAM", f"node {r.x_of[rn]} is part of a rigid body and carries a hinge: not "
+                      "mapped; hinge a flexible element's node instead")
 
-    for rn in extra:
-        if x_of[rn] in carrier:
-            err.add(extra[rn][2], "BEAM", f"node {x_of[rn]} is part of a rigid body and carries a hinge: not mapped; "
-                    "hinge a flexible element's node instead")
 
-    # --- supports, inputs and the stroke
-    fixed: dict[int, set[str]] = {}
-    fixed_extra: dict[str, set[str]] = {}  # rotation fixes of the second rotational node at a hinged point
-    fix_line: dict[int, int] = {}
-    for n, ks, ln in fixes:
-        r = role(n)
-        xn = n if r == "X" else x_of.get(n)
-        if r == "?":
-            err.add(ln, "FIX", f"node {n} is used by no element")
+def _fixes(r: _Reader) -> None:
+    """FIX lines as the supported coordinates per X node (and per hinged point's second R node)."""
+    for n, ks, ln in r.fixes:
+        role = r.role(n)
+        xn = n if role == "X" else r.x_of.get(n)
+        if role == "?":
+            r.err.add(ln, "FIX", f"node {n} is used by no element")
             continue
-        if r == "X":
+        if role == "X":
             bad = [k for k in ks if k not in (1, 2, 3)]
             dofs = {("x", "y", "z")[k - 1] for k in ks if k in (1, 2, 3)} if ks else {"x", "y", "z"}
         else:
             bad = [k for k in ks if k not in (1, 2, 3, 4)]
             if ks == [1]:
-                err.add(ln, "FIX", f"node {n}: fixing only the Euler parameter lambda0 fixes no rotation direction; "
-                        "fix components 2-4 (rx, ry, rz)")
+                r.err.add(ln, "FIX", f"node {n}: fixing only the Euler parameter lambda0 fixes no rotation direction; "
+                          "fix components 2-4 (rx, ry, rz)")
                 continue
             dofs = {("rx", "ry", "rz")[k - 2] for k in ks if k in (2, 3, 4)} if ks else {"rx", "ry", "rz"}
         if bad:
-            err.add(ln, "FIX", f"node {n} ({r}): coordinates {bad} do not exist")
+            r.err.add(ln, "FIX", f"node {n} ({role}): coordinates {bad} do not exist")
             continue
-        if r == "R" and n in extra:
-            fixed_extra.setdefault(rname(n), set()).update(dofs)
+        if role == "R" and n in r.extra:
+            r.fixed_extra.setdefault(r.rname(n), set()).update(dofs)
             continue
-        fixed.setdefault(xn, set()).update(dofs)
-        fix_line.setdefault(xn, ln)
-    stroke = None
-    moving = [d for d in delinp if abs(d[2]) > 0]
-    if len(moving) > 1:
-        for n, k, val, ln in moving[1:]:
-            err.add(ln, "DELINPX", "a second input with an increment: flexopt drives one coordinate; keep one")
-    held_inputs = {(n, k) for n, ks, _ in inputs for k in ks}
-    input_line = {(n, k): ln for n, ks, ln in inputs for k in ks}
+        r.fixed.setdefault(xn, set()).update(dofs)
+        r.fix_line.setdefault(xn, ln)
+
+
+def _stroke(r: _Reader, moving: list, held_inputs: set) -> None:
+    """The one DELINPX with an increment as the stroke (drive free where DYNX lists it)."""
     for n, k, val, ln in moving[:1]:
         if (n, k) not in held_inputs:
-            err.add(ln, "DELINPX", f"node {n} coordinate {k} is not declared with INPUTX {n} {k}")
+            r.err.add(ln, "DELINPX", f"node {n} coordinate {k} is not declared with INPUTX {n} {k}")
             continue
-        r = role(n)
-        xn = n if r == "X" else x_of.get(n)
-        pts = (steps or 10) + 1
-        target = {"body": carrier[xn]} if xn in carrier else {"node": rname(n) if r == "R" else nname(xn)}
-        if r == "X" and k in (1, 2, 3):
+        role = r.role(n)
+        xn = n if role == "X" else r.x_of.get(n)
+        pts = (r.steps or 10) + 1
+        target = {"body": r.carrier[xn]} if xn in r.carrier else {"node": r.rname(n) if role == "R" else r.nname(xn)}
+        if role == "X" and k in (1, 2, 3):
             lo, hi = sorted((0.0, val))
-            stroke = {"kind": "translation", **target, "axis": list(np.eye(3)[k - 1]), "start": lo, "stop": hi,
-                      "points": pts, "unit": "m"}
-        elif r == "R" and k in (2, 3, 4):
+            r.stroke = {"kind": "translation", **target, "axis": list(np.eye(3)[k - 1]), "start": lo, "stop": hi,
+                        "points": pts, "unit": "m"}
+        elif role == "R" and k in (2, 3, 4):
             if abs(val) >= 1:
-                err.add(ln, "DELINPX", f"Euler parameter increment {val}: |value| must be below 1 (sin(angle/2))")
+                r.err.add(ln, "DELINPX", f"Euler parameter increment {val}: |value| must be below 1 (sin(angle/2))")
                 continue
             ang = math.degrees(2 * math.asin(val))
             lo, hi = sorted((0.0, ang))
-            stroke = {"kind": "rotation", **target, "axis": list(np.eye(3)[k - 2]), "start": lo, "stop": hi,
-                      "points": pts, "unit": "deg"}
-            notes.append(f"line {ln}: DELINPX {n} {k} {val}: rotation about {'xyz'[k - 2]} to {ang:.6g} deg "
-                         "(2 asin of the Euler parameter)")
+            r.stroke = {"kind": "rotation", **target, "axis": list(np.eye(3)[k - 2]), "start": lo, "stop": hi,
+                        "points": pts, "unit": "deg"}
+            r.notes.append(f"line {ln}: DELINPX {n} {k} {val}: rotation about {'xyz'[k - 2]} to {ang:.6g} deg "
+                           "(2 asin of the Euler parameter)")
         else:
-            err.add(ln, "DELINPX", f"node {n} ({r}) coordinate {k}: a stroke drives an X coordinate 1-3 or an R "
-                    "Euler parameter 2-4")
+            r.err.add(ln, "DELINPX", f"node {n} ({role}) coordinate {k}: a stroke drives an X coordinate 1-3 or an R "
+                      "Euler parameter 2-4")
             continue
         held_inputs.discard((n, k))
-        if r == "R":
+        if role == "R":
             held_inputs.discard((n, 1))  # lambda0 follows from the others (normalisation)
-        if stroke is not None:
-            stroke["drive"] = "locked"
-            for dn, dks, dln in dynx:
+        if r.stroke is not None:
+            r.stroke["drive"] = "locked"
+            for dn, dks, dln in r.dynx:
                 if dn == n and k in dks:
-                    stroke["drive"] = "free"  # the input is a dynamic degree of freedom: not locked in the eigen
-    for dn, dks, dln in dynx:
+                    r.stroke["drive"] = "free"  # the input is a dynamic degree of freedom: not locked in the eigen
+
+
+def _inputs(r: _Reader) -> None:
+    """INPUTX/DELINPX/DYNX: the stroke, and the inputs without an increment held (supported)."""
+    moving = [d for d in r.delinp if abs(d[2]) > 0]
+    if len(moving) > 1:
+        for n, k, val, ln in moving[1:]:
+            r.err.add(ln, "DELINPX", "a second input with an increment: flexopt drives one coordinate; keep one")
+    held_inputs = {(n, k) for n, ks, _ in r.inputs for k in ks}
+    input_line = {(n, k): ln for n, ks, ln in r.inputs for k in ks}
+    _stroke(r, moving, held_inputs)
+    stroke = r.stroke
+    for dn, dks, dln in r.dynx:
         if not (stroke is not None and moving and dn == moving[0][0] and moving[0][1] in dks and len(dks) == 1):
-            err.add(dln, "DYNX", "only the input coordinate may be dynamic (the drive free in the eigen analysis); "
-                    "other dynamic coordinates are not mapped")
+            r.err.add(dln, "DYNX", "only the input coordinate may be dynamic (the drive free in the eigen analysis); "
+                      "other dynamic coordinates are not mapped")
     for n, k in sorted(held_inputs):
-        r = role(n)
-        xn = n if r == "X" else x_of.get(n)
-        if xn is None or r == "?":
-            err.add(input_line[(n, k)], "INPUTX", f"node {n} is used by no element")
+        role = r.role(n)
+        xn = n if role == "X" else r.x_of.get(n)
+        if xn is None or role == "?":
+            r.err.add(input_line[(n, k)], "INPUTX", f"node {n} is used by no element")
             continue
-        if r == "R" and k == 1:
+        if role == "R" and k == 1:
             continue
-        name_k = ("x", "y", "z")[k - 1] if r == "X" else ("rx", "ry", "rz")[k - 2]
-        fixed.setdefault(xn, set()).add(name_k)
-        notes.append(f"INPUTX {n} {k}: an input without increment is held: supported ({name_k})")
-    supports: list[dict] = []
+        name_k = ("x", "y", "z")[k - 1] if role == "X" else ("rx", "ry", "rz")[k - 2]
+        r.fixed.setdefault(xn, set()).add(name_k)
+        r.notes.append(f"INPUTX {n} {k}: an input without increment is held: supported ({name_k})")
+
+
+def _supports(r: _Reader) -> None:
+    """The supported coordinates as scene supports (a body's all or none; the driven coordinate left free)."""
     grounded: set[str] = set()
-    for xn, dofs in sorted(fixed.items()):
+    stroke, carrier = r.stroke, r.carrier
+    for xn, dofs in sorted(r.fixed.items()):
         if xn in carrier:
             if dofs != {"x", "y", "z", "rx", "ry", "rz"}:
-                err.add(fix_line.get(xn, 0), "FIX", f"node {xn} is part of a rigid body ({carrier[xn]}): fix all its coordinates "
-                        "(X and R) or none")
+                r.err.add(r.fix_line.get(xn, 0), "FIX", f"node {xn} is part of a rigid body ({carrier[xn]}): fix all "
+                          "its coordinates (X and R) or none")
             elif carrier[xn] not in grounded:
                 grounded.add(carrier[xn])
-                supports.append({"body": carrier[xn]})
+                r.supports.append({"body": carrier[xn]})
             continue
-        if stroke is not None and stroke.get("node") == nname(xn):
+        if stroke is not None and stroke.get("node") == r.nname(xn):
             drive_dofs = ("rx", "ry", "rz") if stroke["kind"] == "rotation" else ("x", "y", "z")
             dofs = dofs - {drive_dofs[int(np.argmax(np.abs(stroke["axis"])))]}
         if dofs:
             order = ("x", "y", "z", "rx", "ry", "rz")
-            supports.append({"node": nname(xn), "dofs": [d for d in order if d in dofs]})
-    for nd, dofs in sorted(fixed_extra.items()):
+            r.supports.append({"node": r.nname(xn), "dofs": [d for d in order if d in dofs]})
+    for nd, dofs in sorted(r.fixed_extra.items()):
         if stroke is not None and stroke.get("node") == nd:
             dofs = dofs - {("rx", "ry", "rz")[int(np.argmax(np.abs(stroke["axis"])))]}
         if dofs:
-            supports.append({"node": nd, "dofs": [d for d in ("rx", "ry", "rz") if d in dofs]})
+            r.supports.append({"node": nd, "dofs": [d for d in ("rx", "ry", "rz") if d in dofs]})
 
-    # --- chains of equal collinear beams through free interior nodes: one member with that many segments
-    special = set(fixed) | set(carrier) | set(xf) | set(delxf) | {n for n, _, _ in inputs} | \
-        {x_of.get(n, n) for n, _, _ in inputs} | {x_of.get(n, n) for n, _, _ in fixes} | \
-        {x_of[r] for r in hinged}
-    elements, merged = _merge_chains(elements, materials, X, special)
+
+def _merge(r: _Reader) -> None:
+    """Chains of equal collinear beams through free interior nodes: one member with that many segments."""
+    x_of = r.x_of
+    special = set(r.fixed) | set(r.carrier) | set(r.xf) | set(r.delxf) | {n for n, _, _ in r.inputs} | \
+        {x_of.get(n, n) for n, _, _ in r.inputs} | {x_of.get(n, n) for n, _, _ in r.fixes} | \
+        {x_of[rn] for rn in r.hinged}
+    r.elements, merged = _merge_chains(r.elements, r.materials, r.X, special)
     if merged:
-        notes.append(f"{merged} chains of equal collinear beams read as members with segments (one member each)")
+        r.notes.append(f"{merged} chains of equal collinear beams read as members with segments (one member each)")
 
-    # --- loads and gravity
-    loads: list[dict] = []
-    for n, (vals, ln) in xf.items():
-        if role(n) == "R":
+
+def _forces(r: _Reader) -> list[tuple[int, list[float], int]]:
+    """XF and DELXF lines checked: the forces on X nodes (moments are errors)."""
+    loads = []
+    for n, (vals, ln) in r.xf.items():
+        if r.role(n) == "R":
             fmt = "3 values (since 2017)" if len(vals) == 3 else (
                 "4 Euler-parameter values (before 2017)" if len(vals) == 4 else f"{len(vals)} values")
-            err.add(ln, "XF", f"node {n} is rotational: a moment ({fmt} read) is not supported yet; apply it as "
-                    "a force pair on a rigid arm")
+            r.err.add(ln, "XF", f"node {n} is rotational: a moment ({fmt} read) is not supported yet; apply it as "
+                      "a force pair on a rigid arm")
             continue
-        if role(n) != "X" or len(vals) != 3:
-            err.add(ln, "XF", f"node {n}: give a force 'XF n fx fy fz' on a translational node")
+        if r.role(n) != "X" or len(vals) != 3:
+            r.err.add(ln, "XF", f"node {n}: give a force 'XF n fx fy fz' on a translational node")
             continue
         loads.append((n, vals, ln))
-    for n, (vals, ln) in delxf.items():
-        if role(n) != "X" or len(vals) != 3:
-            err.add(ln, "DELXF", f"node {n}: give 'DELXF n dfx dfy dfz' on a translational node (moments are not "
-                    "supported)")
-    load_dicts = []
+    for n, (vals, ln) in r.delxf.items():
+        if r.role(n) != "X" or len(vals) != 3:
+            r.err.add(ln, "DELXF", f"node {n}: give 'DELXF n dfx dfy dfz' on a translational node (moments are not "
+                      "supported)")
+    return loads
+
+
+def _loads(r: _Reader) -> None:
+    """Loads: XF constant, XF + DELXF ramped with the stroke (in full without one)."""
+    loads = _forces(r)
+    delxf, stroke = r.delxf, r.stroke
     done = set()
-    for n, vals, ln in loads + [(n, [0.0, 0.0, 0.0], ln) for n, (_, ln) in delxf.items() if n not in xf]:
-        if n in done or role(n) != "X":
+    for n, vals, ln in loads + [(n, [0.0, 0.0, 0.0], ln) for n, (_, ln) in delxf.items() if n not in r.xf]:
+        if n in done or r.role(n) != "X":
             continue
         done.add(n)
         f0 = np.array(vals, dtype=float)
         df = np.array(delxf[n][0], dtype=float) if n in delxf and len(delxf[n][0]) == 3 else np.zeros(3)
-        target = {"body": carrier[n], "point": list(X[n][0])} if n in carrier else {"node": nname(n)}
+        target = {"body": r.carrier[n], "point": list(r.X[n][0])} if n in r.carrier else {"node": r.nname(n)}
         if not np.any(df):
-            load_dicts.append({**target, "force": list(f0)})
+            r.loads.append({**target, "force": list(f0)})
         elif stroke is None:
-            load_dicts.append({**target, "force": list(f0 + df)})
-            notes.append(f"DELXF {n}: no input to ramp it over; applied in full (XF + DELXF) in load steps")
+            r.loads.append({**target, "force": list(f0 + df)})
+            r.notes.append(f"DELXF {n}: no input to ramp it over; applied in full (XF + DELXF) in load steps")
         else:
             # the increment runs with the input, from 0 (XF) to its final value (XF + DELXF)
             start, stop = stroke["start"], stroke["stop"]
             s_end = stop if stop != 0 else start
             f_start = f0 + df * (start / s_end)
             f_stop = f0 + df * (stop / s_end)
-            load_dicts.append({**target, "ramp": {"start": list(f_start), "stop": list(f_stop)}})
-    node_list = sorted({xp for _, xp, _, _, _, _, _ in beams} | {xq for _, _, _, xq, _, _, _ in beams}
-                       | {xp for _, xp, _, _ in trusses} | {xq for _, _, xq, _ in trusses})
+            r.loads.append({**target, "ramp": {"start": list(f_start), "stop": list(f_stop)}})
+
+
+def _scene(r: _Reader, name: str) -> dict:
+    """The scene dict: the nodes the kept elements, bodies and joints use, and every part assembled."""
+    X, x_of = r.X, r.x_of
+    node_list = sorted({xp for _, xp, _, _, _, _, _ in r.beams} | {xq for _, _, _, xq, _, _, _ in r.beams}
+                       | {xp for _, xp, _, _ in r.trusses} | {xq for _, _, xq, _ in r.trusses})
     for xn in X:
         if xn not in node_list:
-            notes.append(f"node {xn} is declared but used by no element: left out")
-    kept = {n for e in elements for n in e["nodes"]} | {n for b in bodies for n in b["nodes"]} | \
-        {n for j in joints for n in j["nodes"]}
-    node_list = [xn for xn in node_list if nname(xn) in kept]
-    materials = [m for m in materials if m["name"] in {e["material"] for e in elements}]
+            r.notes.append(f"node {xn} is declared but used by no element: left out")
+    kept = {n for e in r.elements for n in e["nodes"]} | {n for b in r.bodies for n in b["nodes"]} | \
+        {n for j in r.joints for n in j["nodes"]}
+    node_list = [xn for xn in node_list if r.nname(xn) in kept]
+    r.materials = [m for m in r.materials if m["name"] in {e["material"] for e in r.elements}]
     scene = {
         "name": name,
-        "materials": materials or [{"name": "none", "E": NOMINAL_E, "G": NOMINAL_G, "density": 7800.0,
-                                    "allowable_stress": NOMINAL_E * ALLOWABLE_PER_E}],
-        "nodes": [{"name": nname(xn), "position": list(X[xn][0])} for xn in node_list if xn in X]
-        + [{"name": rname(rn), "position": list(X[x_of[rn]][0])} for rn in sorted(extra) if rn in hinged],
-        "bodies": bodies,
-        "elements": elements,
-        "supports": supports,
-        "stroke": stroke,
-        "loads": load_dicts,
-        "joints": joints,
+        "materials": r.materials or [{"name": "none", "E": NOMINAL_E, "G": NOMINAL_G, "density": 7800.0,
+                                      "allowable_stress": NOMINAL_E * ALLOWABLE_PER_E}],
+        "nodes": [{"name": r.nname(xn), "position": list(X[xn][0])} for xn in node_list if xn in X]
+        + [{"name": r.rname(rn), "position": list(X[x_of[rn]][0])} for rn in sorted(r.extra) if rn in r.hinged],
+        "bodies": r.bodies,
+        "elements": r.elements,
+        "supports": r.supports,
+        "stroke": r.stroke,
+        "loads": r.loads,
+        "joints": r.joints,
     }
-    if gravity is not None and any(gravity):
-        scene["gravity"] = gravity
-    if err.items:
-        raise SpacarError(sorted(err.items, key=lambda m: int(m.split(":", 1)[0].split()[1])))
-    if not any(e for e in elements):
+    if r.gravity is not None and any(r.gravity):
+        scene["gravity"] = r.gravity
+    return scene
+
+
+def read_dat(text: str, name: str = "spacar") -> SpacarImport:
+    """Read a SPACAR ``.dat`` model (see the module docstring) into a scene dict and a report.
+
+    Raises
+    ------
+    SceneError
+        Listing every line that cannot be mapped, each with its number, keyword and why.
+    """
+    r = _parse(text)
+    _pair_nodes(r)
+    _hinge_joints(r)
+    _unique_elements(r)
+    for b in r.beams:
+        _beam(r, *b)
+    for t in r.trusses:
+        _truss(r, *t)
+    _bodies(r)
+    _fixes(r)
+    _inputs(r)
+    _supports(r)
+    _merge(r)
+    _loads(r)
+    scene = _scene(r, name)
+    if r.err.items:
+        raise SpacarError(sorted(r.err.items, key=lambda m: int(m.split(":", 1)[0].split()[1])))
+    if not any(e for e in r.elements):
         raise SceneError("spacar", "the file has no flexible element (every beam is rigid); nothing to analyse")
-    if materials:
-        notes.append(f"allowable stress: not in SPACAR files; set to E/{round(1 / ALLOWABLE_PER_E)} per element "
-                     "material (edit 'allowable_stress' in the scene)")
-    if not any(c for c in crossdim) and elements:
-        notes.append("no CROSSDIM: the file gives stiffness only, so stresses are not available (NaN)")
-    spacar_dof += len({(n, k) for n, ks, _ in inputs for k in ks if not (role(n) == "R" and k == 1)})
-    spacar_dof += sum(1 for h in hinges if h[0] in dyne)
-    return SpacarImport(scene=scene, mapped=mapped, notes=notes, numbering=numbering, spacar_dof=spacar_dof)
+    if r.materials:
+        r.notes.append(f"allowable stress: not in SPACAR files; set to E/{round(1 / ALLOWABLE_PER_E)} per element "
+                       "material (edit 'allowable_stress' in the scene)")
+    if not any(c for c in r.crossdim) and r.elements:
+        r.notes.append("no CROSSDIM: the file gives stiffness only, so stresses are not available (NaN)")
+    spacar_dof = r.spacar_dof
+    spacar_dof += len({(n, k) for n, ks, _ in r.inputs for k in ks if not (r.role(n) == "R" and k == 1)})
+    spacar_dof += sum(1 for h in r.hinges if h[0] in r.dyne)
+    return SpacarImport(scene=scene, mapped=r.mapped, notes=r.notes, numbering=r.numbering, spacar_dof=spacar_dof)
 
 
 def _merge_chains(elements: list[dict], materials: list[dict], X: dict, special: set[int]
@@ -733,59 +907,57 @@ def _fmt(x: float) -> str:
     return repr(float(x))  # shortest text that reads back to the same double
 
 
-def write_dat(scene, numbering: int = 2) -> str:
-    """A ``.dat`` text of ``scene`` (see the module docstring) that :func:`read_dat` reads back to the same model.
+@dataclass
+class _Writer:
+    """The points :func:`write_dat` numbers (scene nodes, then mesh nodes, then bodies' centres of mass) and the
+    SPACAR node numbers of each."""
 
-    Each scene node ``i`` (1-based, in order; then each beam's interior mesh nodes, then each body's centre of
-    mass) becomes X node ``2i - 1`` and R node ``2i`` (``numbering=3``: ``3i - 2`` and ``3i - 1``). Beams are
-    written per segment with their stiffness (ESTIFF: E A, G J (times the member's warping factor), E Iy,
-    E Iz) and mass (EM: rho A, rho (Iy + Iz), rho Iy, rho Iz); a rectangular section also as CROSSDIM. A rigid
-    body is its centre-of-mass node with its mass and inertia (XM), joined to each of its nodes by a rigid beam.
+    numbering: int
+    pos: dict[str, np.ndarray]
+    order: list[str]
+    chains: dict[str, list[str]] = field(default_factory=dict)  # element -> its nodes along the mesh
+    carrier: dict[str, str] = field(default_factory=dict)  # node -> its body
+    center: dict[str, str] = field(default_factory=dict)  # body -> the node that carries its mass
+    idx: dict[str, int] = field(default_factory=dict)
+    share: dict[str, str] = field(default_factory=dict)  # a hinge's second node -> the node whose X it shares
 
-    Raises
-    ------
-    SceneError
-        For what the format (as mapped here) cannot hold: a beam with segments 'auto', a drive axis that is not
-        a coordinate axis, a load given as a table, a stroke not starting or ending at 0.
-    """
-    from .sections import section_properties, warping_factor
+    def add_point(self, name: str, p: np.ndarray) -> None:
+        self.pos[name] = p
+        self.order.append(name)
 
-    if numbering not in (2, 3):
-        raise SceneError("numbering", f"numbering must be 2 or 3 SPACAR nodes per point, got {numbering}")
-    lines = [f"# {scene.name}: written by flexopt (model.spacar.write_dat); SI units", ""]
-    mats = {m.name: m for m in scene.materials}
-    pos: dict[str, np.ndarray] = {n.name: np.array(n.position, dtype=float) for n in scene.nodes}
-    order: list[str] = [n.name for n in scene.nodes]
-    xnum = (lambda i: numbering * i - numbering + 1)
+    def xnum(self, i: int) -> int:
+        return self.numbering * i - self.numbering + 1
 
-    def add_point(name: str, p: np.ndarray) -> None:
-        pos[name] = p
-        order.append(name)
+    def X(self, name: str) -> int:
+        return self.xnum(self.idx[self.share.get(name, name)])
 
-    # mesh nodes of multi-segment beams
-    chains: dict[str, list[str]] = {}
+    def R(self, name: str) -> int:
+        return self.xnum(self.idx[name]) + 1
+
+
+def _write_points(scene, w: _Writer) -> None:
+    """Mesh nodes of multi-segment beams, bodies' centres of mass, the numbering and the hinges' shared X."""
     for e in scene.elements:
         seg = getattr(e, "segments", 1)
         if seg == "auto":
             raise SceneError(f"elements.{e.name}.segments", "'auto' segments: resolve the mesh first (give a number)")
-        p, q = pos[e.nodes[0]], pos[e.nodes[1]]
+        p, q = w.pos[e.nodes[0]], w.pos[e.nodes[1]]
         chain = [e.nodes[0]]
         for k in range(1, seg):
-            add_point(f"{e.name}#{k}", p + (q - p) * k / seg)
+            w.add_point(f"{e.name}#{k}", p + (q - p) * k / seg)
             chain.append(f"{e.name}#{k}")
-        chains[e.name] = chain + [e.nodes[1]]
-    carrier = {n: b.name for b in scene.bodies for n in b.nodes}
-    center: dict[str, str] = {}  # body -> the node that carries its mass: a node at its centre of mass, or a new one
-    for b in scene.bodies:
+        w.chains[e.name] = chain + [e.nodes[1]]
+    w.carrier.update({n: b.name for b in scene.bodies for n in b.nodes})
+    for b in scene.bodies:  # a node at its centre of mass carries its mass, or a new one
         com = np.array(b.center_of_mass, dtype=float)
         tol = 1e-12 * max(1.0, float(np.abs(com).max()))
-        at = [n for n in b.nodes if float(np.linalg.norm(pos[n] - com)) <= tol]
-        center[b.name] = at[0] if at else f"{b.name}@com"
+        at = [n for n in b.nodes if float(np.linalg.norm(w.pos[n] - com)) <= tol]
+        w.center[b.name] = at[0] if at else f"{b.name}@com"
         if not at:
-            add_point(center[b.name], com)
-    idx = {name: i + 1 for i, name in enumerate(order)}
+            w.add_point(w.center[b.name], com)
+    w.idx.update({name: i + 1 for i, name in enumerate(w.order)})
     # a hinge's two nodes share SPACAR's translational node (HINGE joins rotations at one point)
-    share: dict[str, str] = {}
+    pos = w.pos
     for j in scene.joints:
         if j.kind != "hinge":
             raise SceneError(f"joints.{j.name}", f"a {j.kind} has no SPACAR element mapped here; export hinges only")
@@ -793,33 +965,26 @@ def write_dat(scene, numbering: int = 2) -> str:
         if float(np.linalg.norm(pos[p_] - pos[q_])) > 1e-12 * max(1.0, float(np.abs(pos[p_]).max())):
             raise SceneError(f"joints.{j.name}", "a SPACAR HINGE joins two rotations at one point: its nodes must "
                              "coincide to export")
-        if p_ in carrier or q_ in carrier:
+        if p_ in w.carrier or q_ in w.carrier:
             raise SceneError(f"joints.{j.name}", "a hinge at a body's node is not exported; hinge flexible "
                              "elements' nodes")
-        share[q_] = share.get(p_, p_)
+        w.share[q_] = w.share.get(p_, p_)
 
-    def X(name: str) -> int:
-        return xnum(idx[share.get(name, name)])
 
-    def R(name: str) -> int:
-        return xnum(idx[name]) + 1
+def _write_elements(scene, w: _Writer, lines: list[str], props_lines: list[str], vis: list[str]) -> int:
+    """TRUSS and BEAM lines (a beam per segment) with their ESTIFF, EM, DYNE and CROSSDIM; the elements' count."""
+    from .sections import section_properties, warping_factor
 
-    for name in order:
-        if name in share:
-            continue  # its hinge partner's X
-        p = pos[name]
-        lines.append(f"X {X(name)} {_fmt(p[0])} {_fmt(p[1])} {_fmt(p[2])}  # {name}")
-    lines.append("")
+    X, R = w.X, w.R
+    mats = {m.name: m for m in scene.materials}
     ne = 0
-    props_lines: list[str] = []
-    vis: list[str] = []
     modes = {"elongation": (1,), "torsion": (2,), "bending_y": (3, 4), "bending_z": (5, 6)}
     modes.update({f"eps{i}": (i,) for i in range(1, 7)})
     for e in scene.elements:
         mat = mats[e.material]
         rigid = {k for r in e.rigid for k in modes[r]}
         flex = [k for k in range(1, 7 if e.kind == "beam" else 2) if k not in rigid]
-        chain = chains[e.name]
+        chain = w.chains[e.name]
         if e.kind == "truss":
             ne += 1
             lines.append(f"TRUSS {ne} {X(chain[0])} {X(chain[1])}  # {e.name}")
@@ -828,7 +993,7 @@ def write_dat(scene, numbering: int = 2) -> str:
                 props_lines.append(f"DYNE {ne} 1")
             continue
         pr = section_properties(e.section)
-        L = float(np.linalg.norm(pos[e.nodes[1]] - pos[e.nodes[0]]))
+        L = float(np.linalg.norm(w.pos[e.nodes[1]] - w.pos[e.nodes[0]]))
         GJ = float(mat.G * pr.J * warping_factor(mat.E, mat.G, pr, L, pr.warping))
         for a, b in itertools.pairwise(chain):
             ne += 1
@@ -843,8 +1008,14 @@ def write_dat(scene, numbering: int = 2) -> str:
                 props_lines.append(f"DYNE {ne} " + " ".join(str(k) for k in flex))
             if e.section.kind == "rectangular":
                 vis.append(f"CROSSDIM {ne} {_fmt(e.section.width)} {_fmt(e.section.thickness)}")
+    return ne
+
+
+def _write_bodies(scene, w: _Writer, lines: list[str], props_lines: list[str], ne: int) -> int:
+    """A body as rigid beams from its centre-of-mass node to its other nodes, and its XM; the elements' count."""
+    X, R, pos = w.X, w.R, w.pos
     for b in scene.bodies:
-        c = center[b.name]
+        c = w.center[b.name]
         for n in b.nodes:
             if n == c:
                 continue
@@ -861,16 +1032,16 @@ def write_dat(scene, numbering: int = 2) -> str:
         J = np.array(b.inertia, dtype=float)
         props_lines.append(f"XM {R(c)} " + " ".join(_fmt(v) for v in (J[0, 0], J[0, 1], J[0, 2], J[1, 1], J[1, 2],
                                                                      J[2, 2])))
-    for j in scene.joints:
-        ne += 1
-        a = np.array(j.axis, dtype=float)
-        lines.append(f"HINGE {ne} {R(j.nodes[0])} {R(j.nodes[1])} {_fmt(a[0])} {_fmt(a[1])} {_fmt(a[2])}  # {j.name}")
-        props_lines.append(f"RLSE {ne} 1")
-    lines += [""] + props_lines + [""]
+    return ne
+
+
+def _write_supports(scene, w: _Writer, lines: list[str]) -> None:
+    """FIX lines: a body's centre node fixed whole, a node's X and R coordinates as listed."""
+    X, R = w.X, w.R
     comps = {"x": ("X", 1), "y": ("X", 2), "z": ("X", 3), "rx": ("R", 2), "ry": ("R", 3), "rz": ("R", 4)}
     for s in scene.supports:
-        if s.body is not None or s.node in carrier:
-            c = center[s.body or carrier[s.node]]
+        if s.body is not None or s.node in w.carrier:
+            c = w.center[s.body or w.carrier[s.node]]
             lines += [f"FIX {X(c)}", f"FIX {R(c)}"]
             continue
         xs = [comps[d][1] for d in s.dofs if comps[d][0] == "X"]
@@ -879,47 +1050,99 @@ def write_dat(scene, numbering: int = 2) -> str:
             lines.append(f"FIX {X(s.node)}" + ("" if len(xs) == 3 else " " + " ".join(map(str, xs))))
         if rs:
             lines.append(f"FIX {R(s.node)}" + ("" if len(rs) == 3 else " " + " ".join(map(str, rs))))
+
+
+def _write_stroke(st, w: _Writer, lines: list[str]) -> None:
+    """The stroke as INPUTX and DELINPX (and DYNX for a free drive) on one coordinate, with ITERSTEP."""
+    X, R = w.X, w.R
+    axis = np.array(st.axis, dtype=float) / np.linalg.norm(st.axis)
+    k = int(np.argmax(np.abs(axis)))
+    if abs(abs(axis[k]) - 1) > 1e-12:
+        raise SceneError("stroke.axis", "SPACAR inputs are coordinates: the drive axis must be a coordinate "
+                         "axis to export")
+    vals = st.values()
+    if vals[0] != 0 and vals[-1] != 0:
+        raise SceneError("stroke.start", f"a SPACAR input runs from the reference (0) to its increment; the "
+                         f"stroke runs {vals[0]:g} to {vals[-1]:g}: set start or stop to 0 to export")
+    end = float(vals[-1] if vals[-1] != 0 else vals[0]) * float(np.sign(axis[k]))
+    target = w.center[st.body] if st.body is not None else st.node
+    if st.kind == "rotation":
+        ang = math.radians(end) if st.resolved_unit == "deg" else end
+        lines += [f"INPUTX {R(target)} {k + 2}", f"DELINPX {R(target)} {k + 2} {_fmt(math.sin(ang / 2))}"]
+    else:
+        lines += [f"INPUTX {X(target)} {k + 1}", f"DELINPX {X(target)} {k + 1} {_fmt(end)}"]
+    if st.drive == "free":  # the input is a dynamic coordinate: free in the eigen analysis
+        lines.append(lines[-2].replace("INPUTX", "DYNX", 1))
+    lines.append(f"ITERSTEP {st.points - 1}")
+
+
+def _write_loads(scene, w: _Writer, lines: list[str]) -> None:
+    """Forces as XF (a ramp: XF at the stroke's start and DELXF to its end) and GRAVITY."""
     st = scene.stroke
-    if st is not None:
-        axis = np.array(st.axis, dtype=float) / np.linalg.norm(st.axis)
-        k = int(np.argmax(np.abs(axis)))
-        if abs(abs(axis[k]) - 1) > 1e-12:
-            raise SceneError("stroke.axis", "SPACAR inputs are coordinates: the drive axis must be a coordinate "
-                             "axis to export")
-        vals = st.values()
-        if vals[0] != 0 and vals[-1] != 0:
-            raise SceneError("stroke.start", f"a SPACAR input runs from the reference (0) to its increment; the "
-                             f"stroke runs {vals[0]:g} to {vals[-1]:g}: set start or stop to 0 to export")
-        end = float(vals[-1] if vals[-1] != 0 else vals[0]) * float(np.sign(axis[k]))
-        target = center[st.body] if st.body is not None else st.node
-        if st.kind == "rotation":
-            ang = math.radians(end) if st.resolved_unit == "deg" else end
-            lines += [f"INPUTX {R(target)} {k + 2}", f"DELINPX {R(target)} {k + 2} {_fmt(math.sin(ang / 2))}"]
-        else:
-            lines += [f"INPUTX {X(target)} {k + 1}", f"DELINPX {X(target)} {k + 1} {_fmt(end)}"]
-        if st.drive == "free":  # the input is a dynamic coordinate: free in the eigen analysis
-            lines.append(lines[-2].replace("INPUTX", "DYNX", 1))
-        lines.append(f"ITERSTEP {st.points - 1}")
     for ld in scene.loads:
         if ld.table is not None:
             raise SceneError("loads.table", "a load table has no SPACAR form (XF + DELXF is linear); use a ramp")
         if ld.body is not None or ld.point is not None:
             raise SceneError("loads.body", "a load on a body has no node in the exported file; load one of the "
                              "body's nodes instead")
-        if ld.node in carrier:
+        if ld.node in w.carrier:
             raise SceneError("loads.node", f"node '{ld.node}' is carried by a body; load it through a node of a "
                              "flexible element")
         if ld.force is not None:
-            lines.append(f"XF {X(ld.node)} " + " ".join(_fmt(v) for v in ld.force))
+            lines.append(f"XF {w.X(ld.node)} " + " ".join(_fmt(v) for v in ld.force))
         else:
             vals = st.values()
             s0, s1 = float(vals[0]), float(vals[-1])
             F0 = ld.value(0.0, s0, s1)
             Fend = ld.value(s1 if s1 != 0 else s0, s0, s1)
-            lines.append(f"XF {X(ld.node)} " + " ".join(_fmt(v) for v in F0))
-            lines.append(f"DELXF {X(ld.node)} " + " ".join(_fmt(v) for v in Fend - F0))
+            lines.append(f"XF {w.X(ld.node)} " + " ".join(_fmt(v) for v in F0))
+            lines.append(f"DELXF {w.X(ld.node)} " + " ".join(_fmt(v) for v in Fend - F0))
     if scene.gravity is not None and any(scene.gravity):
         lines.append("GRAVITY " + " ".join(_fmt(v) for v in scene.gravity))
+
+
+def write_dat(scene, numbering: int = 2) -> str:
+    """A ``.dat`` text of ``scene`` (see the module docstring) that :func:`read_dat` reads back to the same model.
+
+    Each scene node ``i`` (1-based, in order; then each beam's interior mesh nodes, then each body's centre of
+    mass) becomes X node ``2i - 1`` and R node ``2i`` (``numbering=3``: ``3i - 2`` and ``3i - 1``). Beams are
+    written per segment with their stiffness (ESTIFF: E A, G J (times the member's warping factor), E Iy,
+    E Iz) and mass (EM: rho A, rho (Iy + Iz), rho Iy, rho Iz); a rectangular section also as CROSSDIM. A rigid
+    body is its centre-of-mass node with its mass and inertia (XM), joined to each of its nodes by a rigid beam.
+
+    Raises
+    ------
+    SceneError
+        For what the format (as mapped here) cannot hold: a beam with segments 'auto', a drive axis that is not
+        a coordinate axis, a load given as a table, a stroke not starting or ending at 0.
+    """
+    if numbering not in (2, 3):
+        raise SceneError("numbering", f"numbering must be 2 or 3 SPACAR nodes per point, got {numbering}")
+    lines = [f"# {scene.name}: written by flexopt (model.spacar.write_dat); SI units", ""]
+    w = _Writer(numbering, {n.name: np.array(n.position, dtype=float) for n in scene.nodes},
+                [n.name for n in scene.nodes])
+    _write_points(scene, w)
+    for name in w.order:
+        if name in w.share:
+            continue  # its hinge partner's X
+        p = w.pos[name]
+        lines.append(f"X {w.X(name)} {_fmt(p[0])} {_fmt(p[1])} {_fmt(p[2])}  # {name}")
+    lines.append("")
+    props_lines: list[str] = []
+    vis: list[str] = []
+    ne = _write_elements(scene, w, lines, props_lines, vis)
+    ne = _write_bodies(scene, w, lines, props_lines, ne)
+    for j in scene.joints:
+        ne += 1
+        a = np.array(j.axis, dtype=float)
+        lines.append(f"HINGE {ne} {w.R(j.nodes[0])} {w.R(j.nodes[1])} {_fmt(a[0])} {_fmt(a[1])} {_fmt(a[2])}  "
+                     f"# {j.name}")
+        props_lines.append(f"RLSE {ne} 1")
+    lines += [""] + props_lines + [""]
+    _write_supports(scene, w, lines)
+    if scene.stroke is not None:
+        _write_stroke(scene.stroke, w, lines)
+    _write_loads(scene, w, lines)
     lines += ["END", ""]
     if vis:
         lines += ["VISUALIZATION"] + vis + ["END", ""]
@@ -936,41 +1159,11 @@ EPROPS_FIELDS = ("elems", "emod", "smod", "dens", "cshape", "dim", "orien", "nbe
                  "hide", "opacity")
 
 
-def spacar_light(nodes, elements, nprops, eprops, opt: dict | None = None, name: str = "spacar-light") -> SpacarImport:
-    """A scene from SPACAR Light's four tables, so a script ports line by line: ``nodes`` (n x 3 positions),
-    ``elements`` (ne x 2 node numbers, 1-based), ``nprops`` (a list, one dict per node, or a dict {node: dict})
-    and ``eprops`` (a list of element sets), and ``opt`` (``gravity``, ``loadsteps``).
-
-    The tables are written as the equivalent ``.dat`` model (user node i as X 2i-1, R 2i; each element as
-    ``nbeams`` beams with ESTIFF/EM from a rectangle ``dim = [w, t]`` with ``w`` along ``orien``, J by Roark's
-    series as flexopt's rectangles, not SPACAR Light's own torsion formula) and read by :func:`read_dat`, so both
-    routes map alike. nprops: ``fix``, ``fix_pos``, ``fix_orien``, ``fix_x/y/z`` supports; ``displ_x/y/z`` [m]
-    and ``rot_x/y/z`` [rad] the input (one, with its final value); ``force`` [N]; ``mass`` [kg] and
-    ``mominertia`` (Ixx Ixy Ixz Iyy Iyz Izz) [kg m^2]. eprops: ``elems``, ``emod``, ``smod``, ``dens``,
-    ``cshape`` ('rect'), ``dim``, ``orien``, ``nbeams``, ``flex`` (flexible deformations; none: rigid).
-    Anything else (moments, circular sections, releases, ...) is an error naming the table, entry and field.
-    """
-    errors: list[str] = []
-    P = np.asarray(nodes, dtype=float).reshape(-1, 3)
-    E_ = np.asarray(elements, dtype=int).reshape(-1, 2)
-    if isinstance(nprops, dict):
-        nprops = [nprops.get(i + 1, nprops.get(str(i + 1), {})) or {} for i in range(len(P))]
-    nprops = list(nprops or [])
-    opt = dict(opt or {})
-    lines = [f"# {name}: SPACAR Light tables written as a .dat model by flexopt"]
+def _light_elements(P: np.ndarray, E_: np.ndarray, eprops, new_point, lines: list[str], props: list[str],
+                    vis: list[str], errors: list[str]) -> None:
+    """SPACAR Light's elements and eprops as BEAM lines (``nbeams`` per element, interior points from
+    ``new_point``) with ESTIFF, EM, DYNE and CROSSDIM."""
     xn = (lambda i: 2 * i - 1)
-    count = len(P)
-
-    def new_point(p: np.ndarray) -> int:
-        nonlocal count
-        count += 1
-        lines.append(f"X {xn(count)} {_fmt(p[0])} {_fmt(p[1])} {_fmt(p[2])}")
-        return count
-
-    for i, p in enumerate(P, start=1):
-        lines.append(f"X {xn(i)} {_fmt(p[0])} {_fmt(p[1])} {_fmt(p[2])}")
-    props: list[str] = []
-    vis: list[str] = ["VISUALIZATION"]
     set_of: dict[int, dict] = {}
     for k, es in enumerate(eprops or [], start=1):
         bad = sorted(set(es) - set(EPROPS_FIELDS))
@@ -1009,6 +1202,11 @@ def spacar_light(nodes, elements, nprops, eprops, opt: dict | None = None, name:
             if flex:
                 props.append(f"DYNE {ne} " + " ".join(map(str, flex)))
             vis.append(f"CROSSDIM {ne} {_fmt(w)} {_fmt(t)}")
+
+
+def _light_nodes(nprops: list, props: list[str], errors: list[str]) -> None:
+    """SPACAR Light's nprops as FIX, INPUTX/DELINPX, XF and XM lines (user node i: X 2i-1, R 2i)."""
+    xn = (lambda i: 2 * i - 1)
     inputs = 0
     for i, npr in enumerate(nprops, start=1):
         if not npr:
@@ -1040,6 +1238,45 @@ def spacar_light(nodes, elements, nprops, eprops, opt: dict | None = None, name:
             props.append(f"XM {R_} " + " ".join(_fmt(float(v)) for v in npr["mominertia"]))
     if inputs > 1:
         errors.append(f"nprops: {inputs} inputs (displ_*/rot_*); flexopt drives one coordinate")
+
+
+def spacar_light(nodes, elements, nprops, eprops, opt: dict | None = None, name: str = "spacar-light") -> SpacarImport:
+    """A scene from SPACAR Light's four tables, so a script ports line by line: ``nodes`` (n x 3 positions),
+    ``elements`` (ne x 2 node numbers, 1-based), ``nprops`` (a list, one dict per node, or a dict {node: dict})
+    and ``eprops`` (a list of element sets), and ``opt`` (``gravity``, ``loadsteps``).
+
+    The tables are written as the equivalent ``.dat`` model (user node i as X 2i-1, R 2i; each element as
+    ``nbeams`` beams with ESTIFF/EM from a rectangle ``dim = [w, t]`` with ``w`` along ``orien``, J by Roark's
+    series as flexopt's rectangles, not SPACAR Light's own torsion formula) and read by :func:`read_dat`, so both
+    routes map alike. nprops: ``fix``, ``fix_pos``, ``fix_orien``, ``fix_x/y/z`` supports; ``displ_x/y/z`` [m]
+    and ``rot_x/y/z`` [rad] the input (one, with its final value); ``force`` [N]; ``mass`` [kg] and
+    ``mominertia`` (Ixx Ixy Ixz Iyy Iyz Izz) [kg m^2]. eprops: ``elems``, ``emod``, ``smod``, ``dens``,
+    ``cshape`` ('rect'), ``dim``, ``orien``, ``nbeams``, ``flex`` (flexible deformations; none: rigid).
+    Anything else (moments, circular sections, releases, ...) is an error naming the table, entry and field.
+    """
+    errors: list[str] = []
+    P = np.asarray(nodes, dtype=float).reshape(-1, 3)
+    E_ = np.asarray(elements, dtype=int).reshape(-1, 2)
+    if isinstance(nprops, dict):
+        nprops = [nprops.get(i + 1, nprops.get(str(i + 1), {})) or {} for i in range(len(P))]
+    nprops = list(nprops or [])
+    opt = dict(opt or {})
+    lines = [f"# {name}: SPACAR Light tables written as a .dat model by flexopt"]
+    xn = (lambda i: 2 * i - 1)
+    count = len(P)
+
+    def new_point(p: np.ndarray) -> int:
+        nonlocal count
+        count += 1
+        lines.append(f"X {xn(count)} {_fmt(p[0])} {_fmt(p[1])} {_fmt(p[2])}")
+        return count
+
+    for i, p in enumerate(P, start=1):
+        lines.append(f"X {xn(i)} {_fmt(p[0])} {_fmt(p[1])} {_fmt(p[2])}")
+    props: list[str] = []
+    vis: list[str] = ["VISUALIZATION"]
+    _light_elements(P, E_, eprops, new_point, lines, props, vis, errors)
+    _light_nodes(nprops, props, errors)
     if "gravity" in opt:
         props.append("GRAVITY " + " ".join(_fmt(float(v)) for v in opt["gravity"]))
     if "loadsteps" in opt:
