@@ -31,8 +31,11 @@ __all__ = ["diagnose"]
 def _state_at(scene: Scene, at_stroke: float) -> tuple[np.ndarray, np.ndarray]:
     """Master positions and rotations of the equilibrium at ``at_stroke`` (stroke unit)."""
     if scene.stroke is None:
-        raise SceneError("stroke", "a diagnosis at a stroke value needs a 'stroke' in the scene; omit "
-                         "--at-stroke to diagnose the reference configuration")
+        raise SceneError(
+            "stroke",
+            "a diagnosis at a stroke value needs a 'stroke' in the scene; omit "
+            "--at-stroke to diagnose the reference configuration",
+        )
     an = Analysis(scene)
     target = float(scene.stroke.to_internal(at_stroke))
     got: list = []
@@ -44,9 +47,12 @@ def _state_at(scene: Scene, at_stroke: float) -> tuple[np.ndarray, np.ndarray]:
 
     fail = walk(an.system, targets, an.options, accept)
     if fail is not None or not got:
-        raise EquilibriumError(f"no equilibrium at stroke {at_stroke:g}: {fail.message if fail else ''}",
-                               stroke=at_stroke, last_converged=float("nan"),
-                               reason=fail.reason if fail else "divergence")
+        raise EquilibriumError(
+            f"no equilibrium at stroke {at_stroke:g}: {fail.message if fail else ''}",
+            stroke=at_stroke,
+            last_converged=float("nan"),
+            reason=fail.reason if fail else "divergence",
+        )
     st = got[-1].state
     return st.X, st.R
 
@@ -56,23 +62,32 @@ def _kinematic(scene: Scene, kinematic: bool | None) -> tuple[bool, list[str]]:
     the scene."""
     kin = scene.kinematic if kinematic is None else bool(kinematic)
     if kinematic is None and not kin and not any(e.rigid or e.generalised for e in scene.elements):
-        return True, ["kinematic idealisation used: the scene declares no rigid or generalised deformation, so "
-                      "each flexure keeps only its compliant deformations (kinematic_rigid; seed 002 sec. 4.2); "
-                      "--declared (kinematic=false) diagnoses the declared partition instead"]
+        return True, [
+            "kinematic idealisation used: the scene declares no rigid or generalised deformation, so "
+            "each flexure keeps only its compliant deformations (kinematic_rigid; seed 002 sec. 4.2); "
+            "--declared (kinematic=false) diagnoses the declared partition instead"
+        ]
     return kin, []
 
 
 def _one_flexure_per_beam(scene: Scene, full: Structure) -> tuple[Structure, list[str]]:
     """The structure with every meshed beam as one segment (``full`` when none is meshed), and the note."""
-    flex = scene.model_copy(update={"elements": tuple(
-        e.model_copy(update={"segments": 1}) if isinstance(e, Beam) and e.segments != 1 else e
-        for e in scene.elements)})
+    flex = scene.model_copy(
+        update={
+            "elements": tuple(
+                e.model_copy(update={"segments": 1}) if isinstance(e, Beam) and e.segments != 1 else e
+                for e in scene.elements
+            )
+        }
+    )
     if flex.elements == scene.elements:
         return full, []
     s = compile_scene(flex)
     n_inner = len(full.master_names) - len(s.master_names)
-    return s, [f"each meshed beam is diagnosed as one flexure: {n_inner} segment-internal nodes condensed, "
-               "so motions are those of bodies and flexure ends"]
+    return s, [
+        f"each meshed beam is diagnosed as one flexure: {n_inner} segment-internal nodes condensed, "
+        "so motions are those of bodies and flexure ends"
+    ]
 
 
 def _kinematic_modes(s: Structure, V: np.ndarray, T: np.ndarray, rank: int, col_masters: list[str]) -> list[dict]:
@@ -92,8 +107,9 @@ def _kinematic_modes(s: Structure, V: np.ndarray, T: np.ndarray, rank: int, col_
     return out
 
 
-def _static_modes(U: np.ndarray, rank: int, row_parts: list[tuple[str, str]], row_labels: list[str]
-                  ) -> tuple[list[dict], list[tuple[str, ...]]]:
+def _static_modes(
+    U: np.ndarray, rank: int, row_parts: list[tuple[str, str]], row_labels: list[str]
+) -> tuple[list[dict], list[tuple[str, ...]]]:
     """Static modes (eq. 15): the columns of U beyond the rank per element and deformation, and for each the
     rows that carry at least half its largest entry (release candidates, at most 12)."""
     stat_modes = []
@@ -113,8 +129,9 @@ def _static_modes(U: np.ndarray, rank: int, row_parts: list[tuple[str, str]], ro
     return stat_modes, releases
 
 
-def _configuration(scene: Scene, s: Structure, full: Structure, at_stroke: float | None
-                   ) -> tuple[np.ndarray, np.ndarray]:
+def _configuration(
+    scene: Scene, s: Structure, full: Structure, at_stroke: float | None
+) -> tuple[np.ndarray, np.ndarray]:
     """Positions and rotations of ``s``'s masters: the reference configuration, or the equilibrium at
     ``at_stroke`` (solved on the ``full`` structure, its masters that ``s`` keeps)."""
     if at_stroke is None:
@@ -124,8 +141,9 @@ def _configuration(scene: Scene, s: Structure, full: Structure, at_stroke: float
     return Xf[keep], Rf[keep]
 
 
-def _scaled_svd(scene: Scene, D: np.ndarray, trans: np.ndarray
-                ) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+def _scaled_svd(
+    scene: Scene, D: np.ndarray, trans: np.ndarray
+) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
     """The characteristic length (the largest distance between scene nodes), D scaled by it (eq. 11), its SVD
     (U, singular values, V) and rank."""
     pos = np.array([n.position for n in scene.nodes], dtype=float)
@@ -169,13 +187,18 @@ def diagnose(scene: Scene, at_stroke: float | None = None, kinematic: bool | Non
     rows, row_labels, row_kind, n_rigid = partition(s, kin)
     row_parts = [split_label(s, r, lab) for r, lab in zip(rows, row_labels)]
     if not rows:
-        raise SceneError("elements[].rigid", "no rigid and no generalised deformations: D_cc has no rows, so "
-                         "nothing constrains the structure; declare rigid deformations (e.g. "
-                         "rigid: ['elongation'] for a wire) or set 'kinematic': true")
+        raise SceneError(
+            "elements[].rigid",
+            "no rigid and no generalised deformations: D_cc has no rows, so "
+            "nothing constrains the structure; declare rigid deformations (e.g. "
+            "rigid: ['elongation'] for a wire) or set 'kinematic': true",
+        )
     T, col_labels, col_masters, trans = columns(s)
     if T.shape[1] == 0:
-        raise SceneError("supports", "every nodal coordinate is supported or driven: D_cc has no columns; "
-                         "remove supports from the moving parts")
+        raise SceneError(
+            "supports",
+            "every nodal coordinate is supported or driven: D_cc has no columns; remove supports from the moving parts",
+        )
     X, R = _configuration(scene, s, full, at_stroke)
     Dfull = jacobian_rows(s, X, R, rows)
     D = Dfull @ T
@@ -191,8 +214,9 @@ def diagnose(scene: Scene, at_stroke: float | None = None, kinematic: bool | Non
         row_kind=tuple(row_kind),
         columns=tuple(col_labels),
         column_master=tuple(col_masters),
-        column_direction=np.array([T[6 * s.master_names.index(mn):6 * s.master_names.index(mn) + 6, k]
-                                   for k, mn in enumerate(col_masters)]).reshape(ncount, 6),
+        column_direction=np.array(
+            [T[6 * s.master_names.index(mn) : 6 * s.master_names.index(mn) + 6, k] for k, mn in enumerate(col_masters)]
+        ).reshape(ncount, 6),
         D_cc=D,
         D_scaled=Dh,
         characteristic_length=Lc,

@@ -152,8 +152,11 @@ class _Reader:
         v = self.v
         ok = len(v) >= count if at_least else len(v) == count
         if not ok:
-            self.err.add(self.ln, self.kw, f"expected '{form}' ({'at least ' if at_least else ''}{count} numbers after "
-                         f"the keyword), got {len(v)}")
+            self.err.add(
+                self.ln,
+                self.kw,
+                f"expected '{form}' ({'at least ' if at_least else ''}{count} numbers after the keyword), got {len(v)}",
+            )
         return ok
 
     def visual_line(self, ln: int, kw: str, tokens: list[str]) -> None:
@@ -286,14 +289,29 @@ def _read_hinge(r: _Reader) -> None:
 
 
 #: The mapped keywords outside the VISUALIZATION block (END, HALT and the block itself: :func:`_parse`).
-_KEYWORDS = {"X": _read_x, "BEAM": _read_beam, "TRUSS": _read_truss, "DYNE": _read_dyne, "RLSE": _read_rlse,
-             "ESTIFF": _read_estiff, "EM": _read_em, "FIX": _read_fix, "INPUTX": _read_inputx, "DYNX": _read_dynx,
-             "DELINPX": _read_delinpx, "XF": _read_force, "DELXF": _read_force, "XM": _read_xm,
-             "GRAVITY": _read_gravity, "ITERSTEP": _read_iterstep, "HINGE": _read_hinge}
+_KEYWORDS = {
+    "X": _read_x,
+    "BEAM": _read_beam,
+    "TRUSS": _read_truss,
+    "DYNE": _read_dyne,
+    "RLSE": _read_rlse,
+    "ESTIFF": _read_estiff,
+    "EM": _read_em,
+    "FIX": _read_fix,
+    "INPUTX": _read_inputx,
+    "DYNX": _read_dynx,
+    "DELINPX": _read_delinpx,
+    "XF": _read_force,
+    "DELXF": _read_force,
+    "XM": _read_xm,
+    "GRAVITY": _read_gravity,
+    "ITERSTEP": _read_iterstep,
+    "HINGE": _read_hinge,
+}
 #: Keywords known and refused, with why.
 _REFUSED = {
     "BEAMW": "beams with warping nodes are not supported: flexopt takes warping per member (section 'warping' of a "
-             "rectangular section); use BEAM",
+    "rectangular section); use BEAM",
     "ESIG": "initial stresses are not supported; remove the line (or model the preload as a load)",
 }
 
@@ -329,8 +347,12 @@ def _parse(text: str) -> _Reader:
             continue
         handler = _KEYWORDS.get(kw)
         if handler is None:
-            r.err.add(ln, kw, "unknown keyword (mapped: X BEAM TRUSS HINGE DYNE RLSE (hinges) ESTIFF EM FIX INPUTX "
-                      "DELINPX DYNX XF DELXF XM GRAVITY ITERSTEP END HALT VISUALIZATION/CROSSDIM)")
+            r.err.add(
+                ln,
+                kw,
+                "unknown keyword (mapped: X BEAM TRUSS HINGE DYNE RLSE (hinges) ESTIFF EM FIX INPUTX "
+                "DELINPX DYNX XF DELXF XM GRAVITY ITERSTEP END HALT VISUALIZATION/CROSSDIM)",
+            )
             continue
         handler(r)
         r.mapped[kw] = r.mapped.get(kw, 0) + 1
@@ -343,19 +365,30 @@ def _parse(text: str) -> _Reader:
 def _pair_nodes(r: _Reader) -> None:
     """Roles of node numbers: X declared, R from the beams; a flexopt node per X node; the numbering found."""
     err, X, r_of, x_of, extra = r.err, r.X, r.r_of, r.x_of, r.extra
-    for ne, xp, rp, xq, rq, oy, ln in r.beams:
+    for ne, xp, rp, xq, rq, _oy, ln in r.beams:
         for xn, rn in ((xp, rp), (xq, rq)):
             if xn not in X:
-                err.add(ln, "BEAM", f"element {ne}: node {xn} is used as a translational node but never declared "
-                        f"with 'X {xn} x y z'")
+                err.add(
+                    ln,
+                    "BEAM",
+                    f"element {ne}: node {xn} is used as a translational node but never declared with 'X {xn} x y z'",
+                )
             if rn in X:
-                err.add(ln, "BEAM", f"element {ne}: node {rn} is used as a rotational node but is declared as a "
-                        "translational node (X); check the node order Xp Rp Xq Rq")
+                err.add(
+                    ln,
+                    "BEAM",
+                    f"element {ne}: node {rn} is used as a rotational node but is declared as a "
+                    "translational node (X); check the node order Xp Rp Xq Rq",
+                )
             if r_of.setdefault(xn, rn) != rn:
                 extra.setdefault(rn, (xn, ne, ln))
             if x_of.setdefault(rn, xn) != xn:
-                err.add(ln, "BEAM", f"element {ne}: rotational node {rn} belongs to two translational nodes "
-                        f"({x_of[rn]} and {xn}); give each point its own rotational node")
+                err.add(
+                    ln,
+                    "BEAM",
+                    f"element {ne}: rotational node {rn} belongs to two translational nodes "
+                    f"({x_of[rn]} and {xn}); give each point its own rotational node",
+                )
     for ne, xp, xq, ln in r.trusses:
         for xn in (xp, xq):
             if xn not in X:
@@ -382,18 +415,30 @@ def _hinge_joints(r: _Reader) -> None:
             continue
         pa, pb = np.array(X[x_of[rp]][0]), np.array(X[x_of[rq]][0])
         if np.linalg.norm(pa - pb) > 1e-12 * max(1.0, float(np.abs(pa).max())):
-            err.add(ln, "HINGE", f"element {ne}: rotational nodes {rp} and {rq} sit at different points; a hinge "
-                    "joins two rotations at one point (one X node)")
+            err.add(
+                ln,
+                "HINGE",
+                f"element {ne}: rotational nodes {rp} and {rq} sit at different points; a hinge "
+                "joins two rotations at one point (one X node)",
+            )
             continue
         flex = set(dyne.get(ne, set())) | {k for ks, _ in r.rlse.get(ne, []) for k in ks}
         if flex != {1}:
-            err.add(ln, "HINGE", f"element {ne}: free deformations {sorted(flex) or 'none'}; flexopt maps a hinge "
-                    f"whose rotation (deformation 1) is free: 'RLSE {ne} 1' or 'DYNE {ne} 1' (a locked hinge welds the "
-                    "rotations: use one R node)")
+            err.add(
+                ln,
+                "HINGE",
+                f"element {ne}: free deformations {sorted(flex) or 'none'}; flexopt maps a hinge "
+                f"whose rotation (deformation 1) is free: 'RLSE {ne} 1' or 'DYNE {ne} 1' (a locked hinge welds the "
+                "rotations: use one R node)",
+            )
             continue
         if ne in r.estiff:
-            err.add(r.estiff[ne][1], "ESTIFF", f"element {ne}: a hinge's rotational stiffness is not mapped (flexopt's "
-                    "joints are ideal); model it as a short flexible beam")
+            err.add(
+                r.estiff[ne][1],
+                "ESTIFF",
+                f"element {ne}: a hinge's rotational stiffness is not mapped (flexopt's "
+                "joints are ideal); model it as a short flexible beam",
+            )
             continue
         if not np.linalg.norm(axis) > 0:
             err.add(ln, "HINGE", f"element {ne}: the axis is the zero vector")
@@ -401,24 +446,34 @@ def _hinge_joints(r: _Reader) -> None:
         r.joints.append({"kind": "hinge", "name": f"h{ne}", "nodes": [r.rname(rp), r.rname(rq)], "axis": list(axis)})
         r.hinged.update((rp, rq))
         if ne in dyne:
-            r.notes.append(f"element {ne}: HINGE with DYNE 1: its rotation is free (a dynamic coordinate, no "
-                           "stiffness)")
+            r.notes.append(
+                f"element {ne}: HINGE with DYNE 1: its rotation is free (a dynamic coordinate, no stiffness)"
+            )
     for rn, (xn, ne, ln) in r.extra.items():
         if rn not in r.hinged:
-            err.add(ln, "BEAM", f"element {ne}: translational node {xn} carries two rotational nodes ({r.r_of[xn]} and "
-                    f"{rn}) that no HINGE joins: a joint between beams (spherical) that flexopt does not model; join "
-                    "them with a HINGE or use one rotational node")
+            err.add(
+                ln,
+                "BEAM",
+                f"element {ne}: translational node {xn} carries two rotational nodes ({r.r_of[xn]} and "
+                f"{rn}) that no HINGE joins: a joint between beams (spherical) that flexopt does not model; join "
+                "them with a HINGE or use one rotational node",
+            )
     for ne, items in r.rlse.items():
         if ne not in {h[0] for h in r.hinges}:
             for _, ln in items:
-                err.add(ln, "RLSE", "released deformations (no stiffness, no constraint) of beams and trusses are not "
-                        "supported: flexopt keeps every deformation flexible or rigid; list it in DYNE")
+                err.add(
+                    ln,
+                    "RLSE",
+                    "released deformations (no stiffness, no constraint) of beams and trusses are not "
+                    "supported: flexopt keeps every deformation flexible or rigid; list it in DYNE",
+                )
 
 
 def _unique_elements(r: _Reader) -> None:
     seen_e: set[int] = set()
-    for ne, ln, kw_e in sorted([(b[0], b[-1], "BEAM") for b in r.beams] + [(t[0], t[-1], "TRUSS") for t in r.trusses],
-                               key=lambda row: row[1]):
+    for ne, ln, kw_e in sorted(
+        [(b[0], b[-1], "BEAM") for b in r.beams] + [(t[0], t[-1], "TRUSS") for t in r.trusses], key=lambda row: row[1]
+    ):
         if ne in seen_e:
             r.err.add(ln, kw_e, f"element number {ne} is used twice; number elements uniquely")
         seen_e.add(ne)
@@ -428,19 +483,30 @@ def _beam_stiffness(r: _Reader, ne: int, ln: int, flex: list[int]) -> tuple[list
     """A flexible beam's ESTIFF products (EA, GJ, EIy, EIz), its EM numbers and the EM line; None after an error."""
     err, estiff, em = r.err, r.estiff, r.em
     if ne not in estiff:
-        err.add(ln, "BEAM", f"element {ne} has flexible deformations {flex} but no ESTIFF line; add 'ESTIFF "
-                f"{ne} EA GJ EIy EIz'")
+        err.add(
+            ln,
+            "BEAM",
+            f"element {ne} has flexible deformations {flex} but no ESTIFF line; add 'ESTIFF {ne} EA GJ EIy EIz'",
+        )
         return None
     k, kln = estiff[ne]
     if len(k) < 4:
         err.add(kln, "ESTIFF", f"element {ne} is a beam: give EA GJ EIy EIz (got {len(k)} numbers)")
         return None
     if any(abs(s) > 0 for s in k[4:6]):
-        err.add(kln, "ESTIFF", f"element {ne}: shear flexibilities Sy, Sz = {k[4:6]} are not modelled (the "
-                "beam is Euler-Bernoulli); set them to 0")
+        err.add(
+            kln,
+            "ESTIFF",
+            f"element {ne}: shear flexibilities Sy, Sz = {k[4:6]} are not modelled (the "
+            "beam is Euler-Bernoulli); set them to 0",
+        )
     if len(k) > 6 and abs(k[6]) > 0:
-        err.add(kln, "ESTIFF", f"element {ne}: warping stiffness EIw = {k[6]} is not modelled per element; "
-                "set it to 0 (flexopt's rectangular sections take warping per member)")
+        err.add(
+            kln,
+            "ESTIFF",
+            f"element {ne}: warping stiffness EIw = {k[6]} is not modelled per element; "
+            "set it to 0 (flexopt's rectangular sections take warping per member)",
+        )
     EA, GJ, EIy, EIz = k[:4]
     if min(EA, GJ, EIy, EIz) <= 0:
         err.add(kln, "ESTIFF", f"element {ne}: EA, GJ, EIy, EIz must be positive, got {k[:4]}")
@@ -455,12 +521,19 @@ def _beam_stiffness(r: _Reader, ne: int, ln: int, flex: list[int]) -> tuple[list
         return None
     if len(m) >= 4:
         # flexopt's rotary inertia is rho (Iy, Iz) of the section: it must be SPACAR's numbers
-        for got, want, what in ((m[2], rhoA * EIy / EA, "rhoIy"), (m[3], rhoA * EIz / EA, "rhoIz"),
-                                (m[1], m[2] + m[3], "rho(Iy+Iz)")):
+        for got, want, what in (
+            (m[2], rhoA * EIy / EA, "rhoIy"),
+            (m[3], rhoA * EIz / EA, "rhoIz"),
+            (m[1], m[2] + m[3], "rho(Iy+Iz)"),
+        ):
             if abs(got - want) > 1e-6 * max(abs(want), 1e-300):
-                err.add(mln, "EM", f"element {ne}: {what} = {got:.6g} is not that of the section ({want:.6g} "
-                        "from rhoA and ESTIFF): flexopt derives rotary inertia from the section (a homogeneous "
-                        "material); give consistent numbers")
+                err.add(
+                    mln,
+                    "EM",
+                    f"element {ne}: {what} = {got:.6g} is not that of the section ({want:.6g} "
+                    "from rhoA and ESTIFF): flexopt derives rotary inertia from the section (a homogeneous "
+                    "material); give consistent numbers",
+                )
                 break
         if len(m) >= 5 and abs(m[4]) > 0:
             err.add(mln, "EM", f"element {ne}: a product of inertia rhoIyz = {m[4]} is not modelled; set 0")
@@ -479,8 +552,12 @@ def _beam(r: _Reader, ne: int, xp: int, rp: int, xq: int, rq: int, oy: list[floa
             err.add(ln, "BEAM", f"element {ne} has zero length: nodes {xp} and {xq} coincide")
             return
         if np.linalg.norm(y) == 0 or np.linalg.norm(np.cross(d / np.linalg.norm(d), y / np.linalg.norm(y))) < 1e-6:
-            err.add(ln, "BEAM", f"element {ne}: Oy = {tuple(oy)} is parallel to the beam's axis; give the section's "
-                    "y direction across the beam")
+            err.add(
+                ln,
+                "BEAM",
+                f"element {ne}: Oy = {tuple(oy)} is parallel to the beam's axis; give the section's "
+                "y direction across the beam",
+            )
             return
     flex = sorted(r.dyne.get(ne, set()))
     r.spacar_dof += len(flex)
@@ -510,8 +587,18 @@ def _beam(r: _Reader, ne: int, xp: int, rp: int, xq: int, rq: int, oy: list[floa
     mat = f"m{ne}"
     r.materials.append({"name": mat, "E": E, "G": G, "density": rhoA / A, "allowable_stress": E * ALLOWABLE_PER_E})
     rigid = [_MODE[i] for i in range(1, 7) if i not in flex]
-    r.elements.append({"kind": "beam", "name": f"b{ne}", "nodes": [r.rname(rp), r.rname(rq)], "material": mat,
-                       "section": section, "y_axis": list(oy), "segments": 1, "rigid": rigid})
+    r.elements.append(
+        {
+            "kind": "beam",
+            "name": f"b{ne}",
+            "nodes": [r.rname(rp), r.rname(rq)],
+            "material": mat,
+            "section": section,
+            "y_axis": list(oy),
+            "segments": 1,
+            "rigid": rigid,
+        }
+    )
 
 
 def _truss(r: _Reader, ne: int, xp: int, xq: int, ln: int) -> None:
@@ -526,8 +613,10 @@ def _truss(r: _Reader, ne: int, xp: int, xq: int, ln: int) -> None:
         # a rigid truss needs no stiffness; flexopt's trusses carry a section and mass: nominal ones
         estiff.setdefault(ne, ([NOMINAL_E * 1e-6], ln))
         em.setdefault(ne, ([7800 * 1e-6], ln))
-        r.notes.append(f"element {ne}: rigid truss without ESTIFF/EM: a nominal steel section of 1 mm^2 (EA "
-                       f"{NOMINAL_E * 1e-6:g} N, unused: rigid; mass 7.8e-3 kg/m: for a dynamic analysis give its EM)")
+        r.notes.append(
+            f"element {ne}: rigid truss without ESTIFF/EM: a nominal steel section of 1 mm^2 (EA "
+            f"{NOMINAL_E * 1e-6:g} N, unused: rigid; mass 7.8e-3 kg/m: for a dynamic analysis give its EM)"
+        )
     if ne not in estiff or ne not in em:
         err.add(ln, "TRUSS", f"element {ne} needs 'ESTIFF {ne} EA' and 'EM {ne} rhoA'")
         return
@@ -536,10 +625,25 @@ def _truss(r: _Reader, ne: int, xp: int, xq: int, ln: int) -> None:
         err.add(ln, "TRUSS", f"element {ne}: EA and rhoA must be positive")
         return
     mat = f"m{ne}"
-    r.materials.append({"name": mat, "E": NOMINAL_E, "G": NOMINAL_G, "density": rhoA * NOMINAL_E / EA,
-                        "allowable_stress": NOMINAL_E * ALLOWABLE_PER_E})
-    r.elements.append({"kind": "truss", "name": f"t{ne}", "nodes": [r.nname(xp), r.nname(xq)], "material": mat,
-                       "area": EA / NOMINAL_E, "rigid": [] if flex else ["elongation"]})
+    r.materials.append(
+        {
+            "name": mat,
+            "E": NOMINAL_E,
+            "G": NOMINAL_G,
+            "density": rhoA * NOMINAL_E / EA,
+            "allowable_stress": NOMINAL_E * ALLOWABLE_PER_E,
+        }
+    )
+    r.elements.append(
+        {
+            "kind": "truss",
+            "name": f"t{ne}",
+            "nodes": [r.nname(xp), r.nname(xq)],
+            "material": mat,
+            "area": EA / NOMINAL_E,
+            "rigid": [] if flex else ["elongation"],
+        }
+    )
 
 
 def _lumped_masses(r: _Reader) -> tuple[dict[int, float], dict[int, np.ndarray]]:
@@ -555,8 +659,9 @@ def _lumped_masses(r: _Reader) -> tuple[dict[int, float], dict[int, np.ndarray]]
                 r.find(n)
         elif r.role(n) == "R":
             if len(vals) != 6:
-                r.err.add(ln, "XM", f"node {n} is rotational: give Ixx Ixy Ixz Iyy Iyz Izz (6 numbers), got "
-                          f"{len(vals)}")
+                r.err.add(
+                    ln, "XM", f"node {n} is rotational: give Ixx Ixy Ixz Iyy Iyz Izz (6 numbers), got {len(vals)}"
+                )
             else:
                 a, b, c, d, e, f = vals
                 point_inertia[r.x_of[n]] = np.array([[a, b, c], [b, d, e], [c, e, f]])
@@ -596,14 +701,25 @@ def _bodies(r: _Reader) -> None:
             rr = c - com
             J += Jc + m * (float(rr @ rr) * np.eye(3) - np.outer(rr, rr))
         bname = f"body{members[0]}"
-        r.bodies.append({"name": bname, "mass": mtot, "center_of_mass": list(com), "inertia": J.tolist(),
-                         "nodes": [r.nname(n) for n in members]})
+        r.bodies.append(
+            {
+                "name": bname,
+                "mass": mtot,
+                "center_of_mass": list(com),
+                "inertia": J.tolist(),
+                "nodes": [r.nname(n) for n in members],
+            }
+        )
         for n in members:
             r.carrier[n] = bname
     for rn in r.extra:
         if r.x_of[rn] in r.carrier:
-            r.err.add(r.extra[rn][2], "BEAM", f"node {r.x_of[rn]} is part of a rigid body and carries a hinge: not "
-                      "mapped; hinge a flexible element's node instead")
+            r.err.add(
+                r.extra[rn][2],
+                "BEAM",
+                f"node {r.x_of[rn]} is part of a rigid body and carries a hinge: not "
+                "mapped; hinge a flexible element's node instead",
+            )
 
 
 def _fixes(r: _Reader) -> None:
@@ -620,8 +736,12 @@ def _fixes(r: _Reader) -> None:
         else:
             bad = [k for k in ks if k not in (1, 2, 3, 4)]
             if ks == [1]:
-                r.err.add(ln, "FIX", f"node {n}: fixing only the Euler parameter lambda0 fixes no rotation direction; "
-                          "fix components 2-4 (rx, ry, rz)")
+                r.err.add(
+                    ln,
+                    "FIX",
+                    f"node {n}: fixing only the Euler parameter lambda0 fixes no rotation direction; "
+                    "fix components 2-4 (rx, ry, rz)",
+                )
                 continue
             dofs = {("rx", "ry", "rz")[k - 2] for k in ks if k in (2, 3, 4)} if ks else {"rx", "ry", "rz"}
         if bad:
@@ -646,28 +766,47 @@ def _stroke(r: _Reader, moving: list, held_inputs: set) -> None:
         target = {"body": r.carrier[xn]} if xn in r.carrier else {"node": r.rname(n) if role == "R" else r.nname(xn)}
         if role == "X" and k in (1, 2, 3):
             lo, hi = sorted((0.0, val))
-            r.stroke = {"kind": "translation", **target, "axis": list(np.eye(3)[k - 1]), "start": lo, "stop": hi,
-                        "points": pts, "unit": "m"}
+            r.stroke = {
+                "kind": "translation",
+                **target,
+                "axis": list(np.eye(3)[k - 1]),
+                "start": lo,
+                "stop": hi,
+                "points": pts,
+                "unit": "m",
+            }
         elif role == "R" and k in (2, 3, 4):
             if abs(val) >= 1:
                 r.err.add(ln, "DELINPX", f"Euler parameter increment {val}: |value| must be below 1 (sin(angle/2))")
                 continue
             ang = math.degrees(2 * math.asin(val))
             lo, hi = sorted((0.0, ang))
-            r.stroke = {"kind": "rotation", **target, "axis": list(np.eye(3)[k - 2]), "start": lo, "stop": hi,
-                        "points": pts, "unit": "deg"}
-            r.notes.append(f"line {ln}: DELINPX {n} {k} {val}: rotation about {'xyz'[k - 2]} to {ang:.6g} deg "
-                           "(2 asin of the Euler parameter)")
+            r.stroke = {
+                "kind": "rotation",
+                **target,
+                "axis": list(np.eye(3)[k - 2]),
+                "start": lo,
+                "stop": hi,
+                "points": pts,
+                "unit": "deg",
+            }
+            r.notes.append(
+                f"line {ln}: DELINPX {n} {k} {val}: rotation about {'xyz'[k - 2]} to {ang:.6g} deg "
+                "(2 asin of the Euler parameter)"
+            )
         else:
-            r.err.add(ln, "DELINPX", f"node {n} ({role}) coordinate {k}: a stroke drives an X coordinate 1-3 or an R "
-                      "Euler parameter 2-4")
+            r.err.add(
+                ln,
+                "DELINPX",
+                f"node {n} ({role}) coordinate {k}: a stroke drives an X coordinate 1-3 or an R Euler parameter 2-4",
+            )
             continue
         held_inputs.discard((n, k))
         if role == "R":
             held_inputs.discard((n, 1))  # lambda0 follows from the others (normalisation)
         if r.stroke is not None:
             r.stroke["drive"] = "locked"
-            for dn, dks, dln in r.dynx:
+            for dn, dks, _dln in r.dynx:
                 if dn == n and k in dks:
                     r.stroke["drive"] = "free"  # the input is a dynamic degree of freedom: not locked in the eigen
 
@@ -676,7 +815,7 @@ def _inputs(r: _Reader) -> None:
     """INPUTX/DELINPX/DYNX: the stroke, and the inputs without an increment held (supported)."""
     moving = [d for d in r.delinp if abs(d[2]) > 0]
     if len(moving) > 1:
-        for n, k, val, ln in moving[1:]:
+        for _n, _k, _val, ln in moving[1:]:
             r.err.add(ln, "DELINPX", "a second input with an increment: flexopt drives one coordinate; keep one")
     held_inputs = {(n, k) for n, ks, _ in r.inputs for k in ks}
     input_line = {(n, k): ln for n, ks, ln in r.inputs for k in ks}
@@ -684,8 +823,12 @@ def _inputs(r: _Reader) -> None:
     stroke = r.stroke
     for dn, dks, dln in r.dynx:
         if not (stroke is not None and moving and dn == moving[0][0] and moving[0][1] in dks and len(dks) == 1):
-            r.err.add(dln, "DYNX", "only the input coordinate may be dynamic (the drive free in the eigen analysis); "
-                      "other dynamic coordinates are not mapped")
+            r.err.add(
+                dln,
+                "DYNX",
+                "only the input coordinate may be dynamic (the drive free in the eigen analysis); "
+                "other dynamic coordinates are not mapped",
+            )
     for n, k in sorted(held_inputs):
         role = r.role(n)
         xn = n if role == "X" else r.x_of.get(n)
@@ -706,8 +849,11 @@ def _supports(r: _Reader) -> None:
     for xn, dofs in sorted(r.fixed.items()):
         if xn in carrier:
             if dofs != {"x", "y", "z", "rx", "ry", "rz"}:
-                r.err.add(r.fix_line.get(xn, 0), "FIX", f"node {xn} is part of a rigid body ({carrier[xn]}): fix all "
-                          "its coordinates (X and R) or none")
+                r.err.add(
+                    r.fix_line.get(xn, 0),
+                    "FIX",
+                    f"node {xn} is part of a rigid body ({carrier[xn]}): fix all its coordinates (X and R) or none",
+                )
             elif carrier[xn] not in grounded:
                 grounded.add(carrier[xn])
                 r.supports.append({"body": carrier[xn]})
@@ -728,9 +874,16 @@ def _supports(r: _Reader) -> None:
 def _merge(r: _Reader) -> None:
     """Chains of equal collinear beams through free interior nodes: one member with that many segments."""
     x_of = r.x_of
-    special = set(r.fixed) | set(r.carrier) | set(r.xf) | set(r.delxf) | {n for n, _, _ in r.inputs} | \
-        {x_of.get(n, n) for n, _, _ in r.inputs} | {x_of.get(n, n) for n, _, _ in r.fixes} | \
-        {x_of[rn] for rn in r.hinged}
+    special = (
+        set(r.fixed)
+        | set(r.carrier)
+        | set(r.xf)
+        | set(r.delxf)
+        | {n for n, _, _ in r.inputs}
+        | {x_of.get(n, n) for n, _, _ in r.inputs}
+        | {x_of.get(n, n) for n, _, _ in r.fixes}
+        | {x_of[rn] for rn in r.hinged}
+    )
     r.elements, merged = _merge_chains(r.elements, r.materials, r.X, special)
     if merged:
         r.notes.append(f"{merged} chains of equal collinear beams read as members with segments (one member each)")
@@ -741,10 +894,17 @@ def _forces(r: _Reader) -> list[tuple[int, list[float], int]]:
     loads = []
     for n, (vals, ln) in r.xf.items():
         if r.role(n) == "R":
-            fmt = "3 values (since 2017)" if len(vals) == 3 else (
-                "4 Euler-parameter values (before 2017)" if len(vals) == 4 else f"{len(vals)} values")
-            r.err.add(ln, "XF", f"node {n} is rotational: a moment ({fmt} read) is not supported yet; apply it as "
-                      "a force pair on a rigid arm")
+            fmt = (
+                "3 values (since 2017)"
+                if len(vals) == 3
+                else ("4 Euler-parameter values (before 2017)" if len(vals) == 4 else f"{len(vals)} values")
+            )
+            r.err.add(
+                ln,
+                "XF",
+                f"node {n} is rotational: a moment ({fmt} read) is not supported yet; apply it as "
+                "a force pair on a rigid arm",
+            )
             continue
         if r.role(n) != "X" or len(vals) != 3:
             r.err.add(ln, "XF", f"node {n}: give a force 'XF n fx fy fz' on a translational node")
@@ -752,8 +912,9 @@ def _forces(r: _Reader) -> list[tuple[int, list[float], int]]:
         loads.append((n, vals, ln))
     for n, (vals, ln) in r.delxf.items():
         if r.role(n) != "X" or len(vals) != 3:
-            r.err.add(ln, "DELXF", f"node {n}: give 'DELXF n dfx dfy dfz' on a translational node (moments are not "
-                      "supported)")
+            r.err.add(
+                ln, "DELXF", f"node {n}: give 'DELXF n dfx dfy dfz' on a translational node (moments are not supported)"
+            )
     return loads
 
 
@@ -762,7 +923,7 @@ def _loads(r: _Reader) -> None:
     loads = _forces(r)
     delxf, stroke = r.delxf, r.stroke
     done = set()
-    for n, vals, ln in loads + [(n, [0.0, 0.0, 0.0], ln) for n, (_, ln) in delxf.items() if n not in r.xf]:
+    for n, vals, _ln in loads + [(n, [0.0, 0.0, 0.0], ln) for n, (_, ln) in delxf.items() if n not in r.xf]:
         if n in done or r.role(n) != "X":
             continue
         done.add(n)
@@ -786,19 +947,34 @@ def _loads(r: _Reader) -> None:
 def _scene(r: _Reader, name: str) -> dict:
     """The scene dict: the nodes the kept elements, bodies and joints use, and every part assembled."""
     X, x_of = r.X, r.x_of
-    node_list = sorted({xp for _, xp, _, _, _, _, _ in r.beams} | {xq for _, _, _, xq, _, _, _ in r.beams}
-                       | {xp for _, xp, _, _ in r.trusses} | {xq for _, _, xq, _ in r.trusses})
+    node_list = sorted(
+        {xp for _, xp, _, _, _, _, _ in r.beams}
+        | {xq for _, _, _, xq, _, _, _ in r.beams}
+        | {xp for _, xp, _, _ in r.trusses}
+        | {xq for _, _, xq, _ in r.trusses}
+    )
     for xn in X:
         if xn not in node_list:
             r.notes.append(f"node {xn} is declared but used by no element: left out")
-    kept = {n for e in r.elements for n in e["nodes"]} | {n for b in r.bodies for n in b["nodes"]} | \
-        {n for j in r.joints for n in j["nodes"]}
+    kept = (
+        {n for e in r.elements for n in e["nodes"]}
+        | {n for b in r.bodies for n in b["nodes"]}
+        | {n for j in r.joints for n in j["nodes"]}
+    )
     node_list = [xn for xn in node_list if r.nname(xn) in kept]
     r.materials = [m for m in r.materials if m["name"] in {e["material"] for e in r.elements}]
     scene = {
         "name": name,
-        "materials": r.materials or [{"name": "none", "E": NOMINAL_E, "G": NOMINAL_G, "density": 7800.0,
-                                      "allowable_stress": NOMINAL_E * ALLOWABLE_PER_E}],
+        "materials": r.materials
+        or [
+            {
+                "name": "none",
+                "E": NOMINAL_E,
+                "G": NOMINAL_G,
+                "density": 7800.0,
+                "allowable_stress": NOMINAL_E * ALLOWABLE_PER_E,
+            }
+        ],
         "nodes": [{"name": r.nname(xn), "position": list(X[xn][0])} for xn in node_list if xn in X]
         + [{"name": r.rname(rn), "position": list(X[x_of[rn]][0])} for rn in sorted(r.extra) if rn in r.hinged],
         "bodies": r.bodies,
@@ -841,8 +1017,10 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
     if not any(e for e in r.elements):
         raise SceneError("spacar", "the file has no flexible element (every beam is rigid); nothing to analyse")
     if r.materials:
-        r.notes.append(f"allowable stress: not in SPACAR files; set to E/{round(1 / ALLOWABLE_PER_E)} per element "
-                       "material (edit 'allowable_stress' in the scene)")
+        r.notes.append(
+            f"allowable stress: not in SPACAR files; set to E/{round(1 / ALLOWABLE_PER_E)} per element "
+            "material (edit 'allowable_stress' in the scene)"
+        )
     if not any(c for c in r.crossdim) and r.elements:
         r.notes.append("no CROSSDIM: the file gives stiffness only, so stresses are not available (NaN)")
     spacar_dof = r.spacar_dof
@@ -851,8 +1029,7 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
     return SpacarImport(scene=scene, mapped=r.mapped, notes=r.notes, numbering=r.numbering, spacar_dof=spacar_dof)
 
 
-def _merge_chains(elements: list[dict], materials: list[dict], X: dict, special: set[int]
-                  ) -> tuple[list[dict], int]:
+def _merge_chains(elements: list[dict], materials: list[dict], X: dict, special: set[int]) -> tuple[list[dict], int]:
     """Beams that continue each other (same section, material, flexible set and Oy, collinear, equal lengths)
     through an interior X node that nothing else uses become one member with ``segments``: flexopt meshes a
     member into equal segments at the same positions, so the model is the same, read as the user drew it."""
@@ -863,9 +1040,17 @@ def _merge_chains(elements: list[dict], materials: list[dict], X: dict, special:
             use.setdefault(n, []).append(i)
 
     def key(e: dict) -> tuple:
-        return (e["kind"], repr(sorted(e.get("section", {}).items())), repr(sorted(mats[e["material"]].items())),
-                tuple(e.get("rigid", ())), tuple(np.round(np.array(e.get("y_axis", (0, 0, 0))) /
-                                                          max(np.linalg.norm(e.get("y_axis", (1, 0, 0))), 1e-300), 15)))
+        return (
+            e["kind"],
+            repr(sorted(e.get("section", {}).items())),
+            repr(sorted(mats[e["material"]].items())),
+            tuple(e.get("rigid", ())),
+            tuple(
+                np.round(
+                    np.array(e.get("y_axis", (0, 0, 0))) / max(np.linalg.norm(e.get("y_axis", (1, 0, 0))), 1e-300), 15
+                )
+            ),
+        )
 
     def pos(name: str) -> np.ndarray:
         return np.array(X[int(name[1:])][0], dtype=float)
@@ -963,11 +1148,13 @@ def _write_points(scene, w: _Writer) -> None:
             raise SceneError(f"joints.{j.name}", f"a {j.kind} has no SPACAR element mapped here; export hinges only")
         p_, q_ = j.nodes
         if float(np.linalg.norm(pos[p_] - pos[q_])) > 1e-12 * max(1.0, float(np.abs(pos[p_]).max())):
-            raise SceneError(f"joints.{j.name}", "a SPACAR HINGE joins two rotations at one point: its nodes must "
-                             "coincide to export")
+            raise SceneError(
+                f"joints.{j.name}", "a SPACAR HINGE joins two rotations at one point: its nodes must coincide to export"
+            )
         if p_ in w.carrier or q_ in w.carrier:
-            raise SceneError(f"joints.{j.name}", "a hinge at a body's node is not exported; hinge flexible "
-                             "elements' nodes")
+            raise SceneError(
+                f"joints.{j.name}", "a hinge at a body's node is not exported; hinge flexible elements' nodes"
+            )
         w.share[q_] = w.share.get(p_, p_)
 
 
@@ -1022,16 +1209,22 @@ def _write_bodies(scene, w: _Writer, lines: list[str], props_lines: list[str], n
             ne += 1
             d = pos[n] - pos[c]
             if np.linalg.norm(d) <= 1e-12 * max(1.0, float(np.abs(pos[c]).max())):
-                raise SceneError(f"bodies.{b.name}", f"nodes '{n}' and '{c}' of body '{b.name}' coincide: SPACAR "
-                                 "needs a rigid beam of nonzero length between them; merge them")
+                raise SceneError(
+                    f"bodies.{b.name}",
+                    f"nodes '{n}' and '{c}' of body '{b.name}' coincide: SPACAR "
+                    "needs a rigid beam of nonzero length between them; merge them",
+                )
             t = np.eye(3)[int(np.argmin(np.abs(d)))]
             y = t - (t @ d) * d / (d @ d)
-            lines.append(f"BEAM {ne} {X(c)} {R(c)} {X(n)} {R(n)} {_fmt(y[0])} {_fmt(y[1])} {_fmt(y[2])}  "
-                         f"# rigid link of body {b.name}")
+            lines.append(
+                f"BEAM {ne} {X(c)} {R(c)} {X(n)} {R(n)} {_fmt(y[0])} {_fmt(y[1])} {_fmt(y[2])}  "
+                f"# rigid link of body {b.name}"
+            )
         props_lines.append(f"XM {X(c)} {_fmt(b.mass)}")
         J = np.array(b.inertia, dtype=float)
-        props_lines.append(f"XM {R(c)} " + " ".join(_fmt(v) for v in (J[0, 0], J[0, 1], J[0, 2], J[1, 1], J[1, 2],
-                                                                     J[2, 2])))
+        props_lines.append(
+            f"XM {R(c)} " + " ".join(_fmt(v) for v in (J[0, 0], J[0, 1], J[0, 2], J[1, 1], J[1, 2], J[2, 2]))
+        )
     return ne
 
 
@@ -1058,12 +1251,16 @@ def _write_stroke(st, w: _Writer, lines: list[str]) -> None:
     axis = np.array(st.axis, dtype=float) / np.linalg.norm(st.axis)
     k = int(np.argmax(np.abs(axis)))
     if abs(abs(axis[k]) - 1) > 1e-12:
-        raise SceneError("stroke.axis", "SPACAR inputs are coordinates: the drive axis must be a coordinate "
-                         "axis to export")
+        raise SceneError(
+            "stroke.axis", "SPACAR inputs are coordinates: the drive axis must be a coordinate axis to export"
+        )
     vals = st.values()
     if vals[0] != 0 and vals[-1] != 0:
-        raise SceneError("stroke.start", f"a SPACAR input runs from the reference (0) to its increment; the "
-                         f"stroke runs {vals[0]:g} to {vals[-1]:g}: set start or stop to 0 to export")
+        raise SceneError(
+            "stroke.start",
+            f"a SPACAR input runs from the reference (0) to its increment; the "
+            f"stroke runs {vals[0]:g} to {vals[-1]:g}: set start or stop to 0 to export",
+        )
     end = float(vals[-1] if vals[-1] != 0 else vals[0]) * float(np.sign(axis[k]))
     target = w.center[st.body] if st.body is not None else st.node
     if st.kind == "rotation":
@@ -1083,11 +1280,13 @@ def _write_loads(scene, w: _Writer, lines: list[str]) -> None:
         if ld.table is not None:
             raise SceneError("loads.table", "a load table has no SPACAR form (XF + DELXF is linear); use a ramp")
         if ld.body is not None or ld.point is not None:
-            raise SceneError("loads.body", "a load on a body has no node in the exported file; load one of the "
-                             "body's nodes instead")
+            raise SceneError(
+                "loads.body", "a load on a body has no node in the exported file; load one of the body's nodes instead"
+            )
         if ld.node in w.carrier:
-            raise SceneError("loads.node", f"node '{ld.node}' is carried by a body; load it through a node of a "
-                             "flexible element")
+            raise SceneError(
+                "loads.node", f"node '{ld.node}' is carried by a body; load it through a node of a flexible element"
+            )
         if ld.force is not None:
             lines.append(f"XF {w.X(ld.node)} " + " ".join(_fmt(v) for v in ld.force))
         else:
@@ -1119,8 +1318,9 @@ def write_dat(scene, numbering: int = 2) -> str:
     if numbering not in (2, 3):
         raise SceneError("numbering", f"numbering must be 2 or 3 SPACAR nodes per point, got {numbering}")
     lines = [f"# {scene.name}: written by flexopt (model.spacar.write_dat); SI units", ""]
-    w = _Writer(numbering, {n.name: np.array(n.position, dtype=float) for n in scene.nodes},
-                [n.name for n in scene.nodes])
+    w = _Writer(
+        numbering, {n.name: np.array(n.position, dtype=float) for n in scene.nodes}, [n.name for n in scene.nodes]
+    )
     _write_points(scene, w)
     for name in w.order:
         if name in w.share:
@@ -1135,8 +1335,9 @@ def write_dat(scene, numbering: int = 2) -> str:
     for j in scene.joints:
         ne += 1
         a = np.array(j.axis, dtype=float)
-        lines.append(f"HINGE {ne} {w.R(j.nodes[0])} {w.R(j.nodes[1])} {_fmt(a[0])} {_fmt(a[1])} {_fmt(a[2])}  "
-                     f"# {j.name}")
+        lines.append(
+            f"HINGE {ne} {w.R(j.nodes[0])} {w.R(j.nodes[1])} {_fmt(a[0])} {_fmt(a[1])} {_fmt(a[2])}  # {j.name}"
+        )
         props_lines.append(f"RLSE {ne} 1")
     lines += [""] + props_lines + [""]
     _write_supports(scene, w, lines)
@@ -1152,18 +1353,54 @@ def write_dat(scene, numbering: int = 2) -> str:
 
 # ------------------------------------------------------------------------------- SPACAR Light tables (item 4)
 #: nprops fields mapped by :func:`spacar_light` (SPACAR Light's names; supports, inputs, loads, masses).
-NPROPS_FIELDS = ("fix", "fix_pos", "fix_orien", "fix_x", "fix_y", "fix_z", "displ_x", "displ_y", "displ_z",
-                 "rot_x", "rot_y", "rot_z", "force", "mass", "mominertia")
+NPROPS_FIELDS = (
+    "fix",
+    "fix_pos",
+    "fix_orien",
+    "fix_x",
+    "fix_y",
+    "fix_z",
+    "displ_x",
+    "displ_y",
+    "displ_z",
+    "rot_x",
+    "rot_y",
+    "rot_z",
+    "force",
+    "mass",
+    "mominertia",
+)
 #: eprops fields mapped by :func:`spacar_light`.
-EPROPS_FIELDS = ("elems", "emod", "smod", "dens", "cshape", "dim", "orien", "nbeams", "flex", "color", "name",
-                 "hide", "opacity")
+EPROPS_FIELDS = (
+    "elems",
+    "emod",
+    "smod",
+    "dens",
+    "cshape",
+    "dim",
+    "orien",
+    "nbeams",
+    "flex",
+    "color",
+    "name",
+    "hide",
+    "opacity",
+)
 
 
-def _light_elements(P: np.ndarray, E_: np.ndarray, eprops, new_point, lines: list[str], props: list[str],
-                    vis: list[str], errors: list[str]) -> None:
+def _light_elements(
+    P: np.ndarray,
+    E_: np.ndarray,
+    eprops,
+    new_point,
+    lines: list[str],
+    props: list[str],
+    vis: list[str],
+    errors: list[str],
+) -> None:
     """SPACAR Light's elements and eprops as BEAM lines (``nbeams`` per element, interior points from
     ``new_point``) with ESTIFF, EM, DYNE and CROSSDIM."""
-    xn = (lambda i: 2 * i - 1)
+    xn = lambda i: 2 * i - 1
     set_of: dict[int, dict] = {}
     for k, es in enumerate(eprops or [], start=1):
         bad = sorted(set(es) - set(EPROPS_FIELDS))
@@ -1195,10 +1432,14 @@ def _light_elements(P: np.ndarray, E_: np.ndarray, eprops, new_point, lines: lis
         chain = [a] + [new_point(P[a - 1] + (P[b - 1] - P[a - 1]) * k / n) for k in range(1, n)] + [b]
         for p_, q_ in itertools.pairwise(chain):
             ne += 1
-            lines.append(f"BEAM {ne} {xn(p_)} {xn(p_) + 1} {xn(q_)} {xn(q_) + 1} {_fmt(orien[0])} {_fmt(orien[1])} "
-                         f"{_fmt(orien[2])}")
-            props += [f"ESTIFF {ne} {_fmt(Em * A)} {_fmt(G * J)} {_fmt(Em * Iy)} {_fmt(Em * Iz)} 0 0",
-                      f"EM {ne} {_fmt(rho * A)} {_fmt(rho * (Iy + Iz))} {_fmt(rho * Iy)} {_fmt(rho * Iz)} 0"]
+            lines.append(
+                f"BEAM {ne} {xn(p_)} {xn(p_) + 1} {xn(q_)} {xn(q_) + 1} {_fmt(orien[0])} {_fmt(orien[1])} "
+                f"{_fmt(orien[2])}"
+            )
+            props += [
+                f"ESTIFF {ne} {_fmt(Em * A)} {_fmt(G * J)} {_fmt(Em * Iy)} {_fmt(Em * Iz)} 0 0",
+                f"EM {ne} {_fmt(rho * A)} {_fmt(rho * (Iy + Iz))} {_fmt(rho * Iy)} {_fmt(rho * Iz)} 0",
+            ]
             if flex:
                 props.append(f"DYNE {ne} " + " ".join(map(str, flex)))
             vis.append(f"CROSSDIM {ne} {_fmt(w)} {_fmt(t)}")
@@ -1206,7 +1447,7 @@ def _light_elements(P: np.ndarray, E_: np.ndarray, eprops, new_point, lines: lis
 
 def _light_nodes(nprops: list, props: list[str], errors: list[str]) -> None:
     """SPACAR Light's nprops as FIX, INPUTX/DELINPX, XF and XM lines (user node i: X 2i-1, R 2i)."""
-    xn = (lambda i: 2 * i - 1)
+    xn = lambda i: 2 * i - 1
     inputs = 0
     for i, npr in enumerate(nprops, start=1):
         if not npr:
@@ -1262,7 +1503,7 @@ def spacar_light(nodes, elements, nprops, eprops, opt: dict | None = None, name:
     nprops = list(nprops or [])
     opt = dict(opt or {})
     lines = [f"# {name}: SPACAR Light tables written as a .dat model by flexopt"]
-    xn = (lambda i: 2 * i - 1)
+    xn = lambda i: 2 * i - 1
     count = len(P)
 
     def new_point(p: np.ndarray) -> int:
@@ -1283,8 +1524,10 @@ def spacar_light(nodes, elements, nprops, eprops, opt: dict | None = None, name:
         props.append(f"ITERSTEP {int(opt['loadsteps'])}")
     bad = sorted(set(opt) - {"gravity", "loadsteps", "filename", "silent", "showinputonly"})
     if bad:
-        errors.append(f"opt: fields {bad} are not mapped (mapped: gravity, loadsteps; filename, silent, "
-                      "showinputonly are ignored)")
+        errors.append(
+            f"opt: fields {bad} are not mapped (mapped: gravity, loadsteps; filename, silent, "
+            "showinputonly are ignored)"
+        )
     if errors:
         raise SpacarError(errors)
     text = "\n".join(lines + props + ["END"] + vis + ["END", "HALT"]) + "\n"
