@@ -284,6 +284,9 @@ class ModesOut(_Wire):
     modes: list[ModeShapeOut]
     warnings: list[WarningOut] = Field(default_factory=list)
     conventions: dict[str, str]
+    provenance: dict[str, Any] = Field(
+        default_factory=dict, description="flexopt version, scene hash, settings, the units the scene was read in"
+    )
 
 
 class FieldError(_Wire):

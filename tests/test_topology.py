@@ -285,7 +285,15 @@ def test_search_restricted_to_each_other_family_reproduces_its_optimum(name: str
     from flexopt.optim.topology import FAMILIES, run_topology_search
     from flexopt.optim.topology.rank import TopologySpec, family_problem
 
-    raw = {"topologies": [FAMILIES[name]], "segments": 4, "samples": 5, "verify_points": 31, "refine_rounds": 1}
+    # shared dimensions: the family template has one set for all stages, so the identical problem shares them too
+    raw = {
+        "topologies": [FAMILIES[name]],
+        "segments": 4,
+        "samples": 5,
+        "verify_points": 31,
+        "refine_rounds": 1,
+        "dimensions": "shared",
+    }
     best = run_topology_search(raw, workers=1)["best"]
     assert best is not None and best["family"] == name, best
     ref = optimise(family_problem(name, FAMILIES[name], TopologySpec(**raw)), workers=1)["ranking"][0]["worst_hz"]

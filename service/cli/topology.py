@@ -146,11 +146,14 @@ def table(result: dict) -> str:
         zero = ref.get("zero_stroke_hz", r["zero_stroke_hz"])
         ratio = ref.get("ratio", r["ratio"])
         stress = ref.get("stress_ratio", r.get("stress_ratio"))
+        stress_text = "-" if stress is None else f"{stress:.3f}"  # a result without a stress check shows '-'
+        kkt = r.get("kkt_residual")
+        kkt_text = "-" if kkt is None else f"{kkt:.1e}"
         me = f"{ref['mesh_error']:.1e}" if ref.get("mesh_error") is not None else "-"
         lines.append(
             f"{i:>4}  {name:<17} {r['family'] or '-':<24} {r['dof']:>3}  {r['overconstraints']:>11}  "
-            f"{worst:>10.2f} {zero:>10.2f}  {ratio:>10.3f}  {stress:>6.3f}  {me:>10}  "
-            f"{r['kkt_residual']:.1e}  {design}"
+            f"{worst:>10.2f} {zero:>10.2f}  {ratio:>10.3f}  {stress_text:>6}  {me:>10}  "
+            f"{kkt_text}  {design}"
         )
         lines += [f"      ! {w['message']}" for w in r.get("warnings", []) if w.get("kind") in ("stress", "mesh")]
     if any(by_name[n].get("refined") for n in result["ranking"]):

@@ -93,7 +93,7 @@ def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
     spec = json.loads(job["spec"])
     cancel, interrupted = threading.Event(), threading.Event()
     partial: list[dict] = []
-    latest: dict = {}  # the last progress event ({done, total}), written again with the verdict
+    latest: dict = {}  # the last progress written ({done, total} and a search's phase, counts, best), again with the verdict
     cases = store.case_dir()
 
     def stop_outside() -> None:
@@ -120,18 +120,18 @@ def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
             time.sleep(0.3)
 
     def progress(event: dict) -> None:
-        latest.update(done=event["done"], total=event["total"])
+        # a topology search adds its phase, its counts (screened, passed, ...) and the best so far
+        shown = {
+            "done": event["done"],
+            "total": event["total"],
+            **{k: event[k] for k in ("phase", "counts", "best") if k in event},
+        }
+        latest.update(shown)
         try:
             partial.append(_summary(json.loads((cases / f"{event['id']}.json").read_text())))
         except (OSError, json.JSONDecodeError):
             pass
         try:  # best effort: a database busy for longer than its timeout must not fail the optimisation
-            # a topology search adds its phase, its counts (screened, passed, ...) and the best so far
-            shown = {
-                "done": event["done"],
-                "total": event["total"],
-                **{k: event[k] for k in ("phase", "counts", "best") if k in event},
-            }
             store.update(
                 job_id,
                 attempt,
@@ -188,7 +188,9 @@ def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
         reasons = "no verified point: " + "; ".join(w["message"] for w in result.get("warnings", []))[:2000]
     verdict = {"status": "failed", "error": reasons} if reasons is not None else {"status": "succeeded"}
     if latest:  # progress writes are best effort: one lost in an outage at the end is written with the verdict
-        verdict.update(progress=json.dumps(latest), partial=json.dumps(finite(partial), allow_nan=False))
+        verdict.update(
+            progress=json.dumps(finite(latest), allow_nan=False), partial=json.dumps(finite(partial), allow_nan=False)
+        )
     for wait in (0.5, 1, 2, 4, 8, 16, 30):  # the verdict outlasts a busy or briefly unreachable database
         try:
             store.update(job_id, attempt, result=blob, **verdict)
