@@ -15,11 +15,11 @@ import numpy as np
 
 from . import linalg
 from .elements import beam_mass_spec, beam_spec, joint_spec, rotation_log_spec, rotation_update_spec, truss_spec
-from .kernels import c_enum, compiled
+from .kernels import CompiledKernel, c_enum, compiled
 from .rotations import log_so3, skew, twist_angle, twist_gradient
 from .structure import Structure
 
-__all__ = ["State", "Assembled", "System", "NativeRoute", "MASS_SLOTS"]
+__all__ = ["State", "Assembled", "System", "NativeRoute", "ASSEMBLE_SLOTS", "MASS_SLOTS"]
 
 _ASSEMBLER: list = []
 
@@ -679,9 +679,10 @@ class System:
         return np.einsum("e,ab,eaik,ebil->eakbl", mass, self.mcoef, T, T).ravel()
 
 
-#: The slots of the compiled mass's context (``mass_matrix`` of model/native/assemble.c), in order: the one list of
-#: them, which the C source sees as an enum of the same names upper-cased (:func:`assemble_source_definitions`).
-MASS_SLOTS = (
+#: The slots of ``assemble``'s arguments (model/native/assemble.c: the kernel, the sizes, the gather and scatter
+#: indices, the node offsets and their rotated copies), in the order both compiled contexts lay them out: the mass
+#: routine's (:data:`MASS_SLOTS`) and the Newton loop's (:data:`model.statics.LOOP_SLOTS`), stated once here.
+ASSEMBLE_SLOTS = (
     "kernel",
     "ne",
     "n_in",
@@ -698,6 +699,12 @@ MASS_SLOTS = (
     "node_offset",
     "nodes",
     "offsets",
+)
+
+#: The slots of the compiled mass's context (``mass_matrix`` of model/native/assemble.c), in order: the one list of
+#: them, which the C source sees as an enum of the same names upper-cased (:func:`assemble_source_definitions`).
+MASS_SLOTS = (
+    *ASSEMBLE_SLOTS,
     "mass_const",
     "node_inertia",
     "masters",
@@ -907,6 +914,39 @@ class NativeRoute:
             new.lam += dlam
         return new
 
+    # ------------------------------------------------- the shared context
+    def _assemble_slots(self, kernel: CompiledKernel, kernel_in: int) -> tuple[dict[str, int], list[np.ndarray]]:
+        """The values of :data:`ASSEMBLE_SLOTS` (``assemble``'s arguments for ``kernel``, its inputs gathered at
+        ``kernel_in``), the part the mass's and the Newton loop's contexts share, with the node arrays they point
+        to (node masters, offsets and the rotated offsets' buffer), which the caller keeps referenced."""
+        sys = self.sys
+        s = sys.s
+        _, end_master, end_node, dofs, dofs_full, flat = self.assemble_call
+        nodes = [
+            np.ascontiguousarray(s.node_master, dtype=np.int64),
+            np.ascontiguousarray(s.node_offset, dtype=np.float64),
+            np.zeros((len(s.node_master), 3)),  # the rotated offsets
+        ]
+        slots = {
+            "kernel": kernel.address,
+            "ne": s.n_beams,
+            "n_in": kernel.n_in,
+            "n_out": kernel.n_out,
+            "end_master": end_master,
+            "end_node": end_node,
+            "kernel_in": kernel_in,
+            "dofs": dofs,
+            "dofs_full": dofs_full,
+            "flat": flat,
+            "n_ext": sys.N,
+            "n_full": sys.n_full,
+            "node_master": nodes[0].ctypes.data,
+            "node_offset": nodes[1].ctypes.data,
+            "nodes": len(s.node_master),
+            "offsets": nodes[2].ctypes.data,
+        }
+        return slots, nodes
+
     # ---------------------------------------------------------------- mass
     def mass_context(self) -> int | None:
         """The address of the compiled mass's context (``mass_matrix``, one slot per :data:`MASS_SLOTS`), made
@@ -919,11 +959,10 @@ class NativeRoute:
             ctx = None
             if self.assemble_call is not None and sys.beam_mass_kernel.address is not None and not sys._mvar:
                 s, N = sys.s, sys.N
-                _, end_master, end_node, dofs, dofs_full, flat = self.assemble_call
+                k = sys.beam_mass_kernel
+                slots, nodes = self._assemble_slots(k, self.mass_in_at)
                 keep = [
-                    np.ascontiguousarray(s.node_master, dtype=np.int64),
-                    np.ascontiguousarray(s.node_offset, dtype=np.float64),
-                    np.zeros((len(s.node_master), 3)),
+                    *nodes,
                     np.ascontiguousarray(sys._mass_const, dtype=np.float64),
                     np.ascontiguousarray(s.node_rot_inertia, dtype=np.float64),
                     np.ascontiguousarray(s.master_inertia, dtype=np.float64),
@@ -931,31 +970,14 @@ class NativeRoute:
                     np.zeros(9 * len(s.master_names)),
                 ]
                 at = [a.ctypes.data for a in keep]
-                k = sys.beam_mass_kernel
-                slots = {
-                    "kernel": k.address,
-                    "ne": s.n_beams,
-                    "n_in": k.n_in,
-                    "n_out": k.n_out,
-                    "end_master": end_master,
-                    "end_node": end_node,
-                    "kernel_in": self.mass_in_at,
-                    "dofs": dofs,
-                    "dofs_full": dofs_full,
-                    "flat": flat,
-                    "n_ext": N,
-                    "n_full": sys.n_full,
-                    "node_master": at[0],
-                    "node_offset": at[1],
-                    "nodes": len(s.node_master),
-                    "offsets": at[2],
-                    "mass_const": at[3],
-                    "node_inertia": at[4],
-                    "masters": len(s.master_names),
-                    "body_inertia": at[5] if sys._has_body_inertia else 0,
-                    "rot_flat": at[6],
-                    "inertia_work": at[7],
-                }
+                slots.update(
+                    mass_const=at[3],
+                    node_inertia=at[4],
+                    masters=len(s.master_names),
+                    body_inertia=at[5] if sys._has_body_inertia else 0,
+                    rot_flat=at[6],
+                    inertia_work=at[7],
+                )
                 if set(slots) != set(MASS_SLOTS):
                     raise ValueError(f"the mass context has slots {sorted(set(slots) ^ set(MASS_SLOTS))} on one side")
                 c = np.array([slots[name] for name in MASS_SLOTS], dtype=np.int64)
@@ -1021,13 +1043,11 @@ class NativeRoute:
 
             s, N = sys.s, sys.N
             lib = _assembler()[0]
-            fn, end_master, end_node, dofs, dofs_full, flat = self.assemble_call
             upd, rot_update, act, moving, rin, rout = self.update_call
             nm, nmov = len(s.master_names), len(sys._rot_masters)
+            slots, nodes = self._assemble_slots(sys.beam_kernel, self.beam_in_at)
             keep = [
-                np.ascontiguousarray(s.node_master, dtype=np.int64),
-                np.ascontiguousarray(s.node_offset, dtype=np.float64),
-                np.zeros((len(s.node_master), 3)),  # the rotated offsets
+                *nodes,
                 np.ascontiguousarray(sys._chart_flat, dtype=np.int64),
                 np.ascontiguousarray(sys._chart_src, dtype=np.int64),
                 np.ascontiguousarray(sys._chart_sign, dtype=np.float64),
@@ -1041,22 +1061,7 @@ class NativeRoute:
             self._keep["point"] = keep
             self._parts = {
                 "assemble": ctypes.cast(lib.assemble, ctypes.c_void_p).value,
-                "kernel": sys.beam_kernel.address,
-                "ne": s.n_beams,
-                "n_in": sys.beam_kernel.n_in,
-                "n_out": sys.beam_kernel.n_out,
-                "end_master": end_master,
-                "end_node": end_node,
-                "kernel_in": self.beam_in_at,
-                "dofs": dofs,
-                "dofs_full": dofs_full,
-                "flat": flat,
-                "n_ext": N,
-                "n_full": sys.n_full,
-                "node_master": at[0],
-                "node_offset": at[1],
-                "nodes": len(s.node_master),
-                "offsets": at[2],
+                **slots,
                 "update": ctypes.cast(lib.update_state, ctypes.c_void_p).value,
                 "rot_update": rot_update,
                 "masters": nm,

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import linalg
-from .assembly import Assembled, State, System
+from .assembly import ASSEMBLE_SLOTS, Assembled, State, System
 from .kernels import c_enum
 from .lapack import routines
 
@@ -196,22 +196,7 @@ def _compiled_step(sys: System, ns, ev: Assembled, st: State, s_target: float, n
 #: (inc, res), 9 the predictor met a relative rotation near pi (the caller predicts in Python).
 LOOP_SLOTS = (
     "assemble",
-    "kernel",
-    "ne",
-    "n_in",
-    "n_out",
-    "end_master",
-    "end_node",
-    "kernel_in",
-    "dofs",
-    "dofs_full",
-    "flat",
-    "n_ext",
-    "n_full",
-    "node_master",
-    "node_offset",
-    "nodes",
-    "offsets",
+    *ASSEMBLE_SLOTS,
     "update",
     "rot_update",
     "masters",
