@@ -52,7 +52,7 @@ from typing import Any
 import numpy as np
 
 from .results import FrequencyCurve, ResultWarning
-from .scene import Beam, RectangularSection, Scene
+from .scene import Beam, Material, RectangularSection, Scene, Stroke
 
 __all__ = [
     "SLENDER_MIN",
@@ -361,44 +361,60 @@ def units_warnings(scene: Scene) -> list[ResultWarning]:
     """
     out: list[ResultWarning] = []
     for m in scene.materials:
-        if m.allowable_stress > ALLOWABLE_OVER_E_MAX * m.E:
-            out.append(
-                ResultWarning(
-                    "units",
-                    f"material '{m.name}': allowable stress {m.allowable_stress:.4g} Pa is "
-                    f"{m.allowable_stress / m.E:.3g} times E = {m.E:.4g} Pa; E and the allowable stress look as if "
-                    "given in different units (E in MPa?); give both in Pa or add a units block",
-                    value=m.allowable_stress / m.E,
-                )
-            )
-        c = math.sqrt(m.E / m.density)
-        if not WAVE_SPEED[0] <= c <= WAVE_SPEED[1]:
-            read = input_units(scene)
-            how = (
-                "E [Pa] and density [kg/m^3] look as if given in other units; fix them or add a units block"
-                if read is None
-                else f"the scene's E was read in {read['stress']} and its density in "
-                f"{read['density']}; give them in those units or name theirs in the units block"
-            )
-            out.append(
-                ResultWarning(
-                    "units",
-                    f"material '{m.name}': sqrt(E / density) = {c:.4g} m/s is outside the {WAVE_SPEED[0]:g} "
-                    f"to {WAVE_SPEED[1]:g} m/s of solids; {how}",
-                    value=c,
-                )
-            )
-        if not G_OVER_E[0] <= m.G / m.E <= G_OVER_E[1]:
-            out.append(
-                ResultWarning(
-                    "units",
-                    f"material '{m.name}': G / E = {m.G / m.E:.3g} (isotropic solids: 1/3 to 1/2); E and G "
-                    "look as if given in different units",
-                    value=m.G / m.E,
-                )
-            )
+        out += _material_units(scene, m)
     pos = np.array([n.position for n in scene.nodes], dtype=float)
     extent = float(np.ptp(pos, axis=0).max())
+    out += _extent_units(extent)
+    if scene.stroke is not None:
+        out += _stroke_units(scene.stroke, extent)
+    return out
+
+
+def _material_units(scene: Scene, m: Material) -> list[ResultWarning]:
+    """``units`` warnings of material ``m`` of ``scene``: allowable / E, sqrt(E / density) and G / E."""
+    out: list[ResultWarning] = []
+    if m.allowable_stress > ALLOWABLE_OVER_E_MAX * m.E:
+        out.append(
+            ResultWarning(
+                "units",
+                f"material '{m.name}': allowable stress {m.allowable_stress:.4g} Pa is "
+                f"{m.allowable_stress / m.E:.3g} times E = {m.E:.4g} Pa; E and the allowable stress look as if "
+                "given in different units (E in MPa?); give both in Pa or add a units block",
+                value=m.allowable_stress / m.E,
+            )
+        )
+    c = math.sqrt(m.E / m.density)
+    if not WAVE_SPEED[0] <= c <= WAVE_SPEED[1]:
+        read = input_units(scene)
+        how = (
+            "E [Pa] and density [kg/m^3] look as if given in other units; fix them or add a units block"
+            if read is None
+            else f"the scene's E was read in {read['stress']} and its density in "
+            f"{read['density']}; give them in those units or name theirs in the units block"
+        )
+        out.append(
+            ResultWarning(
+                "units",
+                f"material '{m.name}': sqrt(E / density) = {c:.4g} m/s is outside the {WAVE_SPEED[0]:g} "
+                f"to {WAVE_SPEED[1]:g} m/s of solids; {how}",
+                value=c,
+            )
+        )
+    if not G_OVER_E[0] <= m.G / m.E <= G_OVER_E[1]:
+        out.append(
+            ResultWarning(
+                "units",
+                f"material '{m.name}': G / E = {m.G / m.E:.3g} (isotropic solids: 1/3 to 1/2); E and G "
+                "look as if given in different units",
+                value=m.G / m.E,
+            )
+        )
+    return out
+
+
+def _extent_units(extent: float) -> list[ResultWarning]:
+    """A ``units`` warning when the scene's extent [m] is larger than ``EXTENT_MAX`` (lengths in mm?)."""
+    out: list[ResultWarning] = []
     if extent > EXTENT_MAX:
         out.append(
             ResultWarning(
@@ -408,40 +424,45 @@ def units_warnings(scene: Scene) -> list[ResultWarning]:
                 value=extent,
             )
         )
-    st = scene.stroke
-    if st is not None:
-        ends = [x for x in (st.start, st.stop) if x is not None]
-        if st.kind == "rotation" and st.resolved_unit == "deg":
-            odd = [x for x in ends if _radian_like(x)]
-            if odd:
-                x = max(odd, key=abs)
-                out.append(
-                    ResultWarning(
-                        "units",
-                        f"stroke {x:g} deg is {math.degrees(x):.4g} deg if meant in radians; if so, set "
-                        "stroke.unit to 'rad' (or give the stroke in degrees)",
-                        value=x,
-                    )
-                )
-        elif st.kind == "rotation" and any(abs(x) > 2 * math.pi for x in ends):
-            x = max(ends, key=abs)
+    return out
+
+
+def _stroke_units(st: Stroke, extent: float) -> list[ResultWarning]:
+    """A ``units`` warning when stroke ``st`` reads as radians given in degrees (or the reverse) or a translation
+    is larger than the scene's extent [m]."""
+    out: list[ResultWarning] = []
+    ends = [x for x in (st.start, st.stop) if x is not None]
+    if st.kind == "rotation" and st.resolved_unit == "deg":
+        odd = [x for x in ends if _radian_like(x)]
+        if odd:
+            x = max(odd, key=abs)
             out.append(
                 ResultWarning(
                     "units",
-                    f"stroke {x:g} rad is more than a turn; if meant in degrees, set stroke.unit to 'deg'",
+                    f"stroke {x:g} deg is {math.degrees(x):.4g} deg if meant in radians; if so, set "
+                    "stroke.unit to 'rad' (or give the stroke in degrees)",
                     value=x,
                 )
             )
-        elif st.kind == "translation" and ends and max(abs(x) for x in ends) > extent:
-            x = max(ends, key=abs)
-            out.append(
-                ResultWarning(
-                    "units",
-                    f"stroke {x:g} m is larger than the scene ({extent:.4g} m); give it in the scene's length "
-                    "unit (m, or the units block's)",
-                    value=x,
-                )
+    elif st.kind == "rotation" and any(abs(x) > 2 * math.pi for x in ends):
+        x = max(ends, key=abs)
+        out.append(
+            ResultWarning(
+                "units",
+                f"stroke {x:g} rad is more than a turn; if meant in degrees, set stroke.unit to 'deg'",
+                value=x,
             )
+        )
+    elif st.kind == "translation" and ends and max(abs(x) for x in ends) > extent:
+        x = max(ends, key=abs)
+        out.append(
+            ResultWarning(
+                "units",
+                f"stroke {x:g} m is larger than the scene ({extent:.4g} m); give it in the scene's length "
+                "unit (m, or the units block's)",
+                value=x,
+            )
+        )
     return out
 
 

@@ -180,63 +180,70 @@ def _auto(an: MeshAnalysis, values: np.ndarray, tolerance: float) -> FrequencyCu
             "is cheaper there)"
         }
     elif per_side >= AUTO_MIN_POINTS:
-        curve, extra = hermite_frequency_curve(an, values, tolerance, max_samples=max(4, per_side // 3), fill=True)
-        if curve.method == "hermite" and extra["converged"] and extra["estimated_error"] <= tolerance:
-            how = "hermite" + ("+exact" if extra["exact_points"] else "")
-            return replace(
-                curve,
-                solver={
-                    **curve.solver,
-                    "seconds": time.perf_counter() - t0,
-                    "auto_method": how,
-                    "auto_estimate": extra["estimated_error"],
-                    "auto_tolerance": tolerance,
-                },
-            )
-        tried = {
-            "auto_rejected": f"hermite (estimated error {extra.get('estimated_error', float('nan')):.3g}, "
-            f"{extra.get('samples', 0)} samples)"
-        }
+        curve, tried = _auto_hermite(an, values, tolerance, per_side, t0)
+        if curve is not None:
+            return curve
     elif an.scene.stroke.drive == "locked" and not an.system.n_con:
-        # short curves (e.g. an optimiser's screening grid): the cheapest Taylor or manifold method whose
-        # estimated error (:mod:`.accuracy`, from exact check points) meets the tolerance at every point
-        est: dict[str, float] = {}
-        for m in AUTO_ORDER[:-1]:
-            try:
-                cur, e = expansion_curve(an, m, values)
-            except FlexoptError:
-                est[m] = float("inf")
-                continue
-            est[m] = float(e.max()) if len(e) else 0.0
-            if est[m] <= tolerance:
-                cur = limit(cur, e, tolerance)
-                return replace(
-                    cur,
-                    solver={
-                        **cur.solver,
-                        "seconds": time.perf_counter() - t0,
-                        "auto_method": m,
-                        "auto_estimate": est[m],
-                        "auto_tolerance": tolerance,
-                    },
-                )
-        tried = {
-            "auto_rejected": "fd1, fd2, reduced, manifold (estimated errors "
-            + ", ".join(f"{est[m]:.3g}" for m in AUTO_ORDER[:-1])
-            + ")"
-        }
-    cur = an.frequency_curve(values)
+        curve, tried = _auto_expansion(an, values, tolerance, t0)
+        if curve is not None:
+            return curve
+    return _stamped(an.frequency_curve(values), t0, "exact", 0.0, tolerance, tried)
+
+
+def _stamped(
+    curve: FrequencyCurve, t0: float, method: str, estimate: float, tolerance: float, tried: dict | None = None
+) -> FrequencyCurve:
+    """``curve`` with auto's entries in its ``solver``: the seconds since ``t0``, the method that ran, its
+    estimated error, the tolerance and what was tried and rejected before it."""
     return replace(
-        cur,
+        curve,
         solver={
-            **cur.solver,
+            **curve.solver,
             "seconds": time.perf_counter() - t0,
-            "auto_method": "exact",
-            "auto_estimate": 0.0,
+            "auto_method": method,
+            "auto_estimate": estimate,
             "auto_tolerance": tolerance,
-            **tried,
+            **(tried or {}),
         },
     )
+
+
+def _auto_hermite(
+    an: MeshAnalysis, values: np.ndarray, tolerance: float, per_side: int, t0: float
+) -> tuple[FrequencyCurve | None, dict]:
+    """:func:`_auto`'s long curves: ``hermite`` within its sample budget (a third of the points per side, exact
+    points filled where an interval misses ``tolerance``), or None and why it was rejected."""
+    curve, extra = hermite_frequency_curve(an, values, tolerance, max_samples=max(4, per_side // 3), fill=True)
+    if curve.method == "hermite" and extra["converged"] and extra["estimated_error"] <= tolerance:
+        how = "hermite" + ("+exact" if extra["exact_points"] else "")
+        return _stamped(curve, t0, how, extra["estimated_error"], tolerance), {}
+    return None, {
+        "auto_rejected": f"hermite (estimated error {extra.get('estimated_error', float('nan')):.3g}, "
+        f"{extra.get('samples', 0)} samples)"
+    }
+
+
+def _auto_expansion(
+    an: MeshAnalysis, values: np.ndarray, tolerance: float, t0: float
+) -> tuple[FrequencyCurve | None, dict]:
+    """:func:`_auto`'s short curves (e.g. an optimiser's screening grid): the cheapest Taylor or manifold method
+    whose estimated error (:mod:`.accuracy`, from exact check points) meets ``tolerance`` at every point, or None
+    and the estimates of those rejected."""
+    est: dict[str, float] = {}
+    for m in AUTO_ORDER[:-1]:
+        try:
+            cur, e = expansion_curve(an, m, values)
+        except FlexoptError:
+            est[m] = float("inf")
+            continue
+        est[m] = float(e.max()) if len(e) else 0.0
+        if est[m] <= tolerance:
+            return _stamped(limit(cur, e, tolerance), t0, m, est[m], tolerance), {}
+    return None, {
+        "auto_rejected": "fd1, fd2, reduced, manifold (estimated errors "
+        + ", ".join(f"{est[m]:.3g}" for m in AUTO_ORDER[:-1])
+        + ")"
+    }
 
 
 def estimate_error(an: MeshAnalysis, values: np.ndarray) -> dict[str, float]:
