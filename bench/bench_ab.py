@@ -19,16 +19,15 @@ routes with the numpy routes and dense eigen solve they replace (frequencies wit
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import statistics
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 ROOT = str(Path(__file__).resolve().parents[1])
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import run_fresh  # noqa: E402
 from bench_curve import CASES  # noqa: E402  (the cases of the README's speed table, so the rows match)
 
 _CHILD = """
@@ -50,10 +49,7 @@ print(json.dumps(out))
 
 
 def _run(pythonpath: str, inner: int) -> dict[str, float]:
-    env = dict(os.environ, PYTHONPATH=pythonpath, OPENBLAS_NUM_THREADS="1")
-    code = f"CASES = {CASES!r}\nINNER = {inner}\n" + _CHILD
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    return run_fresh(f"CASES = {CASES!r}\nINNER = {inner}\n" + _CHILD, pythonpath)
 
 
 def _systems(an) -> list:

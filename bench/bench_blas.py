@@ -35,45 +35,18 @@ import time
 import urllib.request
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from _common import LAUNCH, ROOT, add_base_arguments, base_package, package, run_cli
+from flexopt.model.threads import VARIABLES
+
 #: every variable through which a BLAS/OpenMP library or flexopt reads its thread count: none is set, as a
 #: user's shell sets none
-THREAD_VARS = (
-    "OPENBLAS_NUM_THREADS",
-    "OMP_NUM_THREADS",
-    "MKL_NUM_THREADS",
-    "BLIS_NUM_THREADS",
-    "VECLIB_MAXIMUM_THREADS",
-    "NUMEXPR_NUM_THREADS",
-    "FLEXOPT_BLAS_THREADS",
-)
-#: the console script's entry, for either layout (service/cli.py, or the package service/cli/ with main.py)
-LAUNCH = "import sys; from flexopt.service.cli import main; sys.exit(getattr(main, 'main', main)())"
+THREAD_VARS = (*VARIABLES, "FLEXOPT_BLAS_THREADS")
 BUSY = (
     "import numpy as np\n"
     "a = np.random.default_rng(0).random((1200, 1200))\n"
     "while True:\n"
     "    a = a @ a; a /= np.abs(a).max()\n"
 )
-
-
-def package(src: Path, dest: Path) -> Path:
-    """``dest`` with a ``flexopt`` package made of checkout ``src`` (the layout pyproject.toml maps)."""
-    pkg = dest / "flexopt"
-    pkg.mkdir(parents=True)
-    for f in (src / "service" / "_root").glob("*.py"):
-        shutil.copy(f, pkg / f.name)
-    for d in ("model", "optim", "service"):
-        (pkg / d).symlink_to(src / d)
-    return dest
-
-
-def from_commit(commit: str, dest: Path) -> Path:
-    src = dest / "src"
-    src.mkdir(parents=True)
-    archive = subprocess.run(["git", "-C", str(ROOT), "archive", commit], check=True, capture_output=True).stdout
-    subprocess.run(["tar", "-x", "-C", str(src)], input=archive, check=True)
-    return package(src, dest / "pkg")
 
 
 def user_env(pythonpath: Path, data_dir: Path | None = None) -> dict[str, str]:
@@ -92,15 +65,8 @@ def free_port() -> int:
 
 
 def cli_once(pythonpath: Path) -> tuple[float, int]:
-    t = time.perf_counter()
-    out = subprocess.run(
-        [sys.executable, "-c", LAUNCH, "curve", "--template", "double-cross-hinge"],
-        env=user_env(pythonpath),
-        capture_output=True,
-        text=True,
-        check=False,
-    )
-    return time.perf_counter() - t, out.returncode
+    dt, out = run_cli(["curve", "--template", "double-cross-hinge"], user_env(pythonpath))
+    return dt, out.returncode
 
 
 class Server:
@@ -155,9 +121,7 @@ def summary(label: str, a: list[float], b: list[float]) -> str:
 
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    g = p.add_mutually_exclusive_group(required=True)
-    g.add_argument("--base", type=Path, help="directory holding the 'before' flexopt package (PYTHONPATH)")
-    g.add_argument("--base-commit", help="commit of this repository to build the 'before' package from")
+    add_base_arguments(p)
     p.add_argument("--pairs", type=int, default=5, help="CLI runs per version (interleaved; 0: none)")
     p.add_argument("--requests", type=int, default=5, help="server requests per version (interleaved; 0: none)")
     p.add_argument("--busy", type=int, default=2, help="other busy processes (numpy matmuls, default threads)")
@@ -168,7 +132,7 @@ def main() -> int:
     servers: list[Server] = []
     try:
         after = package(ROOT, tmp / "after")
-        before = args.base if args.base is not None else from_commit(args.base_commit, tmp / "before")
+        before = base_package(args, tmp)
         label = args.base_commit or str(args.base)
         scene = json.loads(
             subprocess.run(

@@ -25,23 +25,13 @@ import json
 import os
 import shutil
 import statistics
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_blas import LAUNCH, ROOT, from_commit, package  # noqa: E402
+from _common import HINGES as TEMPLATES
+from _common import ROOT, add_base_arguments, base_package, bench_env, package, run_cli, run_fresh
 
-TEMPLATES = (
-    "leaf-spring",
-    "parallel-leaf-spring",
-    "cross-spring-pivot",
-    "cartwheel-hinge",
-    "three-fold-cross-hinge",
-    "double-cross-hinge",
-)
 METHODS = ("exact", "hermite", "auto")
 WARM = """
 import json, statistics, sys
@@ -57,21 +47,9 @@ print(json.dumps(out))
 """
 
 
-def env(pythonpath: Path) -> dict[str, str]:
-    return dict(os.environ, PYTHONPATH=str(pythonpath), OPENBLAS_NUM_THREADS="1")
-
-
 def cold(pythonpath: Path, name: str, method: str) -> tuple[float, float]:
     """(solver.seconds, whole-process wall seconds) of one fresh ``flexopt curve``."""
-    t = time.perf_counter()
-    out = subprocess.run(
-        [sys.executable, "-c", LAUNCH, "curve", "--template", name, "--method", method, "--json"],
-        env=env(pythonpath),
-        capture_output=True,
-        text=True,
-        check=False,
-    )
-    wall = time.perf_counter() - t
+    wall, out = run_cli(["curve", "--template", name, "--method", method, "--json"], bench_env(pythonpath))
     if out.returncode not in (0, 3):
         raise RuntimeError(f"{name} {method}: exit {out.returncode}: {out.stderr[-500:]}")
     return json.loads(out.stdout)["solver"]["seconds"], wall
@@ -79,15 +57,12 @@ def cold(pythonpath: Path, name: str, method: str) -> tuple[float, float]:
 
 def warm(pythonpath: Path, n: int) -> dict[str, float]:
     code = f"TEMPLATES = {TEMPLATES!r}\nMETHODS = {METHODS!r}\nWARM = {n}\n" + WARM
-    out = subprocess.run([sys.executable, "-c", code], env=env(pythonpath), capture_output=True, text=True, check=True)
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    return run_fresh(code, pythonpath)
 
 
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    g = p.add_mutually_exclusive_group(required=True)
-    g.add_argument("--base", type=Path, help="directory holding the 'before' flexopt package (PYTHONPATH)")
-    g.add_argument("--base-commit", help="commit of this repository to build the 'before' package from")
+    add_base_arguments(p)
     p.add_argument("--rounds", type=int, default=3, help="cold runs per template, method and version")
     p.add_argument("--warm", type=int, default=3, help="warm curves per template and method (after one)")
     p.add_argument("--only", default=None, help="comma-separated templates (default: all six)")
@@ -96,7 +71,7 @@ def main() -> int:
     tmp = Path(tempfile.mkdtemp(prefix="bench_cold_"))
     try:
         versions = {
-            "before": args.base if args.base is not None else from_commit(args.base_commit, tmp / "b"),
+            "before": base_package(args, tmp),
             "after": package(ROOT, tmp / "a"),
         }
         for v in versions.values():  # kernels compiled once (shared cache), not inside a timed run

@@ -21,27 +21,20 @@ import argparse
 import os
 import statistics
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # _common, also when a test imports this file
 
+from _common import HINGES as TEMPLATES  # noqa: E402
+from _common import interleave, load_line, median_ratio  # noqa: E402
 from flexopt.model import Analysis, template  # noqa: E402
 from flexopt.model.methods import frequency_curve, hermite  # noqa: E402
 from flexopt.model.modal import modes_at  # noqa: E402
 from flexopt.model.statics import path_curvature, walk  # noqa: E402
 from flexopt.model.symmetry import image_indices, one_side  # noqa: E402
-
-TEMPLATES = (
-    "leaf-spring",
-    "parallel-leaf-spring",
-    "cross-spring-pivot",
-    "cartwheel-hinge",
-    "three-fold-cross-hinge",
-    "double-cross-hinge",
-)
 
 
 def oracle_curve(an: Analysis, internal: np.ndarray, sides: dict[int, list[float]]) -> np.ndarray:
@@ -109,10 +102,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--repeat", type=int, default=25)
     p.add_argument("--tolerance", type=float, default=0.01)
     args = p.parse_args(argv)
-    print(
-        f"load average {os.getloadavg()[0]:.2f} at start; {os.cpu_count()} CPUs; {args.repeat} rounds of exact, "
-        f"hermite, oracle; tolerance {args.tolerance:g}\n"
-    )
+    print(f"{load_line('at start')}; {args.repeat} rounds of exact, hermite, oracle; tolerance {args.tolerance:g}\n")
     print(
         "| template | oracle samples (deg or mm, one side) | oracle max error | exact [ms] | hermite [ms] | "
         "oracle [ms] | hermite speed-up | oracle speed-up |"
@@ -130,22 +120,18 @@ def main(argv: list[str] | None = None) -> int:
         ex = frequency_curve(an, "exact")
         err = float(np.max(np.abs(oracle_curve(an, pos, sides)[idx] / ex.parasitic_hz - 1)))
         frequency_curve(an, "hermite", tolerance=args.tolerance)
-        te, th, to = [], [], []
-        for _ in range(args.repeat):
-            t0 = time.perf_counter()
-            frequency_curve(an, "exact")
-            t1 = time.perf_counter()
-            frequency_curve(an, "hermite", tolerance=args.tolerance)
-            t2 = time.perf_counter()
-            oracle_curve(an, pos, sides)[idx]
-            t3 = time.perf_counter()
-            te.append(t1 - t0)
-            th.append(t2 - t1)
-            to.append(t3 - t2)
+        t, _ = interleave(
+            args.repeat,
+            {
+                "exact": lambda an=an: frequency_curve(an, "exact"),
+                "hermite": lambda an=an: frequency_curve(an, "hermite", tolerance=args.tolerance),
+                "oracle": lambda an=an, pos=pos, sides=sides, idx=idx: oracle_curve(an, pos, sides)[idx],
+            },
+        )
+        te, th, to = t["exact"], t["hermite"], t["oracle"]
         scale = 1e3 if spec.kind == "translation" else 180 / np.pi
         shown = " ".join(f"{x * scale:.3g}" for x in sides[1][1:])
-        sh = statistics.median([e / h for e, h in zip(te, th)])
-        so = statistics.median([e / o for e, o in zip(te, to)])
+        sh, so = median_ratio(te, th), median_ratio(te, to)
         n = sum(len(s) - 1 for s in sides.values())
         print(
             f"| {name} | {shown} ({n} + stroke 0) | {err:.1e} | {statistics.median(te) * 1e3:.1f} | "

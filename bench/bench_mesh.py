@@ -15,13 +15,13 @@ from __future__ import annotations
 import argparse
 import statistics
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from _common import interleave  # noqa: E402
 from flexopt.model import Analysis, template  # noqa: E402
 
 TEMPLATES = ("parallel-leaf-spring", "cross-spring-pivot", "leaf-spring")
@@ -59,12 +59,9 @@ def main() -> None:
     for name in TEMPLATES:
         an = Analysis(template(name))
         an.frequency_curve()
-        t: dict[bool, list[float]] = {False: [], True: []}
-        for _ in range(args.repeat):
-            for me in (False, True):
-                t0 = time.perf_counter()
-                an.frequency_curve(mesh_error=me)
-                t[me].append(time.perf_counter() - t0)
+        t, _ = interleave(
+            args.repeat, {me: lambda an=an, me=me: an.frequency_curve(mesh_error=me) for me in (False, True)}
+        )
         a, b = statistics.median(t[False]), statistics.median(t[True])
         print(f"| {name} | {a:.3f} | {b:.3f} | {100 * (b / a - 1):+.0f} % |")
 

@@ -22,6 +22,7 @@ import time
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
+from _common import DEFAULT_TEMPLATES, interleave  # noqa: E402
 from flexopt.model import Analysis, template  # noqa: E402
 from flexopt.model.curve import curve_with_method  # noqa: E402
 
@@ -48,22 +49,7 @@ CASES = (
         ("cartwheel 4 per half leaf, hermite", "cartwheel-hinge", {"segments": 8}, "hermite"),
         ("cartwheel 4 per half leaf", "cartwheel-hinge", {"segments": 8}, "exact"),
     ]
-    + [
-        (f"{name} default", name, {}, "exact")
-        for name in (
-            "leaf-spring",
-            "parallel-leaf-spring",
-            "cross-spring-pivot",
-            "cartwheel-hinge",
-            "three-fold-cross-hinge",
-            "double-cross-hinge",
-            "topology-hinge",
-            "wire-guide-5",
-            "wire-guide-parallel",
-            "folded-sheet-guide-5",
-            "folded-sheet-guide-6",
-        )
-    ]
+    + [(f"{name} default", name, {}, "exact") for name in DEFAULT_TEMPLATES]
     + [("cartwheel default, auto", "cartwheel-hinge", {}, "auto")]
 )
 
@@ -117,15 +103,10 @@ def cost(names: list[str]) -> None:
     for name in names:
         a, b = Analysis(template(name)), Analysis(template(name))
         by_method(a, "auto", 0.01), curve_with_method(b, "auto", 0.01)  # warm: kernels, second mesh
-        ta, tb = [], []
-        for _ in range(5):
-            t0 = time.perf_counter()
-            by_method(a, "auto", 0.01)
-            ta.append(time.perf_counter() - t0)
-            t0 = time.perf_counter()
-            curve_with_method(b, "auto", 0.01)
-            tb.append(time.perf_counter() - t0)
-        ma, mb = float(np.median(ta)), float(np.median(tb))
+        t, _ = interleave(
+            5, {"alone": lambda a=a: by_method(a, "auto", 0.01), "with": lambda b=b: curve_with_method(b, "auto", 0.01)}
+        )
+        ma, mb = float(np.median(t["alone"])), float(np.median(t["with"]))
         print(f"{name:26s} {ma:10.2f}s {mb:13.2f}s {mb / ma:6.2f}", flush=True)
 
 

@@ -29,11 +29,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from _common import HINGES, interleave, load_line, median_ratio  # noqa: E402
 from flexopt.model import Analysis, template  # noqa: E402
 from flexopt.model.methods import expansion_curve, frequency_curve  # noqa: E402
 
-TEMPLATES = ("leaf-spring", "parallel-leaf-spring", "cross-spring-pivot")
-FAMILIES = ("cartwheel-hinge", "three-fold-cross-hinge", "double-cross-hinge")  # the optimiser's other families
+TEMPLATES = HINGES[:3]  # the classic flexures (plotted); then the optimiser's other families
 METHODS = ("exact", "fd1", "fd2", "manifold", "reduced", "hermite", "auto")
 FAST = ("fd1", "fd2", "manifold", "reduced")  # the expansions about stroke 0 (model/methods/accuracy.py)
 
@@ -96,25 +96,26 @@ def bench_template(name: str, repeat: int) -> tuple[list[str], dict]:
 def auto_table(tolerances: list[float], repeat: int) -> None:
     """auto against exact at several tolerances: what auto ran, its cost relative to the exact curve
     (median of per-round ratios, the two interleaved on one ``Analysis``), its estimate and true error."""
-    print(f"load average {os.getloadavg()[0]:.2f} at start; {os.cpu_count()} CPUs; {repeat} rounds of exact, auto")
+    print(f"{load_line('at start')}; {repeat} rounds of exact, auto")
     print("\n| template | tolerance | auto ran | samples | exact points | auto / exact time | estimate | true error |")
     print("|---|---|---|---|---|---|---|---|")
-    for name in TEMPLATES + FAMILIES:
+    for name in HINGES:
         an = Analysis(template(name))
         ex = frequency_curve(an, "exact")
         frequency_curve(an, "hermite")
         for tol in tolerances:
-            ratios = []
-            for _ in range(repeat):
-                t0 = time.perf_counter()
-                frequency_curve(an, "exact")
-                t1 = time.perf_counter()
-                a = frequency_curve(an, "auto", tolerance=tol)
-                ratios.append((time.perf_counter() - t1) / (t1 - t0))
+            t, last = interleave(
+                repeat,
+                {
+                    "exact": lambda an=an: frequency_curve(an, "exact"),
+                    "auto": lambda an=an, tol=tol: frequency_curve(an, "auto", tolerance=tol),
+                },
+            )
+            a = last["auto"]
             err = float(np.max(np.abs(a.parasitic_hz / ex.parasitic_hz - 1)))
             print(
                 f"| {name} | {tol:g} | {a.solver['auto_method']} | {a.solver.get('samples', '-')} | "
-                f"{a.solver.get('exact_points', '-')} | {statistics.median(ratios):.2f} | "
+                f"{a.solver.get('exact_points', '-')} | {median_ratio(t['auto'], t['exact']):.2f} | "
                 f"{a.solver['auto_estimate']:.1e} | {err:.1e} |"
             )
     print(f"\nload average {os.getloadavg()[0]:.2f} at the end")
@@ -137,9 +138,9 @@ def main(argv: list[str] | None = None) -> int:
         auto_table([float(t) for t in args.auto_tolerances.split(",")], args.repeat)
         return 0
 
-    print(f"load average {os.getloadavg()[0]:.2f} at start; {os.cpu_count()} CPUs; medians of {args.repeat} warm runs")
+    print(f"{load_line('at start')}; medians of {args.repeat} warm runs")
     all_curves = {}
-    for name in () if args.only_interleaved else TEMPLATES + FAMILIES:
+    for name in () if args.only_interleaved else HINGES:
         rows, curves = bench_template(name, args.repeat)
         all_curves[name] = curves
         unit = curves["exact"].stroke_unit
@@ -164,23 +165,17 @@ def main(argv: list[str] | None = None) -> int:
         "| auto speed-up | hermite samples | hermite max error | hermite estimate |"
     )
     print("|---|---|---|---|---|---|---|---|---|")
-    for name in TEMPLATES + FAMILIES:
+    for name in HINGES:
         an = Analysis(template(name))
         ex = frequency_curve(an, "exact")
         frequency_curve(an, "hermite")
-        te, th, ta = [], [], []
-        for _ in range(args.repeat):
-            for m, acc in (("exact", te), ("hermite", th), ("auto", ta)):
-                t0 = time.perf_counter()
-                c = frequency_curve(an, m, tolerance=0.01)
-                acc.append(time.perf_counter() - t0)
-                if m == "hermite":
-                    h = c
-                elif m == "auto":
-                    a = c
+        t, last = interleave(
+            args.repeat,
+            {m: lambda an=an, m=m: frequency_curve(an, m, tolerance=0.01) for m in ("exact", "hermite", "auto")},
+        )
+        (te, th, ta), h, a = (t[m] for m in ("exact", "hermite", "auto")), last["hermite"], last["auto"]
         err = float(np.max(np.abs(h.parasitic_hz / ex.parasitic_hz - 1)))
-        sh = statistics.median([e / x for e, x in zip(te, th)])
-        sa = statistics.median([e / x for e, x in zip(te, ta)])
+        sh, sa = median_ratio(te, th), median_ratio(te, ta)
         print(
             f"| {name} | {statistics.median(te) * 1e3:.1f} | {statistics.median(th) * 1e3:.1f} | {sh:.1f}x | "
             f"{a.method} | {sa:.1f}x | {h.solver['samples']} | {err:.2e} | {h.solver['estimated_error']:.2e} |"

@@ -19,19 +19,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from _common import HINGES as TEMPLATES  # noqa: E402
 from flexopt.model import Analysis, template  # noqa: E402
 from flexopt.model.methods import frequency_curve  # noqa: E402
 from flexopt.model.methods.accuracy import limit  # noqa: E402
 from flexopt.model.methods.auto import expansion_curve  # noqa: E402
 
-TEMPLATES = (
-    "leaf-spring",
-    "parallel-leaf-spring",
-    "cross-spring-pivot",
-    "cartwheel-hinge",
-    "three-fold-cross-hinge",
-    "double-cross-hinge",
-)
 FAST = ("fd1", "fd2", "manifold", "reduced")
 
 
