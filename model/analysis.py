@@ -22,7 +22,7 @@ from .errors import EquilibriumError, SceneError
 from .kernels import compiled
 from .modal import Modes, modes_at, participation, track
 from .results import Failure, FrequencyCurve
-from .scene import Scene
+from .scene import Scene, Stroke
 from .statics import Equilibrium, NewtonOptions, StepFailure, WalkFailure, reference_equilibrium, walk
 from .structure import Structure, compile_scene
 from .symmetry import StrokeSymmetry, image_indices, one_side, stroke_symmetry
@@ -121,6 +121,14 @@ class MeshAnalysis:
         self.options = options or NewtonOptions()
         self._checked = False  # check() has run (once per analysis)
 
+    @property
+    def stroke(self) -> Stroke:
+        """The scene's stroke, never None here: :class:`System` refuses a scene without one."""
+        st = self.scene.stroke
+        if st is None:  # System(self.structure) raised for it in __init__; this narrows the type
+            raise SceneError("stroke", f"scene '{self.scene.name}' has no stroke: add a 'stroke'")
+        return st
+
     def label_modes(self, modes: Modes, tangent: np.ndarray | None = None) -> tuple[list[str], float]:
         """Labels of the modes (``drive``, ``parasitic``, ``intended``) and the first parasitic frequency.
 
@@ -131,10 +139,9 @@ class MeshAnalysis:
         the tangent (callers that hold no equilibrium) the mode with the largest kinetic-energy share in the
         driven master's drive DOF, which misreads a rotor whose centre of mass lies off the pivot axis.
         """
-        s = self.structure
         hz = modes.hz
         part = participation(self.system, modes)
-        drive_free = s.scene.stroke.drive == "free"
+        drive_free = self.stroke.drive == "free"
         labels = ["parasitic"] * len(hz)
         if drive_free and len(hz):
             if tangent is not None and np.any(tangent):
@@ -178,7 +185,7 @@ class MeshAnalysis:
         unstable point reads early on a concave ``omega^2``). For a fold (Newton fails, no equilibrium
         beyond) the end of the last bracket. Returns the failure with the loss and the last stable stroke.
         """
-        sys, opts, drive = self.system, self.options, self.structure.scene.stroke.drive
+        sys, opts, drive = self.system, self.options, self.stroke.drive
         hist: list[tuple[float, float]] = [(eq_a.stroke, w2_a)]  # stable (stroke, lowest omega^2)
         st: dict = {"a": eq_a, "b": float("nan"), "w2_b": float("nan")}
 
@@ -254,8 +261,8 @@ class MeshAnalysis:
                 # the failure's message has the signed strokes in it: built again for the mirrored numbers
                 wf = WalkFailure(
                     f.reason,
-                    -self.structure.scene.stroke.to_internal(f.stroke),
-                    -self.structure.scene.stroke.to_internal(f.last_converged),
+                    float(-self.stroke.to_internal(f.stroke)),
+                    float(-self.stroke.to_internal(f.last_converged)),
                     "",
                 )
                 both.append(self._failure(wf))
@@ -264,7 +271,7 @@ class MeshAnalysis:
     def _failure(self, fail: WalkFailure) -> Failure:
         """The public :class:`Failure` of a located loss (:meth:`_locate_loss`), in the stroke unit, with
         the cause when the structure shows one (:func:`model.causes.stiff_axis_drives`)."""
-        unit = self.structure.scene.stroke.resolved_unit
+        unit = self.stroke.resolved_unit
         f = (lambda v: float(np.degrees(v))) if unit == "deg" else float
         s_loss, s_a = f(fail.stroke), f(fail.last_converged)
         if fail.reason == "unstable":
@@ -320,7 +327,7 @@ class MeshAnalysis:
         ``visit``, which sees every equilibrium solved.
         """
         t0 = time.perf_counter()
-        spec = self.structure.scene.stroke
+        spec = self.stroke
         values = np.asarray(spec.values() if stroke is None else stroke, dtype=float)
         internal = spec.to_internal(values)
         points: dict[float, _Point] = {}
@@ -377,7 +384,7 @@ class MeshAnalysis:
                 reason="divergence",
             ) from exc
         s = self.structure
-        return eq0, modes_at(self.system, eq0, s.scene.modes + 2, s.scene.stroke.drive)
+        return eq0, modes_at(self.system, eq0, s.scene.modes + 2, self.stroke.drive)
 
     def _walk_side(
         self,
@@ -395,7 +402,7 @@ class MeshAnalysis:
         s = self.structure
         n_rep = s.scene.modes
         k_track = n_rep + 2
-        drive = s.scene.stroke.drive
+        drive = self.stroke.drive
         prev: list[Modes | None] = [modes0]
         prev_w2: list[float] = [float(modes0.omega2[0]) if len(modes0.omega2) else float("nan")]
         last_eq: list[Equilibrium] = [eq0]  # last accepted (converged, stable) equilibrium
@@ -461,7 +468,7 @@ class MeshAnalysis:
         -29.999999999999996 from deg -> rad -> deg), a point the walk added (where equilibrium was lost) is
         converted."""
         s = self.structure
-        spec = s.scene.stroke
+        spec = self.stroke
         keys = sorted(points)
         pts = [points[k] for k in keys]
         to_unit = np.degrees if spec.resolved_unit == "deg" else (lambda v: np.asarray(v, dtype=float))
@@ -494,7 +501,7 @@ class MeshAnalysis:
     def _conventions(self, sym: StrokeSymmetry | None) -> dict[str, str]:
         """What the curve's numbers mean (``FrequencyCurve.conventions``)."""
         s = self.structure
-        spec = s.scene.stroke
+        spec = self.stroke
         return {
             "drive": DRIVE_CONVENTION[spec.kind],
             "drive_in_eigen_analysis": spec.drive,

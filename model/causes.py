@@ -179,7 +179,7 @@ def free_motions(structure: Structure) -> list[FreeMotion]:
     for sup in s.scene.supports:
         if sup.body is not None:
             anchored[s.master_names.index(sup.body)] = True
-        else:
+        elif sup.node is not None:  # a support names a body or a node (the scene's validator)
             anchored[s.node_master[node_index[sup.node]]] = True
     if s.drive_master >= 0:
         anchored[s.drive_master] = True

@@ -564,7 +564,9 @@ def annotate_curve(curve: FrequencyCurve, scene: Scene, options: Any = None) -> 
     """
     st = scene.stroke
     settings: dict[str, Any] = {
-        "newton": asdict(options) if is_dataclass(options) else curve.provenance.get("settings", {}).get("newton", {}),
+        "newton": asdict(options)
+        if is_dataclass(options) and not isinstance(options, type)
+        else curve.provenance.get("settings", {}).get("newton", {}),
         "stroke_points": len(curve.stroke),
         "stroke_range": [float(np.min(curve.stroke)), float(np.max(curve.stroke))] if len(curve.stroke) else [],
         "stroke_unit": curve.stroke_unit,

@@ -85,7 +85,7 @@ class Analysis(MeshAnalysis):
         else:
             mesh = "mesh_error: " + ((self.no_estimate or "") if estimate else "not estimated (asked not to)")
         mesh += f"; {self.auto_note}" if self.auto_note else ""
-        seconds = curve.solver.get("seconds", 0.0) + time.perf_counter() - t0  # the curve's time includes it
+        seconds = float(curve.solver.get("seconds", 0.0)) + time.perf_counter() - t0  # the curve's time includes it
         curve = replace(
             curve,
             mesh_error=err,
@@ -100,8 +100,9 @@ class Analysis(MeshAnalysis):
         stroke: np.ndarray | None = None,
         progress: Callable[[int, int], None] | None = None,
         visit: Callable[[Equilibrium, Modes, list[str]], None] | None = None,
-        mesh_error: bool | None = None,
         mirror: bool = True,
+        *,
+        mesh_error: bool | None = None,
     ) -> FrequencyCurve:
         """The exact frequency curve at ``stroke`` (stroke unit; default: the scene's stroke grid) with its
         mesh estimate, its checks' warnings and its provenance.
@@ -126,7 +127,7 @@ class Analysis(MeshAnalysis):
         curve = by_method(self, method, tolerance, stroke)
         if curve.method == "exact" and "mesh_error:" in curve.conventions.get("mesh", ""):
             return curve
-        spec = self.scene.stroke
+        spec = self.stroke
         values = np.asarray(spec.values() if stroke is None else stroke, dtype=float)
         internal = np.asarray(spec.to_internal(values), dtype=float)
         # on a symmetric design the estimate of the exact curve reads the positive side only (as exact does)

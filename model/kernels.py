@@ -27,7 +27,7 @@ import shutil
 import subprocess
 import tempfile
 import warnings
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from importlib import resources
 from pathlib import Path
 
@@ -163,9 +163,10 @@ class CompiledKernel:
         self.spec = spec
         self.n_in = spec.n_in
         self.n_out = spec.n_out
-        self._lib = None
-        self._fn = None
+        self._lib: ctypes.CDLL | None = None
+        self._fn: Callable[[int, int, int], int] | None = None  # the compiled batch entry
         self._address: int | None = None
+        self._vm: ca.Function | None  # CasADi's virtual machine, where no C compiler is found
         cc = _compiler()
         if cc is None:
             warnings.warn(
@@ -191,7 +192,8 @@ class CompiledKernel:
                 cg.generate(tmp + os.sep)
                 return (Path(tmp) / (name + ".c")).read_text() + wrapper
 
-        lib = shared_library(name, (f.serialize(), wrapper, ca.__version__), source, cc)
+        version = ca.__version__  # type: ignore[attr-defined]  # casadi's stubs omit the module's __version__
+        lib = shared_library(name, (f.serialize(), wrapper, version), source, cc)
         fn = getattr(lib, name + "_batch")
         fn.restype = ctypes.c_int
         fn.argtypes = [ctypes.c_longlong, ctypes.c_void_p, ctypes.c_void_p]
@@ -218,6 +220,7 @@ class CompiledKernel:
             if self._fn(n, inputs.ctypes.data, out.ctypes.data):
                 raise KernelBuildError(f"kernel '{self.spec.name}' reported an evaluation error")
             return out
+        assert self._vm is not None  # no compiled entry: __init__ kept the kernel for CasADi's VM
         res = self._vm.map(n)(inputs.T)
         out[:] = np.asarray(res).T
         return out

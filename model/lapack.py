@@ -15,6 +15,7 @@ from __future__ import annotations
 import ctypes
 import glob
 import os
+from collections.abc import Callable
 
 __all__ = ["Routines", "routines", "NAMES"]
 
@@ -41,10 +42,16 @@ _BLAS = {"dtrsm", "dgemv"}
 class Routines:
     """Addresses of :data:`NAMES` in one library and the C type of its integers."""
 
-    def __init__(self, source: str, int_type: str, addresses: list[int], lookup=None) -> None:
+    def __init__(
+        self,
+        source: str,
+        int_type: str,
+        addresses: list[int | None],
+        lookup: Callable[[str], int | None] | None = None,
+    ) -> None:
         self.source = source  # where the routines come from (said in provenance and tests)
         self.int_type = int_type  # "long long" (ILP64) or "int" (LP64)
-        self.table = (ctypes.c_void_p * len(addresses))(*addresses)
+        self.table = (ctypes.c_void_p * len(addresses))(*addresses)  # None: a NULL entry
         self._lookup = lookup  # name -> address in the same library (routines outside the table)
 
     def address(self, name: str) -> int | None:
@@ -55,7 +62,7 @@ class Routines:
             return None
 
 
-def _works(dgesv: int, int_c: type) -> bool:
+def _works(dgesv: int, int_c: type[ctypes.c_int] | type[ctypes.c_longlong]) -> bool:
     """Solve [[2, 1], [1, 3]] x = [3, 5] (x = [0.8, 1.4]) through the pointer with integer type ``int_c``."""
     fn = ctypes.CFUNCTYPE(None, *([ctypes.c_void_p] * 8))(dgesv)
     A = (ctypes.c_double * 4)(2.0, 1.0, 1.0, 3.0)
@@ -82,15 +89,12 @@ def _from_numpy() -> Routines | None:
                 gesv = ctypes.cast(getattr(lib, pattern.format("dgesv")), ctypes.c_void_p).value
             except AttributeError:
                 continue
-            if _works(gesv, ctypes.c_longlong):
-                return Routines(
-                    f"numpy's OpenBLAS ({os.path.basename(path)})",
-                    "long long",
-                    addr,
-                    lambda nm, lib=lib, pattern=pattern: (
-                        ctypes.cast(getattr(lib, pattern.format(nm)), ctypes.c_void_p).value
-                    ),
-                )
+            if gesv is not None and _works(gesv, ctypes.c_longlong):
+
+                def lookup(nm: str, lib: ctypes.CDLL = lib, pattern: str = pattern) -> int | None:
+                    return ctypes.cast(getattr(lib, pattern.format(nm)), ctypes.c_void_p).value
+
+                return Routines(f"numpy's OpenBLAS ({os.path.basename(path)})", "long long", addr, lookup)
     return None
 
 
@@ -104,7 +108,7 @@ def _from_scipy() -> Routines | None:
     get_ptr = ctypes.pythonapi.PyCapsule_GetPointer
     get_ptr.restype, get_ptr.argtypes = ctypes.c_void_p, [ctypes.py_object, ctypes.c_char_p]
 
-    def address(name: str) -> int:
+    def address(name: str) -> int | None:
         cap = (cython_blas if name in _BLAS else cython_lapack).__pyx_capi__[name]
         return get_ptr(cap, get_name(cap))
 
@@ -113,7 +117,7 @@ def _from_scipy() -> Routines | None:
         gesv = address("dgesv")
     except (KeyError, ValueError):
         return None
-    if not _works(gesv, ctypes.c_int):
+    if gesv is None or not _works(gesv, ctypes.c_int):
         return None
     return Routines("scipy.linalg.cython_lapack", "int", addr, address)
 

@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import ctypes
 import threading
+from typing import Literal
 
 import numpy as np
 
@@ -125,7 +126,8 @@ def _thread_cache() -> dict:
     return cache
 
 
-def _workspace(n: int, drv: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _workspace(n: int, drv: tuple) -> tuple[int, int, int, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """The work arrays of order ``n`` (doubles, integers, pivots) of this thread: their addresses and them."""
     cache = _thread_cache()
     key = (n, drv[2])
     ws = cache.get(key)
@@ -240,7 +242,7 @@ class BandedPencil:
         xo_at: int,
         refine: bool = True,
         hint: tuple[int, int] | None = None,
-    ) -> tuple[np.ndarray | None | bool, tuple[int, int] | None]:
+    ) -> tuple[np.ndarray | None | Literal[False], tuple[int, int] | None]:
         """The ``k`` lowest eigenvalues and vectors (written to the rows ``xo`` of ``X``, n_rows x k, C-contiguous)
         of the free block of ``K``, ``M`` (C-contiguous float64, row stride ``ld``): ``(lam, (steps, run))``,
         the second the ``hint`` for the next solve (:func:`lanczos_first_check`); ``lam`` None or False as
@@ -510,9 +512,23 @@ def newton(
     return dxi, tan, ns.sc.copy()
 
 
-def newton_system(*args, **kwargs) -> NewtonSystem | None:
-    """A :class:`NewtonSystem` for the process's driver, or None without it."""
+def newton_system(
+    n: int,
+    drive: int,
+    kind: int,
+    free: np.ndarray,
+    block_pos: np.ndarray,
+    block_comp: np.ndarray,
+    axis: np.ndarray,
+    scale: np.ndarray,
+    scale_free: np.ndarray,
+    pattern: np.ndarray | None = None,
+    banded: bool = True,
+) -> NewtonSystem | None:
+    """A :class:`NewtonSystem` (arguments as its) for the process's driver, or None without it."""
     drv = _driver()
     if drv is None:
         return None
-    return NewtonSystem(*args, drv=drv, **kwargs)
+    return NewtonSystem(
+        n, drive, kind, free, block_pos, block_comp, axis, scale, scale_free, drv, pattern=pattern, banded=banded
+    )

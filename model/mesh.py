@@ -54,7 +54,7 @@ import numpy as np
 
 from .analysis import MeshAnalysis
 from .modal import modes_at
-from .scene import AUTO_START, Beam, Scene
+from .scene import AUTO_START, Beam, Scene, Truss
 from .statics import NewtonOptions, WalkFailure, solve_point, walk
 from .structure import MAX_DOFS
 
@@ -89,7 +89,7 @@ def coarsened(scene: Scene, factor: int) -> Scene | None:
     """``scene`` with every beam of at least ``factor`` segments at ``segments // factor``; None if no beam
     changes."""
     changed = False
-    els = []
+    els: list[Beam | Truss] = []
     for e in scene.elements:
         if isinstance(e, Beam) and isinstance(e.segments, int) and e.segments >= factor:
             els.append(e.model_copy(update={"segments": e.segments // factor}))
@@ -103,7 +103,7 @@ def _first_parasitic(an: MeshAnalysis, targets: np.ndarray) -> dict[float, float
     """First parasitic frequency (lowest mode where none is parasitic) at each converged, stable target
     (internal units, one side, monotone away from 0), by continuation on ``an``'s model."""
     sys = an.system
-    drive = an.structure.scene.stroke.drive
+    drive = an.stroke.drive
     k = an.structure.scene.modes + 2
     out: dict[float, float] = {}
     opts: NewtonOptions = an.options

@@ -167,6 +167,7 @@ def _geometry(an: MeshAnalysis) -> tuple[dict[str, dict], dict[str, dict]]:
     for el in scene.elements:
         p, q = el.nodes
         n = el.segments
+        assert isinstance(n, int)  # a MeshAnalysis refuses segments "auto" (model.curve resolves them)
         chain = [p, *(f"{el.name}#{i}" for i in range(1, n)), q]
         width = thickness = None
         y_axis = None
@@ -237,7 +238,7 @@ def shapes_along(an: MeshAnalysis, stroke: Sequence[float], modes: bool = True, 
         When a requested stroke value lies beyond the loss of a stable equilibrium.
     """
     s = an.structure
-    spec = s.scene.stroke
+    spec = an.stroke
     values = np.unique(np.asarray(stroke, dtype=float).ravel())  # sorted: the continuation walks outwards
     if not np.all(np.isfinite(values)):
         raise FlexoptError("stroke values must be finite numbers")

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scene import Beam, Element, RectangularSection, Scene, Truss
+from .scene import Beam, Element, RectangularSection, Scene, Stroke, Truss
 
 __all__ = ["StrokeSymmetry", "stroke_symmetry", "one_side", "image_indices", "mirror_tol", "TOL"]
 
@@ -106,9 +106,9 @@ def _partners(
         return False
     reversed_ = f.nodes != (nmap[p], nmap[q])
     if isinstance(e, Truss):
-        return f.area == e.area
+        return isinstance(f, Truss) and f.area == e.area  # f is a Truss: same kind
     if isinstance(e, Beam):
-        if f.section != e.section:
+        if not isinstance(f, Beam) or f.section != e.section:  # f is a Beam: same kind
             return False
         ends = set(e.rigid) | set(e.generalised) | set(e.kinematic_rigid or ())
         warp_one = isinstance(e.section, RectangularSection) and e.section.warping == "one_end"
@@ -180,7 +180,11 @@ def _supports_map(scene: Scene, S: np.ndarray, nmap: dict[str, str], bmap: dict[
 
     remaining = list(scene.supports)
     for sup in scene.supports:
-        target = ("node", nmap[sup.node]) if sup.node is not None else ("body", bmap[sup.body])
+        if sup.node is not None:
+            target = ("node", nmap[sup.node])
+        else:
+            assert sup.body is not None  # a support names a node or a body (the scene's validator)
+            target = ("body", bmap[sup.body])
         Pt, Pr = fixed(sup)
         Pt, Pr = S @ Pt @ S, S @ Pr @ S
         hit = None
@@ -205,7 +209,7 @@ def _supports_map(scene: Scene, S: np.ndarray, nmap: dict[str, str], bmap: dict[
 
 
 def _check(
-    scene: Scene, c: np.ndarray, S: np.ndarray, X: dict[str, np.ndarray], scale: float
+    scene: Scene, st: Stroke, c: np.ndarray, S: np.ndarray, X: dict[str, np.ndarray], scale: float
 ) -> tuple[dict, dict] | None:
     """The node and element maps of ``x -> c + S (x - c)`` (``S`` symmetric orthogonal) if it maps the scene
     onto itself (nodes, elements, bodies, supports, and the driven node or body onto itself), else None."""
@@ -218,7 +222,6 @@ def _check(
     bmap = _body_map(scene, c, S, nmap, scale)
     if bmap is None or not _supports_map(scene, S, nmap, bmap):
         return None
-    st = scene.stroke
     if st.node is not None and nmap[st.node] != st.node:
         return None
     if st.body is not None and bmap.get(st.body) != st.body:
@@ -269,12 +272,17 @@ def stroke_symmetry(scene: Scene) -> StrokeSymmetry | None:
                 continue
             seen.append(v)
             S = np.eye(3) - 2.0 * np.outer(v, v) if kind == "reflection" else 2.0 * np.outer(v, v) - np.eye(3)
-            maps = _check(scene, c, S, X, scale)
+            maps = _check(scene, st, c, S, X, scale)
             if maps is not None:
                 k = int(np.argmax(np.abs(v)))
                 v = v if v[k] > 0 else -v
-                return StrokeSymmetry(kind, tuple(float(x) for x in c), tuple(float(x) for x in v), *maps)
+                return StrokeSymmetry(kind, _vec3(c), _vec3(v), *maps)
     return None
+
+
+def _vec3(v: np.ndarray) -> tuple[float, float, float]:
+    """A point or direction as three floats."""
+    return float(v[0]), float(v[1]), float(v[2])
 
 
 def mirror_tol(internal: np.ndarray) -> float:

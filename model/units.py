@@ -165,7 +165,7 @@ def scene_to_si(data: dict[str, Any]) -> dict[str, Any]:
             _scale(sec, "torsion_stress_factor", L**-3)
     st = out.get("stroke")
     translation = isinstance(st, dict) and st.get("kind") == "translation"
-    if translation:
+    if isinstance(st, dict) and translation:
         _scale(st, "start", L)
         _scale(st, "stop", L)
     if isinstance(out.get("gravity"), (list, tuple)):

@@ -59,7 +59,7 @@ def _frequency_curve(an: MeshAnalysis, method: str, tolerance: float, stroke: np
         raise FlexoptError(f"unknown method '{method}': choose one of {', '.join(METHODS)}")
     if not (tolerance > 0):
         raise FlexoptError(f"tolerance must be positive (a relative error, e.g. 0.01), got {tolerance}")
-    spec = an.scene.stroke
+    spec = an.stroke
     values = np.asarray(spec.values() if stroke is None else stroke, dtype=float)
     if method == "exact":
         return an.frequency_curve(values)
@@ -107,7 +107,7 @@ def expansion_curve(an: MeshAnalysis, method: str, values: np.ndarray) -> tuple[
     checks = check_strokes(values)
     f_exact, check_seconds = _exact_checks(an, prep, checks)
     both = np.concatenate([values, checks])
-    eta = np.asarray(an.scene.stroke.to_internal(both), dtype=float)
+    eta = np.asarray(an.stroke.to_internal(both), dtype=float)
     # a structure with fewer locked DOFs than requested modes has only that many (wire guides: 5 of 6)
     n_rep = min(an.scene.modes, len(an.system.free) - an.system.n_con)
     extra: dict = {"build_seconds": prep.md.build_seconds, "exact_checks": len(checks), "check_seconds": check_seconds}
@@ -171,7 +171,7 @@ def _auto(an: MeshAnalysis, values: np.ndarray, tolerance: float) -> FrequencyCu
     ``solver.seconds`` covers everything auto did.
     """
     t0 = time.perf_counter()
-    internal = np.asarray(an.scene.stroke.to_internal(values), dtype=float)
+    internal = np.asarray(an.stroke.to_internal(values), dtype=float)
     per_side = max(int(np.sum(internal > 0)), int(np.sum(internal < 0)))
     tried: dict = {}
     if per_side >= AUTO_MIN_POINTS and tolerance < AUTO_MIN_TOLERANCE:
@@ -183,7 +183,7 @@ def _auto(an: MeshAnalysis, values: np.ndarray, tolerance: float) -> FrequencyCu
         curve, tried = _auto_hermite(an, values, tolerance, per_side, t0)
         if curve is not None:
             return curve
-    elif an.scene.stroke.drive == "locked" and not an.system.n_con:
+    elif an.stroke.drive == "locked" and not an.system.n_con:
         curve, tried = _auto_expansion(an, values, tolerance, t0)
         if curve is not None:
             return curve
@@ -255,7 +255,7 @@ def estimate_error(an: MeshAnalysis, values: np.ndarray) -> dict[str, float]:
     values = np.asarray(values, dtype=float)
     est = {"exact": 0.0}
     for m in AUTO_ORDER[:-1]:
-        if an.scene.stroke.drive == "free":
+        if an.stroke.drive == "free":
             est[m] = float("inf")
             continue
         try:

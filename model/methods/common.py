@@ -22,7 +22,7 @@ def _curve_from(
     extra: dict,
     conventions: dict | None = None,
 ) -> FrequencyCurve:
-    spec = an.scene.stroke
+    spec = an.stroke
     nan = np.full(len(stroke_user), np.nan)
     return FrequencyCurve(
         scene=an.scene.name,

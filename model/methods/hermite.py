@@ -410,7 +410,9 @@ class _Side:
         its input, so this equals tracking the permuted modes. Each sample's tracked data depend only on the
         pair and the previous sample's permutation, so they are kept under that key (``_tracked``): a new
         sample recomputes only the samples whose predecessor or its permutation changed."""
-        prev_groups = prev_perm = prev_smp = None
+        prev_groups: list[np.ndarray] = []  # read from the second sample on
+        prev_perm: np.ndarray | None = None
+        prev_smp: _Sample | None = None
         lam, slope, labels, mac, macs = [], [], [], [], []
         for smp in self.samples:
             m = smp.modes
@@ -445,6 +447,7 @@ class _Side:
                 # sample and follows the mode through the permutation
                 if smp.labels is None:
                     smp.labels = self.an.label_modes(m, smp.eq.tangent)[0]
+                assert smp.slope is not None  # a probe joins the samples with its slopes (promote)
                 # interpolated variable: mu = 1 / lambda (see module docstring), and its slope
                 hit = self._tracked[key] = (
                     perm,
@@ -456,7 +459,7 @@ class _Side:
                     full,
                 )
             perm, groups, mu, dmu, lab, match, full = hit
-            if match is not None:
+            if match is not None and full is not None:  # both from the second sample on
                 mac.append(match)
                 macs.append(full)
             lam.append(mu)
@@ -482,9 +485,9 @@ class _Side:
         """The interpolated ``mu`` (n, p, k) of the branches at the points ``x`` (n, p) of the intervals ``idx``
         (n,): cubic Hermite per branch, and the pair form where :func:`_errors` chose it (:func:`_pair_forms`)."""
         S = self.strokes()
-        pairs = getattr(self, "pairs", None)
-        if pairs is None or pairs[0] != S.tobytes():
+        if self.pairs is None or self.pairs[0] != S.tobytes():
             _errors(self)  # decides the forms for these samples
+        assert self.pairs is not None  # _errors has set them
         a, b = S[idx], S[idx + 1]
         basis = _basis(a, b, x)
         mu, d = self.lam, self.slope
@@ -761,13 +764,13 @@ def _compare(
         _put_pair(Ac, np.arange(len(C)), fr.left[C], ia[C], ib[C], m1, m2)
         others.append(Ac)
         rows.append(C)
-    rows = np.concatenate(rows)
-    fb = np.where(fr.par[rows], _hz(np.concatenate(others)), np.inf).min(axis=2)
-    f = fa[rows]
+    at = np.concatenate(rows)
+    fb = np.where(fr.par[at], _hz(np.concatenate(others)), np.inf).min(axis=2)
+    f = fa[at]
     ok = np.isfinite(f) & np.isfinite(fb)
     rel = np.abs(np.divide(f, fb, out=np.ones_like(f), where=ok) - 1).max(axis=1)
     est = np.zeros(n_iv)
-    np.maximum.at(est, rows, rel)
+    np.maximum.at(est, at, rel)
     return est
 
 
@@ -961,7 +964,7 @@ def _refine(side: _Side, s_req: np.ndarray, tolerance: float, max_samples: int |
         # every interval of the round probed against the tracked branches of its start, then the
         # probes that miss the tolerance join the samples (within the budget)
         room = np.inf if max_samples is None else max_samples - (len(side.samples) - 1)
-        grow = []
+        grow: list[_Sample] = []
         for a_s, b_s in sorted(todo, key=lambda iv: abs(iv[0])):
             if len(grow) >= room:
                 break
@@ -1011,7 +1014,7 @@ def hermite_curve(
         res = hermite_curve(an, pos, tolerance, max_samples, mirror=False, fill=fill)
         if res is None:
             return None
-        idx = image_indices(pos, internal)  # every |s| is in pos by construction
+        idx = np.asarray(image_indices(pos, internal), dtype=int)  # every |s| is in pos by construction
         return HermiteResult(
             res.hz[idx],
             res.labels[idx],
@@ -1023,7 +1026,7 @@ def hermite_curve(
             res.filled,
         )
     sys = an.system
-    spec = an.scene.stroke
+    spec = an.stroke
     drive = spec.drive
     n_rep = min(an.scene.modes, (len(sys.free) if drive == "locked" else sys.n) - sys.n_con)
     k = n_rep + 2
@@ -1077,7 +1080,7 @@ def hermite_frequency_curve(
     :func:`hermite_curve`) also ``exact_points``, the requested points computed exactly.
     """
     t0 = time.perf_counter()
-    spec = an.scene.stroke
+    spec = an.stroke
     internal = np.asarray(spec.to_internal(values), dtype=float)
     res = hermite_curve(an, internal, tolerance, max_samples, fill=fill)
     if res is None:
@@ -1085,7 +1088,7 @@ def hermite_frequency_curve(
         return ex, {"fallback": "exact (a sample's equilibrium could not be computed)"}
     if not np.all(np.isfinite(res.hz)):
         raise FlexoptError("the hermite interpolation produced non-finite frequencies; use method 'exact'")
-    extra = {
+    extra: dict[str, float | int | bool | str] = {
         "samples": res.samples,
         "estimated_error": res.estimate,
         "tolerance": tolerance,

@@ -63,7 +63,7 @@ def eigen_curve(prep: _Prepared, eta: np.ndarray, reduced: bool, n_rep: int) -> 
     for p, e in enumerate(eta):
         st = _manifold_state(sys, md, prep.eq0.state, e)
         drive_dev = max(drive_dev, abs(sys.drive_value(st, near=e) - e))
-        if reduced:
+        if V is not None:  # reduced
             ev = sys.evaluate(st)
             Mm = sys.mass(st)
             Kr, Mr = V.T @ ev.H @ V, V.T @ Mm @ V

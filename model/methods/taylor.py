@@ -60,6 +60,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from types import SimpleNamespace
+from typing import cast
 
 import numpy as np
 
@@ -127,11 +128,11 @@ def mass_derivatives(sys: System, st: State, a: np.ndarray, b: np.ndarray) -> tu
     R1 = Sa @ st.R
     R2 = (Sb + Sa @ Sa) @ st.R
     nodes = np.array([-2.0, -1.0, 0.0, 1.0, 2.0])
-    vals = []
+    samples = []
     for e in nodes:
         trial = State(st.X, st.R + e * R1 + 0.5 * e * e * R2, st.lam)
-        vals.append(sys.mass(trial))
-    vals = np.array(vals)
+        samples.append(sys.mass(trial))
+    vals = np.array(samples)
     # exact derivatives at 0 of the degree-4 interpolant through the five points
     coef = (_VANDER_INV[1:3] @ vals.reshape(5, -1)).reshape((2,) + vals.shape[1:])
     coef = np.concatenate([np.zeros((1,) + vals.shape[1:]), coef])
@@ -328,9 +329,10 @@ class ModalDerivatives:
         return out
 
 
-def _eq_at(sys: System, st: State) -> SimpleNamespace:
+def _eq_at(sys: System, st: State) -> Equilibrium:
     """An Equilibrium-like object (state and evaluated kernels) for :func:`modes_at` at a non-equilibrium."""
-    return SimpleNamespace(state=st, ev=sys.evaluate(st))
+    # a cast: modes_at reads only an equilibrium's .state and .ev, here those of a point off the equilibrium path
+    return cast(Equilibrium, SimpleNamespace(state=st, ev=sys.evaluate(st)))
 
 
 def _clusters(lam: np.ndarray, gap: float) -> list[np.ndarray]:
