@@ -130,6 +130,19 @@ class ConstraintDiagnosis:
     release_candidates: tuple[tuple[str, ...], ...] = field(default=())
     warnings: tuple[ResultWarning, ...] = field(default=())  # scene checks (model.checks): validity, units
     provenance: dict[str, Any] = field(default_factory=dict)  # flexopt version, scene hash, method, settings
+    #: SPACAR's own count and D_cc (model.spacar_dcc.SpacarDcc.to_dict), or {"available": False, "why": ...}
+    spacar: dict[str, Any] | None = None
+
+    @property
+    def spacar_dof(self) -> int | None:
+        """SPACAR's degrees of freedom (inputs and dynamic deformations; model.spacar_dcc), None if not computed."""
+        return self.spacar.get("dof") if self.spacar else None
+
+    @property
+    def spacar_condition_number(self) -> float | None:
+        """Condition number of D_cc by SPACAR's definition (model.spacar_dcc; None: not computed, or D_cc
+        rank deficient: then ``spacar['verdict']`` says how)."""
+        return self.spacar.get("condition_number") if self.spacar else None
 
     @property
     def m(self) -> int:
@@ -214,6 +227,9 @@ class ConstraintDiagnosis:
             "release_candidates": [list(r) for r in self.release_candidates],
             "warnings": [w.to_dict() for w in self.warnings],
             "provenance": dict(self.provenance),
+            "spacar_dof": self.spacar_dof,
+            "spacar_condition_number": self.spacar_condition_number,
+            "spacar": dict(self.spacar) if self.spacar else None,
             "conventions": {
                 "scaling": "SVD of D_cc C / L_c with C = diag(L_c translations, 1 rotations): singular values "
                 "dimensionless; kinematic modes are unit vectors of that scaled problem (translations in L_c "
@@ -255,6 +271,18 @@ class ConstraintDiagnosis:
                 lines.append("  " + name + ": " + ", ".join(f"{k} {v:+.4f}" for k, v in comps.items()))
             lines.append("  release one of these to remove it: " + ", ".join(rel))
         lines += [f"warning [{w.kind}]: {w.message}" for w in self.warnings]
+        sp = self.spacar
+        if sp and sp.get("available", True):
+            cond = sp["condition_number"]
+            lines.append(
+                f"SPACAR's count (its variables, SI, at the reference): degrees of freedom {sp['dof']}, D_cc "
+                f"{sp['m']} x {sp['n']} of rank {sp['rank']}, condition number "
+                + (f"{cond:.6g}" if cond is not None else "infinite")
+                + f": {sp['verdict']}"
+            )
+            lines += [f"  SPACAR note: {n}" for n in sp.get("notes", [])]
+        elif sp:
+            lines.append(f"SPACAR's count not available: {sp['why']}")
         return "\n".join(lines)
 
 

@@ -155,8 +155,41 @@ def _scaled_svd(
     return Lc, Dh, U, sv, Vt.T, rank
 
 
+def _spacar(scene: Scene, spacar_text: str | None) -> dict:
+    """SPACAR's own count and D_cc (:mod:`model.spacar_dcc`): of ``spacar_text`` (the imported file) or of the
+    scene's SPACAR model with one beam element per member; what stops it, said."""
+    from .spacar_dcc import spacar_dcc, spacar_dcc_of_scene
+
+    try:
+        if spacar_text is not None:
+            got = spacar_dcc(spacar_text).to_dict()
+            got["model"] = "the imported .dat file"
+            return got
+        one = scene.model_copy(
+            update={
+                "elements": tuple(
+                    e.model_copy(update={"segments": 1}) if isinstance(e, Beam) else e for e in scene.elements
+                )
+            }
+        )
+        got = spacar_dcc_of_scene(one).to_dict()
+        got["model"] = (
+            "the scene as model.spacar.write_dat writes it, each member one beam element (flexopt export "
+            "--to dat writes the members' segments: same counts, its own condition number)"
+        )
+        return got
+    except SceneError as exc:
+        return {"available": False, "why": str(exc)}
+
+
 @limited()  # one BLAS thread while it computes (model.threads)
-def diagnose(scene: Scene, at_stroke: float | None = None, kinematic: bool | None = None) -> ConstraintDiagnosis:
+def diagnose(
+    scene: Scene,
+    at_stroke: float | None = None,
+    kinematic: bool | None = None,
+    spacar: bool = True,
+    spacar_text: str | None = None,
+) -> ConstraintDiagnosis:
     """Exact-constraint diagnosis of a scene (seed 002, section 3).
 
     Parameters
@@ -167,6 +200,11 @@ def diagnose(scene: Scene, at_stroke: float | None = None, kinematic: bool | Non
         Stroke value (stroke unit) of the equilibrium to diagnose; None = the reference configuration.
     kinematic
         Use the kinematic idealisation (section 4.2); None = the scene's ``kinematic`` flag.
+    spacar
+        Also report SPACAR's degrees of freedom and the condition number of D_cc by SPACAR's definition
+        (:mod:`model.spacar_dcc`; at the reference configuration, whatever ``at_stroke``).
+    spacar_text
+        The ``.dat`` text the scene was imported from: SPACAR's count is then that file's.
 
     Returns
     -------
@@ -230,6 +268,7 @@ def diagnose(scene: Scene, at_stroke: float | None = None, kinematic: bool | Non
         static_modes=tuple(stat_modes),
         release_candidates=tuple(releases),
         notes=tuple(notes),
+        spacar=_spacar(scene, spacar_text) if spacar else None,
     )
     settings = {"at_stroke": at_stroke, "kinematic": kin, "rank_rtol": RANK_RTOL, "almost_singular_rtol": NEAR_RTOL}
     return annotate_diagnosis(diag, scene, settings)  # scene checks and provenance (model.checks)

@@ -66,6 +66,8 @@ class SpacarImport:
     numbering: str = ""  # how X and R node numbers pair up
     #: SPACAR's count of degrees of freedom: inputs plus flexible (dynamic) deformations
     spacar_dof: int = 0
+    #: the .dat text read (SPACAR Light tables: the model written from them), for SPACAR's own D_cc
+    text: str = ""
 
 
 class SpacarError(SceneError):
@@ -1026,7 +1028,9 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
     spacar_dof = r.spacar_dof
     spacar_dof += len({(n, k) for n, ks, _ in r.inputs for k in ks if not (r.role(n) == "R" and k == 1)})
     spacar_dof += sum(1 for h in r.hinges if h[0] in r.dyne)
-    return SpacarImport(scene=scene, mapped=r.mapped, notes=r.notes, numbering=r.numbering, spacar_dof=spacar_dof)
+    return SpacarImport(
+        scene=scene, mapped=r.mapped, notes=r.notes, numbering=r.numbering, spacar_dof=spacar_dof, text=text
+    )
 
 
 def _merge_chains(elements: list[dict], materials: list[dict], X: dict, special: set[int]) -> tuple[list[dict], int]:

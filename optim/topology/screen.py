@@ -103,7 +103,7 @@ def screen_scene(scene: Scene, intended: list[str] | None = None, allow_overcons
         ``n``, ``rank``, ``almost_singular``, ``condition_number`` (of the scaled D_cc: how far from singular
         the constraint arrangement is; seed 002 sec. 3).
     """
-    d = diagnose(scene, kinematic=True)
+    d = diagnose(scene, kinematic=True, spacar=False)  # SPACAR's own count: not needed to screen
     A = _allowed(d, scene, intended or [])
     null = d.V[:, d.rank :]  # free motions, scaled columns
     if A.shape[1]:

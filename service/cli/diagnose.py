@@ -57,19 +57,12 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         scene, imported = load_dat(args.scene)
     else:
         scene = scene_from_args(args)
-    diag = diagnose(scene, at_stroke=args.at_stroke, kinematic=args.kinematic)
+    text = imported.text if imported is not None else None
+    diag = diagnose(scene, at_stroke=args.at_stroke, kinematic=args.kinematic, spacar_text=text)
     if args.json:
-        out = diag.to_dict()
-        if imported is not None:
-            out["spacar_dof"] = imported.spacar_dof
-        print(json.dumps(out, indent=2))
+        print(json.dumps(diag.to_dict(), indent=2))
     else:
         print(diag.report())
-        if imported is not None:
-            print(
-                f"SPACAR degrees of freedom (inputs and dynamic deformations, as its log counts them): "
-                f"{imported.spacar_dof}"
-            )
     if args.plot:
         plot_diagnosis(scene, diag, args.plot)
         print(f"plot written to {args.plot}", file=sys.stderr)
