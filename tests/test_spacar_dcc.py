@@ -1,0 +1,186 @@
+"""SPACAR's own D_cc (model.spacar_dcc): its matrix written by hand for a truss and a clamped beam, its counts
+by hand for a cross-spring pivot, and the diagnosis reporting it for imported and native scenes."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from flexopt.model.curve import Analysis
+from flexopt.model.diagnosis import diagnose
+from flexopt.model.io import load_dat
+from flexopt.model.spacar_dcc import spacar_dcc, spacar_dcc_of_scene
+from flexopt.model.templates import template
+
+DATA = Path(__file__).parent / "data" / "spacar"
+s = 1 / math.sqrt(2)
+
+#: Seed 002 sec. 3.3 (tests/data/spacar/truss12.dat): each truss's row of D = d(l - l0)/dx is the unit vector
+#: along it, from the joint it pulls towards the other end, with opposite signs at its two ends; only the joints
+#: X 5 (1, 0, 1), X 6 (0, 1, 1), X 7 (-1, 0, 1), X 8 (0, -1, 1) have calculable coordinates. Written by hand.
+TRUSS_ROWS = {
+    "TRUSS 1 eps1": {5: (0, -s, s)},  # 5 -> support (1, 1, 0)
+    "TRUSS 2 eps1": {5: (0, s, s)},  # 5 -> (1, -1, 0)
+    "TRUSS 3 eps1": {6: (-s, 0, s)},  # 6 -> (1, 1, 0)
+    "TRUSS 4 eps1": {6: (s, 0, s)},  # 6 -> (-1, 1, 0)
+    "TRUSS 5 eps1": {7: (0, -s, s)},  # 7 -> (-1, 1, 0)
+    "TRUSS 6 eps1": {7: (0, s, s)},  # 7 -> (-1, -1, 0)
+    "TRUSS 7 eps1": {8: (s, 0, s)},  # 8 -> (-1, -1, 0)
+    "TRUSS 8 eps1": {8: (-s, 0, s)},  # 8 -> (1, -1, 0)
+    "TRUSS 9 eps1": {5: (s, -s, 0), 6: (-s, s, 0)},
+    "TRUSS 10 eps1": {6: (s, s, 0), 7: (-s, -s, 0)},
+    "TRUSS 11 eps1": {7: (-s, s, 0), 8: (s, -s, 0)},
+    "TRUSS 12 eps1": {8: (-s, -s, 0), 5: (s, s, 0)},
+}
+
+
+def _hand(rows: dict[str, dict[int, tuple]], drop: str | None = None) -> tuple[list[str], list[str], np.ndarray]:
+    labels = [r for r in rows if r != drop]
+    cols = [f"X {n} {c}" for n in (5, 6, 7, 8) for c in "xyz"]
+    D = np.zeros((len(labels), 12))
+    for i, r in enumerate(labels):
+        for n, v in rows[r].items():
+            D[i, 3 * (n - 5) : 3 * (n - 5) + 3] = v
+    return labels, cols, D
+
+
+def test_truss_of_seed_002_is_the_hand_written_matrix():
+    """Seed 002 sec. 3.3: D_cc is the 12 x 12 matrix of unit vectors above (exactly), of rank 11, so its
+    condition number is infinite; its statically indeterminate stresses are all +-sqrt(3)/6 (the paper's
+    value, sec. 3.3) and its free motion moves the four joints tangentially by 0.5 each (eq. 16)."""
+    d = spacar_dcc((DATA / "truss12.dat").read_text())
+    labels, cols, D = _hand(TRUSS_ROWS)
+    assert list(d.rows) == labels and list(d.columns) == cols
+    np.testing.assert_allclose(d.D_cc, D, atol=1e-15)  # exact up to round-off
+    assert (d.m, d.n, d.rank, d.dof) == (12, 12, 11, 0)
+    assert d.condition_number == math.inf and d.to_dict()["condition_number"] is None
+    assert d.over_constrained == d.under_constrained == 1
+    U, _, Vt = np.linalg.svd(d.D_cc)
+    np.testing.assert_allclose(np.abs(U[:, -1]), math.sqrt(3) / 6, rtol=1e-12)
+    np.testing.assert_allclose(sorted(np.abs(Vt[-1])), [0.0] * 8 + [0.5] * 4, atol=1e-12)
+
+
+def test_truss_with_one_truss_released_has_the_hand_matrix_condition_number():
+    """RLSE 12 1 makes truss 12's elongation calculable: D_cc is the hand matrix without its row, 11 x 12 of
+    rank 11 (one free motion, no self-stress) and its condition number is that of the hand matrix (numpy's
+    SVD of it: an independent computation) to 1e-12."""
+    text = (DATA / "truss12.dat").read_text().replace("END", "RLSE 12 1\nEND", 1)
+    d = spacar_dcc(text)
+    _, _, D = _hand(TRUSS_ROWS, drop="TRUSS 12 eps1")
+    sv = np.linalg.svd(D, compute_uv=False)
+    assert (d.m, d.n, d.rank, d.under_constrained, d.over_constrained) == (11, 12, 11, 1, 0)
+    assert d.condition_number == pytest.approx(sv[0] / sv[-1], rel=1e-12)
+
+
+L_BEAM = 0.1
+CLAMPED = f"""# one beam along x, clamped at X 1 / R 2, all six deformations dynamic
+X 1 0 0 0
+X 3 {L_BEAM} 0 0
+BEAM 1 1 2 3 4 0 1 0
+ESTIFF 1 4.2e6 0.13 0.0875 560 0 0
+EM 1 0.156 2.080325e-05 3.25e-09 2.08e-05 0
+DYNE 1 1 2 3 4 5 6
+FIX 1
+FIX 2
+END
+HALT
+"""
+
+
+def test_clamped_beam_is_the_hand_written_matrix():
+    """A clamped beam of length L along x (Oy = y) at the reference, differentiated by hand from seed 002 eq. 2
+    with R(lambda) = (l0^2 - v.v) I + 2 v v^T + 2 l0 [v]x (so dR/dlambda0 = 2 I, dR/dlambda_i = 2 [e_i]x):
+    eps1 = x, eps2 = 2 L lambda1, eps3 = -z, eps4 = z + 2 L lambda2, eps5 = y, eps6 = -y + 2 L lambda3 and the
+    normalisation 2 lambda0. Its singular values: 1 (x), 2 (lambda0), 2 L (lambda1) and, for each bending
+    plane, those of [[-1, 0], [1, 2 L]]: sigma^2 = (tr -+ sqrt(tr^2 - 16 L^2)) / 2 with tr = 2 + 4 L^2; so the
+    condition number is 2 / sigma_min (closed form)."""
+    d = spacar_dcc(CLAMPED)
+    L = L_BEAM
+    rows = {  # columns: X 3 x y z, R 4 lambda0..lambda3
+        "R 4 norm": [0, 0, 0, 2, 0, 0, 0],
+        "BEAM 1 eps1": [1, 0, 0, 0, 0, 0, 0],
+        "BEAM 1 eps2": [0, 0, 0, 0, 2 * L, 0, 0],
+        "BEAM 1 eps3": [0, 0, -1, 0, 0, 0, 0],
+        "BEAM 1 eps4": [0, 0, 1, 0, 0, 2 * L, 0],
+        "BEAM 1 eps5": [0, 1, 0, 0, 0, 0, 0],
+        "BEAM 1 eps6": [0, -1, 0, 0, 0, 0, 2 * L],
+    }
+    assert list(d.rows) == list(rows)
+    assert list(d.columns) == ["X 3 x", "X 3 y", "X 3 z", "R 4 lambda0", "R 4 lambda1", "R 4 lambda2", "R 4 lambda3"]
+    np.testing.assert_allclose(d.D_cc, np.array(list(rows.values()), dtype=float), atol=1e-15)
+    tr = 2 + 4 * L**2
+    smin = math.sqrt((tr - math.sqrt(tr**2 - 16 * L**2)) / 2)
+    assert (d.m, d.n, d.rank, d.dof) == (7, 7, 7, 6) and d.verdict.startswith("exactly constrained")
+    assert d.condition_number == pytest.approx(2 / smin, rel=1e-12)
+
+
+@pytest.mark.parametrize("fixture", ["cross_pivot_2node.dat", "cross_pivot_3node.dat"])
+def test_cross_spring_pivot_counts_by_hand(fixture):
+    """The hand-written cross-spring pivot (counts in the file's comments): 41 rows (24 dynamic deformations,
+    12 of the two rigid links, 5 normalisations), 34 columns (5 free X nodes x 3, 5 free R nodes x 4, less the
+    input lambda3), full column rank; 25 degrees of freedom. The leaves' 24 deformations and the input span
+    the rotor's 6 and the 2 x 6 of the mid nodes, 18 motions, plus 7 more: over-constrained by 7, which SPACAR
+    resolves by releasing 7 of them (the note says so). Both numberings give the same matrix."""
+    d = spacar_dcc((DATA / fixture).read_text())
+    assert (d.m, d.n, d.rank, d.dof) == (41, 34, 34, 25)
+    assert (d.over_constrained, d.under_constrained) == (7, 0)
+    assert any("released (RLSE" in n for n in d.notes)
+    other = spacar_dcc((DATA / "cross_pivot_2node.dat").read_text())
+    np.testing.assert_allclose(d.singular_values, other.singular_values, rtol=1e-12)
+
+
+def _pivot_native(points: int = 3):
+    return template(
+        "cross-spring-pivot",
+        length=0.04 * math.sqrt(2),
+        segments=2,
+        body_offset=0.01,
+        body_radius=0.02,
+        points=points,
+        stroke=10.0,
+    )
+
+
+def test_cross_spring_pivot_fixture_is_the_native_pivot():
+    """The fixture gives the native template's frequencies (same geometry to 4e-18 m) to 1e-9 at 0, 5 and
+    10 deg, the same flexopt diagnosis (Table 1 counts), and SPACAR's D_cc of the native scene's export has the
+    fixture's counts and condition number (1e-9: the export numbers the nodes otherwise, which permutes rows
+    and columns, and writes the rigid links with another Oy, which rotates their bending rows)."""
+    scene, imp = load_dat(str(DATA / "cross_pivot_3node.dat"))
+    native = _pivot_native()
+    vals = [0.0, 5.0, 10.0]
+    got = Analysis(scene).frequency_curve(np.array(vals), mesh_error=False)
+    ref = Analysis(native).frequency_curve(np.array(vals), mesh_error=False)
+    np.testing.assert_allclose(got.modes_hz, ref.modes_hz, rtol=1e-9)
+    a = diagnose(scene, spacar_text=imp.text)
+    b = diagnose(native)
+    assert (a.m, a.n, a.rank) == (b.m, b.n, b.rank)
+    assert a.spacar_dof == imp.spacar_dof == 25
+    full = spacar_dcc_of_scene(native)  # the export as written: two beams per leaf
+    assert (full.m, full.n, full.rank, full.dof) == (41, 34, 34, 25)
+    assert full.condition_number == pytest.approx(a.spacar_condition_number, rel=1e-9)
+
+
+def test_native_diagnosis_reports_spacar_counts_with_one_beam_per_member():
+    """A native scene's diagnosis reports SPACAR's count of its model with one beam element per member: for the
+    cross-spring pivot 12 dynamic deformations and the input (13 degrees of freedom), D_cc 27 x 20 (12 + 12
+    + 3 rows, 3 x 3 + 3 x 4 - 1 columns), over-constrained by 7 (by hand, as above); the report and the JSON
+    carry it."""
+    d = diagnose(_pivot_native())
+    assert d.spacar_dof == 13
+    sp = d.spacar
+    assert (sp["m"], sp["n"], sp["rank"], sp["over_constrained"]) == (27, 20, 20, 7)
+    assert d.to_dict()["spacar_condition_number"] == pytest.approx(d.spacar_condition_number)
+    assert "SPACAR's count" in d.report()
+
+
+def test_a_scene_spacar_cannot_hold_says_why():
+    """A drive about a skew axis has no SPACAR input coordinate: the diagnosis says SPACAR's count is not
+    available and why, and everything else is reported as usual."""
+    sc = template("leaf-spring", segments=2)
+    sc = sc.model_copy(update={"stroke": sc.stroke.model_copy(update={"axis": (0.0, 1.0, 1.0)})})
+    d = diagnose(sc)
+    assert d.spacar_dof is None and d.spacar is not None and d.spacar["available"] is False
+    assert "coordinate axis" in d.spacar["why"] and "not available" in d.report()
