@@ -210,7 +210,9 @@ def spacar_dcc(text: str) -> SpacarDcc:
     ]
     if undeclared:
         raise SpacarError(undeclared)
-    used_x = sorted({b[1] for b in r.beams} | {b[3] for b in r.beams} | {t[1] for t in r.trusses} | {t[2] for t in r.trusses})
+    used_x = sorted(
+        {b[1] for b in r.beams} | {b[3] for b in r.beams} | {t[1] for t in r.trusses} | {t[2] for t in r.trusses}
+    )
     used_r = sorted({b[2] for b in r.beams} | {b[4] for b in r.beams} | {n for h in r.hinges for n in h[1:3]})
     both = sorted(set(used_r) & set(X))
     if both:
