@@ -251,7 +251,7 @@ def spacar_dcc(text: str) -> SpacarDcc:
         add("BEAM", ne, np.asarray(fns["beam"](x0[idx], c)), idx)
     for ne, xp, xq, _ln in r.trusses:
         idx = at(xp, xq)
-        add("TRUSS", ne, np.asarray(fns["truss"](x0[idx], [np.linalg.norm(X[xq] - X[xp])])), idx)
+        add("TRUSS", ne, np.asarray(fns["truss"](x0[idx], float(np.linalg.norm(X[xq] - X[xp])))), idx)
     for ne, rp, rq, axis, _ln in r.hinges:
         idx = at(rp, rq)
         T0 = _frame(np.array(axis, dtype=float), None).ravel(order="F")
