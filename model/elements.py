@@ -23,7 +23,13 @@ Constitutive stiffness (Jonker and Meijaard; shared/PHYSICS.md)
 --------------------------------------------------------------
 ``sigma = S eps`` with ``S11 = EA/l0``, ``S22 = GJ/l0^3``, ``S[3:5,3:5] = EIy/l0^3 [[4,-2],[-2,4]]``,
 ``S[5:7,5:7] = EIz/l0^3 [[4,-2],[-2,4]]``; a circular arc of curvature kappa gives eps3 = eps4 =
-kappa l0^2/2 and energy EI kappa^2 l0/2. The element energy is the Lagrangian
+kappa l0^2/2 and energy EI kappa^2 l0/2. With SPACAR's shear flexibility ``S_y = EIy / (k G A)`` (``ESTIFF``;
+a general section's ``shear_y``) and ``phi = 12 S_y / l0^2``, the bending block is Timoshenko's,
+``EIy / (l0^3 (1 + phi)) [[4 + phi, -(2 - phi)], [-(2 - phi), 4 + phi]]``: a beam's end rotations relative to
+its chord under end moments with shear deformation (Przemieniecki 1968, ch. 5, the beam element with shear deformation), which leaves the
+symmetric mode (eps3 = eps4, uniform curvature: 2 EIy/l0^3) alone and softens the antisymmetric one (eps3 =
+-eps4, shear force along the beam) from 6 EIy/l0^3 to 6 EIy/(l0^3 (1 + phi)); likewise ``S_z`` for eps5,
+eps6. The element energy is the Lagrangian
 
     L = 1/2 (m * eps)^T S (m * eps) + lambda^T ((1 - m) * eps),
 
@@ -63,7 +69,7 @@ __all__ = [
 
 # Layout of a beam's packed input vector.
 BEAM_STATE = 30  # xp(3) Rp(9, column-major) rp(3) xq(3) Rq(9) rq(3)
-BEAM_CONST = 21  # l0, E0 (9, columns ex ey ez of the local frame in node axes), k1 k2 ky kz, ct, mask(6)
+BEAM_CONST = 23  # l0, E0 (9, columns ex ey ez of the local frame in node axes), k1 k2 ky kz, ct, mask(6), phi_y phi_z
 TRUSS_STATE = 12  # xp(3) rp(3) xq(3) rq(3)
 TRUSS_CONST = 3  # l0, k1, mask
 
@@ -132,15 +138,16 @@ def _beam_deformations(xp, Rp, xq, Rq, l0, E0, ct) -> ca.SX:
     return ca.vertcat(e1, e2, e3, e4, e5, e6)
 
 
-def _beam_energy(e: ca.SX, k: ca.SX, mask: ca.SX, lam: ca.SX) -> ca.SX:
+def _bending(kb: ca.SX, phi: ca.SX, a: ca.SX, b: ca.SX) -> ca.SX:
+    """Twice the bending energy of one plane: ``kb (a, b) [[4 + phi, phi - 2], [phi - 2, 4 + phi]] (a, b)^T /
+    (1 + phi)`` (the module docstring; Euler-Bernoulli at ``phi = 0``)."""
+    return kb * ((4 + phi) * (a**2 + b**2) + 2 * (phi - 2) * a * b) / (1 + phi)
+
+
+def _beam_energy(e: ca.SX, k: ca.SX, mask: ca.SX, lam: ca.SX, phi: ca.SX) -> ca.SX:
     k1, k2, ky, kz = k[0], k[1], k[2], k[3]
     f = mask * e
-    U = 0.5 * (
-        k1 * f[0] ** 2
-        + k2 * f[1] ** 2
-        + ky * (4 * f[2] ** 2 - 4 * f[2] * f[3] + 4 * f[3] ** 2)
-        + kz * (4 * f[4] ** 2 - 4 * f[4] * f[5] + 4 * f[5] ** 2)
-    )
+    U = 0.5 * (k1 * f[0] ** 2 + k2 * f[1] ** 2 + _bending(ky, phi[0], f[2], f[3]) + _bending(kz, phi[1], f[4], f[5]))
     return U + ca.dot(lam, (1 - mask) * e)
 
 
@@ -182,16 +189,16 @@ def _beam_expr() -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
     xp0, Rp0, rp = s[0:3], ca.reshape(s[3:12], 3, 3), s[12:15]
     xq0, Rq0, rq = s[15:18], ca.reshape(s[18:27], 3, 3), s[27:30]
     l0, E0 = c[0], ca.reshape(c[1:10], 3, 3)
-    k, ct, mask = c[10:14], c[14], c[15:21]
+    k, ct, mask, phi = c[10:14], c[14], c[15:21], c[21:23]
     xp, Rp = _end(xp0, Rp0, rp, d[0:3], d[3:6])
     xq, Rq = _end(xq0, Rq0, rq, d[6:9], d[9:12])
     e = _beam_deformations(xp, Rp, xq, Rq, l0, E0, ct)
-    return a, d, _beam_energy(e, k, mask, lam), e
+    return a, d, _beam_energy(e, k, mask, lam, phi), e
 
 
 @cache
 def beam_spec() -> tuple[KernelSpec, KernelSpec]:
-    """The spatial beam kernels (main input: state 30, const 21, lam 6; third-derivative input adds v 12)."""
+    """The spatial beam kernels (main input: state 30, const 23, lam 6; third-derivative input adds v 12)."""
     a, d, L, e = _beam_expr()
     v = ca.SX.sym("v", 12)
     return _finish("flexopt_beam", a, d, v, L, e, 6, BEAM_STATE, BEAM_CONST)
@@ -244,7 +251,7 @@ def beam_d4() -> ca.Function:
     xp, Rp = _end4(s[0:3], ca.reshape(s[3:12], 3, 3), s[12:15], d[0:3], d[3:6])
     xq, Rq = _end4(s[15:18], ca.reshape(s[18:27], 3, 3), s[27:30], d[6:9], d[9:12])
     e = _beam_deformations(xp, Rp, xq, Rq, c[0], ca.reshape(c[1:10], 3, 3), c[14])
-    return _d4(a, d, v, _beam_energy(e, c[10:14], c[15:21], lam), "flexopt_beam_d4")
+    return _d4(a, d, v, _beam_energy(e, c[10:14], c[15:21], lam, c[21:23]), "flexopt_beam_d4")
 
 
 @cache
@@ -271,7 +278,7 @@ def beam_input_jvp() -> ca.Function:
     The state inputs are absolute (node positions, rotation matrices, offsets), and ``H`` is the Hessian in
     the chart *at* that state, so one derivative along ``da`` covers both a change of the design (the
     constants and reference offsets) and a move of the equilibrium, without any change of chart.
-    Input ``[a, da]`` (2 x 57), output ``[dg, dH, de]`` (162).
+    Input ``[a, da]`` (2 x 59), output ``[dg, dH, de]`` (162).
     """
     a, d, L, e = _beam_expr()
     da = ca.SX.sym("da", a.numel())
@@ -462,7 +469,7 @@ HERMITE_MASS = [
     [54.0, 13.0, 156.0, -22.0],
     [-13.0, -3.0, -22.0, 4.0],
 ]
-#: Input of :func:`beam_mass_spec`: the beam's state (30) and constants (21), then its mass ``rho A l0``.
+#: Input of :func:`beam_mass_spec`: the beam's state (30) and constants (23), then its mass ``rho A l0``.
 BEAM_MASS_IN = BEAM_STATE + BEAM_CONST + 1
 
 
@@ -501,7 +508,7 @@ def _beam_mass_expr() -> tuple[ca.SX, ca.SX]:
 def beam_mass_spec() -> KernelSpec:
     """Consistent translational mass of a beam segment for the cubic (Hermite) shape of its centre line.
 
-    Input ``[state (30), const (21), m]`` (the beam kernels' state and constants and ``m = rho A l0``);
+    Input ``[state (30), const (23), m]`` (the beam kernels' state and constants and ``m = rho A l0``);
     output the 12 x 12 mass (column-major) over the increments ``(u, psi)`` of both ends' masters.
 
     Derivation. The centre line is the cubic Hermite interpolant of the end positions and end tangents,
@@ -549,7 +556,7 @@ def beam_mass_jvp_spec() -> KernelSpec:
 # ----------------------------------------------------------------- external loads and gravity
 #: Input of :func:`point_load_spec`: the point's current offset from its master ``r`` (3) and the force (3).
 POINT_LOAD_IN = 6
-#: Input of :func:`beam_gravity_spec`: the beam's state (30) and constants (21), its mass and the gravity (3).
+#: Input of :func:`beam_gravity_spec`: the beam's state (30) and constants (23), its mass and the gravity (3).
 BEAM_GRAVITY_IN = BEAM_STATE + BEAM_CONST + 4
 
 
@@ -582,7 +589,7 @@ def beam_gravity_spec() -> KernelSpec:
     weight of the cubic (Hermite) centre line, ``V = -m g . int_0^1 x(xi) dxi = -m g . (x_p / 2 + l0 t_p / 12
     + x_q / 2 - l0 t_q / 12)`` (``int H1 = int H3 = 1/2``, ``int H2 = -int H4 = 1/12``; ``t`` the end tangents
     ``R E0 e_x``), so a rotating end feels the moment ``m g l0 / 12`` of the clamped-beam load vector
-    (Przemieniecki 1968, ch. 5: ``w l^2 / 12``) and its stiffness. Input ``[state (30), const (21), m,
+    (Przemieniecki 1968, ch. 5: ``w l^2 / 12``) and its stiffness. Input ``[state (30), const (23), m,
     g (3)]``; output ``[g (12), H (144, column-major)]``."""
     a = ca.SX.sym("a", BEAM_GRAVITY_IN)
     d = ca.SX.sym("d", 12)

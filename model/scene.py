@@ -137,6 +137,14 @@ class GeneralSection(_Strict):
     torsion_stress_factor: Pos | None = Field(
         None, description="max shear stress per unit torque [1/m^3] (for stress); thin rectangle: t/J"
     )
+    shear_y: NonNeg = Field(
+        0.0,
+        description="SPACAR's shear flexibility S_y = E Iy / (k G A) [m^2] of bending about local y (eps3, "
+        "eps4): Timoshenko shear deformation; 0 = none (Euler-Bernoulli)",
+    )
+    shear_z: NonNeg = Field(
+        0.0, description="SPACAR's shear flexibility S_z = E Iz / (k G A) [m^2] of bending about local z (eps5, eps6)"
+    )
 
 
 Section = Annotated[RectangularSection | GeneralSection, Field(discriminator="kind")]

@@ -39,6 +39,9 @@ class SectionProperties:
         Largest fibre distances along local y and z (None when unknown: no bending stress).
     tau_per_torque
         Largest shear stress per unit torque (None when unknown).
+    Sy, Sz
+        Shear flexibilities ``E Iy / (k G A)``, ``E Iz / (k G A)`` [m^2] (SPACAR's ESTIFF numbers; 0: no shear
+        deformation). A segment of length ``l0`` gets ``phi = 12 S / l0^2`` (:func:`beam_segment`).
     """
 
     A: float
@@ -51,6 +54,8 @@ class SectionProperties:
     cz: float | None
     tau_per_torque: float | None
     warping: str = "free"
+    Sy: float = 0.0
+    Sz: float = 0.0
 
 
 def rect_torsion_constant(width: float, thickness: float) -> float:
@@ -123,6 +128,8 @@ def section_properties(section: RectangularSection | GeneralSection) -> SectionP
         cy=s.cy,
         cz=s.cz,
         tau_per_torque=s.torsion_stress_factor,
+        Sy=s.shear_y,
+        Sz=s.shear_z,
     )
 
 
@@ -140,7 +147,8 @@ def beam_segment(p, q, y_axis, props: SectionProperties, E, G, density, n) -> di
     ``l0 = |q - p| / n``; the local frame ``E0 = [ex ey ez]`` with ``ex`` along the member, ``ey`` the
     section's ``y_axis`` made perpendicular to ``ex`` and ``ez = ex x ey``; the stiffness constants of
     :mod:`model.elements` (``k1 = EA/l0``, ``k2 = GJ_eff/l0^3`` with the warping factor of the whole member,
-    ``ky = EIy/l0^3``, ``kz = EIz/l0^3``, ``ct``); mass ``rho A l0`` and the rotary inertia lumped at each
+    ``ky = EIy/l0^3``, ``kz = EIz/l0^3``, ``ct``, and ``phi_y = 12 Sy / l0^2``, ``phi_z = 12 Sz / l0^2`` for
+    shear deformation); mass ``rho A l0`` and the rotary inertia lumped at each
     end, ``rho l0/2 E0 diag(Iy + Iz, Iy, Iz) E0^T``. Only arithmetic and ``sqrt``: the numeric model
     (``compile_scene``) and the design-sensitivity kernel (CasADi symbols) share this one formula.
     Vectors are sequences of three scalars; ``E0`` and ``rot`` are returned as 3 x 3 nested lists.
@@ -170,6 +178,8 @@ def beam_segment(p, q, y_axis, props: SectionProperties, E, G, density, n) -> di
         ky=E * props.Iy / l0**3,
         kz=E * props.Iz / l0**3,
         ct=props.ct,
+        phi_y=12.0 * props.Sy / l0**2,
+        phi_z=12.0 * props.Sz / l0**2,
         mass=density * props.A * l0,
         rot=rot,
     )

@@ -12,7 +12,8 @@ Mapped keywords (reader and writer):
 - ``BEAM Ne Xp Rp Xq Rq Oy_x Oy_y Oy_z`` a spatial beam (Oy: the section's local y axis); ``TRUSS Ne Xp Xq``;
 - ``DYNE Ne k...`` its flexible deformations (1 elongation, 2 torsion, 3-4 bending about y, 5-6 about z),
   the others rigid; a beam with none flexible is rigid: the nodes it joins become one rigid body;
-- ``ESTIFF Ne EA GJ EIy EIz [Sy Sz [EIw]]`` (a truss: ``EA``) and ``EM Ne rhoA [rho(Iy+Iz) rhoIy rhoIz
+- ``ESTIFF Ne EA GJ EIy EIz [Sy Sz [EIw]]`` (a truss: ``EA``; the shear flexibilities ``Sy = EIy / (k G A)``,
+  ``Sz`` as the general section's ``shear_y``, ``shear_z``: Timoshenko bending, model.elements) and ``EM Ne rhoA [rho(Iy+Iz) rhoIy rhoIz
   [rhoIyz [rhoIw]]]``: each element gets a general section and its own material whose products are SPACAR's
   numbers exactly (E nominal, A = EA / E, ...; with ``CROSSDIM Ne w t`` in the VISUALIZATION block, A = w t
   and the fibre distances for stresses, else stresses are not available);
@@ -28,8 +29,8 @@ Mapped keywords (reader and writer):
   node sits at an X node, it becomes a flexopt node of its own at that point);
 - ``DYNX n k`` on the input coordinate: the drive free in the eigen analysis.
 
-Not mapped (each an error naming the line, the keyword and why): ``BEAMW`` and warping stiffness, shear
-flexibilities, ``RLSE`` of beams and trusses (released deformations), a locked or stiff ``HINGE``, two R nodes at
+Not mapped (each an error naming the line, the keyword and why): ``BEAMW`` and warping stiffness (``EIw``),
+``RLSE`` of beams and trusses (released deformations), a locked or stiff ``HINGE``, two R nodes at
 an X node without a HINGE (a spherical joint), moments (``XF`` on an R node, 3 or 4 values), ``ESIG``, several
 inputs with increments, and any keyword not listed. Lines of the
 VISUALIZATION block other than ``CROSSDIM`` change nothing in the model and are listed in the report.
@@ -495,13 +496,9 @@ def _beam_stiffness(r: _Reader, ne: int, ln: int, flex: list[int]) -> tuple[list
     if len(k) < 4:
         err.add(kln, "ESTIFF", f"element {ne} is a beam: give EA GJ EIy EIz (got {len(k)} numbers)")
         return None
-    if any(abs(s) > 0 for s in k[4:6]):
-        err.add(
-            kln,
-            "ESTIFF",
-            f"element {ne}: shear flexibilities Sy, Sz = {k[4:6]} are not modelled (the "
-            "beam is Euler-Bernoulli); set them to 0",
-        )
+    if any(s < 0 for s in k[4:6]):
+        err.add(kln, "ESTIFF", f"element {ne}: shear flexibilities Sy, Sz = {k[4:6]} must be 0 or positive")
+        return None
     if len(k) > 6 and abs(k[6]) > 0:
         err.add(
             kln,
@@ -586,6 +583,8 @@ def _beam(r: _Reader, ne: int, xp: int, rp: int, xq: int, rq: int, oy: list[floa
         A = EA / E
         fibres = {}
     section = {"kind": "general", "A": A, "Iy": EIy / E, "Iz": EIz / E, "J": GJ / G, **fibres}
+    if len(k) >= 6 and (k[4] > 0 or k[5] > 0):  # SPACAR's shear flexibilities E I / (k G A): Timoshenko bending
+        section.update(shear_y=k[4], shear_z=k[5])
     mat = f"m{ne}"
     r.materials.append({"name": mat, "E": E, "G": G, "density": rhoA / A, "allowable_stress": E * ALLOWABLE_PER_E})
     rigid = [_MODE[i] for i in range(1, 7) if i not in flex]
@@ -1192,7 +1191,8 @@ def _write_elements(scene, w: _Writer, lines: list[str], props_lines: list[str],
             lines.append(f"BEAM {ne} {X(a)} {R(a)} {X(b)} {R(b)} {_fmt(y[0])} {_fmt(y[1])} {_fmt(y[2])}  # {e.name}")
             rho = mat.density
             props_lines += [
-                f"ESTIFF {ne} {_fmt(mat.E * pr.A)} {_fmt(GJ)} {_fmt(mat.E * pr.Iy)} {_fmt(mat.E * pr.Iz)} 0 0",
+                f"ESTIFF {ne} {_fmt(mat.E * pr.A)} {_fmt(GJ)} {_fmt(mat.E * pr.Iy)} {_fmt(mat.E * pr.Iz)} "
+                f"{_fmt(pr.Sy)} {_fmt(pr.Sz)}",
                 f"EM {ne} {_fmt(rho * pr.A)} {_fmt(rho * (pr.Iy + pr.Iz))} {_fmt(rho * pr.Iy)} {_fmt(rho * pr.Iz)} 0",
             ]
             if flex:

@@ -182,13 +182,14 @@ def _beam_rows(el: Beam, ie: int, mat, props, mesh: _Mesh, pos0: dict[str, np.nd
     rigid = expand_modes(el.rigid)
     mask = np.ones(6)
     mask[list(rigid)] = 0.0
-    k1, k2, ky, kz = (float(seg[k]) for k in ("k1", "k2", "ky", "kz"))
+    k1, k2, ky, kz, phi_y, phi_z = (float(seg[k]) for k in ("k1", "k2", "ky", "kz", "phi_y", "phi_z"))
     S = np.zeros((6, 6))
     S[0, 0] = k1
     S[1, 1] = k2
-    S[2:4, 2:4] = ky * np.array([[4.0, -2.0], [-2.0, 4.0]])
-    S[4:6, 4:6] = kz * np.array([[4.0, -2.0], [-2.0, 4.0]])
-    const = np.concatenate([[l0], E0.ravel(order="F"), [k1, k2, ky, kz, float(props.ct)], mask])
+    # bending with shear deformation (model.elements): Euler-Bernoulli's [[4, -2], [-2, 4]] at phi = 0
+    S[2:4, 2:4] = ky / (1 + phi_y) * np.array([[4.0 + phi_y, phi_y - 2.0], [phi_y - 2.0, 4.0 + phi_y]])
+    S[4:6, 4:6] = kz / (1 + phi_z) * np.array([[4.0 + phi_z, phi_z - 2.0], [phi_z - 2.0, 4.0 + phi_z]])
+    const = np.concatenate([[l0], E0.ravel(order="F"), [k1, k2, ky, kz, float(props.ct)], mask, [phi_y, phi_z]])
     assert const.size == BEAM_CONST
     nan = float("nan")
     stress = [props.A, props.Iy, props.Iz, props.cy or nan, props.cz or nan, props.tau_per_torque or nan, l0]
