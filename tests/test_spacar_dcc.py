@@ -4,6 +4,7 @@ by hand for a cross-spring pivot, and the diagnosis reporting it for imported an
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -184,3 +185,93 @@ def test_a_scene_spacar_cannot_hold_says_why():
     d = diagnose(sc)
     assert d.spacar_dof is None and d.spacar is not None and d.spacar["available"] is False
     assert "coordinate axis" in d.spacar["why"] and "not available" in d.report()
+
+
+def _kinematic(text: str) -> str:
+    """Seed 002 sec. 4.2's kinematic model of a folded-sheet guide in SPACAR's terms: every sheet keeps its
+    elongation and in-plane bending (eps1, eps5, eps6: Oy is the fold line) rigid, sheet B (odd elements) has
+    one independent (DYNE) out-of-plane bending, eps4, and the other compliant deformations are dependent
+    (RLSE, calculable)."""
+
+    def one(m: re.Match) -> str:
+        ne = int(m.group(1))
+        return f"DYNE {ne} 4\nRLSE {ne} 2 3" if ne % 2 else f"RLSE {ne} 2 3 4"
+
+    return re.sub(r"DYNE (\d+) 1 2 3 4 5 6", one, text)
+
+
+@pytest.mark.parametrize(
+    "fixture, counts, kinematic",
+    [
+        # five flexures: 60 DYNE + 30 rigid-link + 11 normalisation rows; 11 X nodes x 3 - 1 + 11 R nodes x 4
+        # columns; 61 dof of which 36 independent motions (cylinder 6, folds 30): over-constrained by 25.
+        # Kinematic: 30 + 5 + 30 + 11 = 76 rows, square and regular (seed 002 sec. 4.2: "D_cc is non-singular")
+        ("folded_guide_5_2node.dat", (101, 76, 76, 61), (76, 76, 76, 0, 0)),
+        # six (Figure 5b): the extra flexure adds one constraint: over-constrained by 1 (sec. 4.2)
+        ("folded_guide_6_3node.dat", (121, 90, 90, 73), (91, 90, 90, 1, 0)),
+        # Figure 5a: the second side's fold lines parallel: under- and over-constrained by 1 (sec. 4.2)
+        ("folded_guide_5a_2node.dat", (101, 76, 76, 61), (76, 76, 75, 1, 1)),
+    ],
+)
+def test_folded_sheet_guides_counts_and_seed_002_verdicts(fixture, counts, kinematic):
+    """The folded-sheet guides of seed 002 Figures 3b, 5a and 5b (fixtures, both numberings): SPACAR's counts
+    of the dynamic model by hand, and of the kinematic model (sec. 4.2) the paper's verdicts."""
+    text = (DATA / fixture).read_text()
+    d = spacar_dcc(text)
+    assert (d.m, d.n, d.rank, d.dof) == counts
+    k = spacar_dcc(_kinematic(text))
+    assert (k.m, k.n, k.rank, k.over_constrained, k.under_constrained) == kinematic
+    assert k.dof == len(re.findall(r"^DYNE ", _kinematic(text), re.M)) + 1  # the generalised bendings, the input
+
+
+@pytest.mark.parametrize("count, fixture", [(5, "folded_guide_5_2node.dat"), (6, "folded_guide_6_3node.dat")])
+def test_folded_sheet_guide_fixtures_are_the_native_guides(count, fixture):
+    """The fixtures give the native templates' frequencies (one beam per sheet, as seed 002 sec. 5 models
+    them; the drive free: DYNX) to 1e-9 at 0 and 2 mm, and flexopt's diagnosis of the same partition (the
+    template's generalised bending dropped: a .dat's DYNE is flexible, not generalised) has the same counts."""
+    scene, imp = load_dat(str(DATA / fixture))
+    native = template(f"folded-sheet-guide-{count}", segments=1)
+    vals = np.array([0.0, 0.002])
+    got = Analysis(scene).frequency_curve(vals, mesh_error=False)
+    ref = Analysis(native).frequency_curve(vals, mesh_error=False)
+    np.testing.assert_allclose(got.modes_hz, ref.modes_hz, rtol=1e-9)
+    plain = native.model_copy(
+        update={"elements": tuple(e.model_copy(update={"generalised": ()}) for e in native.elements)}
+    )
+    a, b = diagnose(scene, spacar_text=imp.text), diagnose(plain)
+    assert (a.m, a.n, a.rank) == (b.m, b.n, b.rank)
+    assert a.spacar_dof == imp.spacar_dof
+
+
+def test_cross_hinge_joined_through_a_rigid_link_is_the_native_hinge():
+    """Leaf B's end joined to leaf A's by a rigid beam with mass (the fixture): the moving part is that link, a
+    rod of m = rhoA L at its middle with inertia m L^2/12 (I - e e^T) (closed form), which the native scene
+    states by hand; same frequencies to 1e-9, the same diagnosis, and SPACAR's counts by hand (the file's
+    comments)."""
+    scene, imp = load_dat(str(DATA / "cross_hinge_link_2node.dat"))
+    a1, b1 = np.array([0.02, 0.02, 0.011]), np.array([-0.02, 0.02, -0.011])
+    Lr = float(np.linalg.norm(a1 - b1))
+    m = 0.5 * Lr
+    e = (a1 - b1) / Lr
+    native_dict = _pivot_native().model_dump(mode="json")
+    native_dict["bodies"] = [
+        {
+            "name": "link",
+            "mass": m,
+            "center_of_mass": list((a1 + b1) / 2),
+            "inertia": (m * Lr**2 / 12 * (np.eye(3) - np.outer(e, e))).tolist(),
+            "nodes": ["a1", "b1"],
+        }
+    ]
+    native_dict["stroke"] = {**native_dict["stroke"], "body": "link", "start": 0.0}
+    from flexopt.model.io import scene_from_dict
+
+    native = scene_from_dict(native_dict)
+    vals = np.array([0.0, 5.0, 10.0])
+    got = Analysis(scene).frequency_curve(vals, mesh_error=False)
+    ref = Analysis(native).frequency_curve(vals, mesh_error=False)
+    np.testing.assert_allclose(got.modes_hz, ref.modes_hz, rtol=1e-9)
+    a, b = diagnose(scene, spacar_text=imp.text), diagnose(native)
+    assert (a.m, a.n, a.rank) == (b.m, b.n, b.rank)
+    d = a.spacar
+    assert (d["m"], d["n"], d["rank"], d["dof"], d["over_constrained"]) == (34, 27, 27, 25, 7)
