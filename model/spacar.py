@@ -890,32 +890,43 @@ def _merge(r: _Reader) -> None:
         r.notes.append(f"{merged} chains of equal collinear beams read as members with segments (one member each)")
 
 
+def _moment_error(r: _Reader, kw: str, n: int, vals: list[float], ln: int) -> None:
+    """The one line for XF/DELXF on a rotational node: which form was read, or why the count is wrong."""
+    if len(vals) == 3:
+        form = "3 values (mx my mz, the form since 2017) read"
+    elif len(vals) == 4:
+        form = "4 Euler-parameter values (the form before 2017) read"
+    else:
+        r.err.add(
+            ln,
+            kw,
+            f"node {n} is rotational: a moment takes 3 values (mx my mz, since 2017) or 4 Euler-parameter "
+            f"values (older files), got {len(vals)}; give 3",
+        )
+        return
+    r.err.add(
+        ln,
+        kw,
+        f"node {n} is rotational: a moment ({form}) is not mapped yet; apply it as a force pair on a rigid arm",
+    )
+
+
 def _forces(r: _Reader) -> list[tuple[int, list[float], int]]:
     """XF and DELXF lines checked: the forces on X nodes (moments are errors)."""
     loads = []
     for n, (vals, ln) in r.xf.items():
         if r.role(n) == "R":
-            fmt = (
-                "3 values (since 2017)"
-                if len(vals) == 3
-                else ("4 Euler-parameter values (before 2017)" if len(vals) == 4 else f"{len(vals)} values")
-            )
-            r.err.add(
-                ln,
-                "XF",
-                f"node {n} is rotational: a moment ({fmt} read) is not supported yet; apply it as "
-                "a force pair on a rigid arm",
-            )
+            _moment_error(r, "XF", n, vals, ln)
             continue
         if r.role(n) != "X" or len(vals) != 3:
             r.err.add(ln, "XF", f"node {n}: give a force 'XF n fx fy fz' on a translational node")
             continue
         loads.append((n, vals, ln))
     for n, (vals, ln) in r.delxf.items():
-        if r.role(n) != "X" or len(vals) != 3:
-            r.err.add(
-                ln, "DELXF", f"node {n}: give 'DELXF n dfx dfy dfz' on a translational node (moments are not supported)"
-            )
+        if r.role(n) == "R":
+            _moment_error(r, "DELXF", n, vals, ln)
+        elif r.role(n) != "X" or len(vals) != 3:
+            r.err.add(ln, "DELXF", f"node {n}: give 'DELXF n dfx dfy dfz' on a translational node")
     return loads
 
 

@@ -115,9 +115,30 @@ def test_truss_of_seed_002_is_diagnosed_as_the_paper_says():
         ("X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 1 0 0\n", "line 3: BEAM: element 1: Oy = (1.0, 0.0, 0.0) is parallel"),
         (
             "X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nXF 4 1 2 3 4 5\n",
-            "line 4: XF: node 4 is rotational: a moment (5 values read)",
+            "line 4: XF: node 4 is rotational: a moment takes 3 values (mx my mz, since 2017) or 4 "
+            "Euler-parameter values (older files), got 5; give 3",
         ),
-        ("X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nXF 4 0 1 0 0\n", "4 Euler-parameter values (before 2017)"),
+        (
+            "X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nXF 4 0 1 0 0\n",
+            "line 4: XF: node 4 is rotational: a moment (4 Euler-parameter values (the form before 2017) read)",
+        ),
+        (
+            "X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nDELXF 4 0 1 0\n",
+            "line 4: DELXF: node 4 is rotational: a moment (3 values (mx my mz, the form since 2017) read) is "
+            "not mapped yet",
+        ),
+        (
+            "X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nBEAMW 2 1 2 5 3 4 6 0 1 0\n",
+            "line 4: BEAMW: beams with warping nodes are not supported",
+        ),
+        (
+            "X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nDYNE 1 1 2 3 4 5 6\nESTIFF 1 1 1 1 1 0 0 2\nEM 1 1\n",
+            "line 5: ESTIFF: element 1: warping stiffness EIw = 2.0 is not modelled",
+        ),
+        (
+            "X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nDYNE 1 1 2 3 4 5 6\nESTIFF 1 1 1 1 1 -1 0\nEM 1 1\n",
+            "line 5: ESTIFF: element 1: shear flexibilities Sy, Sz = [-1.0, 0.0] must be 0 or positive",
+        ),
         ("X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nRLSE 1 3\n", "line 4: RLSE: released deformations"),
         (
             "X 1 0 0 0\nX 3 1 0 0\nX 5 2 0 0\nBEAM 1 1 2 3 4 0 1 0\nBEAM 2 3 6 5 7 0 1 0\n",
