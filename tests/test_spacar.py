@@ -220,6 +220,7 @@ def test_cli_import_export_and_a_dat_scene_path(tmp_path, capsys):
     out, err = capsys.readouterr()
     scene = scene_from_dict(__import__("json").loads(out))
     assert "SPACAR degrees of freedom (inputs and dynamic deformations): 25" in err
+    assert "SPACAR's D_cc (its variables, SI, at the reference; docs: SPACAR models): 28 x 27, rank 27" in err
     path = tmp_path / "leaf.json"
     path.write_text(out)
     assert main(["export", str(path), "--numbering", "3"]) == 0
@@ -232,6 +233,7 @@ def test_cli_import_export_and_a_dat_scene_path(tmp_path, capsys):
     assert main(["diagnose", str(DATA / "truss12.dat"), "--json"]) == 0
     d = __import__("json").loads(capsys.readouterr().out)
     assert d["spacar_dof"] == 0 and d["rank"] == 11
+    assert d["spacar"]["rank"] == 11 and d["spacar_condition_number"] is None  # rank deficient: infinite
     bad = tmp_path / "bad.dat"
     bad.write_text(BAD)
     assert main(["import", str(bad)]) == 2

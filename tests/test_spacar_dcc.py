@@ -221,6 +221,8 @@ def test_folded_sheet_guides_counts_and_seed_002_verdicts(fixture, counts, kinem
     assert (d.m, d.n, d.rank, d.dof) == counts
     k = spacar_dcc(_kinematic(text))
     assert (k.m, k.n, k.rank, k.over_constrained, k.under_constrained) == kinematic
+    if fixture.startswith("folded_guide_5_"):  # regression pin (this code's number; no SPACAR log to check)
+        assert k.condition_number == pytest.approx(349.7492928768, rel=1e-9)
     assert k.dof == len(re.findall(r"^DYNE ", _kinematic(text), re.M)) + 1  # the generalised bendings, the input
 
 

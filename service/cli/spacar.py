@@ -46,6 +46,15 @@ def _cmd_import(args: argparse.Namespace) -> int:
         )
         for note in imp.notes:
             print(f"# note: {note}", file=sys.stderr)
+        from ...model.spacar_dcc import spacar_dcc
+
+        d = spacar_dcc(imp.text)
+        cond = d.condition_number
+        print(
+            f"# SPACAR's D_cc (its variables, SI, at the reference; docs: SPACAR models): {d.m} x {d.n}, rank "
+            f"{d.rank}, condition number {cond:.6g}: {d.verdict}",
+            file=sys.stderr,
+        )
     return 0
 
 
