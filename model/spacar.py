@@ -467,8 +467,9 @@ def _hinge_joints(r: _Reader) -> None:
                 err.add(
                     ln,
                     "RLSE",
-                    "released deformations (no stiffness, no constraint) of beams and trusses are not "
-                    "supported: flexopt keeps every deformation flexible or rigid; list it in DYNE",
+                    "released deformations of beams and trusses (calculable, e(c): neither rigid nor a "
+                    "degree of freedom) are not mapped: whether SPACAR gives them the element's stiffness is not "
+                    "established here; list them in DYNE if they are elastic",
                 )
 
 
