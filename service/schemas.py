@@ -191,6 +191,10 @@ class SpacarImportResult(_Wire):
     notes: list[str] = Field(description="what was read in a way worth knowing (conversions, defaults, left-outs)")
     numbering: str = Field(description="how the file's X and R node numbers pair up")
     spacar_dof: int = Field(description="SPACAR's degrees of freedom: inputs and dynamic (DYNE) deformations")
+    spacar: dict[str, Any] = Field(
+        description="SPACAR's own D_cc of the file (model.spacar_dcc; docs: SPACAR models): m, n, rank, "
+        "condition_number (null: rank deficient), verdict, dof and the definition used"
+    )
 
 
 class SpacarExportRequest(_Wire):

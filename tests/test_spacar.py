@@ -257,6 +257,7 @@ def test_http_import_and_export():
 
     ok, bad, dat = asyncio.run(run())
     assert ok.status_code == 200 and ok.json()["spacar_dof"] == 0 and len(ok.json()["scene"]["elements"]) == 12
+    assert ok.json()["spacar"]["rank"] == 11 and ok.json()["spacar"]["condition_number"] is None
     assert bad.status_code == 422
     assert {e["msg"][:10] for e in bad.json()["errors"]} == {"line 5: BE", "line 6: RL", "line 7: FO", "line 8: HI"}
     assert dat.status_code == 200 and dat.text.count("TRUSS") == 12

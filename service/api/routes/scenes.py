@@ -33,12 +33,15 @@ def router(prefix: str) -> APIRouter:
                 [{"loc": ("body", "text"), "msg": m, "type": "value_error"} for m in exc.lines]
             ) from None
         scene = scene_from(imp.scene)
+        from ....model.spacar_dcc import spacar_dcc
+
         return SpacarImportResult(
             scene=scene.model_dump(mode="json"),
             mapped=imp.mapped,
             notes=imp.notes,
             numbering=imp.numbering,
             spacar_dof=imp.spacar_dof,
+            spacar=spacar_dcc(imp.text).to_dict(),
         )
 
     @r.post(
