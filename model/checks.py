@@ -266,7 +266,8 @@ def slenderness_warnings(scene: Scene) -> list[ResultWarning]:
         Per beam member: ``validity`` when ``L / h < SLENDER_MIN`` (``h = sqrt(12 I_min / A)``; the shear
         share ``(E / (kappa G)) (h / L)^2`` of a clamped-guided member, Timoshenko beam theory, in the
         message) or ``L / w < PLATE_MAX`` (a plate; Timoshenko and Woinowsky-Krieger 1959), else a ``notice``
-        when the share across the width exceeds ``SHEAR_NOTICE``. ``value``: the ratio or the share.
+        when the share across the width exceeds ``SHEAR_NOTICE``; neither shear warning for a general section
+        that carries shear flexibilities (its bending is Timoshenko's). ``value``: the ratio or the share.
     """
     out: list[ResultWarning] = []
     mats = {m.name: m for m in scene.materials}
@@ -277,7 +278,10 @@ def slenderness_warnings(scene: Scene) -> list[ResultWarning]:
         mat = mats[e.material]
         h, w, _, _ = _section_depths(e.section)
         ratio = mat.E / (KAPPA * mat.G)
-        if L / h < SLENDER_MIN:
+        # a general section with SPACAR's shear flexibilities has Timoshenko bending (model.elements): the
+        # shear warnings below do not apply to it
+        sheared = not isinstance(e.section, RectangularSection) and (e.section.shear_y > 0 or e.section.shear_z > 0)
+        if L / h < SLENDER_MIN and not sheared:
             share = ratio * (h / L) ** 2
             out.append(
                 ResultWarning(
@@ -304,7 +308,7 @@ def slenderness_warnings(scene: Scene) -> list[ResultWarning]:
                     value=L / w,
                 )
             )
-        elif ratio * (w / L) ** 2 > SHEAR_NOTICE:
+        elif ratio * (w / L) ** 2 > SHEAR_NOTICE and not sheared:
             share = ratio * (w / L) ** 2
             out.append(
                 ResultWarning(

@@ -80,3 +80,12 @@ def test_shear_flexibilities_survive_a_spacar_round_trip():
     back = read_dat(text).scene
     assert back["elements"][0]["section"]["shear_y"] == pytest.approx(S, rel=1e-15)
     np.testing.assert_allclose(_tip(back), _tip(sc), rtol=1e-12)
+
+
+def test_no_shear_warning_for_a_section_that_carries_shear():
+    """The stocky bar (L/h = 3) is outside Euler-Bernoulli theory and flagged so without shear flexibility;
+    with it the beam is Timoshenko's and the warning that shear is neglected would be false."""
+    from flexopt.model.checks import slenderness_warnings
+
+    assert any(w.kind == "validity" for w in slenderness_warnings(scene_from_dict(_cantilever(1, 0.0))))
+    assert not slenderness_warnings(scene_from_dict(_cantilever(1, S)))
