@@ -18,8 +18,8 @@ against a SPACAR log**, none being available):
   per TRUSS its elongation ``l - l0`` [m]; per HINGE (axis ``a``, at each node the triad ``(a, b, c)`` turned
   by its node's rotation) the relative rotation about ``a`` and about ``b`` and ``c``, each
   ``(t_i^p . t_j^q - t_j^p . t_i^q) / 2`` [rad]; per rotational node not wholly fixed, the normalisation
-  ``lambda . lambda - 1`` (how SPACAR keeps four parameters for three rotations: a deformation that is
-  always rigid; a wholly fixed node's parameters are all known, so it adds no equation);
+  ``lambda . lambda - 1``, a deformation that is always rigid (this module's reading of how SPACAR keeps four
+  parameters for three rotations; a wholly fixed node's parameters are all known, so it adds no equation);
 - partition (seed 002 eq. 4): ``x(o)`` the FIXed coordinates, ``x(m)`` the INPUTX and DYNX ones, ``x(c)`` the
   others; ``e(m)`` the DYNE deformations (a HINGE's with DYNE), ``e(c)`` the RLSE ones (left out of D_cc),
   ``e(o)`` the others: rigid (no DYNE) and the normalisations;
