@@ -9,6 +9,7 @@ from .linear import StateSpace, frequency_response, state_space
 from .results import Failure, FrequencyCurve
 from .scene import Scene
 from .spacar import SpacarImport, read_dat, spacar_light, write_dat
+from .spacar_dcc import SpacarDcc, spacar_dcc
 from .structure import MAX_DOFS, compile_scene
 from .templates import DESIGN_SPACES, TEMPLATES, design_space, template, template_parameters
 
@@ -29,6 +30,8 @@ __all__ = [
     "write_dat",
     "spacar_light",
     "SpacarImport",
+    "spacar_dcc",
+    "SpacarDcc",
     "state_space",
     "frequency_response",
     "StateSpace",
