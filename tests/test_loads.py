@@ -284,6 +284,13 @@ def test_load_gradient_is_the_energy_gradient():
             {"node": "B", "table": {"stroke": [0, 10, 20], "force": [[0, 0, 0], [1, 0, 0]]}},
             "one force per stroke value",
         ),
+        ({"node": "B", "force": [1, 0, 0], "moment": [0, 0, 1]}, "exactly one of 'force', 'moment'"),
+        ({"node": "B", "moment": [0, 0, 1], "kind": "force"}, "kind 'force' contradicts the moment given"),
+        (
+            {"node": "B", "table": {"stroke": [0, 20], "force": [[0, 0, 0], [1, 0, 0]], "moment": [[0, 0, 0]] * 2}},
+            "exactly one of 'force' or 'moment' in a load table",
+        ),
+        ({"node": "B", "moment": [0, 1]}, "loads[0].moment[2]: required field is missing"),
     ],
 )
 def test_bad_loads_are_one_line_naming_the_field(load, words):
@@ -292,6 +299,40 @@ def test_bad_loads_are_one_line_naming_the_field(load, words):
     with pytest.raises(SceneError) as info:
         scene_from_dict(scene)
     assert words in str(info.value)
+
+
+def test_a_moment_ramp_is_the_constant_moment_at_each_stroke_point():
+    """A moment ramped along the stroke (kind 'moment') and the same moment as a table give, at the last stroke
+    point, the frequencies and drive reaction of that moment held constant (independent solves; tolerance
+    1e-8 as for forces). The moment is non-conservative in 3D: the general eigenproblem runs throughout."""
+    ramp = {"kind": "moment", "ramp": {"start": [0, 0.0, 0], "stop": [0.002, -0.02, 0.001]}}
+    c_ramp = Analysis(scene_from_dict(_driven(ramp))).frequency_curve(mesh_error=False)
+    const = Analysis(scene_from_dict(_driven({"moment": [0.002, -0.02, 0.001]}, points=3)))
+    c_const = const.frequency_curve(np.array([0.0, 10.0, 20.0]), mesh_error=False)
+    np.testing.assert_allclose(c_ramp.modes_hz[-1], c_const.modes_hz[-1], rtol=1e-8)
+    assert c_ramp.drive_reaction[-1] == pytest.approx(c_const.drive_reaction[-1], rel=1e-8)
+    table = {"table": {"stroke": [0.0, 20.0], "moment": [[0, 0.0, 0], [0.002, -0.02, 0.001]]}}
+    c_table = Analysis(scene_from_dict(_driven(table))).frequency_curve(mesh_error=False)
+    np.testing.assert_allclose(c_table.modes_hz, c_ramp.modes_hz, rtol=1e-8)
+    assert const.system.loads.nonconservative
+
+
+def test_path_tangent_includes_a_follower_load_rate():
+    """As test_path_tangent_includes_the_load_rate, for a ramped follower force and a moment (the tangent solves
+    the unsymmetric Newton matrix)."""
+    scene = _driven({"ramp": {"start": [0, 0, -0.5], "stop": [3.0, 0, -2.0]}, "follower": True})
+    scene["loads"].append({"node": "B", "kind": "moment", "ramp": {"start": [0, 0, 0], "stop": [0, 0.01, 0.002]}})
+    an = Analysis(scene_from_dict(scene))
+    sys, opts = an.system, an.options
+    from flexopt.model.statics import solve_point
+
+    eq0 = reference_equilibrium(sys, opts)
+    s, h = 0.1, 1e-4
+    eq = solve_point(sys, eq0.state, s, opts, 0.0)
+    plus = solve_point(sys, eq.state, s + h, opts, s)
+    minus = solve_point(sys, eq.state, s - h, opts, s)
+    fd = (sys.difference(plus.state, eq.state) - sys.difference(minus.state, eq.state)) / (2 * h)
+    assert np.abs(eq.tangent - fd).max() <= 1e-4 * np.abs(eq.tangent).max()
 
 
 def test_units_block_converts_loads_and_gravity():
@@ -308,6 +349,16 @@ def test_units_block_converts_loads_and_gravity():
     s = scene_from_dict(scene)
     assert s.gravity == pytest.approx((0, 0, -9.81))
     assert s.loads[0].force == pytest.approx((1.0, 0, 0)) and s.loads[0].point == pytest.approx((0.01, 0, -0.05))
+    # moments are force x length: kN mm = N m; a moment ramp (kind 'moment') and table likewise
+    scene["loads"] = [
+        {"node": "B", "moment": [0, 0, 2.0], "follower": True},
+        {"node": "B", "kind": "moment", "ramp": {"start": [0, 0, 0], "stop": [0, 3.0, 0]}},
+        {"node": "B", "ramp": {"start": [0, 0, 0], "stop": [0, 3.0, 0]}},
+    ]
+    s = scene_from_dict(scene)
+    assert s.loads[0].moment == pytest.approx((0, 0, 2.0)) and s.loads[0].follower
+    assert s.loads[1].ramp.stop == pytest.approx((0, 3.0, 0)) and s.loads[1].is_moment
+    assert s.loads[2].ramp.stop == pytest.approx((0, 3000.0, 0)) and not s.loads[2].is_moment
 
 
 def test_fast_methods_refuse_a_loaded_scene_and_auto_runs_exact():
