@@ -66,16 +66,21 @@ class LoadSet:
         masters: list[int] = []
         offsets: list[np.ndarray] = []
         self.loads: list = []  # a scene Load, or a constant force vector (gravity on a point mass)
+        #: per load, where it comes from: ("node", node index) or ("body", master) for a scene load, ("weight",
+        #: master) for a body's weight, ("truss", node index) for half a truss's (model.design differentiates them)
+        self.source: list[tuple[str, int]] = []
         for ld in scene.loads:  # a scene's loads first: their indices are the scene's
             if ld.node is not None:
                 i = node_index[ld.node]
                 masters.append(int(s.node_master[i]))
                 offsets.append(s.node_offset[i])
+                self.source.append(("node", i))
             else:
                 m = body_index[ld.body]
                 masters.append(m)
                 p = np.asarray(ld.point if ld.point is not None else s.master_pos[m], dtype=float)
                 offsets.append(p - s.master_pos[m])
+                self.source.append(("body", m))
             self.loads.append(ld)
         g = np.zeros(3) if scene.gravity is None else np.asarray(scene.gravity, dtype=float)
         self.gravity = g
@@ -84,11 +89,13 @@ class LoadSet:
                 masters.append(int(m))
                 offsets.append(np.zeros(3))
                 self.loads.append(s.master_mass[m] * g)
+                self.source.append(("weight", int(m)))
             for (a, b), mass in zip(s.truss_nodes, s.truss_mass):  # trusses: half the weight at each end
                 for i in (a, b):
                     masters.append(int(s.node_master[i]))
                     offsets.append(s.node_offset[i])
                     self.loads.append(0.5 * mass * g)
+                    self.source.append(("truss", int(i)))
         self.masters = np.array(masters, dtype=int)
         scene_loads = [ld for ld in self.loads if not isinstance(ld, np.ndarray)]
         #: per load: a moment (else a force), following its master's rotation (else dead)
@@ -123,7 +130,12 @@ class LoadSet:
                 out[k] = ld.value(v, self._first, self._last)
         return out
 
-    def _kernel_input(self, R: np.ndarray, vec: np.ndarray) -> np.ndarray:
+    def stroke_value(self, stroke: float) -> tuple[float, float, float]:
+        """``stroke`` (internal units) in the stroke unit, and the stroke's first and last values: the
+        arguments of :meth:`model.scene.Load.value`."""
+        return float(self._unit(stroke)), self._first, self._last
+
+    def kernel_input(self, R: np.ndarray, vec: np.ndarray) -> np.ndarray:
         """The point kernel's input rows ``[r, F, M, fF, fM]`` for the loads' vectors ``vec`` (nk, 3) at the
         masters' rotations ``R``: current offsets, followers turned with their masters."""
         Rm = R[self.masters]
@@ -153,7 +165,7 @@ class LoadSet:
         filled inputs (state and constants first)."""
         N = self.N
         if self.point_kernel is not None:
-            out = self.point_kernel(self._kernel_input(R, scale * self.forces(stroke)))
+            out = self.point_kernel(self.kernel_input(R, scale * self.forces(stroke)))
             g += np.bincount(self.dofs.ravel(), out[:, :6].ravel(), minlength=N)
             g_full += np.bincount(self.dofs_full.ravel(), out[:, :6].ravel(), minlength=len(g_full))
             Hflat += np.bincount(self.flat, out[:, 6:].ravel(), minlength=N * N)
@@ -174,7 +186,7 @@ class LoadSet:
             not isinstance(ld, np.ndarray) and ld.force is None and ld.moment is None for ld in self.loads
         ):
             return None
-        out = self.point_kernel(self._kernel_input(R, scale * self.forces(stroke, rate=True)))
+        out = self.point_kernel(self.kernel_input(R, scale * self.forces(stroke, rate=True)))
         return np.bincount(self.dofs.ravel(), out[:, :6].ravel(), minlength=self.N)
 
     def potential(

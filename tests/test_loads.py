@@ -369,12 +369,16 @@ def test_fast_methods_refuse_a_loaded_scene_and_auto_runs_exact():
     assert c.solver["auto_method"] == "exact"
 
 
-def test_design_sensitivities_refuse_loads():
+def test_design_sensitivities_take_gravity_and_refuse_followers():
+    """Gravity and dead forces are in the design sensitivities' scope (tests/test_design.py checks them against
+    finite differences); a follower load is not: one line naming it."""
     from flexopt.model.design import _check_scope
 
-    an = Analysis(scene_from_dict(_pendulum(9.81)))
-    with pytest.raises(FlexoptError, match="do not include loads or gravity"):
-        _check_scope(an.structure)
+    scene = _pendulum(9.81)
+    _check_scope(Analysis(scene_from_dict(scene)).structure)
+    scene["loads"] = [{"node": "B", "force": [0.1, 0, 0], "follower": True}]
+    with pytest.raises(FlexoptError, match=r"non-conservative load\(s\) loads\[0\] \(follower force on node 'B'\)"):
+        _check_scope(Analysis(scene_from_dict(scene)).structure)
 
 
 def test_stress_includes_the_load():
