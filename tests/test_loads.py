@@ -427,7 +427,10 @@ def test_tip_moment_bends_a_quarter_circle():
     (the drive reaction) is M exactly (statics of the whole leaf, to the Newton tolerance). The stress is the
     pure-bending stress M (t/2) / Iy (Euler-Bernoulli; no axial force): the elements' curvature converges at
     O(h^2) too (3.1e-3 high with 10 elements, 7.7e-4 with 20), so the Richardson value is asserted within
-    5e-5 (measured 5e-6)."""
+    5e-5 (measured 5e-6). The discretisation error itself has a closed form: a chain of n elements bent into
+    an arc carries M = EI (n / L) sin(theta / n) (tests/test_physics.py, from seed 002 eq. 2), so under the
+    moment the tip angle is n asin(m / n) (asserted to 1e-12; measured 3e-16) and the tip lies on the arc of
+    that angle (within 1e-6 L, the chain's fourth-order error; measured 7e-8)."""
     m = math.pi / 2
     M = m * EI_E / L_E
     xr, zr = tip_moment_arc(m)
@@ -438,6 +441,9 @@ def test_tip_moment_bends_a_quarter_circle():
     rich = (4 * x20 - x10) / 3
     assert abs(rich[0] - xr) <= 3e-5 and abs(rich[2] - zr) <= 3e-5, f"Richardson {rich}, arc ({xr}, {zr})"
     assert m20 == pytest.approx(M, rel=1e-9), "root moment with the moment applied: M"
+    th = 20 * math.asin(m / 20)
+    assert a20 == pytest.approx(th, rel=1e-12)
+    assert np.hypot(x20[0] - tip_moment_arc(th)[0], x20[2] - tip_moment_arc(th)[1]) <= 1e-6
     sigma = M * (T_E / 2) / (W_E * T_E**3 / 12)
     assert (4 * s20 - s10) / 3 == pytest.approx(sigma, rel=5e-5)
 
@@ -448,7 +454,9 @@ def test_tip_moment_rolls_the_cantilever_into_a_full_circle():
     are applied in steps (model.statics.reference_equilibrium). The tip's distance from the closed form falls
     at second order (20 -> 40 elements: ratio 4.09, asserted between 3.5 and 4.5), is within 5e-3 L with 40
     elements (measured 4.1e-3: 9 degrees of arc per element) and the Richardson extrapolation within 5e-4 L
-    (measured 2.6e-4, the third-order remainder at this coarse angle per element)."""
+    (measured 2.6e-4, the third-order remainder at this coarse angle per element). The discrete closed form
+    (see the quarter circle) holds to 1e-6 L (measured 8e-9): the 40-element chain overshoots to the tip
+    angle 40 asin(2 pi / 40) = 2 pi + 0.0261."""
     m = 2 * math.pi
     M = m * EI_E / L_E
     ref = np.array([tip_moment_arc(m)[0], 0.0, tip_moment_arc(m)[1]])
@@ -459,6 +467,8 @@ def test_tip_moment_rolls_the_cantilever_into_a_full_circle():
     assert e40 <= 5e-3
     assert np.linalg.norm((4 * x40 - x20) / 3 - ref) <= 5e-4
     assert m20 == pytest.approx(M, rel=1e-9)
+    xd, zd = tip_moment_arc(40 * math.asin(m / 40))
+    assert np.hypot(x40[0] - xd, x40[2] - zd) <= 1e-6
 
 
 def test_follower_force_elastica_against_an_independent_integration():
