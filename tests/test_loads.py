@@ -614,3 +614,15 @@ def test_beck_column_frequencies_coalesce_and_the_flutter_is_reported():
     )
     (w,) = [w for w in c.warnings if w.message.startswith("flutter")]
     assert "loads[0] (follower force on node 'B')" in w.message
+
+
+def test_divergence_under_nonconservative_loads_names_them():
+    """A real eigenvalue through zero with a non-conservative load present (the dead-force column past pi^2/4
+    EI/L^2 with a small follower force beside it) ends the curve as unstable, and the failure names the
+    non-conservative load (never silent about the unsymmetric stiffness behind it)."""
+    scene = _beck(1.1 * math.pi**2 / 4 * EI_B / L_B**2, 6, follower=False)
+    scene["loads"].append({"name": "pusher", "node": "B", "force": [-1e-3 * EI_B / L_B**2, 0, 0], "follower": True})
+    c = Analysis(scene_from_dict(scene)).frequency_curve(np.array([0.0]), mesh_error=False)
+    assert c.status == "truncated" and c.failures[0].reason == "unstable"
+    assert "loads[1] 'pusher' (follower force on node 'B')" in c.failures[0].message
+    assert "divergence" in c.failures[0].message
