@@ -563,4 +563,26 @@ class MeshAnalysis:
             ),
             "mass": "consistent translational mass of the cubic (Hermite) centre line (Przemieniecki 1968 ch. 11); "
             "rotary inertia the mean of lumped and consistent (model.elements.beam_mass_spec)",
+            **({"loads": self._loads_convention()} if self.system.loads is not None else {}),
         }
+
+    def _loads_convention(self) -> str:
+        """What the curve's loads mean for its numbers (``conventions["loads"]``)."""
+        ls = self.system.loads
+        sc = self.structure.scene
+        what = f"{len(sc.loads)} load(s)" + (", gravity" if sc.gravity is not None and any(sc.gravity) else "")
+        names = ls.nonconservative_names()
+        kind = (
+            "non-conservative: "
+            + ", ".join(names)
+            + " (unsymmetric stiffness; the general eigenproblem: frequencies of the real eigenvalues, complex pairs "
+            "reported as flutter warnings)"
+            if names
+            else "conservative (dead forces and gravity: symmetric stiffness)"
+        )
+        return (
+            f"{what} raised from 0 at stroke 0 (in steps where needed) and taken at each stroke's value "
+            f"(model.loads); {kind}; "
+            "solved on the numpy route (the compiled one-call Newton route does not take loads: the same "
+            "equations, slower)"
+        )

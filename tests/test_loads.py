@@ -614,6 +614,7 @@ def test_beck_column_frequencies_coalesce_and_the_flutter_is_reported():
     )
     (w,) = [w for w in c.warnings if w.message.startswith("flutter")]
     assert "loads[0] (follower force on node 'B')" in w.message
+    assert "non-conservative: loads[0] (follower force on node 'B')" in c.conventions["loads"]
 
 
 def test_divergence_under_nonconservative_loads_names_them():
