@@ -430,7 +430,8 @@ def test_tip_moment_bends_a_quarter_circle():
     5e-5 (measured 5e-6). The discretisation error itself has a closed form: a chain of n elements bent into
     an arc carries M = EI (n / L) sin(theta / n) (tests/test_physics.py, from seed 002 eq. 2), so under the
     moment the tip angle is n asin(m / n) (asserted to 1e-12; measured 3e-16) and the tip lies on the arc of
-    that angle (within 1e-6 L, the chain's fourth-order error; measured 7e-8)."""
+    that angle (within 1e-6 L, the chain's fourth-order error; measured 7e-8). A follower moment gives the same
+    planar equilibrium."""
     m = math.pi / 2
     M = m * EI_E / L_E
     xr, zr = tip_moment_arc(m)
@@ -446,6 +447,11 @@ def test_tip_moment_bends_a_quarter_circle():
     assert np.hypot(x20[0] - tip_moment_arc(th)[0], x20[2] - tip_moment_arc(th)[1]) <= 1e-6
     sigma = M * (T_E / 2) / (W_E * T_E**3 / 12)
     assert (4 * s20 - s10) / 3 == pytest.approx(sigma, rel=5e-5)
+    # a follower moment about y stays about y in this planar bending: the same equilibrium (to the Newton
+    # tolerance), though solved with its own (unsymmetric) stiffness
+    xf, af, mf = _tip_state(_clamped(20, {"moment": [0, -M, 0], "follower": True}))
+    np.testing.assert_allclose(xf, x20, atol=1e-9)
+    assert af == pytest.approx(a20, rel=1e-9) and mf == pytest.approx(m20, rel=1e-9)
 
 
 @pytest.mark.slow
