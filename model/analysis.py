@@ -520,14 +520,15 @@ class MeshAnalysis:
         """A ``notice`` when the eigenproblem had complex eigenvalues (flutter) at some points: never silent,
         the reported frequencies being those of the real eigenvalues only (model.modal.general_pairs)."""
         bad = [p for p in pts if p.flutter is not None]
-        if not bad:
+        loads = self.system.loads
+        if not bad or loads is None:
             return ()
         from .results import ResultWarning
 
-        unit = self.structure.scene.stroke.resolved_unit
+        unit = self.stroke.resolved_unit
         at = [asked[p.stroke] if asked and p.stroke in asked else float(to_unit(p.stroke)) for p in bad]
-        w = bad[0].flutter
-        names = ", ".join(self.system.loads.nonconservative_names())
+        w = complex(bad[0].flutter or 0.0)
+        names = ", ".join(loads.nonconservative_names())
         return (
             ResultWarning(
                 "notice",
@@ -569,6 +570,7 @@ class MeshAnalysis:
     def _loads_convention(self) -> str:
         """What the curve's loads mean for its numbers (``conventions["loads"]``)."""
         ls = self.system.loads
+        assert ls is not None  # called only with loads (see _conventions)
         sc = self.structure.scene
         what = f"{len(sc.loads)} load(s)" + (", gravity" if sc.gravity is not None and any(sc.gravity) else "")
         names = ls.nonconservative_names()
