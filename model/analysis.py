@@ -97,6 +97,7 @@ class _Point:
     reaction: float
     vm: np.ndarray
     iterations: int
+    flutter: complex | None = None  # the lowest complex omega^2 under non-conservative loads (model.modal)
 
 
 class MeshAnalysis:
@@ -286,6 +287,14 @@ class MeshAnalysis:
                 f"even with small steps (a limit point, snap-through or loss of equilibrium)"
             )
         causes = stiff_axis_drives(self.structure)
+        loads = self.system.loads
+        if fail.reason == "unstable" and loads is not None and loads.nonconservative:
+            causes = [
+                "the non-conservative load(s) "
+                + ", ".join(loads.nonconservative_names())
+                + " make the stiffness unsymmetric: a real eigenvalue omega^2 crossed zero (divergence)",
+                *causes,
+            ]
         cause = ("; cause: " + "; ".join(causes)) if causes else ""
         return Failure(
             fail.reason,
@@ -416,13 +425,21 @@ class MeshAnalysis:
                 return WalkFailure("unstable", eq.stroke, last_eq[0].stroke, "")
             if prev[0] is not None:
                 perm = track(prev[0], modes)
-                modes = Modes(modes.omega2[perm], modes.phi[:, perm], modes.M, modes.lanczos)
+                modes = Modes(modes.omega2[perm], modes.phi[:, perm], modes.M, modes.lanczos, modes.complex_omega2)
             labels, par = self.label_modes(modes, eq.tangent)
             if visit is not None:
                 visit(eq, modes, labels)
             vm = von_mises(s, self.system, eq)
+            cw = modes.complex_omega2
             points[eq.stroke] = _Point(
-                eq.stroke, modes.hz[:n_rep].copy(), labels[:n_rep], par, eq.drive_reaction, vm, eq.iterations
+                eq.stroke,
+                modes.hz[:n_rep].copy(),
+                labels[:n_rep],
+                par,
+                eq.drive_reaction,
+                vm,
+                eq.iterations,
+                complex(cw[0]) if len(cw) else None,
             )
             iters.append(eq.iterations)
             prev[0], prev_w2[0], last_eq[0] = modes, lowest, eq
@@ -496,6 +513,33 @@ class MeshAnalysis:
                 "seconds": seconds,
                 "mean_newton_iterations": float(np.mean(iters)) if iters else 0.0,
             },
+            warnings=self._flutter_warnings(pts, to_unit, asked),
+        )
+
+    def _flutter_warnings(self, pts: list[_Point], to_unit: Callable, asked: dict[float, float] | None) -> tuple:
+        """A ``notice`` when the eigenproblem had complex eigenvalues (flutter) at some points: never silent,
+        the reported frequencies being those of the real eigenvalues only (model.modal.general_pairs)."""
+        bad = [p for p in pts if p.flutter is not None]
+        loads = self.system.loads
+        if not bad or loads is None:
+            return ()
+        from .results import ResultWarning
+
+        unit = self.stroke.resolved_unit
+        at = [asked[p.stroke] if asked and p.stroke in asked else float(to_unit(p.stroke)) for p in bad]
+        w = complex(bad[0].flutter or 0.0)
+        names = ", ".join(loads.nonconservative_names())
+        return (
+            ResultWarning(
+                "notice",
+                f"flutter: the eigenproblem has complex eigenvalues at {len(bad)} of {len(pts)} stroke points "
+                f"({min(at):+.5g} to {max(at):+.5g} {unit}; omega^2 = {w.real:.5g} +- {w.imag:.5g}i rad^2/s^2 at "
+                f"{at[0]:+.5g} {unit}): the equilibrium is dynamically unstable under the non-conservative "
+                f"load(s) {names}; the frequencies reported are those of the real eigenvalues (the coalesced "
+                "modes are left out)",
+                stroke_range=(min(at), max(at)),
+                value=float(w.imag / abs(w)),
+            ),
         )
 
     def _conventions(self, sym: StrokeSymmetry | None) -> dict[str, str]:
@@ -520,4 +564,27 @@ class MeshAnalysis:
             ),
             "mass": "consistent translational mass of the cubic (Hermite) centre line (Przemieniecki 1968 ch. 11); "
             "rotary inertia the mean of lumped and consistent (model.elements.beam_mass_spec)",
+            **({"loads": self._loads_convention()} if self.system.loads is not None else {}),
         }
+
+    def _loads_convention(self) -> str:
+        """What the curve's loads mean for its numbers (``conventions["loads"]``)."""
+        ls = self.system.loads
+        assert ls is not None  # called only with loads (see _conventions)
+        sc = self.structure.scene
+        what = f"{len(sc.loads)} load(s)" + (", gravity" if sc.gravity is not None and any(sc.gravity) else "")
+        names = ls.nonconservative_names()
+        kind = (
+            "non-conservative: "
+            + ", ".join(names)
+            + " (unsymmetric stiffness; the general eigenproblem: frequencies of the real eigenvalues, complex pairs "
+            "reported as flutter warnings)"
+            if names
+            else "conservative (dead forces and gravity: symmetric stiffness)"
+        )
+        return (
+            f"{what} raised from 0 at stroke 0 (in steps where needed) and taken at each stroke's value "
+            f"(model.loads); {kind}; "
+            "solved on the numpy route (the compiled one-call Newton route does not take loads: the same "
+            "equations, slower)"
+        )

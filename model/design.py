@@ -29,8 +29,15 @@ Chain of exact derivatives (no finite differences anywhere):
    Jacobian: finite everywhere, also where the stress vanishes (the root's gradient is ``0/0`` there).
    ``d vm = d(vm^2) / (2 vm)`` where ``vm > 0``.
 
+6. *Loads.* Dead forces and gravity (model.loads) enter the same way: their generalised gradient changes with
+   the design at a fixed state (a body's weight with its mass, a beam segment's with its mass and length, a
+   force with its point's offset and its value) and their Hessian along the total input change; both are
+   CasADi directional derivatives of the load kernels (:func:`model.elements.load_jvp_spec`).
+
 Scope: beams with rectangular sections and rigid bodies (what the hinge families are made of), without
-rigid deformations (no multipliers). Other scenes get a clear error.
+rigid deformations (no multipliers), with dead forces and gravity; follower loads and moments
+(non-conservative: an unsymmetric stiffness, whose eigenvalue derivatives need left eigenvectors) are not
+covered. Other scenes get a clear error.
 """
 
 from __future__ import annotations
@@ -99,8 +106,11 @@ def _rebuild(obj, it):
     return obj
 
 
-def trace_template(name: str, params: dict, design: Sequence[str]) -> DesignScene:
+def trace_template(name: str, params: dict, design: Sequence[str], extra: dict | None = None) -> DesignScene:
     """Evaluate template ``name`` at ``params`` and differentiate its scene with respect to ``design``.
+
+    ``extra``: scene fields added to the template's scene, constant in the design (e.g. ``{"gravity": [0, 0,
+    -9.81], "loads": [...]}``: a payload's weight or a preload; their derivatives are zero).
 
     Raises
     ------
@@ -131,7 +141,23 @@ def trace_template(name: str, params: dict, design: Sequence[str]) -> DesignScen
     )
     numeric = fn(full)
     dscene = tuple(_rebuild(numeric, iter(J[:, j])) for j in range(len(design)))
+    if extra:
+        from .io import scene_from_dict
+
+        numeric = {**numeric, **extra}
+        scene = scene_from_dict(numeric)
+        zeros = _zeros(extra)
+        dscene = tuple({**d, **zeros} for d in dscene)
     return DesignScene(name, tuple(design), values, full, scene, numeric, dscene)
+
+
+def _zeros(obj):
+    """``obj`` with every number replaced by 0.0 (the derivative of constants)."""
+    if isinstance(obj, dict):
+        return {k: _zeros(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_zeros(v) for v in obj]
+    return 0.0 if isinstance(obj, (int, float)) and not isinstance(obj, bool) else obj
 
 
 # ------------------------------------------------------------------------- 2. scene -> structure
@@ -147,6 +173,8 @@ class StructureDerivative:
     master_pos: np.ndarray  # (nm, 3) reference positions of the masters
     master_mass: np.ndarray  # (nm,)
     master_inertia: np.ndarray  # (nm, 3, 3)
+    loads: tuple[dict, ...] = ()  # the scene loads' derivative dictionaries (model.loads), in scene order
+    gravity: np.ndarray | None = None  # (3,) derivative of the gravity vector
 
 
 def _check_scope(s: Structure) -> None:
@@ -162,14 +190,13 @@ def _check_scope(s: Structure) -> None:
             f"without rigid deformations; in scene '{s.scene.name}' {what}: optimise a "
             "family built from rectangular leaves and bodies"
         )
-    from .loads import has_loads
-
-    if has_loads(s.scene):
-        # the loads' gradient changes with the design (gravity with each segment's mass, a force with its
-        # point's offset), which the implicit-function step below does not include yet
+    bad_loads = [ld.describe(i) for i, ld in enumerate(s.scene.loads) if not ld.conservative]
+    if bad_loads:
+        # an unsymmetric stiffness: eigenvalue derivatives need left eigenvectors, and complex pairs have none
         raise FlexoptError(
-            f"design sensitivities do not include loads or gravity yet; scene '{s.scene.name}' has "
-            "them: optimise without 'loads' and 'gravity', or check the design by frequency curves"
+            f"design sensitivities cover dead forces and gravity; scene '{s.scene.name}' has the "
+            f"non-conservative load(s) {', '.join(bad_loads)}: optimise without them, or check the design by "
+            "frequency curves"
         )
 
 
@@ -249,7 +276,9 @@ def structure_derivative(s: Structure, scene_dict: dict, dscene: dict) -> Struct
     dnrot = np.zeros((nn, 3, 3))
     np.add.at(dnrot, s.beam_nodes[:, 0], drot)
     np.add.at(dnrot, s.beam_nodes[:, 1], drot)
-    return StructureDerivative(dconst, dbmass, dstress, dnrot, doffset, dmaster, dmass, dJ)
+    dloads = tuple(dscene.get("loads", []) or [])
+    dgrav = np.asarray(dscene["gravity"], float) if dscene.get("gravity") is not None else np.zeros(3)
+    return StructureDerivative(dconst, dbmass, dstress, dnrot, doffset, dmaster, dmass, dJ, dloads, dgrav)
 
 
 # --------------------------------------------------------------------- 3-5. equilibrium, modes, stress
@@ -361,6 +390,99 @@ def _mass_derivative(fr: _Frame, psi: np.ndarray, d: StructureDerivative) -> np.
     return sys.reduce_matrix(out.reshape(N, N))
 
 
+class _LoadFrame:
+    """The loads (model.loads) of one equilibrium for the design sensitivities: their kernels' inputs at the
+    state, once per point, and their directional derivatives along a design direction (:meth:`jvp`)."""
+
+    def __init__(self, fr: _Frame, stroke: float) -> None:
+        sys = fr.sys
+        self.fr, self.ls = fr, sys.loads
+        ls = self.ls
+        self.value_at = ls.stroke_value(stroke)
+        self.vec = sys.load_scale * ls.forces(stroke)
+        self.Rm = fr.st.R[ls.masters]
+        self.a_point = ls.kernel_input(fr.st.R, self.vec) if ls.point_kernel is not None else None
+        if ls.beam_gravity:
+            s = sys.s
+            nc = _el.BEAM_STATE + _el.BEAM_CONST
+            self.a_beam = np.hstack(
+                [fr.beam_in[:, :nc], s.beam_mass[:, None], np.tile(sys.load_scale * ls.gravity, (s.n_beams, 1))]
+            )
+        self.dvec = self.doff = np.zeros((len(ls.loads), 3))
+
+    def direction(self, d: StructureDerivative) -> None:
+        """Set the design direction ``d``: each load's change of value ``dvec`` and of reference offset from its
+        master ``doff``."""
+        ls, s = self.ls, self.fr.sys.s
+        g = ls.gravity
+        dg = d.gravity if d.gravity is not None else np.zeros(3)
+        self.dvec = np.zeros((len(ls.loads), 3))
+        self.doff = np.zeros((len(ls.loads), 3))
+        for k, (kind, i) in enumerate(ls.source):
+            if kind == "weight":
+                self.dvec[k] = d.master_mass[i] * g + s.master_mass[i] * dg
+                continue
+            if kind == "truss":  # outside the scope (trusses are refused by _check_scope)
+                raise FlexoptError("design sensitivities do not cover trusses")
+            ld = ls.loads[k]
+            dld = d.loads[k] if k < len(d.loads) else {}
+            self.dvec[k] = _load_value_derivative(ld, dld, *self.value_at)
+            if kind == "node":
+                self.doff[k] = d.node_offset[i]
+            elif ld.point is not None:
+                self.doff[k] = np.asarray(dld.get("point", (0.0, 0.0, 0.0)), float) - d.master_pos[i]
+        self.dvec *= self.fr.sys.load_scale
+
+    def jvp(self, da_state: np.ndarray, psi: np.ndarray, d: StructureDerivative, gradient: bool) -> np.ndarray:
+        """The loads' ``dg`` (``gradient``: active numbering, n) or ``dH`` (n, n) along the beams' state input
+        change ``da_state`` with the masters' rotations ``psi`` (nm, 3) and the direction of :meth:`direction`."""
+        sys, ls = self.fr.sys, self.ls
+        N = sys.N
+        out = np.zeros(N if gradient else N * N)
+        if self.a_point is not None:
+            r = self.a_point[:, 0:3]
+            dr = np.einsum("kij,kj->ki", self.Rm, self.doff) + _cross(psi[ls.masters], r)
+            da = np.zeros_like(self.a_point)
+            da[:, 0:3], da[:, 3:6] = dr, self.dvec  # dead forces only (moments and followers are refused)
+            o = compiled(_el.load_jvp_spec("point"))(np.hstack([self.a_point, da]))
+            if gradient:
+                out += np.bincount(ls.dofs.ravel(), o[:, :6].ravel(), minlength=N)
+            else:
+                out += np.bincount(ls.flat, o[:, 6:].ravel(), minlength=N * N)
+        if ls.beam_gravity:
+            da = np.zeros_like(self.a_beam)
+            da[:, : _el.BEAM_STATE] = da_state
+            da[:, _el.BEAM_STATE : _el.BEAM_STATE + _el.BEAM_CONST] = d.beam_const
+            da[:, _el.BEAM_STATE + _el.BEAM_CONST] = d.beam_mass
+            dg = d.gravity if d.gravity is not None else np.zeros(3)
+            da[:, _el.BEAM_STATE + _el.BEAM_CONST + 1 :] = sys.load_scale * dg
+            o = compiled(_el.load_jvp_spec("beam_gravity"))(np.hstack([self.a_beam, da]))
+            if gradient:
+                out += np.bincount(sys.beam_dofs.ravel(), o[:, :12].ravel(), minlength=N)
+            else:
+                out += np.bincount(sys.beam_flat, o[:, 12:].ravel(), minlength=N * N)
+        return sys.reduce_vector(out) if gradient else sys.reduce_matrix(out.reshape(N, N))
+
+
+def _load_value_derivative(ld, dld: dict, v: float, first: float, last: float) -> np.ndarray:
+    """The derivative of a scene load's value (model.scene.Load.value at ``v``, the stroke unit) from its
+    derivative dictionary ``dld`` (the same keys, derivatives of the numbers; the stroke grid is taken as
+    independent of the design)."""
+    if ld.force is not None:
+        return np.asarray(dld.get("force", (0.0, 0.0, 0.0)), float)
+    if ld.ramp is not None:
+        dr = dld.get("ramp") or {}
+        t = (v - first) / (last - first)
+        return (1 - t) * np.asarray(dr.get("start", (0.0,) * 3), float) + t * np.asarray(
+            dr.get("stop", (0.0,) * 3), float
+        )
+    dt = (dld.get("table") or {}).get("force")
+    if dt is None:
+        return np.zeros(3)
+    F = np.asarray(dt, float)
+    return np.array([np.interp(v, ld.table.stroke, F[:, k]) for k in range(3)])
+
+
 def _stiffness(k: np.ndarray) -> np.ndarray:
     """Constitutive matrices (nb, 6, 6) from the stiffness constants ``k1, k2, ky, kz`` (nb, 4)."""
     S = np.zeros((len(k), 6, 6))
@@ -434,6 +556,7 @@ def point_sensitivity(
     act.reshape(-1)[sys.act_full] = True
     sig = beam_sigma(s, sys, eq)
     fr = _Frame(sys, st)
+    lf = _LoadFrame(fr, eq.stroke) if sys.loads is not None else None
     z = np.hstack([sig, s.beam_stress])
     vm_out = _von_mises_jac(len(z))(z.T)
     vm2 = vm_out[0].full().T
@@ -448,6 +571,9 @@ def point_sensitivity(
         u_pres = np.where(act[:, :3], 0.0, d.master_pos)
         da_design = _beam_inputs_change(fr, u_pres, np.zeros((nm, 3)), d.node_offset)
         dg, _, _ = _jvp(fr, da_design, d.beam_const, hessian=False)
+        if lf is not None:
+            lf.direction(d)
+            dg = dg + lf.jvp(da_design, np.zeros((nm, 3)), d, gradient=True)
         rhs = np.zeros(len(f) + 1)
         rhs[: len(f)] = -dg[f]
         if s.drive_kind == "translation":
@@ -456,6 +582,8 @@ def point_sensitivity(
         v = sys.to_global(dxi).reshape(nm, 6)
         da_total = da_design + _beam_inputs_change(fr, v[:, :3], v[:, 3:], np.zeros_like(d.node_offset))
         _, dH, de = _jvp(fr, da_total, d.beam_const)
+        if lf is not None:
+            dH = dH + lf.jvp(da_total, v[:, 3:], d, gradient=False)
         dM = _mass_derivative(fr, v[:, 3:], d)
         dK, dMf = sys.free_block(dH, locked), sys.free_block(dM, locked)
         pf = phi[dofs]

@@ -63,6 +63,7 @@ __all__ = [
     "beam_gravity_spec",
     "POINT_LOAD_IN",
     "BEAM_GRAVITY_IN",
+    "load_jvp_spec",
     "joint_spec",
     "JOINT_CONST",
 ]
@@ -554,18 +555,25 @@ def beam_mass_jvp_spec() -> KernelSpec:
 
 
 # ----------------------------------------------------------------- external loads and gravity
-#: Input of :func:`point_load_spec`: the point's current offset from its master ``r`` (3) and the force (3).
-POINT_LOAD_IN = 6
+#: Input of :func:`point_load_spec`: the point's current offset from its master ``r`` (3), the current force
+#: (3) and moment (3) in global axes, and two flags (1: the force, the moment follows the master's rotation).
+POINT_LOAD_IN = 11
 #: Input of :func:`beam_gravity_spec`: the beam's state (30) and constants (23), its mass and the gravity (3).
 BEAM_GRAVITY_IN = BEAM_STATE + BEAM_CONST + 4
 
 
 def _load_finish(name: str, a: ca.SX, d: ca.SX, V: ca.SX, n_in: int) -> KernelSpec:
     """A load potential's gradient and Hessian at ``d = 0`` (``[g, H column-major]``) as a kernel."""
-    g = ca.gradient(V, d)
+    return _gradient_finish(name, a, d, ca.gradient(V, d), n_in)
+
+
+def _gradient_finish(name: str, a: ca.SX, d: ca.SX, g: ca.SX, n_in: int) -> KernelSpec:
+    """A load's generalised gradient ``g(d)`` (base chart) and its Jacobian at ``d = 0`` (``[g, H row-major]``:
+    entry ``6 i + j`` is ``d g_i / d d_j``, the order the assembly scatters blocks in; the same as column-major
+    for a potential's symmetric Hessian) as a kernel."""
     H = ca.jacobian(g, d)
     out = ca.densify(
-        ca.substitute(ca.vertcat(g, ca.vec(H)), d, ca.DM.zeros(d.numel()))
+        ca.substitute(ca.vertcat(g, ca.vec(H.T)), d, ca.DM.zeros(d.numel()))
     )  # dense: the batch wrapper writes every entry
     f = ca.Function(name, [a], [out], ["a"], ["out"])
     return KernelSpec(name, f, n_in, out.numel(), 0, n_in, 0)
@@ -573,14 +581,45 @@ def _load_finish(name: str, a: ca.SX, d: ca.SX, V: ca.SX, n_in: int) -> KernelSp
 
 @cache
 def point_load_spec() -> KernelSpec:
-    """A dead force ``F`` on a point carried by a master at offset ``r``: the potential ``V = -F . x(d)``
-    with ``x(d) = x* + u + (exp(psi) - I) r`` (the element chart, module docstring), so ``g = -[F, r x F]``
-    and the Hessian's rotation block is the load stiffness of the offset. Input ``[r (3), F (3)]``; output
-    ``[g (6), H (36, column-major)]`` over the master's ``(u, psi)``."""
+    """A force ``F`` on a point carried by a master at offset ``r`` and a moment ``M`` on the master, each dead
+    (fixed in space) or following the master's rotation (flags ``fF``, ``fM``), as the generalised gradient
+    ``-Q`` of their virtual work over the master's ``(u, psi)`` and its exact Jacobian.
+
+    At the state ``exp(psi) R*`` (the element chart, module docstring) the point is at ``x* + u + (E - I) r``
+    (``E = exp(psi)``), a follower force is ``E F`` and a follower moment ``E M``; the virtual work of a
+    spatial increment ``(du, dpsi)`` there is ``F(d) . du + (E r x F(d) + M(d)) . dpsi``, so the residual
+    in the chart at that state is ``-Q(d) = -[F(d), E r x F(d) + M(d)]``. Pulled back to the chart at ``d =
+    0`` (Baker-Campbell-Hausdorff, as :meth:`model.assembly.System.chart_correction`: ``g(d) = (I - 1/2
+    skew(psi)) r(d)`` on the rotation rows) its Jacobian ``H`` is what the assembly adds to the Hessian: the
+    Newton matrix ``H + chart`` is then the exact Jacobian of the residual. For a dead force ``g`` is the
+    gradient of the potential ``-F . x`` and ``H`` its (symmetric) Hessian, the load stiffness of the
+    offset; a follower force or a moment has no potential and ``H`` is unsymmetric (a dead moment ``M``
+    gives ``H_psi psi = -1/2 skew(M)``, which the chart term cancels: its residual does not change with the
+    rotation). Input ``[r (3), F (3), M (3), fF, fM]``; output ``[g (6), H (36, row-major)]``."""
     a = ca.SX.sym("a", POINT_LOAD_IN)
     d = ca.SX.sym("d", 6)
-    x, _ = _end(ca.SX.zeros(3), None, a[0:3], d[0:3], d[3:6])
-    return _load_finish("flexopt_point_load", a, d, -ca.dot(a[3:6], x), POINT_LOAD_IN)
+    psi = d[3:6]
+    E = _expm3(psi)
+    r, F, M, fF, fM = a[0:3], a[3:6], a[6:9], a[9], a[10]
+    Fd = F + fF * ((E - ca.SX.eye(3)) @ F)
+    Md = M + fM * ((E - ca.SX.eye(3)) @ M)
+    Q_psi = ca.cross(E @ r, Fd) + Md
+    g = -ca.vertcat(Fd, Q_psi - ca.cross(psi, Q_psi) / 2)
+    return _gradient_finish("flexopt_point_load", a, d, g, POINT_LOAD_IN)
+
+
+@cache
+def load_jvp_spec(which: str) -> KernelSpec:
+    """The directional derivative of a load kernel's output (``"point"``: :func:`point_load_spec`,
+    ``"beam_gravity"``: :func:`beam_gravity_spec`) along a change ``da`` of its whole input: ``[a, da]`` ->
+    ``d out``; for design sensitivities (model.design)."""
+    spec = point_load_spec() if which == "point" else beam_gravity_spec()
+    a = ca.SX.sym("a", spec.n_in)
+    da = ca.SX.sym("da", spec.n_in)
+    out = spec.function(a)
+    name = f"flexopt_{which}_load_jvp"
+    f = ca.Function(name, [ca.vertcat(a, da)], [ca.densify(ca.jtimes(out, a, da))])
+    return KernelSpec(name, f, 2 * spec.n_in, spec.n_out, 0, 2 * spec.n_in, 0)
 
 
 @cache

@@ -131,6 +131,13 @@ def state_space(
         raise SceneError("inputs", "give at least one input and one output")
     an = Analysis(scene)
     s, sys = an.structure, an.system
+    if sys.loads is not None and sys.loads.nonconservative:
+        raise SceneError(
+            "loads",
+            "the state-space model is built from the mass-normalised modes of a symmetric stiffness; the "
+            f"non-conservative load(s) {', '.join(sys.loads.nonconservative_names())} make it unsymmetric: remove "
+            "them (dead forces and gravity are supported)",
+        )
     target = float(scene.stroke.to_internal(at_stroke))
     got: list = []
     targets = np.linspace(0.0, target, 9)[1:] if target != 0 else np.array([0.0])

@@ -55,7 +55,7 @@ import numpy as np
 from .analysis import MeshAnalysis
 from .modal import modes_at
 from .scene import AUTO_START, Beam, Scene, Truss
-from .statics import NewtonOptions, WalkFailure, solve_point, walk
+from .statics import NewtonOptions, WalkFailure, reference_equilibrium, walk
 from .structure import MAX_DOFS
 
 __all__ = [
@@ -117,7 +117,7 @@ def _first_parasitic(an: MeshAnalysis, targets: np.ndarray) -> dict[float, float
         out[float(eq.stroke)] = par if np.isfinite(par) else float(modes.hz[0])
         return None
 
-    eq0 = solve_point(sys, sys.reference_state(), 0.0, opts, 0.0)
+    eq0 = reference_equilibrium(sys, opts)  # under loads: applied in steps, as the curve's own reference
     if accept(eq0) is None and len(targets):
         walk(sys, targets, opts, accept, start=eq0)
     return out

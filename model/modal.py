@@ -15,7 +15,8 @@ linear assignment, so curves follow modes through crossings.
 from __future__ import annotations
 
 import sys
-from dataclasses import dataclass
+import warnings
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -27,7 +28,7 @@ from .statics import Equilibrium
 
 _ABSTOL = 2.0 * float(np.finfo(float).tiny)
 
-__all__ = ["Modes", "modes_at", "track", "participation"]
+__all__ = ["Modes", "modes_at", "track", "participation", "general_pairs"]
 
 
 @dataclass
@@ -40,6 +41,10 @@ class Modes:
     #: the Lanczos solve's (steps, run), when it took that route: the hint for a neighbouring solve
     #: (:func:`model.linalg.lanczos_first_check`)
     lanczos: tuple[int, int] | None = None
+    #: under non-conservative loads (unsymmetric stiffness, :func:`general_pairs`): the complex eigenvalues
+    #: ``omega^2`` (one of each conjugate pair, positive imaginary part, by real part): flutter. Not in
+    #: ``omega2``, which holds the real eigenvalues only
+    complex_omega2: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=complex))
 
     @property
     def hz(self) -> np.ndarray:
@@ -137,6 +142,18 @@ def modes_at(sys: System, eq: Equilibrium, k: int, drive: str = "locked", near: 
     k = min(k, len(dofs))
     if k == 0:
         return Modes(np.zeros(0), np.zeros((sys.n, 0)), M)
+    if sys.loads is not None and sys.loads.nonconservative:  # unsymmetric stiffness: the general eigenproblem
+        K, Mr = sys.free_block(eq.ev.H, locked), sys.free_block(M, locked)
+        Z = None
+        if sys.n_con:
+            from scipy.linalg import null_space
+
+            Z = null_space(eq.ev.G[:, dofs])
+            K, Mr = Z.T @ K @ Z, Z.T @ Mr @ Z
+        w, V, cw = general_pairs(K, Mr, min(k, K.shape[0]))
+        phi = np.zeros((sys.n, len(w)))
+        phi[dofs] = V if Z is None else Z @ V
+        return Modes(w, phi, M, complex_omega2=cw)
     pencil = sys.banded_pencil(locked) if not sys.n_con and 2 * k < len(dofs) else None
     band = None
     if pencil is not None:
@@ -179,6 +196,50 @@ def modes_at(sys: System, eq: Equilibrium, k: int, drive: str = "locked", near: 
     phi = np.zeros((sys.n, k))
     phi[dofs] = V if Z is None else Z @ V
     return Modes(w, phi, M)
+
+
+#: An eigenvalue of the general problem counts as complex when its imaginary part exceeds this fraction of its
+#: modulus. A real double eigenvalue about to split into a complex pair is perturbed by rounding to about
+#: ``sqrt(eps)`` (1.5e-8) relative, either way; 1e-6 is above that, and moves the located onset of flutter
+#: (where the imaginary part grows as the square root of the distance to it) by about (1e-6)^2 relative.
+COMPLEX_RTOL = 1e-6
+
+
+def general_pairs(K: np.ndarray, M: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The ``k`` lowest real eigenpairs of ``K phi = lambda M phi`` with an unsymmetric ``K`` (non-conservative
+    loads), mass-normalised (``phi^T M phi = 1``; right eigenvectors), and every complex eigenvalue (one per
+    conjugate pair, ascending real part).
+
+    Solved through ``K`` like :func:`_lowest_pairs`: ``C = K^-1 M`` (LU) has the eigenvalues ``mu = 1 /
+    lambda`` (LAPACK's dgeev by scipy.linalg.eig), so the lowest ``lambda`` are the largest ``mu``, each
+    accurate to about ``eps`` relative however stiff the rest; a singular ``K`` (exactly at divergence) takes
+    the pencil ``(K, M)`` by QZ (scipy.linalg.eig with two matrices) instead. Real and complex are told apart
+    by :data:`COMPLEX_RTOL`; negative real eigenvalues (divergence) stay in the real list, first.
+    """
+    import scipy.linalg as sla
+
+    n = K.shape[0]
+    if n == 0:
+        return np.zeros(0), np.zeros((0, 0)), np.zeros(0, dtype=complex)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # scipy warns of an ill-conditioned K; its smallest pivot decides below
+        lu, piv = sla.lu_factor(K, check_finite=False)
+    pivots = np.abs(np.diag(lu))
+    if np.all(np.isfinite(lu)) and pivots.min() > 1e-13 * pivots.max():
+        mu, V = sla.eig(sla.lu_solve((lu, piv), M, check_finite=False), check_finite=False)
+        keep = np.abs(mu) > 1e-300
+        lam, V = 1.0 / mu[keep], V[:, keep]
+    else:
+        lam, V = sla.eig(K, M, check_finite=False)
+        keep = np.isfinite(lam)
+        lam, V = lam[keep], V[:, keep]
+    real = np.abs(lam.imag) <= COMPLEX_RTOL * np.abs(lam)
+    order = np.flatnonzero(real)[np.argsort(lam.real[real])][:k]
+    w = lam.real[order]
+    X = V[:, order].real
+    X = X / np.sqrt(np.einsum("ik,ik->k", X, M @ X))[None, :]
+    cw = lam[~real & (lam.imag > 0)]
+    return w, X, cw[np.argsort(cw.real)]
 
 
 def participation(sys: System, modes: Modes) -> np.ndarray | None:

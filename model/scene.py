@@ -364,39 +364,67 @@ class Joint(_Strict):
 
 
 class LoadRamp(_Strict):
-    """A force varying linearly with the stroke: ``start`` at the stroke's first value, ``stop`` at its last
-    (extrapolated linearly beyond them, e.g. to stroke 0, where continuation starts)."""
+    """A force (or moment, with the load's ``kind``) varying linearly with the stroke: ``start`` at the stroke's
+    first value, ``stop`` at its last (extrapolated linearly beyond them, e.g. to stroke 0, where continuation
+    starts)."""
 
-    start: Vec3 = Field(description="force at the stroke's first value [N]")
-    stop: Vec3 = Field(description="force at the stroke's last value [N]")
+    start: Vec3 = Field(description="force [N] (or moment [N m]) at the stroke's first value")
+    stop: Vec3 = Field(description="force [N] (or moment [N m]) at the stroke's last value")
 
 
 class LoadTable(_Strict):
-    """A force given at stroke values (the stroke's unit), linear between them; the table must cover the
-    stroke range and stroke 0 (where continuation starts)."""
+    """A force (or a moment) given at stroke values (the stroke's unit), linear between them; the table must
+    cover the stroke range and stroke 0 (where continuation starts)."""
 
     stroke: tuple[Real, ...] = Field(min_length=2, description="stroke values, increasing (stroke unit)")
-    force: tuple[Vec3, ...] = Field(min_length=2, description="force at each stroke value [N]")
+    force: tuple[Vec3, ...] | None = Field(None, min_length=2, description="force at each stroke value [N]")
+    moment: tuple[Vec3, ...] | None = Field(None, min_length=2, description="moment at each stroke value [N m]")
 
     @model_validator(mode="after")
     def _consistent(self) -> LoadTable:
-        if len(self.stroke) != len(self.force):
+        if (self.force is None) == (self.moment is None):
+            raise ValueError("give exactly one of 'force' or 'moment' in a load table")
+        vals, what = (self.force, "force") if self.force is not None else (self.moment, "moment")
+        assert vals is not None
+        if len(self.stroke) != len(vals):
             raise ValueError(
-                f"the table has {len(self.stroke)} stroke values and {len(self.force)} forces; "
-                "give one force per stroke value"
+                f"the table has {len(self.stroke)} stroke values and {len(vals)} {what}s; "
+                f"give one {what} per stroke value"
             )
         if not all(b > a for a, b in zip(self.stroke[:-1], self.stroke[1:])):
             raise ValueError("table stroke values must increase strictly; sort them")
         return self
 
+    @model_serializer(mode="wrap")
+    def _dump(self, handler: Any) -> Any:
+        out = handler(self)  # the absent one of force and moment is left out
+        if isinstance(out, dict):
+            for key in ("force", "moment"):
+                if out.get(key, 0) is None:
+                    out.pop(key)
+        return out
+
+    @property
+    def values(self) -> tuple[Vec3, ...]:
+        """The table's vectors (forces or moments)."""
+        out = self.force if self.force is not None else self.moment
+        assert out is not None
+        return out
+
 
 class Load(_Strict):
-    """An external force on a node or a body (SPACAR's XF/DELXF), dead: its direction is fixed in space.
+    """An external force or moment on a node or a body (SPACAR's XF/DELXF on a position or a rotation node).
 
-    The force is either constant (``force``), a linear ramp over the stroke (``ramp``) or a table over the
-    stroke (``table``). It enters the total energy as the potential ``-F . x`` of its point of application
-    (for a body, ``point``; default its centre of mass), so statics, continuation and the eigen analysis
-    include its stiffness (model.loads).
+    The vector is either constant (``force`` or ``moment``), a linear ramp over the stroke (``ramp``, a force
+    unless ``kind`` is ``"moment"``) or a table over the stroke (``table``, with ``force`` or ``moment``
+    rows). By default the load is dead: its direction is fixed in space. With ``follower: true`` it turns with
+    the loaded node (or body): the value given is its direction at the reference configuration.
+
+    A dead force enters the total energy as the potential ``-F . x`` of its point of application (for a body,
+    ``point``; default its centre of mass), so its stiffness is symmetric. A follower force, and a moment
+    (dead or follower) under finite 3D rotations, has no potential: it is non-conservative, its load
+    stiffness is unsymmetric and the eigen analysis solves the general eigenproblem, whose eigenvalues may
+    be complex (flutter); see model.loads.
     """
 
     name: Name | None = Field(None, description="optional label")
@@ -407,9 +435,30 @@ class Load(_Strict):
         description="point of application on the body at the reference "
         "configuration [m] (default: its centre of mass); body loads only",
     )
-    force: Vec3 | None = Field(None, description="constant (dead) force [N], global axes")
-    ramp: LoadRamp | None = Field(None, description="force varying linearly with the stroke")
-    table: LoadTable | None = Field(None, description="force given per stroke value")
+    force: Vec3 | None = Field(None, description="constant force [N], global axes (at the reference, if follower)")
+    moment: Vec3 | None = Field(None, description="constant moment [N m], global axes (at the reference, if follower)")
+    ramp: LoadRamp | None = Field(None, description="force (or moment, kind 'moment') varying linearly with the stroke")
+    table: LoadTable | None = Field(None, description="force or moment given per stroke value")
+    kind: Literal["force", "moment"] | None = Field(
+        None, description="what a ramp gives: 'force' (default) or 'moment'; implied by 'force', 'moment' or a table"
+    )
+    follower: bool = Field(
+        False,
+        description="the load turns with the loaded node or body (non-conservative); default: dead (fixed in space)",
+    )
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler: Any) -> Any:
+        # the fields added with moments are left out at their defaults, so a scene with dead forces only
+        # dumps (and hashes, model.checks.scene_hash) as before they existed
+        out = handler(self)
+        if isinstance(out, dict):
+            for key in ("moment", "kind"):
+                if out.get(key, 0) is None:
+                    out.pop(key)
+            if out.get("follower") is False:
+                out.pop("follower")
+        return out
 
     @model_validator(mode="after")
     def _one(self) -> Load:
@@ -417,31 +466,59 @@ class Load(_Strict):
             raise ValueError("give exactly one of 'node' or 'body' as the loaded target")
         if self.point is not None and self.body is None:
             raise ValueError("'point' is for body loads; a node load acts at the node (remove 'point')")
-        given = [k for k in ("force", "ramp", "table") if getattr(self, k) is not None]
+        given = [k for k in ("force", "moment", "ramp", "table") if getattr(self, k) is not None]
         if len(given) != 1:
-            raise ValueError(f"give exactly one of 'force', 'ramp' or 'table' (got {given or 'none'})")
+            raise ValueError(f"give exactly one of 'force', 'moment', 'ramp' or 'table' (got {given or 'none'})")
+        implied = (
+            "moment"
+            if (self.moment is not None or (self.table is not None and self.table.moment is not None))
+            else ("force" if self.ramp is None else None)
+        )
+        if self.kind is not None and implied is not None and self.kind != implied:
+            raise ValueError(f"kind '{self.kind}' contradicts the {implied} given; remove 'kind' or give a {self.kind}")
         return self
 
+    @property
+    def is_moment(self) -> bool:
+        """Whether the load is a moment (else a force)."""
+        if self.kind is not None:
+            return self.kind == "moment"
+        return self.moment is not None or (self.table is not None and self.table.moment is not None)
+
+    @property
+    def conservative(self) -> bool:
+        """Whether the load has a potential: a dead force (a moment or a follower load has none in 3D)."""
+        return not (self.follower or self.is_moment)
+
+    def describe(self, index: int) -> str:
+        """``"loads[i] ('name': follower force on node 'B')"``, for messages."""
+        what = ("follower " if self.follower else "dead ") + ("moment" if self.is_moment else "force")
+        on = f"node '{self.node}'" if self.node is not None else f"body '{self.body}'"
+        return f"loads[{index}]" + (f" '{self.name}'" if self.name else "") + f" ({what} on {on})"
+
     def value(self, stroke: float, first: float, last: float) -> np.ndarray:
-        """The force [N] at ``stroke`` (stroke unit) of a stroke running from ``first`` to ``last``."""
-        if self.force is not None:
-            return np.array(self.force, dtype=float)
+        """The force [N] or moment [N m] at ``stroke`` (stroke unit) of a stroke running from ``first`` to
+        ``last``."""
+        const = self.force if self.force is not None else self.moment
+        if const is not None:
+            return np.array(const, dtype=float)
         if self.ramp is not None:
             t = (stroke - first) / (last - first)
             return (1.0 - t) * np.array(self.ramp.start) + t * np.array(self.ramp.stop)
         assert self.table is not None
-        F = np.array(self.table.force, dtype=float)
+        F = np.array(self.table.values, dtype=float)
         return np.array([np.interp(stroke, self.table.stroke, F[:, k]) for k in range(3)])
 
     def rate(self, stroke: float, first: float, last: float) -> np.ndarray:
-        """d force / d stroke [N per stroke unit] at ``stroke`` (the table's slope on the segment holding it)."""
-        if self.force is not None:
+        """d value / d stroke [N or N m per stroke unit] at ``stroke`` (the table's slope on the segment
+        holding it)."""
+        if self.force is not None or self.moment is not None:
             return np.zeros(3)
         if self.ramp is not None:
             return (np.array(self.ramp.stop) - np.array(self.ramp.start)) / (last - first)
         assert self.table is not None
         s = np.array(self.table.stroke)
-        F = np.array(self.table.force, dtype=float)
+        F = np.array(self.table.values, dtype=float)
         i = int(np.clip(np.searchsorted(s, stroke, side="right") - 1, 0, len(s) - 2))
         return (F[i + 1] - F[i]) / (s[i + 1] - s[i])
 
@@ -542,7 +619,7 @@ class Scene(_Strict):
         description="gravitational acceleration [m/s^2] acting on the mass of every element and body, "
         "e.g. [0, 0, -9.81]; default none",
     )
-    loads: tuple[Load, ...] = Field((), description="external forces on nodes or bodies (model.loads)")
+    loads: tuple[Load, ...] = Field((), description="external forces and moments on nodes or bodies (model.loads)")
     joints: tuple[Joint, ...] = Field((), description="ideal joints (hinges, sliders) between nodes")
     units: Units | None = Field(
         None,
@@ -766,7 +843,7 @@ class _ReferenceCheck:
                         "and 0, where continuation starts); extend the table"
                     )
             if (ld.ramp is not None or ld.table is not None) and st is None:
-                self.out.append(f"loads[{i}]: a ramp or table load needs a stroke; give a constant 'force'")
+                self.out.append(f"loads[{i}]: a ramp or table load needs a stroke; give a constant 'force' or 'moment'")
 
 
 #: the work one scene's "did you mean" suggestions may do, in character pairs compared (difflib's ratio costs

@@ -533,7 +533,7 @@ def reference_equilibrium(sys: System, opts: NewtonOptions) -> Equilibrium:
     each step from the last converged state with its tangent ``d xi / d scale = -H_ff^-1 g_load`` as
     predictor (the derivative of ``g_f = 0`` in the load scale, the drive held), halving a step that Newton
     cannot finish (SPACAR's ITERSTEP load steps, with step control). Raises :class:`StepFailure` when a
-    step falls below ``2^-max_halvings`` of the range: a limit load (e.g. the loads exceed a buckling or
+    step falls below ``2^-max_halvings`` of the first (a quarter of the range): a limit load (e.g. the loads exceed a buckling or
     snap-through load).
     """
     if sys.loads is None:
@@ -543,7 +543,7 @@ def reference_equilibrium(sys: System, opts: NewtonOptions) -> Equilibrium:
         return solve_point(sys, sys.reference_state(), 0.0, opts, 0.0)
     except StepFailure:
         pass
-    lam, h, halvings = 0.0, 0.25, 0
+    lam, h = 0.0, 0.25
     sys.load_scale = 0.0
     cur = solve_point(sys, sys.reference_state(), 0.0, opts, 0.0)
     try:
@@ -556,8 +556,11 @@ def reference_equilibrium(sys: System, opts: NewtonOptions) -> Equilibrium:
             g0 = sys.evaluate(cur.state).g
             dg = (g1 - g0) / (1.0 - lam)  # g is affine in the scale: exact
             xi = np.zeros(sys.n)
+            # the exact Newton matrix H + chart (the chart term matters where the loads leave a moment on a
+            # supported or driven rotation, and under non-conservative loads)
+            A = cur.ev.H if cur.ev.chart is None else cur.ev.H + cur.ev.chart
             try:
-                xi[f] = np.linalg.solve(sys.free_block(cur.ev.H), -dg[f]) * step
+                xi[f] = np.linalg.solve(sys.free_block(A), -dg[f]) * step
             except np.linalg.LinAlgError:
                 xi[:] = 0.0
             sys.load_scale = lam + step
@@ -566,9 +569,8 @@ def reference_equilibrium(sys: System, opts: NewtonOptions) -> Equilibrium:
                 lam += step
                 h = min(2 * h, 0.25)
             except StepFailure as exc:
-                halvings += 1
                 h /= 2
-                if halvings > opts.max_halvings:
+                if h < 0.25 * 2.0**-opts.max_halvings:
                     raise StepFailure(
                         f"the loads could not be applied beyond {lam:.4g} of their value at stroke "
                         f"0 ({exc}): a limit load (buckling or snap-through under the loads)"

@@ -120,7 +120,7 @@ def scene_to_si(data: dict[str, Any]) -> dict[str, Any]:
     Converted: materials (E, G, allowable_stress: stress; density), node positions, bodies (mass,
     center_of_mass, inertia = mass length^2), beam sections (rectangle width and thickness; general A
     [length^2], Iy, Iz, J [length^4], cy, cz [length], torsion_stress_factor [1/length^3]), truss areas and
-    the start and stop of a translation stroke, gravity (length / s^2) and loads (forces: force; points:
+    the start and stop of a translation stroke, gravity (length / s^2) and loads (forces: force; moments: force length; points:
     length; a table's stroke values with a translation stroke: length). Angles, counts and directions are
     unit-free. Malformed parts are copied unchanged for the schema to report. The block itself is kept (the Scene excludes it from
     dumps, so a dumped scene is plain SI). Raises :class:`UnitsError` for a bad unit string.
@@ -173,12 +173,15 @@ def scene_to_si(data: dict[str, Any]) -> dict[str, Any]:
     F = f["force"]
     for load in each("loads"):
         _scale(load, "force", F)
+        _scale(load, "moment", F * L)
         _scale(load, "point", L)
         if isinstance(load.get("ramp"), dict):
-            _scale(load["ramp"], "start", F)
-            _scale(load["ramp"], "stop", F)
+            c = F * L if load.get("kind") == "moment" else F  # a ramp is a force unless kind says moment
+            _scale(load["ramp"], "start", c)
+            _scale(load["ramp"], "stop", c)
         if isinstance(load.get("table"), dict):
             _scale(load["table"], "force", F)
+            _scale(load["table"], "moment", F * L)
             if translation:
                 _scale(load["table"], "stroke", L)
     return out

@@ -141,6 +141,13 @@ class Problem(BaseModel):
         "that they are compared with the same payload; default: each template's own (0.1 kg for every hinge "
         "family); the result reports each family's mass and warns when they differ",
     )
+    gravity: tuple[float, float, float] | None = Field(
+        default=None,
+        description="gravitational acceleration [m/s^2] on every family's masses (its moving body, the payload, "
+        "and its leaves), e.g. [0, 0, -9.81] in the templates' axes; default none. Frequencies, stresses and "
+        "their exact gradients include the weight (model.loads); the fast methods do not, so screening and the "
+        "preview then run exact curves",
+    )
     solver: Literal["slsqp", "trust-constr"] = Field(
         default="slsqp",
         description="'slsqp' (scipy SLSQP, active set) or 'trust-constr' (scipy's "

@@ -156,6 +156,22 @@ class _Family:
         p["stroke"] = self.stroke
         return p
 
+    def extra(self) -> dict | None:
+        """The scene fields the problem adds to every family's template scene (its ``gravity``), or None."""
+        return {"gravity": [float(v) for v in self.prob.gravity]} if self.prob.gravity is not None else None
+
+    def scene(self, x: np.ndarray) -> Any:
+        """The template's scene at design ``x``, with the problem's additions (:meth:`extra`)."""
+        from ..model.templates import template
+
+        scene = template(self.fam.template, **self.params(x))
+        extra = self.extra()
+        if extra is None:
+            return scene
+        from ..model.io import scene_from_dict
+
+        return scene_from_dict({**scene.model_dump(mode="json"), **extra})
+
     def moving_mass(self) -> float | None:
         """The moving body's (payload's) mass of this family [kg]: the template's 'body_mass'; None if it has
         none or designs it."""
@@ -193,7 +209,7 @@ class _Family:
 
     def _evaluate(self, x: np.ndarray) -> _Eval:
         prob = self.prob
-        ds = trace_template(self.fam.template, self.params(x), self.names)
+        ds = trace_template(self.fam.template, self.params(x), self.names, self.extra())
         an = Analysis(ds.scene)
         s = an.structure
         scale = self.hi - self.lo
@@ -581,10 +597,7 @@ def _curve_summary(curve, points: int) -> dict:
 
 def _verify(fam: _Family, x: np.ndarray, points: int) -> dict:
     """The exact curve of design ``x`` on ``points`` stroke points: worst and zero-stroke frequency, stress."""
-    from ..model.templates import template
-
-    params = fam.params(x)
-    scene = template(fam.fam.template, **params)
+    scene = fam.scene(x)
     an = Analysis(scene)
     grid = np.linspace(-fam.stroke, fam.stroke, points)
     curve = an.frequency_curve(stroke=grid)
@@ -618,11 +631,10 @@ def _preview(fam: _Family, x: np.ndarray, points: int, tolerance: float) -> dict
     exact curve's time on the hinge templates) and says so (``method``, ``estimated_error``); stresses are
     not computed. The optimum's curve (``verified``) stays exact."""
     from ..model.methods import frequency_curve as fast_curve
-    from ..model.templates import template
 
     grid = np.linspace(-fam.stroke, fam.stroke, points)
     try:
-        curve = fast_curve(Analysis(template(fam.fam.template, **fam.params(x))), "auto", tolerance, grid)
+        curve = fast_curve(Analysis(fam.scene(x)), "auto", tolerance, grid)
     except FlexoptError as exc:
         return {"points": points, "status": "failed", "failures": [str(exc)], "stroke": [], "parasitic_hz": []}
     return {
@@ -639,7 +651,6 @@ def _screen(fam: _Family, prob: Problem, family_index: int, start: int, x0: np.n
     exact curve is needed). Candidates whose curve cannot be computed are skipped. Returns the best point
     and a record of the screening."""
     from ..model.methods import frequency_curve as fast_curve
-    from ..model.templates import template
 
     sampler = qmc.LatinHypercube(d=len(fam.names), seed=np.random.default_rng([prob.seed, family_index, start, 1]))
     cands = [x0] + list(sampler.random(prob.screen - 1)) if prob.screen > 1 else [x0]
@@ -648,7 +659,7 @@ def _screen(fam: _Family, prob: Problem, family_index: int, start: int, x0: np.n
     methods: dict[str, Any] = {}
     for x in cands:
         try:
-            c = fast_curve(Analysis(template(fam.fam.template, **fam.params(x))), "auto", prob.screen_tolerance, grid)
+            c = fast_curve(Analysis(fam.scene(x)), "auto", prob.screen_tolerance, grid)
         except FlexoptError:
             continue
         f = float(np.min(c.parasitic_hz))

@@ -265,3 +265,78 @@ def tensioned_cantilever_stiffness(T: float, EI: float, L: float) -> float:
         return 3 * EI / L**3
     lam = math.sqrt(T / EI)
     return T / (L - math.tanh(lam * L) / lam)
+
+
+def tip_moment_arc(m: float) -> tuple[float, float]:
+    """Tip of a cantilever (along x, bending towards +z) under a dead end moment: a circular arc of radius
+    ``EI / M`` (Euler-Bernoulli, constant curvature), ``(x/L, z/L) = (sin m / m, (1 - cos m) / m)`` for
+    ``m = M L / EI`` (the tip angle); a full circle at ``m = 2 pi``."""
+    return math.sin(m) / m, (1.0 - math.cos(m)) / m
+
+
+#: Beck's column (a cantilever under a tangential follower tip force) loses stability by flutter at
+#: ``P = 20.05 EI / L^2`` (Beck, Z. angew. Math. Phys. 3 (1952) 225-228; Bolotin, Nonconservative Problems of
+#: the Theory of Elastic Stability, 1963, sec. 4). :func:`beck_flutter_load` recomputes it from the
+#: characteristic equation, independently of flexopt.
+BECK_FLUTTER_PUBLISHED = 20.05
+
+
+def beck_determinant(p: float, omega2: float) -> float:
+    """The characteristic determinant of Beck's column, ``EI w'''' + P w'' + m w_tt = 0`` on ``x in [0, 1]``
+    (nondimensional: ``p = P L^2 / EI``, ``omega2 = m omega^2 L^4 / EI``), clamped at 0 (``w = w' = 0``) and
+    free at 1 under the tangential follower force (``w'' = 0`` and ``w''' = 0``: the force's transverse
+    component ``-P w'`` cancels the axial force's ``+P w'``). With ``w = A cos(a x) + B sin(a x) + C cosh(b x)
+    + D sinh(b x)``, ``a^2 = (p + r) / 2``, ``b^2 = (r - p) / 2``, ``r = sqrt(p^2 + 4 omega2)``:
+    ``a^4 + b^4 + 2 a^2 b^2 cos(a) cosh(b) + a b (a^2 - b^2) sin(a) sinh(b)`` (Bolotin 1963, eq. 4.6)."""
+    r = math.sqrt(p * p + 4.0 * omega2)
+    a, b = math.sqrt((p + r) / 2), math.sqrt(max((r - p) / 2, 0.0))
+    return (
+        a**4
+        + b**4
+        + 2 * a * a * b * b * math.cos(a) * math.cosh(b)
+        + a * b * (a * a - b * b) * math.sin(a) * math.sinh(b)
+    )
+
+
+def beck_flutter_load() -> float:
+    """``P L^2 / EI`` at which the two lowest roots ``omega2`` of :func:`beck_determinant` meet (flutter): 20.0510
+    (Beck's 20.05). Between the two roots the determinant has a minimum, negative while they are apart, which
+    rises through zero where they meet: brentq in ``p`` on that minimum (found by a bounded scalar search in
+    ``omega2`` over [60, 200], where the pair lies for 19 <= p <= 21)."""
+    from scipy.optimize import brentq, minimize_scalar
+
+    def valley(p: float) -> float:
+        got = minimize_scalar(
+            lambda w: beck_determinant(p, w), bounds=(60.0, 200.0), method="bounded", options={"xatol": 1e-10}
+        )
+        return float(got.fun)
+
+    return brentq(valley, 19.0, 21.0, xtol=1e-12)
+
+
+def follower_elastica_tip(alpha2: float) -> tuple[float, float, float]:
+    """Tip of a cantilever (along x in the x-z plane) under an end force that follows the tip's rotation and
+    is perpendicular to the undeformed axis at the reference, ``F_ref = (0, -P)``: ``(x/L, z/L, tip angle
+    [rad])`` for ``alpha^2 = P L^2 / EI``, by integrating the elastica (an independent method: scipy's
+    collocation solver ``solve_bvp``, tolerance 1e-10). With the tangent angle ``theta(s)`` (from x towards
+    z), the force at the tip is ``P (sin theta_L, -cos theta_L)`` and the bending moment ``EI theta'(s) =
+    (r_L - r(s)) x F``, so ``theta'' = alpha^2 cos(theta - theta_L)`` on ``s in [0, 1]`` (derivative of the
+    moment: ``-(r' x F)``), with ``theta(0) = 0``, ``theta'(1) = 0``, ``x' = cos theta``, ``z' = sin theta``
+    and ``theta(1) = theta_L`` fixing the parameter."""
+    import numpy as np
+    from scipy.integrate import solve_bvp
+
+    def rhs(s, y, p):
+        th, k = y[0], y[1]
+        return np.vstack([k, alpha2 * np.cos(th - p[0]), np.cos(th), np.sin(th)])
+
+    def bc(ya, yb, p):
+        return np.array([ya[0], ya[2], ya[3], yb[1], yb[0] - p[0]])
+
+    s = np.linspace(0.0, 1.0, 201)
+    guess = -alpha2 * (s - s**2 / 2) / 2  # the small-deflection slope, halved (the follower force turns)
+    y0 = np.vstack([guess, np.gradient(guess, s), s, np.zeros_like(s)])
+    sol = solve_bvp(rhs, bc, s, y0, p=[float(guess[-1])], tol=1e-10, max_nodes=100000)
+    if not sol.success:
+        raise RuntimeError(f"solve_bvp: {sol.message}")
+    return float(sol.y[2, -1]), float(sol.y[3, -1]), float(sol.p[0])

@@ -24,8 +24,8 @@ H_REL = 1e-3
 TOL = 2e-4
 
 
-def _at(name: str, params: dict, design: list[str], s0: float, sens: bool) -> dict:
-    ds = trace_template(name, params, design)
+def _at(name: str, params: dict, design: list[str], s0: float, sens: bool, extra: dict | None = None) -> dict:
+    ds = trace_template(name, params, design, extra)
     an = Analysis(ds.scene)
     target = float(ds.scene.stroke.to_internal(np.array([s0]))[0])
     out: dict = {}
@@ -74,6 +74,70 @@ def test_frequency_stress_and_reaction_derivatives_match_finite_differences(name
         assert abs(ps.dvm[j][i] - fd_vm) < TOL * r0["vm"][i] / base[k], f"{name} d sigma / d {k}"
         fd_r = (rp["reaction"] - rm["reaction"]) / (2 * h)
         assert abs(ps.dreaction[j] - fd_r) < TOL * abs(r0["reaction"]) / base[k], f"{name} d reaction / d {k}"
+
+
+#: payloads: gravity on every mass (the body's weight, each segment's), a dead force at an offset point of the
+#: body and one on a leaf's tip node, large enough that dropping any load term changes a derivative by far more
+#: than the tolerance (asserted below)
+LOADED = [
+    (
+        "cross-spring-pivot",
+        ["length", "thickness", "body_mass", "body_offset"],
+        20.0,
+        {
+            "gravity": [0.0, -30.0, 0.0],
+            "loads": [{"body": "rotor", "point": [0.01, 0.03, 0.0], "force": [0.5, -2.0, 0.3]}],
+        },
+    ),
+    (
+        "leaf-spring",
+        ["thickness", "length", "width"],
+        20.0,
+        {"gravity": [0.0, 0.0, -200.0], "loads": [{"node": "tip", "force": [-3.0, 0.0, -0.2]}]},
+    ),
+    (
+        "parallel-leaf-spring",
+        ["length", "thickness", "spacing", "body_mass"],
+        0.006,
+        {"gravity": [-40.0, 0.0, 0.0]},
+    ),
+]
+
+
+@pytest.mark.parametrize("name,design,s0,extra", LOADED, ids=[c[0] for c in LOADED])
+def test_derivatives_under_gravity_and_dead_loads_match_finite_differences(name, design, s0, extra):
+    """As above with a payload: gravity on the body and the leaves and dead forces (model.loads), through the
+    load kernels' directional derivatives (model.design, step 6). Same step and tolerance. The loads matter:
+    the derivatives without them differ from these by more than 50 times the tolerance (asserted); dropping
+    the loads' gradient derivative fails every case (by 7x to 280x the tolerance), dropping their Hessian
+    derivative the pivot's (its force at an offset point of the body: 6.5x)."""
+    base = {k: TEMPLATES[name][1][k] for k in design}
+    r0 = _at(name, base, design, s0, True, extra)
+    bare = _at(name, base, design, s0, True)["ps"]
+    ps = r0["ps"]
+    i = np.unravel_index(np.argmax(r0["vm"]), r0["vm"].shape)
+    gap = 0.0
+    for j, k in enumerate(design):
+        h = H_REL * base[k]
+        rp = _at(name, {**base, k: base[k] + h}, design, s0, False, extra)
+        rm = _at(name, {**base, k: base[k] - h}, design, s0, False, extra)
+        fd = (rp["lam"] - rm["lam"]) / (2 * h)
+        scale = np.abs(r0["lam"]) / base[k]
+        err = np.abs(ps.dlam[j] - fd) / scale
+        assert err.max() < TOL, f"{name} d lambda / d {k}: exact {ps.dlam[j]}, central differences {fd}"
+        gap = max(gap, float((np.abs(bare.dlam[j] - ps.dlam[j]) / scale).max()))
+        fd_vm = (rp["vm"][i] - rm["vm"][i]) / (2 * h)
+        assert abs(ps.dvm[j][i] - fd_vm) < TOL * r0["vm"][i] / base[k], f"{name} d sigma / d {k}"
+        fd_r = (rp["reaction"] - rm["reaction"]) / (2 * h)
+        assert abs(ps.dreaction[j] - fd_r) < TOL * abs(r0["reaction"]) / base[k], f"{name} d reaction / d {k}"
+    assert gap > 50 * TOL, f"{name}: the loads change the derivatives by only {gap:.2e}"
+
+
+def test_nonconservative_loads_are_outside_the_design_scope():
+    extra = {"loads": [{"node": "tip", "force": [0.0, 0.0, -1.0], "follower": True}]}
+    ds = trace_template("leaf-spring", {}, ["thickness"], extra)
+    with pytest.raises(FlexoptError, match="non-conservative load"):
+        structure_derivative(compile_scene(ds.scene), ds.scene_dict, ds.dscene[0])
 
 
 @pytest.mark.parametrize("name", ["leaf-spring", "cross-spring-pivot", "parallel-leaf-spring"])

@@ -93,6 +93,36 @@ def test_epigraph_constraint_jacobian_matches_finite_differences():
         )
 
 
+def test_epigraph_gradients_with_a_payload_under_gravity_match_finite_differences():
+    """The problem's gravity (the payload's and the leaves' weight, model.loads) in the search's constraints and
+    their exact gradients (model.design, step 6): as the test above, same steps and tolerance, with gravity
+    across the pivot's axis (30 m/s^2: the weight changes the scaled constraints by up to 0.26, asserted above
+    1e-2, a hundred times the tolerance)."""
+    spec = {
+        "families": [{"template": "cross-spring-pivot", "design": {"length": [0.03, 0.07], "thickness": [2e-4, 4e-4]}}],
+        "samples": 5,
+        "max_drive": 1.0,
+    }
+    prob = Problem.model_validate({**spec, "gravity": [0.0, -30.0, 0.0]})
+    fam = _Family(prob, prob.families[0])
+    x = np.array([0.4, 0.5])
+    ev = fam.evaluate(x)
+    assert ev.ok, ev.message
+    bare = _Family(Problem.model_validate(spec), prob.families[0]).evaluate(x)
+    assert np.abs(ev.con - bare.con).max() > 1e-2
+
+    def central(j: int, h: float) -> np.ndarray:
+        e = np.zeros(len(x))
+        e[j] = h
+        return (fam.evaluate(x + e).con - fam.evaluate(x - e).con) / (2 * h)
+
+    for j in range(len(x)):
+        fd = (4 * central(j, 2e-3) - central(j, 4e-3)) / 3
+        np.testing.assert_allclose(
+            ev.jac[:, j], fd, rtol=1e-4, atol=1e-4, err_msg=f"constraint gradients along {fam.names[j]}"
+        )
+
+
 def test_leaf_thickness_optimum_beats_a_grid_of_exact_curves():
     """One parameter: frequencies rise with thickness and the stress limit is far at 20 degrees, so the
     optimum is the upper bound; the verified worst case must be at least the best of an 11-point grid of
