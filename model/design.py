@@ -165,7 +165,7 @@ def _zeros(obj):
 class StructureDerivative:
     """Derivative of the design-dependent arrays of a :class:`Structure` along one design direction."""
 
-    beam_const: np.ndarray  # (nb, 21); the mask entries are 0
+    beam_const: np.ndarray  # (nb, 23); the mask entries are 0
     beam_mass: np.ndarray  # (nb,)
     beam_stress: np.ndarray  # (nb, 7)
     node_rot_inertia: np.ndarray  # (nn, 3, 3)
