@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import Any, Literal
 
 import numpy as np
 
@@ -17,6 +18,7 @@ from . import linalg
 from .elements import beam_mass_spec, beam_spec, joint_spec, rotation_log_spec, rotation_update_spec, truss_spec
 from .kernels import CompiledKernel, c_enum, compiled
 from .rotations import log_so3, skew, twist_angle, twist_gradient
+from .scene import Stroke
 from .structure import Structure
 
 __all__ = ["State", "Assembled", "System", "NativeRoute", "ASSEMBLE_SLOTS", "MASS_SLOTS"]
@@ -64,6 +66,18 @@ def _assembler():
         except KernelBuildError:
             _ASSEMBLER.append(None)
     return _ASSEMBLER[0]
+
+
+def function_address(fn: Any) -> int:
+    """The address of a function of a loaded library (a ctypes function pointer), for the compiled contexts."""
+    import ctypes
+
+    at = ctypes.cast(fn, ctypes.c_void_p).value
+    if at is None:  # ctypes resolved the symbol, so its address is not NULL; this narrows the type
+        from .errors import KernelBuildError
+
+        raise KernelBuildError(f"the native function {getattr(fn, '__name__', fn)!r} has a NULL address")
+    return at
 
 
 def rotate(R: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -168,6 +182,16 @@ class System:
         self.curvature_band: tuple | None = None
         #: the compiled route (model/native): its state, the parts that apply and their C calls
         self.native = NativeRoute(self)
+
+    @property
+    def stroke(self) -> Stroke:
+        """The scene's stroke, never None here: the constructor refuses a scene without one."""
+        st = self.s.scene.stroke
+        if st is None:  # __init__ raised for it; this narrows the type
+            from .errors import SceneError
+
+            raise SceneError("stroke", f"scene '{self.s.scene.name}' has no stroke: add a 'stroke'")
+        return st
 
     def _number_dofs(self, s: Structure) -> None:
         """Active numbering: active DOFs 0..n-1; the drive block's three global coordinates n..n+2 (staging); a
@@ -387,6 +411,8 @@ class System:
         """The structure's support-direction projector in active numbering, ``T^T P T`` (cached)."""
         if self._proj is None:
             P = self.s.support_projector
+            if P is None:  # model.modal.participation asks only when the scene declares support directions
+                raise ValueError("the scene declares no support_directions: no support projector")
             full = np.kron(np.eye(len(self.s.master_names)), P)
             self._proj = self.from_global(full @ self.to_global(np.eye(self.n)))
         return self._proj
@@ -501,7 +527,7 @@ class System:
         c = np.zeros(self.n_con)
         e_beam = np.zeros((s.n_beams, 6))
         e_truss = np.zeros(len(s.truss_nodes))
-        if s.n_beams:
+        if self.beam_kernel is not None:  # the structure has beams
             out = self.beam_kernel(self.beam_in)
             g += np.bincount(self.beam_dofs.ravel(), out[:, :12].ravel(), minlength=N)
             g_full += np.bincount(self.beam_dofs_full.ravel(), out[:, :12].ravel(), minlength=self.n_full)
@@ -512,7 +538,7 @@ class System:
                 De = out[:, 162:234].reshape(-1, 12, 6)  # column-major (6 x 12) -> [elem, col, row]
                 c[k] = e_beam[el, mode]
                 np.add.at(G, (k[:, None], self.beam_dofs[el]), De[el, :, mode])
-        if len(s.truss_nodes):
+        if self.truss_kernel is not None:  # the structure has trusses
             out = self.truss_kernel(self.truss_in)
             g += np.bincount(self.truss_dofs.ravel(), out[:, :12].ravel(), minlength=N)
             g_full += np.bincount(self.truss_dofs_full.ravel(), out[:, :12].ravel(), minlength=self.n_full)
@@ -522,7 +548,7 @@ class System:
             if len(k):
                 c[k] = e_truss[el]
                 np.add.at(G, (k[:, None], self.truss_dofs[el]), out[el, 157:169])
-        if len(s.joint_nodes):
+        if self.joint_kernel is not None:  # the structure has joints
             out = self.joint_kernel(self.joint_in)
             g += np.bincount(self.joint_dofs.ravel(), out[:, :12].ravel(), minlength=N)
             g_full += np.bincount(self.joint_dofs_full.ravel(), out[:, :12].ravel(), minlength=self.n_full)
@@ -603,7 +629,7 @@ class System:
             U += 0.5 * float(np.sum(s.truss_const[:, 1] * (mask * ev.e_truss) ** 2))
             k, el = self.con_truss
             U += float(st.lam[k] @ ev.e_truss[el])
-        if len(s.joint_nodes):
+        if self.joint_kernel is not None:  # the structure has joints
             self.fill_inputs(st)
             e_joint = self.joint_kernel(self.joint_in)[:, 156:162]
             k, el, mode = self.con_joint
@@ -647,8 +673,9 @@ class System:
         s, N, native = self.s, self.N, self.native
         if native.mass_context() is not None:  # all of it in one C call (mass_matrix), the same numbers
             return native.mass(st)
-        if native.assemble_call is not None and self.beam_mass_kernel.address is not None:
-            Mflat = self._mass_const + native.call(st, self.beam_mass_kernel, native.mass_in_at, False)[3]
+        bmk = self.beam_mass_kernel  # None without beams
+        if native.assemble_call is not None and bmk is not None and bmk.address is not None:
+            Mflat = self._mass_const + native.call(st, bmk, native.mass_in_at, False)[3]
         else:
             Mflat = self._mass_const.copy()
             if s.n_beams:
@@ -667,6 +694,8 @@ class System:
 
     def beam_mass_blocks(self, st: State) -> np.ndarray:
         """The beams' 12 x 12 translational mass blocks at ``st`` (nb, 144, column-major)."""
+        if self.beam_mass_kernel is None:  # made for every structure with beams
+            raise ValueError("the structure has no beams: no beam mass blocks")
         self.fill_inputs(st)
         nc = 30 + self.s.beam_const.shape[1]
         return self.beam_mass_kernel(np.hstack([self.beam_in[:, :nc], self.s.beam_mass[:, None]]))
@@ -745,10 +774,10 @@ class NativeRoute:
         self.assemble_call: tuple | None = None
         self.update_call: tuple | None = None
         self.point_loop: object = False
-        self._newton: linalg.NewtonSystem | None | bool = False  # newton_system's; False: not built yet
+        self._newton: linalg.NewtonSystem | None | Literal[False] = False  # newton_system's; False: not built yet
         self._d3: tuple[np.ndarray, int] | None = None  # hessian_derivative's input buffer and its address
         self._parts: dict[str, int] | None = None  # point_parts'
-        self._mass_ctx: int | None | bool = False  # mass_context's; False: not made yet
+        self._mass_ctx: int | None | Literal[False] = False  # mass_context's; False: not made yet
         self._keep: dict[str, list] = {}  # arrays whose addresses the contexts hold, by context
         self.mass_in: np.ndarray | None = None  # the mass kernel's input buffer (state, constants, mass)
         self.beam_in_at = self.mass_in_at = 0  # addresses of System.beam_in and mass_in
@@ -756,7 +785,7 @@ class NativeRoute:
         asm = (
             _assembler()
             if (
-                s.n_beams
+                sys.beam_kernel is not None  # the structure has beams
                 and not len(s.truss_nodes)
                 and not sys.n_con
                 and sys.loads is None
@@ -780,13 +809,13 @@ class NativeRoute:
         if upd is not None:
             rm = sys._rot_masters
             act = np.where(sys.pos < sys.n, sys.pos, -1).astype(np.int64)
-            self._keep["update"] = arrays = [
+            self._keep["update"] = upd_arrays = [  # act, moving (int64), the kernel's buffers (float64)
                 act,
                 np.ascontiguousarray(rm, dtype=np.int64),
                 np.zeros((len(rm), 12)),
                 np.zeros((len(rm), 9)),
             ]
-            self.update_call = (upd[2], sys._rot_update.address, *(a.ctypes.data for a in arrays))
+            self.update_call = (upd[2], sys._rot_update.address, *(a.ctypes.data for a in upd_arrays))
 
     # ------------------------------------------------------------ switches
     def switch_off(self) -> tuple:
@@ -815,6 +844,7 @@ class NativeRoute:
         columns are written, the rest kept), run ``kernel`` and scatter its 144-entry block (after a 12-entry
         gradient when ``gradient``); returns (out, g, g_full, H flat)."""
         sys = self.sys
+        assert self.assemble_call is not None  # the callers check that the compiled evaluate applies
         fn, end_master, end_node, dofs, dofs_full, flat = self.assemble_call
         N, n_full, nb = sys.N, sys.n_full, sys.s.n_beams
         X = np.ascontiguousarray(st.X, dtype=np.float64)
@@ -861,6 +891,7 @@ class NativeRoute:
         """:meth:`System.evaluate` in one C call (beams only, no rigid deformations; same numbers)."""
         sys = self.sys
         N = sys.N
+        assert sys.beam_kernel is not None  # the compiled evaluate applies to structures with beams only
         out, g, g_full, Hflat = self.call(st, sys.beam_kernel, self.beam_in_at, True)
         H = sys.reduce_matrix(Hflat.reshape(N, N))
         return Assembled(
@@ -887,6 +918,7 @@ class NativeRoute:
 
     def update(self, st: State, xi: np.ndarray, dlam: np.ndarray | None = None) -> State:
         """:meth:`System.update` of a vector ``xi`` in one C call (same numbers)."""
+        assert self.update_call is not None  # System.update checks that the compiled update applies
         fn, kernel, act, moving, rin, rout = self.update_call
         X = np.ascontiguousarray(st.X, dtype=np.float64)
         R = np.ascontiguousarray(st.R, dtype=np.float64)
@@ -921,6 +953,7 @@ class NativeRoute:
         to (node masters, offsets and the rotated offsets' buffer), which the caller keeps referenced."""
         sys = self.sys
         s = sys.s
+        assert self.assemble_call is not None  # the callers check that the compiled evaluate applies
         _, end_master, end_node, dofs, dofs_full, flat = self.assemble_call
         nodes = [
             np.ascontiguousarray(s.node_master, dtype=np.int64),
@@ -957,9 +990,9 @@ class NativeRoute:
         if self._mass_ctx is False:
             sys = self.sys
             ctx = None
-            if self.assemble_call is not None and sys.beam_mass_kernel.address is not None and not sys._mvar:
+            k = sys.beam_mass_kernel  # not None where the compiled evaluate applies (beams)
+            if self.assemble_call is not None and k is not None and k.address is not None and not sys._mvar:
                 s, N = sys.s, sys.N
-                k = sys.beam_mass_kernel
                 slots, nodes = self._assemble_slots(k, self.mass_in_at)
                 keep = [
                     *nodes,
@@ -992,6 +1025,7 @@ class NativeRoute:
         """:meth:`System.mass` in one C call (where :meth:`mass_context` is not None; same numbers)."""
         sys = self.sys
         N = sys.N
+        assert sys.beam_mass_kernel is not None  # mass_context made the context (beams) before this call
         out = np.empty(self.mass_size)
         if _assembler()[0].mass_matrix(
             self.mass_context(),
@@ -1036,16 +1070,15 @@ class NativeRoute:
         the sizes. None where :meth:`System.evaluate` and :meth:`System.update` do not both run in C (the numpy
         route). Made once; the arrays stay referenced here."""
         sys = self.sys
-        if self.assemble_call is None or self.update_call is None or sys._rot_log.address is None:
+        kernel = sys.beam_kernel  # not None where the compiled evaluate applies (beams)
+        if self.assemble_call is None or self.update_call is None or sys._rot_log.address is None or kernel is None:
             return None
         if self._parts is None:
-            import ctypes
-
             s, N = sys.s, sys.N
             lib = _assembler()[0]
             upd, rot_update, act, moving, rin, rout = self.update_call
             nm, nmov = len(s.master_names), len(sys._rot_masters)
-            slots, nodes = self._assemble_slots(sys.beam_kernel, self.beam_in_at)
+            slots, nodes = self._assemble_slots(kernel, self.beam_in_at)
             keep = [
                 *nodes,
                 np.ascontiguousarray(sys._chart_flat, dtype=np.int64),
@@ -1060,9 +1093,9 @@ class NativeRoute:
             at = [a.ctypes.data for a in keep]
             self._keep["point"] = keep
             self._parts = {
-                "assemble": ctypes.cast(lib.assemble, ctypes.c_void_p).value,
+                "assemble": function_address(lib.assemble),
                 **slots,
-                "update": ctypes.cast(lib.update_state, ctypes.c_void_p).value,
+                "update": function_address(lib.update_state),
                 "rot_update": rot_update,
                 "masters": nm,
                 "act": act,
@@ -1091,6 +1124,7 @@ class NativeRoute:
         :meth:`call`: kernel outputs, ``g``, ``g_full``, ``H``); the chart matrix is made on first use."""
         sys = self.sys
         N, n, n_full, nb = sys.N, sys.n, sys.n_full, sys.s.n_beams
+        assert sys.beam_kernel is not None  # the compiled Newton loop runs on structures with beams only
         no = nb * sys.beam_kernel.n_out
         g_full = buf[no + N : no + N + n_full]
         return Assembled(

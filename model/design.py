@@ -44,6 +44,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Literal, overload
 
 import casadi as ca
 import numpy as np
@@ -54,6 +55,7 @@ from .analysis import beam_sigma
 from .assembly import System
 from .errors import FlexoptError
 from .kernels import compiled
+from .loads import LoadSet
 from .modal import Modes
 from .rotations import skew
 from .scene import Beam, RectangularSection, Scene
@@ -232,10 +234,10 @@ def structure_derivative(s: Structure, scene_dict: dict, dscene: dict) -> Struct
         if name in dpos:
             dnode[k] = dpos[name]
         else:
-            el_name, i = name.rsplit("#", 1)
+            el_name, seg = name.rsplit("#", 1)
             el = scene_dict["elements"][el_index[el_name]]
             a, b = el["nodes"]
-            dnode[k] = dpos[a] + (dpos[b] - dpos[a]) * int(i) / int(el["segments"])
+            dnode[k] = dpos[a] + (dpos[b] - dpos[a]) * int(seg) / int(el["segments"])
     bodies = scene_dict.get("bodies", []) or []
     dbodies = dscene.get("bodies", []) or []
     dmaster = np.zeros((nm, 3))
@@ -333,6 +335,14 @@ def _beam_inputs_change(fr: _Frame, u: np.ndarray, psi: np.ndarray, dr0: np.ndar
     return out
 
 
+@overload
+def _jvp(
+    fr: _Frame, da_state: np.ndarray, dconst: np.ndarray, hessian: Literal[True] = ...
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
+@overload
+def _jvp(
+    fr: _Frame, da_state: np.ndarray, dconst: np.ndarray, hessian: Literal[False]
+) -> tuple[np.ndarray, None, None]: ...
 def _jvp(
     fr: _Frame, da_state: np.ndarray, dconst: np.ndarray, hessian: bool = True
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
@@ -394,9 +404,9 @@ class _LoadFrame:
     """The loads (model.loads) of one equilibrium for the design sensitivities: their kernels' inputs at the
     state, once per point, and their directional derivatives along a design direction (:meth:`jvp`)."""
 
-    def __init__(self, fr: _Frame, stroke: float) -> None:
+    def __init__(self, fr: _Frame, ls: LoadSet, stroke: float) -> None:
         sys = fr.sys
-        self.fr, self.ls = fr, sys.loads
+        self.fr, self.ls = fr, ls  # sys.loads, which the caller found not None
         ls = self.ls
         self.value_at = ls.stroke_value(stroke)
         self.vec = sys.load_scale * ls.forces(stroke)
@@ -527,7 +537,7 @@ def point_sensitivity(
     sys: System,
     eq: Equilibrium,
     modes: Modes,
-    which: Sequence[int],
+    which: Sequence[int] | np.ndarray,
     dstructs: Sequence[StructureDerivative],
     cluster_gap: float = 1e-6,
 ) -> PointSensitivity:
@@ -547,7 +557,7 @@ def point_sensitivity(
     A = ev.H if ev.chart is None else ev.H + ev.chart
     lu = _bordered_lu(sys, eq, A)
     which = np.asarray(which, dtype=int)
-    locked = s.scene.stroke.drive == "locked"  # the eigenproblem of model.modal.modes_at
+    locked = sys.stroke.drive == "locked"  # the eigenproblem of model.modal.modes_at
     dofs = f if locked else np.arange(n)
     lam = modes.omega2[which]
     phi = modes.phi[:, which]
@@ -556,7 +566,7 @@ def point_sensitivity(
     act.reshape(-1)[sys.act_full] = True
     sig = beam_sigma(s, sys, eq)
     fr = _Frame(sys, st)
-    lf = _LoadFrame(fr, eq.stroke) if sys.loads is not None else None
+    lf = _LoadFrame(fr, sys.loads, eq.stroke) if sys.loads is not None else None
     z = np.hstack([sig, s.beam_stress])
     vm_out = _von_mises_jac(len(z))(z.T)
     vm2 = vm_out[0].full().T

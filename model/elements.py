@@ -41,6 +41,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cache
+from typing import overload
 
 import casadi as ca
 
@@ -108,7 +109,12 @@ def _expm3(psi: ca.SX) -> ca.SX:
     return ca.SX.eye(3) + S + S2 / 2 + (S2 @ S) / 6
 
 
-def _end(x0: ca.SX, R0: ca.SX | None, r: ca.SX, u: ca.SX, psi: ca.SX) -> tuple[ca.SX, ca.SX]:
+@overload
+def _end(x0: ca.SX, R0: ca.SX, r: ca.SX, u: ca.SX, psi: ca.SX) -> tuple[ca.SX, ca.SX]: ...
+@overload
+def _end(x0: ca.SX, R0: None, r: ca.SX, u: ca.SX, psi: ca.SX) -> tuple[ca.SX, None]: ...
+def _end(x0: ca.SX, R0: ca.SX | None, r: ca.SX, u: ca.SX, psi: ca.SX) -> tuple[ca.SX, ca.SX | None]:
+    """The displaced end point and, when the reference orientation ``R0`` is given, the end's orientation."""
     E = _expm3(psi)
     x = x0 + u + (E - ca.SX.eye(3)) @ r
     R = E @ R0 if R0 is not None else None
@@ -341,6 +347,8 @@ def beam_segment_design(warping: str) -> ca.Function:
     )
     E0 = seg["E0"]
     rot = seg["rot"]
+    # rectangular_properties gives a rectangle's fibre distances and shear stress per torque (never None)
+    assert props.cy is not None and props.cz is not None and props.tau_per_torque is not None
     out = ca.vertcat(
         seg["l0"],
         *[E0[i][j] for j in range(3) for i in range(3)],

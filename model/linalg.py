@@ -145,7 +145,7 @@ def _workspace(n: int, drv: tuple) -> tuple[int, int, int, tuple[np.ndarray, np.
 
 def lowest_pairs(
     K: np.ndarray, M: np.ndarray, k: int, refine: bool = True, driver: tuple | None = None
-) -> tuple[np.ndarray, np.ndarray] | None | bool:
+) -> tuple[np.ndarray, np.ndarray] | None | Literal[False]:
     """The ``k`` lowest eigenpairs ``(lambda, phi)`` of ``K phi = lambda M phi`` through ``K``.
 
     Returns ``None`` when the driver is not available (no C compiler), ``False`` when ``K`` is not positive
@@ -184,7 +184,7 @@ def _pencil(K: np.ndarray, M: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarra
     return K, M, np.empty(k), np.empty((K.shape[0], k))
 
 
-def _pairs(status: int, lam: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None | bool:
+def _pairs(status: int, lam: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None | Literal[False]:
     """An eigen driver's status read as ``(lam, X)`` (0), ``False`` (1: the route through M) or ``None``."""
     if status == 0:
         return lam, X
@@ -290,7 +290,7 @@ class BandedPencil:
 
 def lowest_pairs_banded(
     K: np.ndarray, M: np.ndarray, k: int, perm: np.ndarray, kd: int, refine: bool = True
-) -> tuple[np.ndarray, np.ndarray] | None | bool:
+) -> tuple[np.ndarray, np.ndarray] | None | Literal[False]:
     """:func:`lowest_pairs` for a pencil whose nonzeros lie within ``kd`` of the diagonal in the order
     ``perm`` (:func:`band_order`), by Lanczos on the banded Cholesky factor (C ``lanczos_pairs``: its
     docstring says how it is checked). The same returns, and ``None`` also when Lanczos did not converge or

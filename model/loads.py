@@ -76,6 +76,7 @@ class LoadSet:
                 offsets.append(s.node_offset[i])
                 self.source.append(("node", i))
             else:
+                assert ld.body is not None  # a load names a node or a body (the scene's validator)
                 m = body_index[ld.body]
                 masters.append(m)
                 p = np.asarray(ld.point if ld.point is not None else s.master_pos[m], dtype=float)
@@ -85,11 +86,11 @@ class LoadSet:
         g = np.zeros(3) if scene.gravity is None else np.asarray(scene.gravity, dtype=float)
         self.gravity = g
         if np.any(g):
-            for m in np.flatnonzero(s.master_mass):  # bodies: the weight at the centre of mass (the master)
-                masters.append(int(m))
+            for mw in np.flatnonzero(s.master_mass):  # bodies: the weight at the centre of mass (the master)
+                masters.append(int(mw))
                 offsets.append(np.zeros(3))
-                self.loads.append(s.master_mass[m] * g)
-                self.source.append(("weight", int(m)))
+                self.loads.append(s.master_mass[mw] * g)
+                self.source.append(("weight", int(mw)))
             for (a, b), mass in zip(s.truss_nodes, s.truss_mass):  # trusses: half the weight at each end
                 for i in (a, b):
                     masters.append(int(s.node_master[i]))
@@ -153,7 +154,7 @@ class LoadSet:
     def add(
         self,
         R: np.ndarray,
-        beam_in: np.ndarray | None,
+        beam_in: np.ndarray,
         stroke: float,
         scale: float,
         g: np.ndarray,

@@ -17,6 +17,7 @@ from __future__ import annotations
 import sys
 import warnings
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 
@@ -150,12 +151,12 @@ def modes_at(sys: System, eq: Equilibrium, k: int, drive: str = "locked", near: 
 
             Z = null_space(eq.ev.G[:, dofs])
             K, Mr = Z.T @ K @ Z, Z.T @ Mr @ Z
-        w, V, cw = general_pairs(K, Mr, min(k, K.shape[0]))
-        phi = np.zeros((sys.n, len(w)))
-        phi[dofs] = V if Z is None else Z @ V
-        return Modes(w, phi, M, complex_omega2=cw)
+        wg, Vg, cw = general_pairs(K, Mr, min(k, K.shape[0]))
+        phi = np.zeros((sys.n, len(wg)))
+        phi[dofs] = Vg if Z is None else Z @ Vg
+        return Modes(wg, phi, M, complex_omega2=cw)
     pencil = sys.banded_pencil(locked) if not sys.n_con and 2 * k < len(dofs) else None
-    band = None
+    band: tuple[np.ndarray, int] | Literal[False] | None = None  # False: K not positive definite (route through M)
     if pencil is not None:
         if _in_place(eq.ev.H, M, sys.N):
             # the free blocks of H and M read in place, the vectors written into phi's free rows: one C call
@@ -178,7 +179,7 @@ def modes_at(sys: System, eq: Equilibrium, k: int, drive: str = "locked", near: 
         if k == 0:
             return Modes(np.zeros(0), np.zeros((sys.n, 0)), M)
     w, V = (None, None) if band is False else _lowest_pairs(K, Mr, k, band)
-    if w is None:  # K not positive definite (unstable) or singular: the pencil route through M
+    if w is None or V is None:  # K not positive definite (unstable) or singular: the pencil route through M
         w, V, info = _lowest_pairs_through_m(K, Mr, k)
         if info > K.shape[0]:  # LAPACK: the leading minor of order info - n of M is not positive definite
             bad = [s.dof_label(int(sys.act_full[d])) for d in dofs[np.diag(Mf) <= 0][:5]]

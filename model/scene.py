@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import difflib
 import math
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Final, Literal
 
 import numpy as np
 from pydantic import (
@@ -58,8 +58,8 @@ __all__ = [
 #: "auto" beam at it).
 AUTO_START = 4
 
-SCENE_FORMAT = "flexopt.scene"
-SCENE_VERSION = 1
+SCENE_FORMAT: Final = "flexopt.scene"  # Final: read as the Literal the Scene field declares
+SCENE_VERSION: Final = 1
 
 #: Names of the six deformation parameters of the spatial beam (seed 002, eq. 2), and groups of them.
 MODE_NAMES: dict[str, tuple[int, ...]] = {

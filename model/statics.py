@@ -26,7 +26,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import linalg
-from .assembly import ASSEMBLE_SLOTS, Assembled, State, System
+from .assembly import ASSEMBLE_SLOTS, Assembled, State, System, function_address
+from .elements import beam_spec
 from .kernels import c_enum
 from .lapack import routines
 
@@ -265,16 +266,16 @@ def _loop_function():
 class _PointLoop:
     """One system's compiled Newton loop (model/native/newton_point.c): its slots, work arrays and their addresses."""
 
-    def __init__(self, sys: System, ns: linalg.NewtonSystem, fn) -> None:
+    def __init__(self, sys: System, ns: linalg.NewtonSystem, point_parts: dict[str, int], fn) -> None:
         import ctypes
 
-        parts = dict(sys.native.point_parts())
+        parts = dict(point_parts)  # NativeRoute.point_parts()'s, completed here
         nm, n = parts["masters"], parts["n_act"]
         lib, table, _ = ns.drv
         self.work = [np.empty(6 * nm), np.empty(18 * nm), np.empty(max(n, 1)), np.empty(max(n, 1))]
         ip, dp, J, b, ipiv, sc, eye = ns.ptr
         parts.update(
-            newton=ctypes.cast(lib.newton, ctypes.c_void_p).value,
+            newton=function_address(lib.newton),
             ip=ip,
             dp=dp,
             j_work=J,
@@ -342,7 +343,8 @@ def _loop_failure(pl: _PointLoop, status: int, info: np.ndarray, opts: NewtonOpt
     if status == 1:
         from .errors import KernelBuildError
 
-        return KernelBuildError(f"kernel '{pl.sys.beam_kernel.spec.name}' reported an evaluation error")
+        # the name of System.beam_kernel (compiled from this spec)
+        return KernelBuildError(f"kernel '{beam_spec()[0].name}' reported an evaluation error")
     if status == 2:
         from .errors import KernelBuildError
 
@@ -376,12 +378,15 @@ def _point_loop(sys: System, opts: NewtonOptions) -> _PointLoop | None:
     if native.point_loop is False:
         pl = None
         ns = native.newton_system()
-        if ns is not None and native.point_parts() is not None:
+        point_parts = native.point_parts()
+        if ns is not None and point_parts is not None:
             fn = _loop_function()
             if fn is not None:
-                pl = _PointLoop(sys, ns, fn)
+                pl = _PointLoop(sys, ns, point_parts, fn)
         native.point_loop = pl
-    return native.point_loop
+    # built above, a _PointLoop or None; NativeRoute holds it as an object (model.assembly cannot import this module)
+    built = native.point_loop
+    return built if isinstance(built, _PointLoop) else None
 
 
 def _advance(
@@ -398,11 +403,11 @@ def _advance(
     are known); the same numbers either way."""
     pl = _point_loop(sys, opts)
     at = cur.extra.get("at") if pl is not None else None
-    cubic = prev is not None and prev.stroke != cur.stroke
-    if at is not None and (not cubic or prev.extra.get("at") is not None):
+    back = prev if prev is not None and prev.stroke != cur.stroke else None  # the cubic predictor's earlier point
+    if pl is not None and at is not None and (back is None or back.extra.get("at") is not None):
         nm8 = 8 * pl.nm
-        if cubic:
-            p = prev.extra["at"]
+        if back is not None:
+            p = back.extra["at"]
             pred = (at + 12 * nm8, 0, p, p + 3 * nm8, p + 12 * nm8)
         else:
             if curvature is not None:  # referenced here until the call returns
@@ -410,7 +415,14 @@ def _advance(
             pred = (at + 12 * nm8, 0 if curvature is None else curvature.ctypes.data, 0, 0, 0)
         try:
             return pl.solve(
-                at, at + 3 * nm8, s_new, opts, cur.stroke, pred, ds, cur.stroke - prev.stroke if cubic else 0.0
+                at,
+                at + 3 * nm8,
+                s_new,
+                opts,
+                cur.stroke,
+                pred,
+                ds,
+                cur.stroke - back.stroke if back is not None else 0.0,
             )
         except _NearPi:
             pass  # a relative rotation near pi: the quaternion route of System.difference, in Python
@@ -497,7 +509,7 @@ def _pbsv(ab: np.ndarray, b: np.ndarray) -> np.ndarray | None:
     OpenBLAS), else scipy.linalg.solveh_banded, which calls the same routine."""
     table = routines()
     addr = None if table is None else table.address("dpbsv")
-    if addr is None:
+    if table is None or addr is None:
         from scipy.linalg import solveh_banded
 
         try:

@@ -242,6 +242,7 @@ def _active(scene: Scene, mesh: _Mesh, rot_used: np.ndarray, carrier: dict[str, 
             b = mesh.body_index[carrier[s.node]]
             active[6 * b : 6 * b + 6] = False
         else:
+            assert s.node is not None  # a support names a body or a node (the scene's validator)
             m = mesh.node_master[mesh.node_index[s.node]]
             for d in s.dofs:
                 active[6 * m + _DOF_INDEX[d]] = False
@@ -257,7 +258,11 @@ def _drive(
     if st is None:
         # no drive (a structure for exact-constraint diagnosis only): System refuses it with a clear error
         return -1, np.zeros(3), -1, np.eye(3), "none"
-    drive_master = mesh.body_index[st.body] if st.body is not None else int(mesh.node_master[mesh.node_index[st.node]])
+    if st.body is not None:
+        drive_master = mesh.body_index[st.body]
+    else:
+        assert st.node is not None  # a stroke names a body or a node (the scene's validator)
+        drive_master = int(mesh.node_master[mesh.node_index[st.node]])
     axis = _unit(st.axis)
     drive_dof = 6 * drive_master + (3 if st.kind == "rotation" else 0)
     if st.kind == "rotation" and not rot_used[drive_master]:
