@@ -25,6 +25,7 @@ __all__ = [
     "PARAMETER_UNITS",
     "design_space",
     "parameter_unit",
+    "start_value",
     "template",
     "template_parameters",
 ]
@@ -1034,7 +1035,16 @@ def _topology_hinge(p: dict) -> dict:
     is the one described above): stage k >= 2 has its own ``length_s<k>``, ``thickness_s<k>``, ``width_s<k>``
     and ``angle_s<k>`` (stage 1 uses ``length``, ``thickness``, ``width``, ``angle``); leaf i of stage k its
     own thickness ``thickness_s<k>l<i>`` (default: its stage's). A layer's height along z is its width
-    multiple times its stage's width."""
+    multiple times its stage's width.
+
+    Tapered leaves (optional; ``taper`` k >= 2): every stacked leaf that is not reinforced is k zones of equal
+    length along it, each its own beam element (``ceil(segments / k)`` segments, a rectangular section of the
+    zone's thickness, its own stress), joined at nodes ``<leaf>_z<j>``; zone j's thickness is the most specific
+    of ``thickness_s<k>l<i>_z<m>``, ``thickness_s<k>_z<m>`` (stage k >= 2), ``thickness_z<m>`` that is given
+    (non-zero), else the leaf's own thickness, where m = j, or with ``taper_symmetric`` (the default) m =
+    min(j, k + 1 - j): zones mirrored about the leaf's middle share one thickness. Leaves crossing in one
+    plane (their joint is where the crossing fraction puts it) and reinforced leaves (a rigid middle) keep
+    one thickness. ``taper`` 1 (the default) is the uniform leaf above."""
     stages = topology_layout(p["topology"])
     t_gap = p["gap"]
 
@@ -1057,6 +1067,21 @@ def _topology_hinge(p: dict) -> dict:
         )
     level = int(p["flexure_level"])
     n = 1 if level else int(p["segments"])
+    zones = int(p["taper"])
+    if not 1 <= zones <= _MAX_ZONES:
+        raise SceneError("template.taper", f"taper {zones} must be 1 (a uniform leaf) to {_MAX_ZONES} zones per leaf")
+    mirrored = bool(int(p["taper_symmetric"]))
+
+    def zone_thickness(k: int, i: int, j: int, uniform: Any) -> Any:
+        """Zone j (1-based, from the leaf's start) of leaf i of stage k (0-based): see the docstring."""
+        m = min(j, zones + 1 - j) if mirrored else j
+        names = [f"thickness_s{k + 1}l{i + 1}_z{m}"] + ([f"thickness_s{k + 1}_z{m}"] if k else []) + [f"thickness_z{m}"]
+        for name in names:
+            v = p.get(name, 0.0)
+            if not (isinstance(v, (int, float)) and v == 0):
+                return v
+        return uniform
+
     n_half = max(n // 2, 1)
     z_of = _layer_heights(stages, [d["w"] for d in dims], t_gap)
     nodes: list[tuple[str, list]] = []
@@ -1113,6 +1138,16 @@ def _topology_hinge(p: dict) -> dict:
                         "nodes": [f"{tag}_ra", f"{tag}_rb"],
                     }
                 )
+            elif zones > 1 and not level:
+                nz = -(-n // zones)  # ceil: the leaf keeps at least its segments
+                ends_z = [f"{tag}_0"] + [f"{tag}_z{j}" for j in range(1, zones)] + [f"{tag}_1"]
+                nodes += [
+                    (f"{tag}_z{j}", [a[c] + (b[c] - a[c]) * j / zones for c in range(3)]) for j in range(1, zones)
+                ]
+                elements += [
+                    _leaf(p, f"{tag}z{j}", ends_z[j - 1], ends_z[j], wi, nz, zone_thickness(k, i, j, ti))
+                    for j in range(1, zones + 1)
+                ]
             else:
                 elements.append(_leaf(p, tag, f"{tag}_0", f"{tag}_1", wi, n, ti))
         starts.append(s0)
@@ -1135,6 +1170,25 @@ _PER_STAGE = {
     f"{key}_s{k}": 0.0 for k in range(2, _OWN_STAGES + 1) for key in ("length", "thickness", "width", "angle")
 }
 _PER_LEAF = {f"thickness_s{k}l{i}": 0.0 for k in range(1, _OWN_STAGES + 1) for i in range(1, _OWN_LEAVES + 1)}
+#: Most thickness zones of a tapered leaf, and every zone's thickness parameter (0: inherited, see _topology_hinge).
+_MAX_ZONES = 5
+_PER_ZONE = {
+    f"{base}_z{j}": 0.0
+    for base in ("thickness", *(f"thickness_s{k}" for k in range(2, _OWN_STAGES + 1)), *_PER_LEAF)
+    for j in range(1, _MAX_ZONES + 1)
+}
+
+
+def start_value(name: str, key: str) -> float:
+    """Where the optimiser's first start puts template parameter ``key`` of template ``name``: its default; a
+    zone thickness of ``topology-hinge`` (default 0, "inherited") starts at the template's thickness, so the
+    first start of a tapered leaf is the uniform leaf of the untapered first start."""
+    defaults = TEMPLATES[name][1]
+    if key in _PER_ZONE and defaults[key] == 0:
+        return float(defaults["thickness"])
+    return float(defaults[key])
+
+
 TEMPLATES["topology-hinge"] = (
     _topology_hinge,
     dict(
@@ -1145,14 +1199,17 @@ TEMPLATES["topology-hinge"] = (
         rigid_fraction=1.0 / 3.0,
         rigid_thickness=2e-3,
         flexure_level=0,
+        taper=1,
+        taper_symmetric=1,
         **_PER_STAGE,
         **_PER_LEAF,
+        **_PER_ZONE,
     ),
 )
 PARAMETER_UNITS.update(
     {
         "rigid_thickness": "m",
         "rigid_fraction": "",
-        **{k: ("deg" if k.startswith("angle") else "m") for k in (*_PER_STAGE, *_PER_LEAF)},
+        **{k: ("deg" if k.startswith("angle") else "m") for k in (*_PER_STAGE, *_PER_LEAF, *_PER_ZONE)},
     }
 )

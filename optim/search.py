@@ -63,7 +63,7 @@ from ..model.curve import Analysis
 from ..model.design import point_sensitivity, structure_derivative, trace_template
 from ..model.errors import FlexoptError
 from ..model.results import ResultWarning
-from ..model.templates import TEMPLATES
+from ..model.templates import TEMPLATES, start_value
 from ..model.threads import limited
 from .problem import Envelope, Family, Problem
 
@@ -181,8 +181,8 @@ class _Family:
         return float(self.params(np.zeros(len(self.names))).get("body_mass", d["body_mass"]))
 
     def default_x(self) -> np.ndarray:
-        d = TEMPLATES[self.fam.template][1]
-        return np.clip((np.array([float(d[k]) for k in self.names]) - self.lo) / (self.hi - self.lo), 0, 1)
+        start = [start_value(self.fam.template, k) for k in self.names]
+        return np.clip((np.array(start) - self.lo) / (self.hi - self.lo), 0, 1)
 
     def evaluate(self, x: np.ndarray) -> _Eval:
         x = np.asarray(x, dtype=float)

@@ -340,3 +340,29 @@ def follower_elastica_tip(alpha2: float) -> tuple[float, float, float]:
     if not sol.success:
         raise RuntimeError(f"solve_bvp: {sol.message}")
     return float(sol.y[2, -1]), float(sol.y[3, -1]), float(sol.p[0])
+
+
+def stepped_flexibilities(length: float, a: float, E: float, I1: float, I2: float) -> tuple[float, float, float]:
+    """Tip flexibilities (f_FF, f_FM, f_MM) of a stepped Euler-Bernoulli cantilever clamped at x = 0: second
+    moment ``I1`` on [0, a], ``I2`` on [a, L]. Unit-load method (Castigliano's theorem; Timoshenko and Gere,
+    Mechanics of Materials, ch. 9, deflections by the energy method) with tip force F and tip moment M,
+    M(x) = F (L - x) + M: f_FF = int (L - x)^2 / (E I), f_FM = int (L - x) / (E I), f_MM = int 1 / (E I),
+    each integral in closed form over the two zones. A uniform beam: L^3 / (3 E I), L^2 / (2 E I), L / (E I)."""
+    b = length - a
+    f_ff = ((length**3 - b**3) / I1 + b**3 / I2) / (3 * E)
+    f_fm = ((length**2 - b**2) / I1 + b**2 / I2) / (2 * E)
+    f_mm = (a / I1 + b / I2) / E
+    return f_ff, f_fm, f_mm
+
+
+def stepped_cantilever_compliance(length: float, a: float, E: float, I1: float, I2: float) -> float:
+    """Tip deflection per tip force of the stepped cantilever (:func:`stepped_flexibilities`), tip free: f_FF."""
+    return stepped_flexibilities(length, a, E, I1, I2)[0]
+
+
+def stepped_guided_compliance(length: float, a: float, E: float, I1: float, I2: float) -> float:
+    """The same beam guided at x = L (tip rotation held, tip free to move across the beam): the guide's moment
+    cancels the tip rotation, M = -F f_FM / f_MM, so the compliance is f_FF - f_FM^2 / f_MM. A uniform beam
+    gives L^3 / (12 E I), the clamped-guided beam."""
+    f_ff, f_fm, f_mm = stepped_flexibilities(length, a, E, I1, I2)
+    return f_ff - f_fm**2 / f_mm

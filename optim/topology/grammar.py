@@ -28,7 +28,8 @@ Dimensions (:func:`design_parameters`): one length, thickness, width and plane a
 (``"shared"``, today's spaces), each stage its own (``"stage"``: stage k >= 2's ``length_s<k>`` and so on),
 or each stage its own and each leaf its own thickness (``"leaf"``: ``thickness_s<k>l<i>``). They are the
 design space's choice, not the descriptor's: a descriptor names the same hinge under each, and keeps the
-meaning it had.
+meaning it had. So is a tapered leaf (``taper`` k: k thickness zones along every stacked, unreinforced
+leaf, ``thickness_z<j>`` and so on in place of each thickness; :func:`design_parameters`).
 
 The scene of a descriptor is built by one builder, ``model.templates``' ``topology-hinge`` (which reads the
 descriptor with :func:`model.templates.topology_layout`, so the grammar and the scene cannot disagree).
@@ -67,6 +68,8 @@ __all__ = [
     "FAMILIES",
     "design_parameters",
     "DIMENSIONS",
+    "tapers",
+    "zone_names",
     "crosses",
     "GuideTopology",
     "parse_guide",
@@ -222,7 +225,42 @@ def _stage_names(k: int, stage: Stage, dimensions: str) -> list[str]:
     return names
 
 
-def design_parameters(t: Topology, dimensions: str = "shared") -> list[str]:
+def tapers(stage: Stage, leaf: Leaf) -> bool:
+    """Whether a leaf can be tapered (thickness zones along it, template ``topology-hinge``'s ``taper``): a
+    stacked leaf without a rigid middle. A leaf crossing in one plane is joined where the (designed) crossing
+    fraction puts it, and a reinforced leaf has its rigid middle: both keep one thickness."""
+    return not stage.inplane and not leaf.reinforced
+
+
+def zone_names(name: str, taper: int, symmetric: bool = True) -> list[str]:
+    """The zone thicknesses that replace thickness parameter ``name`` in a tapered design space:
+    ``<name>_z1`` ... ``<name>_z<m>``, m = ``taper`` or, ``symmetric``, ceil(taper / 2) (zones mirrored about
+    the leaf's middle share one)."""
+    m = (taper + 1) // 2 if symmetric else taper
+    return [f"{name}_z{j}" for j in range(1, m + 1)] if taper > 1 else [name]
+
+
+def _with_zones(t: Topology, dimensions: str, names: list[str], taper: int, symmetric: bool) -> list[str]:
+    """``names`` with every thickness parameter replaced by its zone thicknesses where the leaves it sizes are
+    tapered, kept as well where some of them are not (:func:`tapers`)."""
+    use: dict[str, list[bool]] = {}
+    for k, st in enumerate(t.stages):
+        for i, lf in enumerate(st.leaves):
+            if dimensions == "leaf":
+                name = f"thickness_s{k + 1}l{i + 1}"
+            else:
+                name = "thickness" if k == 0 or dimensions == "shared" else f"thickness_s{k + 1}"
+            use.setdefault(name, []).append(tapers(st, lf))
+    out: list[str] = []
+    for n in names:
+        if n in use and any(use[n]):
+            out += ([n] if not all(use[n]) else []) + zone_names(n, taper, symmetric)
+        else:
+            out.append(n)
+    return out
+
+
+def design_parameters(t: Topology, dimensions: str = "shared", taper: int = 1, symmetric: bool = True) -> list[str]:
     """The continuous parameters a topology's shape depends on (its design space's names, template
     ``topology-hinge``'s parameters).
 
@@ -230,6 +268,11 @@ def design_parameters(t: Topology, dimensions: str = "shared") -> list[str]:
     spaces), ``"stage"`` (stage k >= 2 its own ``length_s<k>``, ``thickness_s<k>``, ``width_s<k>``,
     ``angle_s<k>``) or ``"leaf"`` (as ``"stage"``, and every leaf its own thickness ``thickness_s<k>l<i>``).
     A one-stage topology has the same space under ``"shared"`` and ``"stage"``.
+
+    ``taper`` k >= 2: every leaf that can be tapered (:func:`tapers`) is k zones of equal length, and each
+    thickness parameter of such leaves is replaced by its zone thicknesses (:func:`zone_names`: ``thickness``
+    by ``thickness_z1`` ... ; with ``symmetric``, ceil(k/2) of them, zones mirrored about the leaf's middle
+    sharing one). ``taper`` 1 (the default) is the space above, unchanged.
     """
     if dimensions not in DIMENSIONS:
         raise ValueError(f"dimensions must be one of {DIMENSIONS}, got {dimensions!r}")
@@ -239,6 +282,8 @@ def design_parameters(t: Topology, dimensions: str = "shared") -> list[str]:
             names.append("angle")
     else:
         names = [n for k, s in enumerate(t.stages) for n in _stage_names(k, s, dimensions)]
+    if taper > 1:
+        names = _with_zones(t, dimensions, names, taper, symmetric)
     if any(s.free_crossing for s in t.stages):
         names.append("crossing")
     if any(lf.reinforced for s in t.stages for lf in s.leaves):

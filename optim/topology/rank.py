@@ -39,6 +39,7 @@ crossing fraction 0.15-0.85, rigid fraction 0.1-0.6. Optional validity constrain
 
 from __future__ import annotations
 
+import itertools
 import math
 import sys
 import time
@@ -47,7 +48,7 @@ from typing import Any
 
 from ...model.threads import limited
 from ..problem import Family, Problem, Ratio
-from .grammar import Topology, canonical, design_parameters, enumerate_topologies, family_of, parse
+from .grammar import Topology, canonical, design_parameters, enumerate_topologies, family_of, parse, zone_names
 from .spec import TopologySpec, example_spec
 
 __all__ = [
@@ -126,25 +127,33 @@ def _boxes(t: Topology, spec: TopologySpec) -> dict[str, tuple[float, float, str
     for k, st in enumerate(t.stages):
         for i in range(len(st.leaves)):
             box[f"thickness_s{k + 1}l{i + 1}"] = box["thickness"]
+    for name in [n for n in box if n.startswith("thickness")]:  # a tapered leaf's zones: as its thickness
+        for z in zone_names(name, spec.taper, spec.taper_symmetric):
+            box.setdefault(z, box[name])
     return box
+
+
+def _names(t: Topology, spec: TopologySpec) -> list[str]:
+    return design_parameters(t, spec.dimensions, spec.taper, spec.taper_symmetric)
 
 
 def design_space(t: Topology, spec: TopologySpec) -> dict[str, tuple[float, float]]:
     """The candidate's continuous parameters with bounds inside the common envelope (module docstring)."""
     box = _boxes(t, spec)
-    return {k: box[k][:2] for k in design_parameters(t, spec.dimensions)}
+    return {k: box[k][:2] for k in _names(t, spec)}
 
 
 def bound_origins(t: Topology, spec: TopologySpec) -> dict[str, tuple[str, str]]:
     """Where each bound of :func:`design_space` comes from, (lower, upper) in words."""
     box = _boxes(t, spec)
-    return {k: box[k][2:] for k in design_parameters(t, spec.dimensions)}
+    return {k: box[k][2:] for k in _names(t, spec)}
 
 
 def _ratios(t: Topology, spec: TopologySpec) -> list[Ratio]:
     """The validity constraints of the spec on every stage's leaves (length over width times the widest
-    multiple, length over thickness of each leaf's thickness parameter)."""
-    names = set(design_parameters(t, spec.dimensions))
+    multiple, length over thickness of each leaf's thickness parameter or zone), and a tapered leaf's bounded
+    taper: each zone thickness at least 1 / ``max_taper`` times its neighbour's, both ways."""
+    names = set(_names(t, spec))
     out: dict[tuple, Ratio] = {}
     for k, st in enumerate(t.stages):
         tag = "" if k == 0 or spec.dimensions == "shared" else f"_s{k + 1}"
@@ -164,13 +173,24 @@ def _ratios(t: Topology, spec: TopologySpec) -> list[Ratio]:
                 if spec.dimensions == "leaf"
                 else ["thickness" + tag]
             )
-            for name in th:
+            for name in [z for b in th for z in [b, *zone_names(b, spec.taper, spec.taper_symmetric)]]:
                 if name in names:
                     out[(length, name, 1)] = Ratio(
                         numerator=length,
                         denominator=name,
                         minimum=spec.min_length_over_thickness,
                         reason="leaves longer than thick",
+                    )
+    if spec.taper > 1:
+        for name in sorted({n.rsplit("_z", 1)[0] for n in names if "_z" in n}):
+            zs = zone_names(name, spec.taper, spec.taper_symmetric)
+            for a, b in itertools.pairwise(zs):
+                for num, den in ((a, b), (b, a)):
+                    out[(num, den, "taper")] = Ratio(
+                        numerator=num,
+                        denominator=den,
+                        minimum=1.0 / spec.max_taper,
+                        reason=f"neighbouring zones within max_taper {spec.max_taper:g}",
                     )
     return list(out.values())
 
@@ -179,8 +199,9 @@ def candidate_problem(t: Topology, spec: TopologySpec, first_pass: bool = False)
     """The one-family optimisation problem of a candidate (the same for every candidate but its family); with
     ``first_pass`` the schedule's cheap pass (one start, coarse mesh, few samples, no refinement)."""
     r = (2 * spec.body_inertia / spec.body_mass) ** 0.5  # the template's inertia m r^2 / 2
-    if first_pass and spec.first_pass_dimensions != "same":
-        spec = spec.model_copy(update={"dimensions": spec.first_pass_dimensions})
+    if first_pass and spec.first_pass_dimensions != "same":  # the cheapest space: no zones either
+        spec = spec.model_copy(update={"dimensions": spec.first_pass_dimensions, "taper": 1})
+    taper = {"taper": spec.taper, "taper_symmetric": int(spec.taper_symmetric)} if spec.taper > 1 else {}
     fam = Family(
         template="topology-hinge",
         design=design_space(t, spec),
@@ -192,6 +213,7 @@ def candidate_problem(t: Topology, spec: TopologySpec, first_pass: bool = False)
             "body_radius": r,
             "mid_mass": spec.intermediate_mass,
             "gap": _GAP,
+            **taper,
         },
     )
     if first_pass:
@@ -233,7 +255,7 @@ def family_problem(name: str, descriptor: str, spec: TopologySpec) -> dict:
     ``topology-hinge`` (same design bounds, envelope, mass and limits; shared dimensions, the families' own):
     the reference a search restricted to that family must reproduce (tests/test_topology.py,
     bench/bench_topology.py)."""
-    spec = spec.model_copy(update={"dimensions": "shared"})
+    spec = spec.model_copy(update={"dimensions": "shared", "taper": 1})  # the family templates have no zones
     prob = candidate_problem(parse(descriptor), spec).model_dump(mode="json")
     fam = prob["families"][0]
     fam["template"] = name

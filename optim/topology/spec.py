@@ -57,6 +57,28 @@ class TopologySpec(BaseModel):
         "thickness, width and plane angle for every stage), 'stage' (each stage its own) or 'leaf' (each stage "
         "its own, and each leaf its own thickness)",
     )
+    taper: int = Field(
+        default=1,
+        ge=1,
+        le=5,
+        description="thickness zones per leaf: 1 a uniform leaf; k >= 2 every stacked leaf "
+        "without a rigid middle is k zones of equal length, each its own designed thickness (at least "
+        "min_thickness, at most 1 mm), neighbouring zones within max_taper of each other",
+    )
+    taper_symmetric: bool = Field(
+        default=True,
+        description="zones mirrored about the leaf's middle share one thickness (ceil(taper / 2) per "
+        "leaf): a leaf crossing the axis at its midpoint is bent by the stroke with the same moment along its "
+        "length, so its load is symmetric about its middle; false: every zone its own (for designed crossings)",
+    )
+    max_taper: float = Field(
+        default=2.0,
+        gt=1.0,
+        le=10.0,
+        description="largest thickness ratio between neighbouring zones of a tapered leaf: the "
+        "beam model has no stress concentration at a step in thickness, so keep steps that a rounded "
+        "shoulder makes harmless",
+    )
     prune: bool = Field(
         default=True,
         description="leave out duplicates before optimising: a designed crossing "
