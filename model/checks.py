@@ -241,6 +241,60 @@ def _member_length(scene: Scene, nodes: tuple[str, str]) -> float:
     return float(np.linalg.norm(pos[nodes[1]] - pos[nodes[0]]))
 
 
+def _straight_chains(scene: Scene) -> dict[str, tuple[float, list[str]]]:
+    """Per beam, the length of the straight member it is a piece of, and the pieces: beams joined end to end
+    at a node that holds exactly those two beams and nothing else (no other element, body or support) and
+    that do not turn there (collinear to 1e-9) are one member, e.g. the thickness zones of a tapered leaf
+    (template ``topology-hinge``'s ``taper``): its span, not a zone's, is what beam theory's limits are about."""
+    pos = {n.name: np.asarray(n.position, dtype=float) for n in scene.nodes}
+    beams = [e for e in scene.elements if isinstance(e, Beam)]
+    held: dict[str, int] = {}
+    for e in scene.elements:
+        for n in e.nodes:
+            held[n] = held.get(n, 0) + 1
+    for body in scene.bodies or ():
+        for n in body.nodes:
+            held[n] = held.get(n, 0) + 1
+    for sp in scene.supports or ():
+        if sp.node is not None:
+            held[sp.node] = held.get(sp.node, 0) + 1
+    for j in scene.joints or ():
+        for n in j.nodes:
+            held[n] = held.get(n, 0) + 1
+    for ld in scene.loads or ():
+        if ld.node is not None:
+            held[ld.node] = held.get(ld.node, 0) + 1
+    at: dict[str, list[Beam]] = {}
+    for e in beams:
+        for n in e.nodes:
+            at.setdefault(n, []).append(e)
+    parent = {e.name: e.name for e in beams}
+
+    def root(k: str) -> str:
+        while parent[k] != k:
+            k = parent[k]
+        return k
+
+    for n, es in at.items():
+        if len(es) != 2 or held.get(n, 0) != 2:
+            continue
+        (a, b) = es
+        u = pos[a.nodes[1]] - pos[a.nodes[0]]
+        v = pos[b.nodes[1]] - pos[b.nodes[0]]
+        nu, nv = float(np.linalg.norm(u)), float(np.linalg.norm(v))
+        if nu > 0 and nv > 0 and abs(abs(float(u @ v)) / (nu * nv) - 1.0) <= 1e-9:
+            parent[root(a.name)] = root(b.name)
+    groups: dict[str, list[Beam]] = {}
+    for e in beams:
+        groups.setdefault(root(e.name), []).append(e)
+    out: dict[str, tuple[float, list[str]]] = {}
+    for es in groups.values():
+        length = sum(_member_length(scene, e.nodes) for e in es)
+        for e in es:
+            out[e.name] = (length, [x.name for x in es])
+    return out
+
+
 def _section_depths(sec: Any) -> tuple[float, float, float, float]:
     """(h_thin, h_wide, A, I_thin): depths sqrt(12 I / A) in the compliant and the stiff direction."""
     if isinstance(sec, RectangularSection):
@@ -268,13 +322,17 @@ def slenderness_warnings(scene: Scene) -> list[ResultWarning]:
         message) or ``L / w < PLATE_MAX`` (a plate; Timoshenko and Woinowsky-Krieger 1959), else a ``notice``
         when the share across the width exceeds ``SHEAR_NOTICE``; neither shear warning for a general section
         that carries shear flexibilities (its bending is Timoshenko's). ``value``: the ratio or the share.
+        ``L`` is the length of the straight member the beam is a piece of (:func:`_straight_chains`: a tapered
+        leaf's zones are one member), the beam's own for a beam that is a member by itself.
     """
     out: list[ResultWarning] = []
     mats = {m.name: m for m in scene.materials}
+    chains = _straight_chains(scene)
     for e in scene.elements:
         if not isinstance(e, Beam) or e.material not in mats:
             continue
-        L = _member_length(scene, e.nodes)
+        L, pieces = chains[e.name]
+        name = e.name if len(pieces) == 1 else f"{e.name} (one of the {len(pieces)} pieces of a straight member)"
         mat = mats[e.material]
         h, w, _, _ = _section_depths(e.section)
         ratio = mat.E / (KAPPA * mat.G)
@@ -286,7 +344,7 @@ def slenderness_warnings(scene: Scene) -> list[ResultWarning]:
             out.append(
                 ResultWarning(
                     "validity",
-                    f"{e.name}: L/t = {L / h:.3g} (t = {1e3 * h:.3g} mm, its thinner section depth) is below "
+                    f"{name}: L/t = {L / h:.3g} (t = {1e3 * h:.3g} mm, its thinner section depth) is below "
                     f"{SLENDER_MIN:g}, outside the beam theory used here (Euler-Bernoulli): shear would add "
                     f"{100 * share:.3g} % to its bending compliance (Timoshenko); "
                     "make the member longer or thinner, or check it with a solid or shell model",
@@ -300,7 +358,7 @@ def slenderness_warnings(scene: Scene) -> list[ResultWarning]:
             out.append(
                 ResultWarning(
                     "validity",
-                    f"{e.name}: L/w = {L / w:.3g} (w = {1e3 * w:.3g} mm, its wider section depth) is below "
+                    f"{name}: L/w = {L / w:.3g} (w = {1e3 * w:.3g} mm, its wider section depth) is below "
                     f"{PLATE_MAX:g}: wider than long, a plate rather than a beam "
                     f"(bending stiffness up to {factor:.3g} times the beam's, clamps restrain anticlastic "
                     "curvature); make it narrower or check it with a plate or shell model",
@@ -313,7 +371,7 @@ def slenderness_warnings(scene: Scene) -> list[ResultWarning]:
             out.append(
                 ResultWarning(
                     "notice",
-                    f"{e.name}: L/w = {L / w:.3g} (w = {1e3 * w:.3g} mm): shear, which this beam neglects, would add "
+                    f"{name}: L/w = {L / w:.3g} (w = {1e3 * w:.3g} mm): shear, which this beam neglects, would add "
                     f"{100 * share:.3g} % to "
                     f"its compliance across the width (Timoshenko, clamped-guided): support stiffness across the "
                     f"width is overestimated and modes bending it about its stiff axis read up to "
