@@ -33,7 +33,9 @@ bounds inside the common envelope: length 20 mm up to twice the envelope's radiu
 at its midpoint reaches a radius of half its length; the envelope rows bound the rest), width up to what
 lets the candidate's stack of layers fit the envelope's height with its gaps (per stage: with the other
 stages at their smallest width), thickness from the problem's minimum to 1 mm, angle 30-150 degrees,
-crossing fraction 0.15-0.85, rigid fraction 0.1-0.6. Optional validity constraints (``min_length_over_width``,
+crossing fraction 0.15-0.85, rigid fraction 0.1-0.6; with ``taper`` k each tapered leaf's zone thicknesses
+(:func:`.grammar.zone_names`) have its thickness's bounds, and neighbouring zones are within ``max_taper`` of
+each other (ratio rows both ways). Optional validity constraints (``min_length_over_width``,
 ``min_length_over_thickness``) bound every leaf's slenderness (:class:`optim.problem.Ratio`).
 """
 
