@@ -306,3 +306,28 @@ def test_beam_theory_checks_see_the_leaf_not_the_zone() -> None:
         w.element: w.value for w in slenderness_warnings(template("topology-hinge", topology="R:x+-|+r-", taper=3))
     }
     assert mixed["s1l1a"] > 2 * mixed["s2l2z1"]  # a half leaf (25 mm) against the whole tapered leaf (50 mm)
+
+
+@pytest.mark.parametrize("dimensions", ["shared", "stage", "leaf"])
+def test_every_zone_parameter_moves_its_zones(dimensions: str) -> None:
+    """Under every design space each zone thickness is a template parameter that changes the thickness of the
+    zones it names and of no other beam (its exact derivative, traced with CasADi): a name the scene ignored
+    would be a flat direction for the solver, one that moved another zone a wrong model."""
+    from flexopt.model.design import trace_template
+    from flexopt.optim.search import _Family
+
+    spec = TopologySpec(dimensions=dimensions, taper=3, segments=3)
+    prob = candidate_problem(parse("R:x+-|+-|-+"), spec)
+    fam = _Family(prob, prob.families[0])
+    ds = trace_template("topology-hinge", fam.params(fam.default_x()), fam.names)
+    names = [e["name"] for e in ds.scene_dict["elements"]]
+    for j, name in enumerate(fam.names):
+        if "_z" not in name:
+            continue
+        moved = {n for n, e in zip(names, ds.dscene[j]["elements"]) if e["section"]["thickness"] != 0}
+        base, zone = name.rsplit("_z", 1)
+        stages = {"thickness": ("s2", "s3") if dimensions == "shared" else ("s1",)}.get(base, (base[10:12],))
+        leaf = base[12:] if dimensions == "leaf" else ""
+        ends = {"1": ("z1", "z3"), "2": ("z2",)}[zone]  # symmetric: zones 1 and 3 share one thickness
+        expected = {n for n in names if n[:2] in stages and n.startswith(n[:2] + leaf) and n.endswith(ends)}
+        assert moved == expected and moved, (name, moved, expected)
