@@ -331,3 +331,34 @@ def test_every_zone_parameter_moves_its_zones(dimensions: str) -> None:
         ends = {"1": ("z1", "z3"), "2": ("z2",)}[zone]  # symmetric: zones 1 and 3 share one thickness
         expected = {n for n in names if n[:2] in stages and n.startswith(n[:2] + leaf) and n.endswith(ends)}
         assert moved == expected and moved, (name, moved, expected)
+
+
+@pytest.mark.slow
+def test_mesh_estimate_of_a_tapered_hinge() -> None:
+    """The curve's mesh estimate (model.mesh: Richardson at order 2) on the tapered double cross hinge near its
+    optimum (bench/bench_taper.py), against the error measured from 32 segments per zone: at 3 segments per zone
+    (too coarse to halve: compared with 4 times the mesh) and at 8 (halved), within 10 %, the accuracy model/mesh.py
+    documents on the default templates (measured: 1 % and 7 %). Zone boundaries are nodes of every mesh."""
+    from flexopt.model.curve import Analysis
+
+    d = dict(
+        topology="R:+-|-+",
+        taper=3,
+        length=0.07,
+        thickness_z1=0.494e-3,
+        thickness_z2=0.473e-3,
+        width=0.00866,
+        angle=67.4,
+        length_s2=0.046,
+        thickness_s2_z1=0.512e-3,
+        thickness_s2_z2=0.486e-3,
+        width_s2=0.00834,
+        angle_s2=112.7,
+        points=9,
+    )
+    grid = np.linspace(-45.0, 45.0, 9)
+    ref = Analysis(template("topology-hinge", segments=96, **d)).frequency_curve(stroke=grid)
+    for n in (8, 24):
+        c = Analysis(template("topology-hinge", segments=n, **d)).frequency_curve(stroke=grid, mesh_error=True)
+        true = float(np.max(np.abs(c.parasitic_hz / ref.parasitic_hz - 1)))
+        assert c.mesh_error == pytest.approx(true, rel=0.1), (n, c.mesh_error, true)
