@@ -19,24 +19,27 @@ from flexopt.model import kernels as K
 
 MODEL = Path(K.__file__).parent
 
+#: Every KernelSpec factory of model/elements.py with its arguments.
 FACTORIES = (
-    E.beam_spec,
-    E.truss_spec,
-    E.joint_spec,
-    E.beam_mass_spec,
-    E.beam_mass_jvp_spec,
-    E.beam_jvp_spec,
-    E.beam_jvp_gradient_spec,
-    E.rotation_update_spec,
-    E.rotation_log_spec,
-    E.von_mises_spec,
-    E.point_load_spec,
-    E.beam_gravity_spec,
+    (E.beam_spec, ()),
+    (E.truss_spec, ()),
+    (E.joint_spec, ()),
+    (E.beam_mass_spec, ()),
+    (E.beam_mass_jvp_spec, ()),
+    (E.beam_jvp_spec, ()),
+    (E.beam_jvp_gradient_spec, ()),
+    (E.rotation_update_spec, ()),
+    (E.rotation_log_spec, ()),
+    (E.von_mises_spec, ()),
+    (E.point_load_spec, ()),
+    (E.beam_gravity_spec, ()),
+    (E.load_jvp_spec, ("point",)),
+    (E.load_jvp_spec, ("beam_gravity",)),
 )
 
 
-def _specs(build) -> list[E.KernelSpec]:
-    out = build()
+def _specs(build, args: tuple) -> list[E.KernelSpec]:
+    out = build(*args)
     return list(out) if isinstance(out, tuple) else [out]
 
 
@@ -47,12 +50,18 @@ def _key(spec: E.KernelSpec) -> tuple[str, ...]:
 def test_every_kernel_has_its_own_key_and_a_rebuild_the_same() -> None:
     """Each factory's kernels (main and third derivative) get distinct keys; building a factory again from its
     code (``__wrapped__``: past functools.cache, new CasADi symbols; the two jvp kernels reuse their cached function) gives the same key."""
+    public = {
+        f
+        for n, f in vars(E).items()
+        if not n.startswith("_") and "KernelSpec" in getattr(f, "__annotations__", {}).get("return", "")
+    }
+    assert public == {f for f, _ in FACTORIES}  # every factory is checked here
     keys = {}
-    for factory in FACTORIES:
-        for spec, again in zip(_specs(factory), _specs(factory.__wrapped__)):
+    for factory, args in FACTORIES:
+        for spec, again in zip(_specs(factory, args), _specs(factory.__wrapped__, args)):
             assert _key(again) == _key(spec), spec.name
             keys[spec.name] = _key(spec)
-    assert len(set(keys.values())) == len(keys) == 15
+    assert len(set(keys.values())) == len(keys) == 17
 
 
 def test_a_different_function_under_the_same_name_changes_the_key() -> None:
