@@ -77,9 +77,10 @@ def run_cli(args: Sequence[str], env: Mapping[str, str]) -> tuple[float, subproc
     return time.perf_counter() - t, out
 
 
-def add_base_arguments(p: argparse.ArgumentParser) -> None:
-    """The 'before' version of a before/after benchmark: ``--base DIR`` or ``--base-commit REV`` (one of them)."""
-    g = p.add_mutually_exclusive_group(required=True)
+def add_base_arguments(p: argparse.ArgumentParser, required: bool = True) -> None:
+    """The 'before' version of a before/after benchmark: ``--base DIR`` or ``--base-commit REV`` (one of them;
+    ``required=False``: at most one, for a script with a mode that needs none)."""
+    g = p.add_mutually_exclusive_group(required=required)
     g.add_argument("--base", type=Path, help="directory holding the 'before' flexopt package (PYTHONPATH)")
     g.add_argument("--base-commit", help="commit of this repository to build the 'before' package from")
 

@@ -4,13 +4,12 @@ On a shared machine absolute times drift; what holds is a ratio measured side by
 the two versions in alternating child processes (A B A B ...), each child timing ``--inner`` warm 91-point
 curves per case after one warm-up, and prints the medians and the median of the per-pair ratios.
 
-Version B is a directory put first on ``PYTHONPATH`` that contains a ``flexopt`` package, e.g. made from a
-commit with::
+Version A is this checkout's ``flexopt`` package (bench/_common.package: the layout pyproject.toml maps, not
+whatever flexopt is installed); version B a directory holding a ``flexopt`` package (``--base``) or one built
+from a commit of this repository (``--base-commit``). Each child reports the model directory it imported,
+printed above the table::
 
-    git archive <commit> | tar -x -C /tmp/base/src
-    mkdir -p /tmp/base/pkg/flexopt && cp /tmp/base/src/service/_root/*.py /tmp/base/pkg/flexopt/
-    for d in model optim service; do ln -s /tmp/base/src/$d /tmp/base/pkg/flexopt/$d; done
-    python bench/bench_ab.py --base /tmp/base/pkg
+    python bench/bench_ab.py --base-commit 84035ae
 
 ``--routes`` instead compares, in one process and curve by curve, this checkout's compiled and banded per-point
 routes with the numpy routes and dense eigen solve they replace (frequencies within 3e-8, asserted).
@@ -20,18 +19,20 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import statistics
 import sys
+import tempfile
 import time
 from pathlib import Path
 
-ROOT = str(Path(__file__).resolve().parents[1])
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import run_fresh  # noqa: E402
+from _common import ROOT, add_base_arguments, base_package, package, run_fresh  # noqa: E402
 from bench_curve import CASES  # noqa: E402  (the cases of the README's speed table, so the rows match)
 
 _CHILD = """
-import json, statistics, time
+import json, os, statistics, time
+import flexopt.model
 from flexopt.model import Analysis, template
 out = {}
 for label, name, params in CASES:
@@ -44,12 +45,14 @@ for label, name, params in CASES:
         ts.append(time.perf_counter() - t)
     assert c.status == "complete" and len(c.stroke) == 91
     out[label] = statistics.median(ts)
-print(json.dumps(out))
+print(json.dumps({"model": os.path.realpath(os.path.dirname(flexopt.model.__file__)), "seconds": out}))
 """
 
 
-def _run(pythonpath: str, inner: int) -> dict[str, float]:
-    return run_fresh(f"CASES = {CASES!r}\nINNER = {inner}\n" + _CHILD, pythonpath)
+def _run(pythonpath: Path, inner: int) -> tuple[str, dict[str, float]]:
+    """The model directory the child imported and its median seconds per case."""
+    out = run_fresh(f"CASES = {CASES!r}\nINNER = {inner}\n" + _CHILD, pythonpath)
+    return out["model"], out["seconds"]
 
 
 def _systems(an) -> list:
@@ -76,13 +79,14 @@ def _set_routes(systems: list, saved: list | None) -> list:
     return saved
 
 
-def routes(pairs: int) -> int:
+def routes(pairs: int, tmp: Path) -> int:
     """In one process, on one Analysis per case: warm curves with the compiled per-point routes (model/assembly.py's
     one-call evaluate, mass, Hessian derivative and update; model.linalg.newton with its banded LU; the banded
     Lanczos eigen solve) against the numpy routes and the dense compiled eigen solve, alternating curve by
     curve. The frequencies agree to 3e-8 relative (checked here; see the comment there; the dense-only
     routes were bit-identical to the numpy ones, the banded ones round differently)."""
-    sys.path.insert(0, ROOT)
+    sys.path.insert(0, str(package(ROOT, tmp / "a")))
+    import flexopt.model
     import numpy as np
     from flexopt.model import Analysis, template
 
@@ -116,6 +120,7 @@ def routes(pairs: int) -> int:
         f"{pairs} alternating pairs of warm curves in one process; load average {load0:.2f} at start, "
         f"{os.getloadavg()[0]:.2f} at end; {os.cpu_count()} CPUs; frequencies within 3e-8 on both routes"
     )
+    print(f"imports {Path(flexopt.model.__file__).resolve().parent}")
     print("| case | compiled routes, median [ms] | numpy routes, median [ms] | speed-up (median of pairs) |")
     print("|---|---|---|---|")
     for label, a, b, r in rows:
@@ -126,7 +131,7 @@ def routes(pairs: int) -> int:
 def main(argv: list[str] | None = None) -> int:
     """Alternate A (this checkout) and B (``--base``) and print one markdown table."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--base", help="directory holding the other version's flexopt package")
+    add_base_arguments(ap, required=False)
     ap.add_argument(
         "--routes",
         action="store_true",
@@ -135,19 +140,32 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--pairs", type=int, default=5, help="A B pairs of child processes (or of curves, --routes)")
     ap.add_argument("--inner", type=int, default=5, help="warm curves per case and child (median taken)")
     args = ap.parse_args(argv)
-    if args.routes:
-        return routes(args.pairs)
-    if not args.base:
-        ap.error("--base DIR is required (or --routes)")
+    tmp = Path(tempfile.mkdtemp(prefix="bench_ab_"))
+    try:
+        if args.routes:
+            return routes(args.pairs, tmp)
+        if args.base is None and args.base_commit is None:
+            ap.error("one of --base DIR or --base-commit REV is required (or --routes)")
+        return compare(args, tmp)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def compare(args: argparse.Namespace, tmp: Path) -> int:
+    """A (this checkout) against B (``--base``/``--base-commit``) in alternating child processes."""
+    a_path, b_path = package(ROOT, tmp / "a"), base_package(args, tmp)
     load0 = os.getloadavg()[0]
     a_runs, b_runs = [], []
     for _ in range(args.pairs):
-        a_runs.append(_run(ROOT, args.inner))
-        b_runs.append(_run(args.base, args.inner))
+        a_model, a = _run(a_path, args.inner)
+        b_model, b = _run(b_path, args.inner)
+        a_runs.append(a)
+        b_runs.append(b)
     print(
         f"{args.pairs} interleaved A/B pairs x {args.inner} warm curves; load average {load0:.2f} at start, "
         f"{os.getloadavg()[0]:.2f} at end; {os.cpu_count()} CPUs"
     )
+    print(f"A imports {a_model}; B imports {b_model}")
     print("| case | A: this checkout, median [ms] | B: base, median [ms] | speed-up B/A (median of pairs) |")
     print("|---|---|---|---|")
     for label, _, _ in CASES:

@@ -21,7 +21,7 @@ from .rotations import log_so3, skew, twist_angle, twist_gradient
 from .scene import Stroke
 from .structure import Structure
 
-__all__ = ["State", "Assembled", "System", "NativeRoute", "ASSEMBLE_SLOTS", "MASS_SLOTS"]
+__all__ = ["State", "Assembled", "System", "NativeRoute", "ASSEMBLE_SLOTS", "MASS_SLOTS", "newton_system_of"]
 
 _ASSEMBLER: list = []
 
@@ -1047,19 +1047,7 @@ class NativeRoute:
             sys = self.sys
             ns = None
             if self.assemble_call is not None and sys.direct and sys.n_con == 0 and sys.n > 0:
-                comp = np.argmax(sys.Qa, axis=0)  # the global axis of each active basis column
-                ns = linalg.newton_system(
-                    sys.n,
-                    sys.drive,
-                    0 if sys.s.drive_kind == "rotation" else 1,
-                    sys.free,
-                    sys.block_pos,
-                    comp,
-                    np.asarray(sys.s.drive_axis, dtype=float),
-                    sys.scale,
-                    sys.scale_free,
-                    pattern=sys.pattern(),
-                )
+                ns = newton_system_of(sys, sys.pattern())
             self._newton = ns
         return self._newton
 
@@ -1136,3 +1124,23 @@ class NativeRoute:
             np.zeros(0),
             lambda: sys.chart_correction(g_full),
         )
+
+
+def newton_system_of(sys: System, pattern: np.ndarray | None = None, banded: bool = True) -> linalg.NewtonSystem | None:
+    """:func:`model.linalg.newton_system` of ``sys``: its drive, drive kind and axis, free DOFs, rotation blocks,
+    the global axis of each active basis column and the scaling; ``pattern`` and ``banded`` as there. None without
+    the C driver. :meth:`NativeRoute.newton_system` makes the one that model.statics uses (where it applies)."""
+    comp = np.argmax(sys.Qa, axis=0)  # the global axis of each active basis column
+    return linalg.newton_system(
+        sys.n,
+        sys.drive,
+        0 if sys.s.drive_kind == "rotation" else 1,
+        sys.free,
+        sys.block_pos,
+        comp,
+        np.asarray(sys.s.drive_axis, dtype=float),
+        sys.scale,
+        sys.scale_free,
+        pattern=pattern,
+        banded=banded,
+    )

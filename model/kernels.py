@@ -4,8 +4,10 @@ Small models are dominated by Python-to-CasADi call overhead, so each element ke
 once, wrapped in a loop over elements, compiled to a shared library and called through ``ctypes`` on
 contiguous numpy buffers: one call per element type per assembly, no copies.
 
-Cache (after PyBaMM's ahead-of-time compile): the key is a SHA-256 of the kernel's serialised CasADi
-function, the wrapper source, the compiler command and the CasADi version; the library is written to a
+Cache (after PyBaMM's ahead-of-time compile): the key is a SHA-256 of what defines the kernel (:func:`kernel_key`:
+its name and sizes, the text of the code that generates it, :data:`GENERATORS`, the wrapper source and the CasADi
+version) and of the compiler command. The CasADi function itself is not serialised for the key: that cost a fresh
+process 0.1-0.3 s for the beam's third-derivative kernel alone, on every cache hit. The library is written to a
 temporary file and renamed atomically, so concurrent processes never see half a file. The directory is
 ``$FLEXOPT_CACHE_DIR`` or ``~/.cache/flexopt/kernels``. Without a C compiler the kernel falls back to
 CasADi's own virtual machine (``Function.map``) with a ``KernelPerformanceWarning``: same numbers, slower.
@@ -28,6 +30,7 @@ import subprocess
 import tempfile
 import warnings
 from collections.abc import Callable, Iterable, Sequence
+from functools import cache
 from importlib import resources
 from pathlib import Path
 
@@ -47,6 +50,9 @@ __all__ = [
     "native_files",
     "c_enum",
     "batch_definitions",
+    "kernel_key",
+    "generator_hash",
+    "GENERATORS",
     "KernelPerformanceWarning",
     "FLAGS",
 ]
@@ -156,6 +162,32 @@ def batch_definitions(spec: KernelSpec) -> tuple[tuple[str, object], ...]:
     )
 
 
+#: The files whose code generates every :class:`KernelSpec`'s CasADi function: their text stands in the cache key
+#: for the function (with CasADi's version, which builds it from that code). tests/test_kernels.py checks that no
+#: other file constructs a KernelSpec and that the code building one reaches no other flexopt module.
+GENERATORS = (Path(__file__).with_name("elements.py"),)
+
+
+@cache
+def generator_hash() -> str:
+    """SHA-256 of the text of :data:`GENERATORS` (read once per process)."""
+    h = hashlib.sha256()
+    for f in GENERATORS:
+        h.update(f.read_bytes())
+    return h.hexdigest()
+
+
+def kernel_key(spec: KernelSpec, wrapper: str) -> tuple[str, ...]:
+    """What defines the compiled kernel of ``spec`` with the batch ``wrapper`` (:func:`shared_library` adds the
+    compiler and its flags): the kernel's name, its input, output and CasADi instruction counts, the hash of the
+    code that generates it (:func:`generator_hash`), the wrapper source (the work sizes included) and the CasADi
+    version. None of it needs the function serialised."""
+    f = spec.function
+    shape = f"{spec.n_in} {spec.n_out} {f.nnz_in()} {f.nnz_out()} {f.n_instructions()}"
+    version = ca.__version__  # type: ignore[attr-defined]  # casadi's stubs omit the module's __version__
+    return (spec.name, shape, generator_hash(), wrapper, version)
+
+
 class CompiledKernel:
     """A batch evaluator of one element kernel: ``out[k] = f(in[k])`` for every row ``k``."""
 
@@ -192,8 +224,7 @@ class CompiledKernel:
                 cg.generate(tmp + os.sep)
                 return (Path(tmp) / (name + ".c")).read_text() + wrapper
 
-        version = ca.__version__  # type: ignore[attr-defined]  # casadi's stubs omit the module's __version__
-        lib = shared_library(name, (f.serialize(), wrapper, version), source, cc)
+        lib = shared_library(name, kernel_key(self.spec, wrapper), source, cc)
         fn = getattr(lib, name + "_batch")
         fn.restype = ctypes.c_int
         fn.argtypes = [ctypes.c_longlong, ctypes.c_void_p, ctypes.c_void_p]

@@ -15,6 +15,7 @@ import numpy as np
 from flexopt.model import template
 
 __all__ = [
+    "HINGES",
     "COARSE_MESH",
     "coarse",
     "DELETE",
@@ -24,6 +25,18 @@ __all__ = [
     "rigid_motion",
     "scale_units",
 ]
+
+
+#: The three classic flexures and the optimiser's three hinge families: the templates the methods' tests compare on
+#: (bench/_common.py's HINGES, which the bench scripts use without importing the tests).
+HINGES = (
+    "leaf-spring",
+    "parallel-leaf-spring",
+    "cross-spring-pivot",
+    "cartwheel-hinge",
+    "three-fold-cross-hinge",
+    "double-cross-hinge",
+)
 
 
 #: The meshes of the templates' defaults before issue 26 item 4 made them finer (segments per leaf, wire or

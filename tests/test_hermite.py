@@ -14,22 +14,13 @@ from flexopt.model.methods import frequency_curve
 from flexopt.model.methods.hermite import stroke_slopes
 from flexopt.model.methods.taylor import mass_derivatives, mass_slope, projected_mass_slope
 
-from .helpers import coarse  # the former default meshes: hermite against exact on one mesh
-
-SIX = [
-    "leaf-spring",
-    "parallel-leaf-spring",
-    "cross-spring-pivot",
-    "cartwheel-hinge",
-    "three-fold-cross-hinge",
-    "double-cross-hinge",
-]
+from .helpers import HINGES, coarse  # the former default meshes: hermite against exact on one mesh
 
 
 @pytest.fixture(scope="module")
 def exact() -> dict:
     out = {}
-    for name in SIX:
+    for name in HINGES:
         an = Analysis(template(name, **coarse(name)))
         out[name] = (an, an.frequency_curve())
     return out
@@ -102,7 +93,7 @@ def seen_modes(an: Analysis, eq) -> np.ndarray:  # noqa: ANN001 - an Equilibrium
     return modes_at(an.system, eq, an.scene.modes + 2, an.scene.stroke.drive).phi
 
 
-@pytest.mark.parametrize("name", SIX)
+@pytest.mark.parametrize("name", HINGES)
 def test_hermite_within_one_percent_of_exact_over_the_whole_stroke(exact: dict, name: str) -> None:
     """Issue 12 target: the first parasitic frequency within 1 % of exact at all 91 points, with fewer exact
     eigen solves than a fifth of the exact curve's, and an estimate that does not understate the error."""
@@ -238,7 +229,7 @@ def test_the_pair_form_follows_a_veering_that_the_single_branches_cut() -> None:
     assert np.max(np.abs(np.sqrt(true / single) - 1)) > 0.05  # in frequency
 
 
-@pytest.mark.parametrize("name", SIX)
+@pytest.mark.parametrize("name", HINGES)
 def test_hermite_meets_a_tenth_of_a_percent_and_its_estimate_is_not_far_below_the_error(exact: dict, name: str) -> None:
     """At tolerance 1e-3 the curve is within 1e-3 of exact, and the reported estimate is at least half the
     true error (the interpolant-in-frequency comparison alone read 7e-5 on the double cross, whose true error
@@ -267,7 +258,7 @@ def test_fill_computes_the_points_of_intervals_the_samples_miss_exactly(exact: d
     assert np.sum(rel <= 1e-9) >= n_fill  # every filled point (each mirrored once more) is exact
 
 
-@pytest.mark.parametrize("name", SIX)
+@pytest.mark.parametrize("name", HINGES)
 def test_a_probed_interval_estimate_is_not_below_its_error(exact: dict, name: str, monkeypatch) -> None:  # noqa: ANN001
     """Every interval kept on a midpoint probe (model.methods.hermite._Side.probe) at tolerances 1e-2, 1e-3
     and 1e-4: the true error of the interpolated first parasitic frequency at the requested points inside it
@@ -307,7 +298,7 @@ def test_a_probed_interval_estimate_is_not_below_its_error(exact: dict, name: st
             assert err <= e, f"{name} at {tol:g}: [{a_s:.4g}, {b_s:.4g}] error {err:.3g}, estimate {e:.3g}"
 
 
-@pytest.mark.parametrize("name", SIX)
+@pytest.mark.parametrize("name", HINGES)
 def test_quarter_points_are_samples_only_where_the_branch_falls_over_the_first_half(
     exact: dict, name: str, monkeypatch
 ) -> None:  # noqa: ANN001

@@ -15,6 +15,7 @@ import threading
 import numpy as np
 import pytest
 from flexopt.model import lapack, linalg
+from flexopt.model.assembly import newton_system_of
 
 pytestmark = pytest.mark.skipif(not linalg.available(), reason="the compiled drivers need a C compiler")
 
@@ -145,22 +146,7 @@ def _off_path(name: str):
 def _newton_system(sys_, banded: bool = False, pattern=None):
     """The structure's compiled Newton system as model.statics builds it, dense unless ``banded`` with a
     ``pattern``."""
-    from flexopt.model import linalg
-
-    comp = np.argmax(sys_.Qa, axis=0)
-    return linalg.newton_system(
-        sys_.n,
-        sys_.drive,
-        0 if sys_.s.drive_kind == "rotation" else 1,
-        sys_.free,
-        sys_.block_pos,
-        comp,
-        np.asarray(sys_.s.drive_axis, dtype=float),
-        sys_.scale,
-        sys_.scale_free,
-        pattern=pattern,
-        banded=banded,
-    )
+    return newton_system_of(sys_, pattern, banded)
 
 
 NEWTON_CASES = ["leaf-spring", "cross-spring-pivot", "parallel-leaf-spring", "double-cross-hinge"]

@@ -11,6 +11,7 @@ from flexopt.model import Analysis, template
 from flexopt.model.elements import HERMITE_MASS, beam_mass_spec
 
 from . import references as ref
+from .helpers import HINGES
 
 
 def _zero_stroke_hz(name: str, n: int) -> np.ndarray:
@@ -188,12 +189,7 @@ REFERENCE_MESHES = {
     "cartwheel-hinge": (48, 96),
 }
 DEFAULTS = [
-    "leaf-spring",
-    "parallel-leaf-spring",
-    "cross-spring-pivot",
-    "cartwheel-hinge",
-    "three-fold-cross-hinge",
-    "double-cross-hinge",
+    *HINGES,
     "topology-hinge",
     "wire-guide-5",
     "wire-guide-parallel",

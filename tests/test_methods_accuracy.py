@@ -13,16 +13,8 @@ from flexopt.model import Analysis, template
 from flexopt.model.methods import estimate_error, expansion_curve, frequency_curve
 from flexopt.model.methods.accuracy import check_strokes, estimates, limit
 
-from .helpers import coarse
+from .helpers import HINGES, coarse
 
-TEMPLATES = (
-    "leaf-spring",
-    "parallel-leaf-spring",
-    "cross-spring-pivot",
-    "cartwheel-hinge",
-    "three-fold-cross-hinge",
-    "double-cross-hinge",
-)
 FAST = ("fd1", "fd2", "manifold", "reduced")
 
 
@@ -34,14 +26,14 @@ def _kept(stroke: np.ndarray, kept: np.ndarray) -> np.ndarray:
 def cases() -> dict:
     """Per template: the analysis and its exact curve on the default grid (91 points, +-45 deg or +-10 mm)."""
     out = {}
-    for name in TEMPLATES:
+    for name in HINGES:
         an = Analysis(template(name, **coarse(name)))  # expansions against exact on one mesh: the former defaults
         out[name] = (an, frequency_curve(an, "exact"))
     return out
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", TEMPLATES)
+@pytest.mark.parametrize("name", HINGES)
 @pytest.mark.parametrize("tolerance", [1e-2, 1e-3])
 def test_every_kept_point_meets_the_tolerance_and_the_rest_is_named(cases, name, tolerance):
     """Per method: the points kept are positive, finite and within ``tolerance`` of the exact curve (the
