@@ -276,9 +276,8 @@ class ConstraintDiagnosis:
             cond = sp["condition_number"]
             lines.append(
                 f"SPACAR's count (its variables, SI, at the reference): degrees of freedom {sp['dof']}, D_cc "
-                f"{sp['m']} x {sp['n']} of rank {sp['rank']}, condition number "
-                + (f"{cond:.6g}" if cond is not None else "infinite")
-                + f": {sp['verdict']}"
+                f"{sp['m']} x {sp['n']} of rank {sp['rank']} ({sp.get('released', 0)} deformations released, RLSE), "
+                "condition number " + (f"{cond:.6g}" if cond is not None else "infinite") + f": {sp['verdict']}"
             )
             lines += [f"  SPACAR note: {n}" for n in sp.get("notes", [])]
         elif sp:

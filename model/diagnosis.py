@@ -174,8 +174,9 @@ def _spacar(scene: Scene, spacar_text: str | None) -> dict:
         )
         got = spacar_dcc_of_scene(one).to_dict()
         got["model"] = (
-            "the scene as model.spacar.write_dat writes it, each member one beam element (flexopt export "
-            "--to dat writes the members' segments: same counts, its own condition number)"
+            "the scene as model.spacar.write_dat writes it, each member one beam element, the surplus dynamic "
+            "deformations released (RLSE, still elastic) as write_dat does (flexopt export --to dat writes the "
+            "members' segments: the same verdict, its own size and condition number)"
         )
         return got
     except SceneError as exc:

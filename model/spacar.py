@@ -69,6 +69,8 @@ class SpacarImport:
     spacar_dof: int = 0
     #: the .dat text read (SPACAR Light tables: the model written from them), for SPACAR's own D_cc
     text: str = ""
+    #: released (RLSE) deformations of beams and trusses, e.g. {"BEAM 4": [3, 5]}: elastic in flexopt
+    released: dict[str, list[int]] = field(default_factory=dict)
 
 
 class SpacarError(SceneError):
@@ -118,6 +120,8 @@ class _Reader:
     delxf: dict[int, tuple[list[float], int]] = field(default_factory=dict)
     xm: dict[int, tuple[list[float], int]] = field(default_factory=dict)
     crossdim: dict[int, tuple[float, float]] = field(default_factory=dict)
+    beamprops: list[int] = field(default_factory=list)  # SPACAR Light: the beams the next CROSSDIM is of
+    crosstype: str = ""
     gravity: list[float] | None = None
     steps: int | None = None
     mapped: dict[str, int] = field(default_factory=dict)
@@ -139,6 +143,8 @@ class _Reader:
     materials: list[dict] = field(default_factory=list)
     rigid_links: list[tuple[int, int, int]] = field(default_factory=list)  # (Ne, Xp, Xq): no flexible deformation
     spacar_dof: int = 0
+    #: released (RLSE) deformations of beams and trusses, "BEAM 4" -> [3, 5]
+    released_report: dict[str, list[int]] = field(default_factory=dict)
     parent: dict[int, int] = field(default_factory=dict)  # union-find of the rigid bodies' X nodes
     bodies: list[dict] = field(default_factory=list)
     carrier: dict[int, str] = field(default_factory=dict)
@@ -163,15 +169,34 @@ class _Reader:
         return ok
 
     def visual_line(self, ln: int, kw: str, tokens: list[str]) -> None:
-        """A line inside the VISUALIZATION block: CROSSDIM is mapped, the others only noted."""
-        if kw == "CROSSDIM":
+        """A line inside the VISUALIZATION block: CROSSDIM is mapped (``CROSSDIM Ne w t``, or SPACAR Light's
+        ``BEAMPROPS Ne...`` / ``CROSSTYPE RECT`` / ``CROSSDIM w t`` for the listed beams), the others only noted."""
+        if kw in ("BEAMPROPS", "CROSSTYPE"):
+            if kw == "BEAMPROPS":
+                v = _numbers(tokens, ln, kw, self.err)
+                self.beamprops = [int(x) for x in v or []]
+                self.crosstype = "RECT"
+            else:
+                self.crosstype = tokens[0].upper() if tokens else ""
+            self.mapped[kw] = self.mapped.get(kw, 0) + 1
+        elif kw == "CROSSDIM":
             v = _numbers(tokens, ln, kw, self.err)
-            if v is not None:
-                if len(v) != 3:
-                    self.err.add(ln, kw, f"expected 'CROSSDIM Ne w t' (3 numbers), got {len(v)}")
-                else:
-                    self.crossdim[int(v[0])] = (v[1], v[2])
-                    self.mapped[kw] = self.mapped.get(kw, 0) + 1
+            if v is None:
+                return
+            if len(v) == 2 and self.crosstype != "RECT":
+                self.notes.append(
+                    f"line {ln}: CROSSDIM of a {self.crosstype or 'section'} cross-section: not mapped (a rectangle "
+                    "only), so those beams' stresses are not available"
+                )
+                return
+            if len(v) == 2:  # SPACAR Light: the dimensions of the BEAMPROPS list
+                self.crossdim.update({ne: (v[0], v[1]) for ne in self.beamprops})
+            elif len(v) == 3:
+                self.crossdim[int(v[0])] = (v[1], v[2])
+            else:
+                self.err.add(ln, kw, f"expected 'CROSSDIM Ne w t' or (after BEAMPROPS) 'CROSSDIM w t', got {len(v)}")
+                return
+            self.mapped[kw] = self.mapped.get(kw, 0) + 1
         else:
             self.notes.append(f"line {ln}: {kw} (visualisation only; nothing in the model)")
 
@@ -184,6 +209,10 @@ class _Reader:
         """The flexopt node of R node ``rn``: its X node's, or a node of its own where a HINGE joins a second
         rotational node to the same point."""
         return f"n{self.x_of[rn]}r{rn}" if rn in self.extra else self.nname(self.x_of[rn])
+
+    def released(self, ne: int) -> set[int]:
+        """The deformations of element ``ne`` listed in RLSE (released: calculated, e(c))."""
+        return {k for ks, _ in self.rlse.get(ne, []) for k in ks}
 
     def role(self, n: int) -> str:
         return "X" if n in self.X else ("R" if n in self.x_of else "?")
@@ -229,7 +258,11 @@ def _read_dyne(r: _Reader) -> None:
 
 def _read_rlse(r: _Reader) -> None:
     if r.need(2, "RLSE Ne k...", True) and r.ints is not None:
-        r.rlse.setdefault(r.ints[0], []).append((r.ints[1:], r.ln))
+        bad = [k for k in r.ints[1:] if k not in _MODE]
+        if bad:
+            r.err.add(r.ln, r.kw, f"deformation numbers {bad} are not 1-6")
+        else:
+            r.rlse.setdefault(r.ints[0], []).append((r.ints[1:], r.ln))
 
 
 def _read_estiff(r: _Reader) -> None:
@@ -280,7 +313,10 @@ def _read_gravity(r: _Reader) -> None:
 
 def _read_iterstep(r: _Reader) -> None:
     if r.need(1, "ITERSTEP steps ...", True):
-        r.steps = int(r.v[0])
+        v = r.v
+        # SPACAR Light writes 'ITERSTEP 10 steps 5e-7 1 3 steps0' (spacarlight.m: its second number is
+        # opt.loadsteps - 1, the first a constant 10); a shorter line gives the steps first
+        r.steps = int(v[1]) if len(v) >= 6 and float(v[1]).is_integer() else int(v[0])
         if r.steps < 1:
             r.err.add(r.ln, r.kw, f"{r.steps} load steps; give at least 1")
 
@@ -329,8 +365,9 @@ def _parse(text: str) -> _Reader:
             continue
         tok = body.replace(",", " ").split()
         kw = tok[0].upper()
-        if kw == "HALT":
-            break
+        if kw == "HALT":  # SPACAR Light writes the stiffness, mass and loads after END/HALT: read on
+            vis = False
+            continue
         if kw == "END":
             vis = False
             continue
@@ -425,7 +462,7 @@ def _hinge_joints(r: _Reader) -> None:
                 "joins two rotations at one point (one X node)",
             )
             continue
-        flex = set(dyne.get(ne, set())) | {k for ks, _ in r.rlse.get(ne, []) for k in ks}
+        flex = set(dyne.get(ne, set())) | r.released(ne)
         if flex != {1}:
             err.add(
                 ln,
@@ -439,8 +476,9 @@ def _hinge_joints(r: _Reader) -> None:
             err.add(
                 r.estiff[ne][1],
                 "ESTIFF",
-                f"element {ne}: a hinge's rotational stiffness is not mapped (flexopt's "
-                "joints are ideal); model it as a short flexible beam",
+                f"element {ne}: a hinge with ESTIFF is a torsion spring (its free rotation keeps the stiffness "
+                "ESTIFF gives it), which is not mapped (flexopt's joints are ideal); model it as a short flexible "
+                "beam, or remove ESTIFF for a free revolute joint",
             )
             continue
         if not np.linalg.norm(axis) > 0:
@@ -452,6 +490,11 @@ def _hinge_joints(r: _Reader) -> None:
             r.notes.append(
                 f"element {ne}: HINGE with DYNE 1: its rotation is free (a dynamic coordinate, no stiffness)"
             )
+        else:
+            r.notes.append(
+                f"element {ne}: HINGE with RLSE 1: its rotation is free (released: calculated, no ESTIFF, so no "
+                "stiffness)"
+            )
     for rn, (xn, ne, ln) in r.extra.items():
         if rn not in r.hinged:
             err.add(
@@ -461,16 +504,27 @@ def _hinge_joints(r: _Reader) -> None:
                 f"{rn}) that no HINGE joins: a joint between beams (spherical) that flexopt does not model; join "
                 "them with a HINGE or use one rotational node",
             )
-    for ne, items in r.rlse.items():
-        if ne not in {h[0] for h in r.hinges}:
-            for _, ln in items:
-                err.add(
+
+
+def _releases(r: _Reader) -> None:
+    """RLSE lines checked: of an element that exists, not also DYNE; the released beam and truss deformations
+    are reported (flexopt reads them as elastic with their ESTIFF stiffness: see the module docstring)."""
+    kinds = {b[0]: "BEAM" for b in r.beams} | {t[0]: "TRUSS" for t in r.trusses} | {h[0]: "HINGE" for h in r.hinges}
+    for ne, items in sorted(r.rlse.items()):
+        for ks, ln in items:
+            if ne not in kinds:
+                r.err.add(ln, "RLSE", f"element {ne} is no BEAM, TRUSS or HINGE of the file")
+                continue
+            both = sorted(set(ks) & r.dyne.get(ne, set()))
+            if both:
+                r.err.add(
                     ln,
                     "RLSE",
-                    "released deformations of beams and trusses (calculable, e(c): neither rigid nor a "
-                    "degree of freedom) are not mapped: whether SPACAR gives them the element's stiffness is not "
-                    "established here; list them in DYNE if they are elastic",
+                    f"element {ne}: deformations {both} are listed in DYNE too; a deformation is either dynamic "
+                    "(DYNE) or released (RLSE)",
                 )
+        if ne in kinds and kinds[ne] != "HINGE":
+            r.released_report[f"{kinds[ne]} {ne}"] = sorted(r.released(ne))
 
 
 def _unique_elements(r: _Reader) -> None:
@@ -487,10 +541,16 @@ def _beam_stiffness(r: _Reader, ne: int, ln: int, flex: list[int]) -> tuple[list
     """A flexible beam's ESTIFF products (EA, GJ, EIy, EIz), its EM numbers and the EM line; None after an error."""
     err, estiff, em = r.err, r.estiff, r.em
     if ne not in estiff:
+        rel = sorted(r.released(ne))
+        why = (
+            f" (released {rel} without stiffness are free deformations of a beam, which flexopt does not model)"
+            if rel
+            else ""
+        )
         err.add(
             ln,
             "BEAM",
-            f"element {ne} has flexible deformations {flex} but no ESTIFF line; add 'ESTIFF {ne} EA GJ EIy EIz'",
+            f"element {ne} has flexible deformations {flex} but no ESTIFF line{why}; add 'ESTIFF {ne} EA GJ EIy EIz'",
         )
         return None
     k, kln = estiff[ne]
@@ -559,8 +619,9 @@ def _beam(r: _Reader, ne: int, xp: int, rp: int, xq: int, rq: int, oy: list[floa
                 "y direction across the beam",
             )
             return
-    flex = sorted(r.dyne.get(ne, set()))
-    r.spacar_dof += len(flex)
+    dyne = r.dyne.get(ne, set())
+    r.spacar_dof += len(dyne)  # released deformations are calculated: not degrees of freedom
+    flex = sorted(dyne | r.released(ne))  # both elastic, with the stiffness ESTIFF gives them
     if not flex:
         r.rigid_links.append((ne, xp, xq))
         if ne in r.estiff or ne in r.em:
@@ -606,11 +667,20 @@ def _beam(r: _Reader, ne: int, xp: int, rp: int, xq: int, rq: int, oy: list[floa
 def _truss(r: _Reader, ne: int, xp: int, xq: int, ln: int) -> None:
     """One TRUSS line as a flexopt truss (a rigid one without ESTIFF/EM: a nominal section)."""
     err, estiff, em = r.err, r.estiff, r.em
-    flex = sorted(r.dyne.get(ne, set()))
+    dyne, rel = sorted(r.dyne.get(ne, set())), sorted(r.released(ne))
+    flex = sorted(set(dyne) | set(rel))
     if flex and flex != [1]:
-        err.add(ln, "TRUSS", f"element {ne}: a truss has only deformation 1 (elongation), DYNE lists {flex}")
+        err.add(ln, "TRUSS", f"element {ne}: a truss has only deformation 1 (elongation), DYNE/RLSE list {flex}")
         return
-    r.spacar_dof += len(flex)
+    r.spacar_dof += len(dyne)
+    if rel and ne not in estiff:
+        err.add(
+            ln,
+            "TRUSS",
+            f"element {ne}: released (RLSE) without ESTIFF: a free elongation (no stiffness), which flexopt does "
+            f"not model; give 'ESTIFF {ne} EA' (a released elongation keeps its stiffness) or remove the truss",
+        )
+        return
     if not flex and (ne not in estiff or ne not in em):
         # a rigid truss needs no stiffness; flexopt's trusses carry a section and mass: nominal ones
         estiff.setdefault(ne, ([NOMINAL_E * 1e-6], ln))
@@ -1013,6 +1083,7 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
     r = _parse(text)
     _pair_nodes(r)
     _hinge_joints(r)
+    _releases(r)
     _unique_elements(r)
     for b in r.beams:
         _beam(r, *b)
@@ -1036,11 +1107,23 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
         )
     if not any(c for c in r.crossdim) and r.elements:
         r.notes.append("no CROSSDIM: the file gives stiffness only, so stresses are not available (NaN)")
+    if r.released_report:
+        r.notes.append(
+            "released (RLSE: calculated by SPACAR, not degrees of freedom; elastic with the stiffness ESTIFF "
+            "gives them, docs: SPACAR models): "
+            + "; ".join(f"{el} {' '.join(map(str, ks))}" for el, ks in r.released_report.items())
+        )
     spacar_dof = r.spacar_dof
     spacar_dof += len({(n, k) for n, ks, _ in r.inputs for k in ks if not (r.role(n) == "R" and k == 1)})
     spacar_dof += sum(1 for h in r.hinges if h[0] in r.dyne)
     return SpacarImport(
-        scene=scene, mapped=r.mapped, notes=r.notes, numbering=r.numbering, spacar_dof=spacar_dof, text=text
+        scene=scene,
+        mapped=r.mapped,
+        notes=r.notes,
+        numbering=r.numbering,
+        spacar_dof=spacar_dof,
+        text=text,
+        released=dict(r.released_report),
     )
 
 
@@ -1364,7 +1447,47 @@ def write_dat(scene, numbering: int = 2) -> str:
     if vis:
         lines += ["VISUALIZATION"] + vis + ["END", ""]
     lines.append("HALT")
-    return "\n".join(lines) + "\n"
+    return _release_surplus(lines)
+
+
+def _release_surplus(lines: list[str]) -> str:
+    """The text of ``lines`` with the surplus dynamic deformations released (RLSE), so that SPACAR's D_cc
+    (rows rigid + DYNE, seed 002 eq. 9) has independent rows (:func:`model.spacar_dcc.surplus_dynamic_rows`);
+    a released deformation keeps its ESTIFF stiffness (module docstring), so the model is the same. The second
+    line says how many were released and SPACAR's D_cc afterwards."""
+    from .spacar_dcc import spacar_dcc, surplus_dynamic_rows
+
+    text = "\n".join(lines) + "\n"
+    try:
+        d = spacar_dcc(text, singular_values=False)
+        surplus = surplus_dynamic_rows(d)
+    except SceneError as exc:  # no SPACAR D_cc of this model: written as it is, and the file says why
+        why = "; ".join(getattr(exc, "lines", None) or [str(exc)])
+        lines.insert(1, f"# SPACAR's D_cc not computed ({why}): no deformation released")
+        return "\n".join(lines) + "\n"
+    rel: dict[int, set[int]] = {}
+    for label in surplus:  # e.g. "BEAM 3 eps5"
+        _, ne, eps = label.split()
+        rel.setdefault(int(ne), set()).add(int(eps[3:]))
+    out = []
+    for line in lines:
+        tok = line.split()
+        if tok[:1] == ["DYNE"] and int(tok[1]) in rel:
+            ne = int(tok[1])
+            ks = [int(k) for k in tok[2:]]
+            kept, freed = [k for k in ks if k not in rel[ne]], [k for k in ks if k in rel[ne]]
+            if kept:
+                out.append(f"DYNE {ne} " + " ".join(map(str, kept)))
+            out.append(f"RLSE {ne} " + " ".join(map(str, freed)))
+        else:
+            out.append(line)
+    out.insert(
+        1,
+        f"# SPACAR's D_cc (rows rigid + DYNE): {len(surplus)} dynamic deformations released (RLSE: calculated, "
+        f"elastic with their ESTIFF stiffness), the surplus over the independent ones; D_cc now "
+        f"{d.m - len(surplus)} x {d.n}",
+    )
+    return "\n".join(out) + "\n"
 
 
 # ------------------------------------------------------------------------------- SPACAR Light tables (item 4)

@@ -48,7 +48,7 @@ import numpy as np
 from .elements import _beam_deformations
 from .errors import SceneError
 
-__all__ = ["SpacarDcc", "spacar_dcc", "spacar_dcc_of_scene", "SPACAR_RANK_RTOL"]
+__all__ = ["SpacarDcc", "spacar_dcc", "spacar_dcc_of_scene", "surplus_dynamic_rows", "SPACAR_RANK_RTOL"]
 
 #: Rank threshold relative to the largest singular value: sqrt of double precision's machine epsilon.
 SPACAR_RANK_RTOL = float(np.sqrt(np.finfo(float).eps))
@@ -69,6 +69,7 @@ class SpacarDcc:
     n_fixed: int  # x(o)
     n_inputs: int  # x(m)
     notes: tuple[str, ...] = field(default=())
+    released: tuple[str, ...] = field(default=())  # the RLSE deformations left out of D_cc, e.g. "BEAM 3 eps5"
 
     @property
     def m(self) -> int:
@@ -125,6 +126,7 @@ class SpacarDcc:
             "coordinates": self.n_coordinates,
             "fixed_coordinates": self.n_fixed,
             "input_coordinates": self.n_inputs,
+            "released": len(self.released),
             "notes": list(self.notes),
             "definition": "D_cc = de/dx (seed 002 eq. 9) in SPACAR's variables, SI, unscaled: X nodes x y z, R "
             "nodes 4 Euler parameters with lambda.lambda - 1 a rigid deformation per R node not wholly fixed; "
@@ -187,8 +189,11 @@ def _frame(axis: np.ndarray, across: np.ndarray | None) -> np.ndarray:
     return np.column_stack([ex, ey, np.cross(ex, ey)])
 
 
-def spacar_dcc(text: str) -> SpacarDcc:
+def spacar_dcc(text: str, singular_values: bool = True) -> SpacarDcc:
     """D_cc of the SPACAR model ``text`` (a ``.dat`` file's contents) in SPACAR's variables.
+
+    ``singular_values=False`` returns only the rows, their kinds and the matrix (no SVD: rank -1, counts 0),
+    for :func:`surplus_dynamic_rows` on large models.
 
     Raises
     ------
@@ -233,10 +238,12 @@ def spacar_dcc(text: str) -> SpacarDcc:
     fns = _jacobians()
     released: dict[int, set[int]] = {ne: {k for ks, _ in items for k in ks} for ne, items in r.rlse.items()}
     rows: list[tuple[str, str, list[int], np.ndarray]] = []  # label, kind, coordinate indices, de/dx
+    left_out: list[str] = []
 
     def add(kw: str, ne: int, J: np.ndarray, idx: list[int]) -> None:
         for k in range(J.shape[0]):
             if k + 1 in released.get(ne, set()):
+                left_out.append(f"{kw} {ne} eps{k + 1}")
                 continue  # e(c): calculable, not a row of D_cc
             kind = "dynamic" if k + 1 in r.dyne.get(ne, set()) else "rigid"
             rows.append((f"{kw} {ne} eps{k + 1}", kind, idx, J[k]))
@@ -274,6 +281,8 @@ def spacar_dcc(text: str) -> SpacarDcc:
         np.add.at(D[i], idx, vals)
     cols = [i for i, c in enumerate(coords) if c not in fixed and c not in inputs]
     Dcc = D[:, cols]
+    if not singular_values:  # the matrix only (for surplus_dynamic_rows): no SVD
+        return SpacarDcc(tuple(r[0] for r in rows), tuple(r[1] for r in rows), (), Dcc, np.zeros(0), -1, 0, 0, 0, 0)
     sv = np.linalg.svd(Dcc, compute_uv=False) if Dcc.size else np.zeros(0)
     rank = int(np.sum(sv > SPACAR_RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
     names = {1: "x", 2: "y", 3: "z"}
@@ -304,7 +313,50 @@ def spacar_dcc(text: str) -> SpacarDcc:
         n_fixed=sum(1 for c in coords if c in fixed),
         n_inputs=sum(1 for c in coords if c in inputs),
         notes=tuple(notes),
+        released=tuple(left_out),
     )
+
+
+def surplus_dynamic_rows(d: SpacarDcc) -> tuple[str, ...]:
+    """The dynamic (DYNE) rows of ``d`` to release so that the remaining rows are independent: a maximal set
+    of dynamic rows independent of each other and of the rigid rows is kept, the rest returned (labels, e.g.
+    "BEAM 3 eps5"), in the order of ``d.rows``.
+
+    Rank-revealing: the dynamic rows are projected onto the complement of the rigid rows' row space (its basis
+    from the SVD of the rigid rows), then a QR factorisation with column pivoting of the projected rows
+    (scipy.linalg.qr) orders them by how much each adds; the first ``k`` are kept, ``k`` the number of diagonal
+    entries of R above :data:`SPACAR_RANK_RTOL` times the largest singular value of D_cc (the rank threshold).
+    Releasing these removes every statically indeterminate state the dynamic rows add; dependent rigid rows
+    (a rigid over-constraint) and free motions stay, and ``d``'s verdict after the release says so.
+    """
+    import scipy.linalg
+
+    kind = np.array(d.row_kind)
+    rigid, dyn = d.D_cc[kind == "rigid"], d.D_cc[kind == "dynamic"]
+    labels = [r for r, k in zip(d.rows, d.row_kind, strict=True) if k == "dynamic"]
+    if not dyn.size:
+        return ()
+    if d.singular_values.size:
+        smax = float(d.singular_values[0])
+    else:  # the largest singular value alone (ARPACK, a fixed start vector: the same answer every run)
+        from scipy.sparse.linalg import svds
+
+        A = d.D_cc
+        smax = (
+            float(svds(A, k=1, v0=np.ones(min(A.shape)), return_singular_vectors=False)[0])
+            if min(A.shape) > 1
+            else float(np.linalg.norm(A))
+        )
+    tol = SPACAR_RANK_RTOL * smax
+    if rigid.size:
+        _, sv, Vt = np.linalg.svd(rigid, full_matrices=False)
+        V = Vt[sv > tol].T
+        dyn = dyn - (dyn @ V) @ V.T
+    _, R, piv = scipy.linalg.qr(dyn.T, mode="economic", pivoting=True)
+    diag = np.abs(np.diag(R))
+    k = int(np.sum(diag > tol))
+    keep = set(int(i) for i in piv[:k])
+    return tuple(lab for i, lab in enumerate(labels) if i not in keep)
 
 
 def spacar_dcc_of_scene(scene: Any) -> SpacarDcc:

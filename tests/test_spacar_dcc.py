@@ -13,7 +13,7 @@ from flexopt.model.curve import Analysis
 from flexopt.model.diagnosis import diagnose
 from flexopt.model.io import load_dat
 from flexopt.model.spacar_dcc import spacar_dcc, spacar_dcc_of_scene
-from flexopt.model.templates import template
+from flexopt.model.templates import TEMPLATES, template
 
 DATA = Path(__file__).parent / "data" / "spacar"
 s = 1 / math.sqrt(2)
@@ -146,9 +146,9 @@ def _pivot_native(points: int = 3):
 
 def test_cross_spring_pivot_fixture_is_the_native_pivot():
     """The fixture gives the native template's frequencies (same geometry to 4e-18 m) to 1e-9 at 0, 5 and
-    10 deg, the same flexopt diagnosis (Table 1 counts), and SPACAR's D_cc of the native scene's export has the
-    fixture's counts and condition number (1e-9: the export numbers the nodes otherwise, which permutes rows
-    and columns, and writes the rigid links with another Oy, which rotates their bending rows)."""
+    10 deg and the same flexopt diagnosis (Table 1 counts); the native scene's export (two beams per leaf, as
+    the fixture) releases the fixture's surplus, 7 dynamic deformations (the count by hand above), so its
+    D_cc is the fixture's 41 x 34 less 7 rows, square and regular, with 25 - 7 degrees of freedom."""
     scene, imp = load_dat(str(DATA / "cross_pivot_3node.dat"))
     native = _pivot_native()
     vals = [0.0, 5.0, 10.0]
@@ -160,19 +160,20 @@ def test_cross_spring_pivot_fixture_is_the_native_pivot():
     assert (a.m, a.n, a.rank) == (b.m, b.n, b.rank)
     assert a.spacar_dof == imp.spacar_dof == 25
     full = spacar_dcc_of_scene(native)  # the export as written: two beams per leaf
-    assert (full.m, full.n, full.rank, full.dof) == (41, 34, 34, 25)
-    assert full.condition_number == pytest.approx(a.spacar_condition_number, rel=1e-9)
+    assert (full.m, full.n, full.rank, full.dof, len(full.released)) == (34, 34, 34, 18, 7)
+    assert math.isfinite(full.condition_number)
 
 
 def test_native_diagnosis_reports_spacar_counts_with_one_beam_per_member():
-    """A native scene's diagnosis reports SPACAR's count of its model with one beam element per member: for the
-    cross-spring pivot 12 dynamic deformations and the input (13 degrees of freedom), D_cc 27 x 20 (12 + 12
-    + 3 rows, 3 x 3 + 3 x 4 - 1 columns), over-constrained by 7 (by hand, as above); the report and the JSON
-    carry it."""
+    """A native scene's diagnosis reports SPACAR's count of its model with one beam element per member as
+    write_dat writes it: for the cross-spring pivot 12 dynamic deformations and the input, D_cc 27 x 20 (12 +
+    12 + 3 rows, 3 x 3 + 3 x 4 - 1 columns) over-constrained by 7 (by hand, as above), so 7 released: D_cc
+    20 x 20 and 6 degrees of freedom, the rotor's six motions (each leaf one beam: no node between rotor and
+    base), the input one of them; the report and the JSON carry it."""
     d = diagnose(_pivot_native())
-    assert d.spacar_dof == 13
+    assert d.spacar_dof == 6
     sp = d.spacar
-    assert (sp["m"], sp["n"], sp["rank"], sp["over_constrained"]) == (27, 20, 20, 7)
+    assert (sp["m"], sp["n"], sp["rank"], sp["over_constrained"], sp["released"]) == (20, 20, 20, 0, 7)
     assert d.to_dict()["spacar_condition_number"] == pytest.approx(d.spacar_condition_number)
     assert "SPACAR's count" in d.report()
 
@@ -277,3 +278,67 @@ def test_cross_hinge_joined_through_a_rigid_link_is_the_native_hinge():
     assert (a.m, a.n, a.rank) == (b.m, b.n, b.rank)
     d = a.spacar
     assert (d["m"], d["n"], d["rank"], d["dof"], d["over_constrained"]) == (34, 27, 27, 25, 7)
+
+
+def _export(name: str, segments: int = 2) -> str:
+    """The template's .dat export with ``segments`` beams per member and its stroke from 0 (a SPACAR input
+    starts at the reference)."""
+    from flexopt.model.scene import Beam
+    from flexopt.model.spacar import write_dat
+
+    sc = template(name)
+    upd: dict = {
+        "elements": tuple(
+            e.model_copy(update={"segments": segments}) if isinstance(e, Beam) else e for e in sc.elements
+        )
+    }
+    if sc.stroke is not None:
+        upd["stroke"] = sc.stroke.model_copy(update={"start": 0.0})
+    return write_dat(sc.model_copy(update=upd))
+
+
+@pytest.mark.parametrize("name", sorted(set(TEMPLATES) - {"truss12"}))
+def test_every_template_export_has_a_square_regular_spacar_dcc(name):
+    """write_dat releases (RLSE) the dynamic deformations beyond a maximal independent set (pivoted QR), so
+    SPACAR's D_cc of every template's export is square and regular (finite condition number): rows rigid +
+    DYNE equal the calculable coordinates, as SPACAR needs to run. The released rows are the surplus: D_cc of
+    the export read with every deformation dynamic again (RLSE -> DYNE) has the same rank and as many more rows
+    as were released, and the file's second line states the count."""
+    text = _export(name)
+    d = spacar_dcc(text)
+    assert d.m == d.n == d.rank and math.isfinite(d.condition_number), d.verdict
+    assert f"{len(d.released)} dynamic deformations released" in text.splitlines()[1]
+    unreleased = spacar_dcc(re.sub(r"^RLSE ", "DYNE ", text, flags=re.M))
+    assert unreleased.rank == d.rank and unreleased.m == d.m + len(d.released)
+
+
+def test_truss12_export_keeps_its_rigid_over_constraint():
+    """Seed 002 sec. 3.3's truss has rigid trusses (no DYNE): nothing to release, and its D_cc stays 12 x 12 of
+    rank 11 (one free motion, one self-stress: the paper's point), which the file's second line does not hide."""
+    text = _export("truss12")
+    d = spacar_dcc(text)
+    assert (d.m, d.n, d.rank, len(d.released)) == (12, 12, 11, 0) and "0 dynamic deformations released" in text
+
+
+def test_spacar_light_file_with_automatic_releases_is_the_native_pivot():
+    """tests/data/spacar/cross_pivot_light_rlse.dat: the cross-spring pivot in the layout SPACAR Light writes
+    (stiffness, mass and increments after END/HALT, SPACAR Light's ITERSTEP, BEAMPROPS/CROSSDIM) with 7
+    deformations released on the last beam of each leaf as its automatic release does. Released deformations
+    keep their ESTIFF stiffness, so the file gives the native pivot's frequencies to 1e-9 at 0, 5 and 10 deg;
+    the import report lists the releases; SPACAR's D_cc is the 41 x 34 of the unreleased file (by hand, above)
+    less the 7 released rows, square and regular, with 25 - 7 degrees of freedom; ITERSTEP's second number
+    (2 steps) gives 3 stroke points."""
+    scene, imp = load_dat(str(DATA / "cross_pivot_light_rlse.dat"))
+    assert imp.released == {"BEAM 2": [1, 4, 6], "BEAM 4": [1, 3, 5, 6]}
+    assert any(n.startswith("released (RLSE") and "BEAM 4 1 3 5 6" in n for n in imp.notes)
+    assert imp.spacar_dof == 18 and scene.stroke.points == 3
+    vals = np.array([0.0, 5.0, 10.0])
+    got = Analysis(scene).frequency_curve(vals, mesh_error=False)
+    ref = Analysis(_pivot_native()).frequency_curve(vals, mesh_error=False)
+    np.testing.assert_allclose(got.modes_hz, ref.modes_hz, rtol=1e-9)
+    d = spacar_dcc(imp.text)
+    assert (d.m, d.n, d.rank, d.dof, len(d.released)) == (34, 34, 34, 18, 7)
+    assert math.isfinite(d.condition_number)
+    # the same file without its releases (RLSE read as DYNE): the fixture's unreleased counts
+    u = spacar_dcc(re.sub(r"^RLSE", "DYNE", imp.text, flags=re.M))
+    assert (u.m, u.n, u.rank, u.over_constrained) == (41, 34, 34, 7)
