@@ -10,8 +10,11 @@ so both numberings SPACAR Light writes (user node i as X 2i-1, R 2i, or X 3i-2, 
 Mapped keywords (reader and writer):
 
 - ``BEAM Ne Xp Rp Xq Rq Oy_x Oy_y Oy_z`` a spatial beam (Oy: the section's local y axis); ``TRUSS Ne Xp Xq``;
-- ``DYNE Ne k...`` its flexible deformations (1 elongation, 2 torsion, 3-4 bending about y, 5-6 about z),
-  the others rigid; a beam with none flexible is rigid: the nodes it joins become one rigid body;
+- ``DYNE Ne k...`` its dynamic deformations (1 elongation, 2 torsion, 3-4 bending about y, 5-6 about z) and
+  ``RLSE Ne k...`` its released ones (calculated, e(c)), both flexible with the stiffness ESTIFF gives them
+  (this reader's interpretation of RLSE, with its reasons on the docs' SPACAR page: being calculated says
+  nothing about stiffness; SPACAR Light writes ESTIFF for the elements it releases); the others rigid; a beam
+  with none flexible is rigid: the nodes it joins become one rigid body;
 - ``ESTIFF Ne EA GJ EIy EIz [Sy Sz [EIw]]`` (a truss: ``EA``; the shear flexibilities ``Sy = EIy / (k G A)``,
   ``Sz`` as the general section's ``shear_y``, ``shear_z``: Timoshenko bending, model.elements) and ``EM Ne rhoA [rho(Iy+Iz) rhoIy rhoIz
   [rhoIyz [rhoIw]]]``: each element gets a general section and its own material whose products are SPACAR's
@@ -29,8 +32,14 @@ Mapped keywords (reader and writer):
   node sits at an X node, it becomes a flexopt node of its own at that point);
 - ``DYNX n k`` on the input coordinate: the drive free in the eigen analysis.
 
+``HALT`` and ``END`` end sections; reading goes on after ``HALT`` (SPACAR Light writes stiffness, mass and
+loads after it), and SPACAR Light's ``BEAMPROPS``/``CROSSTYPE RECT``/``CROSSDIM w t`` give CROSSDIM.
+:func:`write_dat` releases (RLSE) the dynamic deformations beyond a maximal independent set so the file's
+SPACAR D_cc has independent rows (:func:`model.spacar_dcc.surplus_dynamic_rows`).
+
 Not mapped (each an error naming the line, the keyword and why): ``BEAMW`` and warping stiffness (``EIw``),
-``RLSE`` of beams and trusses (released deformations), a locked or stiff ``HINGE``, two R nodes at
+a released beam deformation or truss without ESTIFF (free), a locked ``HINGE`` or one with ESTIFF (a torsion
+spring), two R nodes at
 an X node without a HINGE (a spherical joint), moments (``XF`` on an R node, 3 or 4 values), ``ESIG``, several
 inputs with increments, and any keyword not listed. Lines of the
 VISUALIZATION block other than ``CROSSDIM`` change nothing in the model and are listed in the report.
