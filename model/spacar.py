@@ -399,7 +399,7 @@ def _parse(text: str) -> _Reader:
             r.err.add(
                 ln,
                 kw,
-                "unknown keyword (mapped: X BEAM TRUSS HINGE DYNE RLSE (hinges) ESTIFF EM FIX INPUTX "
+                "unknown keyword (mapped: X BEAM TRUSS HINGE DYNE RLSE ESTIFF EM FIX INPUTX "
                 "DELINPX DYNX XF DELXF XM GRAVITY ITERSTEP END HALT VISUALIZATION/CROSSDIM)",
             )
             continue
