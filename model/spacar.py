@@ -24,7 +24,8 @@ Mapped keywords (reader and writer):
   none listed); ``INPUTX n k...`` and ``DELINPX n k v`` (the one input with an increment is the stroke: an X
   coordinate a translation by ``v``, an R component ``k`` a rotation about axis ``k - 1`` to ``2 asin v``;
   inputs without an increment are held, i.e. supported);
-- ``XF n fx fy fz`` / ``DELXF``: a force on an X node, constant or ramped over the stroke; ``XM n m`` (X node)
+- ``XF n fx fy fz`` / ``DELXF``: a force on an X node, constant or ramped over the stroke; on an R node a
+  dead moment (3 values, or 4 Euler-parameter values of older files: :func:`_moment`); ``XM n m`` (X node)
   and ``XM n Ixx Ixy Ixz Iyy Iyz Izz`` (R node): lumped mass, as a rigid body; ``GRAVITY gx gy gz``;
 - ``ITERSTEP s ...``: ``s`` load steps, ``s + 1`` stroke points (its other numbers: flexopt's own Newton);
 - ``HINGE Ne Rp Rq ax ay az`` with ``RLSE Ne 1`` (or ``DYNE Ne 1``, no stiffness): an ideal revolute joint
@@ -40,7 +41,7 @@ SPACAR D_cc has independent rows (:func:`model.spacar_dcc.surplus_dynamic_rows`)
 Not mapped (each an error naming the line, the keyword and why): ``BEAMW`` and warping stiffness (``EIw``),
 a released beam deformation or truss without ESTIFF (free), a locked ``HINGE`` or one with ESTIFF (a torsion
 spring), two R nodes at
-an X node without a HINGE (a spherical joint), moments (``XF`` on an R node, 3 or 4 values), ``ESIG``, several
+an X node without a HINGE (a spherical joint), a moment of neither 3 nor 4 values, ``ESIG``, several
 inputs with increments, and any keyword not listed. Lines of the
 VISUALIZATION block other than ``CROSSDIM`` change nothing in the model and are listed in the report.
 """
@@ -958,8 +959,8 @@ def _merge(r: _Reader) -> None:
     special = (
         set(r.fixed)
         | set(r.carrier)
-        | set(r.xf)
-        | set(r.delxf)
+        | {x_of.get(n, n) for n in r.xf}
+        | {x_of.get(n, n) for n in r.delxf}
         | {n for n, _, _ in r.inputs}
         | {x_of.get(n, n) for n, _, _ in r.inputs}
         | {x_of.get(n, n) for n, _, _ in r.fixes}
@@ -970,70 +971,87 @@ def _merge(r: _Reader) -> None:
         r.notes.append(f"{merged} chains of equal collinear beams read as members with segments (one member each)")
 
 
-def _moment_error(r: _Reader, kw: str, n: int, vals: list[float], ln: int) -> None:
-    """The one line for XF/DELXF on a rotational node: which form was read, or why the count is wrong."""
+def _moment(r: _Reader, kw: str, n: int, vals: list[float], ln: int) -> list[float] | None:
+    """The moment [N m, global axes] of XF/DELXF on rotational node ``n`` (a note says which form was read),
+    or None after the one-line error: 3 values ``mx my mz`` (the form since 2017, and what SPACAR Light writes)
+    are the moment; 4 values (the form before 2017) are the generalised forces ``Q0..Q3`` dual to the node's
+    Euler parameters, whose virtual work ``Q . dlambda`` equals ``m . dtheta`` with ``dtheta = 2 dlambda_v``
+    at the reference (lambda = (1, 0, 0, 0)), so ``m = (Q1, Q2, Q3) / 2`` there (``Q0`` does no work there
+    and must be 0); read as a dead moment, which equals the generalised force at the reference only."""
     if len(vals) == 3:
-        form = "3 values (mx my mz, the form since 2017) read"
-    elif len(vals) == 4:
-        form = "4 Euler-parameter values (the form before 2017) read"
-    else:
-        r.err.add(
-            ln,
-            kw,
-            f"node {n} is rotational: a moment takes 3 values (mx my mz, since 2017) or 4 Euler-parameter "
-            f"values (older files), got {len(vals)}; give 3",
+        r.notes.append(f"line {ln}: {kw} {n}: a moment, 3 values (mx my mz, the form since 2017) read")
+        return list(vals)
+    if len(vals) == 4:
+        if vals[0] != 0:
+            r.err.add(
+                ln,
+                kw,
+                f"node {n} is rotational: of 4 Euler-parameter values (the form before 2017) the first, on lambda0, "
+                f"must be 0 (it does no work at the reference), got {vals[0]}; give 3 values mx my mz",
+            )
+            return None
+        m = [v / 2 for v in vals[1:]]
+        r.notes.append(
+            f"line {ln}: {kw} {n}: 4 Euler-parameter values (the form before 2017) read as the dead moment "
+            f"{m} N m (half their last three: the generalised force on the Euler parameters at the reference; "
+            "the two differ once the node has turned); write 3 values (mx my mz) to give the moment itself"
         )
-        return
+        return m
     r.err.add(
         ln,
         kw,
-        f"node {n} is rotational: a moment ({form}) is not mapped yet; apply it as a force pair on a rigid arm",
+        f"node {n} is rotational: a moment takes 3 values (mx my mz, since 2017) or 4 Euler-parameter "
+        f"values (older files), got {len(vals)}; give 3",
     )
+    return None
 
 
-def _forces(r: _Reader) -> list[tuple[int, list[float], int]]:
-    """XF and DELXF lines checked: the forces on X nodes (moments are errors)."""
-    loads = []
-    for n, (vals, ln) in r.xf.items():
-        if r.role(n) == "R":
-            _moment_error(r, "XF", n, vals, ln)
-            continue
-        if r.role(n) != "X" or len(vals) != 3:
-            r.err.add(ln, "XF", f"node {n}: give a force 'XF n fx fy fz' on a translational node")
-            continue
-        loads.append((n, vals, ln))
-    for n, (vals, ln) in r.delxf.items():
-        if r.role(n) == "R":
-            _moment_error(r, "DELXF", n, vals, ln)
-        elif r.role(n) != "X" or len(vals) != 3:
-            r.err.add(ln, "DELXF", f"node {n}: give 'DELXF n dfx dfy dfz' on a translational node")
-    return loads
+def _forces(r: _Reader) -> dict[tuple[str, int], tuple[np.ndarray, np.ndarray]]:
+    """XF and DELXF lines checked: per (kind, X or R node) the constant value (XF) and the increment (DELXF);
+    forces on X nodes, moments on R nodes (:func:`_moment`)."""
+    out: dict[tuple[str, int], tuple[np.ndarray, np.ndarray]] = {}
+    for kw, table in (("XF", r.xf), ("DELXF", r.delxf)):
+        for n, (vals, ln) in table.items():
+            role = r.role(n)
+            if role == "R":
+                v = _moment(r, kw, n, vals, ln)
+                key = ("moment", n)
+            elif role == "X" and len(vals) == 3:
+                v, key = list(vals), ("force", n)
+            else:
+                form = "XF n fx fy fz" if kw == "XF" else "DELXF n dfx dfy dfz"
+                r.err.add(ln, kw, f"node {n}: give a force '{form}' on a translational node")
+                continue
+            if v is None:
+                continue
+            f0, df = out.get(key, (np.zeros(3), np.zeros(3)))
+            out[key] = (np.array(v, dtype=float), df) if kw == "XF" else (f0, np.array(v, dtype=float))
+    return out
 
 
 def _loads(r: _Reader) -> None:
-    """Loads: XF constant, XF + DELXF ramped with the stroke (in full without one)."""
-    loads = _forces(r)
-    delxf, stroke = r.delxf, r.stroke
-    done = set()
-    for n, vals, _ln in loads + [(n, [0.0, 0.0, 0.0], ln) for n, (_, ln) in delxf.items() if n not in r.xf]:
-        if n in done or r.role(n) != "X":
-            continue
-        done.add(n)
-        f0 = np.array(vals, dtype=float)
-        df = np.array(delxf[n][0], dtype=float) if n in delxf and len(delxf[n][0]) == 3 else np.zeros(3)
-        target = {"body": r.carrier[n], "point": list(r.X[n][0])} if n in r.carrier else {"node": r.nname(n)}
+    """Loads: XF constant, XF + DELXF ramped with the stroke (in full without one); forces on X nodes, moments
+    on R nodes."""
+    stroke = r.stroke
+    for (kind, n), (f0, df) in sorted(_forces(r).items(), key=lambda item: (item[0][1], item[0][0])):
+        xn = n if kind == "force" else r.x_of[n]
+        if xn in r.carrier:
+            target: dict = {"body": r.carrier[xn]}
+            if kind == "force":
+                target["point"] = list(r.X[xn][0])
+        else:
+            target = {"node": r.nname(n) if kind == "force" else r.rname(n)}
         if not np.any(df):
-            r.loads.append({**target, "force": list(f0)})
+            r.loads.append({**target, kind: list(f0)})
         elif stroke is None:
-            r.loads.append({**target, "force": list(f0 + df)})
+            r.loads.append({**target, kind: list(f0 + df)})
             r.notes.append(f"DELXF {n}: no input to ramp it over; applied in full (XF + DELXF) in load steps")
         else:
             # the increment runs with the input, from 0 (XF) to its final value (XF + DELXF)
             start, stop = stroke["start"], stroke["stop"]
             s_end = stop if stop != 0 else start
-            f_start = f0 + df * (start / s_end)
-            f_stop = f0 + df * (stop / s_end)
-            r.loads.append({**target, "ramp": {"start": list(f_start), "stop": list(f_stop)}})
+            ramp = {"start": list(f0 + df * (start / s_end)), "stop": list(f0 + df * (stop / s_end))}
+            r.loads.append({**target, "ramp": ramp, **({"kind": "moment"} if kind == "moment" else {})})
 
 
 def _scene(r: _Reader, name: str) -> dict:
@@ -1382,28 +1400,41 @@ def _write_stroke(st, w: _Writer, lines: list[str]) -> None:
 
 
 def _write_loads(scene, w: _Writer, lines: list[str]) -> None:
-    """Forces as XF (a ramp: XF at the stroke's start and DELXF to its end) and GRAVITY."""
+    """Forces on X nodes and moments on R nodes (3 values, the form since 2017) as XF (a ramp: XF at the
+    stroke's start and DELXF to its end), and GRAVITY."""
     st = scene.stroke
-    for ld in scene.loads:
+    for i, ld in enumerate(scene.loads):
         if ld.table is not None:
             raise SceneError("loads.table", "a load table has no SPACAR form (XF + DELXF is linear); use a ramp")
-        if ld.body is not None or ld.point is not None:
+        if ld.follower:
             raise SceneError(
-                "loads.body", "a load on a body has no node in the exported file; load one of the body's nodes instead"
+                f"loads[{i}].follower",
+                "a follower load has no SPACAR form mapped here (XF is read as dead); export dead loads",
             )
-        if ld.node in w.carrier:
-            raise SceneError(
-                "loads.node", f"node '{ld.node}' is carried by a body; load it through a node of a flexible element"
-            )
-        if ld.force is not None:
-            lines.append(f"XF {w.X(ld.node)} " + " ".join(_fmt(v) for v in ld.force))
+        if ld.is_moment:  # a moment on a rigid body acts alike at any of its points: its centre node's R
+            carrier = ld.body or w.carrier.get(ld.node or "")
+            at = w.R(w.center[carrier]) if carrier else w.R(ld.node)
+        else:
+            if ld.body is not None or ld.point is not None:
+                raise SceneError(
+                    "loads.body",
+                    "a force on a body has no node in the exported file; load one of the body's nodes instead",
+                )
+            if ld.node in w.carrier:
+                raise SceneError(
+                    "loads.node", f"node '{ld.node}' is carried by a body; load it through a node of a flexible element"
+                )
+            at = w.X(ld.node)
+        const = ld.force if ld.force is not None else ld.moment
+        if const is not None:
+            lines.append(f"XF {at} " + " ".join(_fmt(v) for v in const))
         else:
             vals = st.values()
             s0, s1 = float(vals[0]), float(vals[-1])
             F0 = ld.value(0.0, s0, s1)
             Fend = ld.value(s1 if s1 != 0 else s0, s0, s1)
-            lines.append(f"XF {w.X(ld.node)} " + " ".join(_fmt(v) for v in F0))
-            lines.append(f"DELXF {w.X(ld.node)} " + " ".join(_fmt(v) for v in Fend - F0))
+            lines.append(f"XF {at} " + " ".join(_fmt(v) for v in F0))
+            lines.append(f"DELXF {at} " + " ".join(_fmt(v) for v in Fend - F0))
     if scene.gravity is not None and any(scene.gravity):
         lines.append("GRAVITY " + " ".join(_fmt(v) for v in scene.gravity))
 

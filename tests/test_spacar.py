@@ -122,13 +122,9 @@ def test_truss_of_seed_002_is_diagnosed_as_the_paper_says():
             "Euler-parameter values (older files), got 5; give 3",
         ),
         (
-            "X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nXF 4 0 1 0 0\n",
-            "line 4: XF: node 4 is rotational: a moment (4 Euler-parameter values (the form before 2017) read)",
-        ),
-        (
-            "X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nDELXF 4 0 1 0\n",
-            "line 4: DELXF: node 4 is rotational: a moment (3 values (mx my mz, the form since 2017) read) is "
-            "not mapped yet",
+            "X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nXF 4 1 1 0 0\n",
+            "line 4: XF: node 4 is rotational: of 4 Euler-parameter values (the form before 2017) the first, on "
+            "lambda0, must be 0",
         ),
         (
             "X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nBEAMW 2 1 2 5 3 4 6 0 1 0\n",
@@ -314,3 +310,33 @@ def test_spacar_light_tables_port_line_by_line():
     assert scene_from_dict(imp.scene).stroke.stop == pytest.approx(45.0, rel=1e-12)
     with pytest.raises(SceneError, match=r"nprops\(2\): fields \['moment'\] are not mapped"):
         spacar_light([[0, 0, 0], [0.1, 0, 0]], [[1, 2]], [{"fix": True}, {"moment": [0, 1, 0]}], eprops)
+
+
+def test_moments_on_rotational_nodes_are_the_native_moments():
+    """XF/DELXF on a rotational node are moments: 3 values (mx my mz, the form since 2017 and SPACAR Light's)
+    as they are, 4 Euler-parameter values (before 2017) as half their last three (generalised forces on the
+    Euler parameters at the reference, dtheta = 2 dlambda); the report says which form was read. On the
+    cross-spring pivot's rotor (a rigid body) XF + DELXF give a moment ramped over the stroke: the same
+    frequencies to 1e-9 at 0, 5 and 10 deg as the native pivot with the same moment on its rotor (a Load
+    written by hand), and not those of the unloaded pivot (so the moment is applied)."""
+    from tests.test_spacar_dcc import _pivot_native
+
+    base = (DATA / "cross_pivot_2node.dat").read_text()
+    three = base.replace("END\n", "XF 14 0.02 0 0.01\nDELXF 14 0 0.01 0\nEND\n", 1)
+    four = base.replace("END\n", "XF 14 0 0.04 0 0.02\nDELXF 14 0 0 0.02 0\nEND\n", 1)
+    a, b = read_dat(three), read_dat(four)
+    assert a.scene["loads"] == b.scene["loads"]
+    assert any("3 values (mx my mz, the form since 2017) read" in n for n in a.notes)
+    assert any("4 Euler-parameter values (the form before 2017) read as the dead moment" in n for n in b.notes)
+    native = _pivot_native().model_dump(mode="json")
+    native["stroke"] = {**native["stroke"], "start": 0.0}  # the ramp runs over the input's 0 to 10 deg
+    native["loads"] = [
+        {"body": "rotor", "kind": "moment", "ramp": {"start": [0.02, 0.0, 0.01], "stop": [0.02, 0.01, 0.01]}}
+    ]
+    vals = [0.0, 5.0, 10.0]
+    got = _curve(scene_from_dict(a.scene), vals).modes_hz
+    np.testing.assert_allclose(got, _curve(scene_from_dict(native), vals).modes_hz, rtol=1e-9)
+    unloaded = _curve(_pivot_native(), vals).modes_hz
+    assert np.max(np.abs(got / unloaded - 1)) > 1e-6
+    back = read_dat(write_dat(scene_from_dict(native)))  # the export writes the moment back on the rotor's R
+    np.testing.assert_allclose(_curve(scene_from_dict(back.scene), vals).modes_hz, got, rtol=1e-9)
