@@ -191,6 +191,11 @@ class SpacarImportResult(_Wire):
     notes: list[str] = Field(description="what was read in a way worth knowing (conversions, defaults, left-outs)")
     numbering: str = Field(description="how the file's X and R node numbers pair up")
     spacar_dof: int = Field(description="SPACAR's degrees of freedom: inputs and dynamic (DYNE) deformations")
+    released: dict[str, list[int]] = Field(
+        default_factory=dict,
+        description="released (RLSE) deformations of beams and trusses, e.g. {'BEAM 4': [3, 5]}: calculated by "
+        "SPACAR, read as elastic with their ESTIFF stiffness (docs: SPACAR models)",
+    )
     spacar: dict[str, Any] = Field(
         description="SPACAR's own D_cc of the file (model.spacar_dcc; docs: SPACAR models): m, n, rank, "
         "condition_number (null: rank deficient), verdict, dof and the definition used"

@@ -271,10 +271,13 @@ def test_http_import_and_export():
             ok = await c.post("/v1/scenes/import", json={"text": (DATA / "truss12.dat").read_text(), "name": "t"})
             bad = await c.post("/v1/scenes/import", json={"text": BAD})
             dat = await c.post("/v1/scenes/export", json={"scene": ok.json()["scene"], "numbering": 3})
-            return ok, bad, dat
+            light = await c.post("/v1/scenes/import", json={"text": (DATA / "cross_pivot_light_rlse.dat").read_text()})
+            return ok, bad, dat, light
 
-    ok, bad, dat = asyncio.run(run())
+    ok, bad, dat, light = asyncio.run(run())
     assert ok.status_code == 200 and ok.json()["spacar_dof"] == 0 and len(ok.json()["scene"]["elements"]) == 12
+    assert ok.json()["released"] == {}
+    assert light.status_code == 200 and light.json()["released"] == {"BEAM 2": [1, 4, 6], "BEAM 4": [1, 3, 5, 6]}
     assert ok.json()["spacar"]["rank"] == 11 and ok.json()["spacar"]["condition_number"] is None
     assert bad.status_code == 422
     assert {e["msg"][:10] for e in bad.json()["errors"]} == {"line 5: BE", "line 6: RL", "line 7: FO", "line 8: HI"}

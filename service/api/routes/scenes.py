@@ -41,6 +41,7 @@ def router(prefix: str) -> APIRouter:
             notes=imp.notes,
             numbering=imp.numbering,
             spacar_dof=imp.spacar_dof,
+            released=imp.released,
             spacar=spacar_dcc(imp.text).to_dict(),
         )
 
