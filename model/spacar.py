@@ -1576,6 +1576,7 @@ def _light_elements(
     props: list[str],
     vis: list[str],
     errors: list[str],
+    rls: list[dict] | None = None,
 ) -> None:
     """SPACAR Light's elements and eprops as BEAM lines (``nbeams`` per element, interior points from
     ``new_point``) with ESTIFF, EM, DYNE and CROSSDIM."""
@@ -1619,8 +1620,15 @@ def _light_elements(
                 f"ESTIFF {ne} {_fmt(Em * A)} {_fmt(G * J)} {_fmt(Em * Iy)} {_fmt(Em * Iz)} 0 0",
                 f"EM {ne} {_fmt(rho * A)} {_fmt(rho * (Iy + Iz))} {_fmt(rho * Iy)} {_fmt(rho * Iz)} 0",
             ]
-            if flex:
-                props.append(f"DYNE {ne} " + " ".join(map(str, flex)))
+            # SPACAR Light releases on the element's last beam only (spacarlight.m): DYNE the rest there
+            rel = (
+                [int(v) for v in np.atleast_1d(rls[e - 1].get("def", []))] if rls and q_ == b and e <= len(rls) else []
+            )
+            dyne = [k for k in flex if k not in rel]
+            if dyne:
+                props.append(f"DYNE {ne} " + " ".join(map(str, dyne)))
+            if rel:
+                props.append(f"RLSE {ne} " + " ".join(map(str, rel)))
             vis.append(f"CROSSDIM {ne} {_fmt(w)} {_fmt(t)}")
 
 
@@ -1663,7 +1671,9 @@ def _light_nodes(nprops: list, props: list[str], errors: list[str]) -> None:
 def spacar_light(nodes, elements, nprops, eprops, opt: dict | None = None, name: str = "spacar-light") -> SpacarImport:
     """A scene from SPACAR Light's four tables, so a script ports line by line: ``nodes`` (n x 3 positions),
     ``elements`` (ne x 2 node numbers, 1-based), ``nprops`` (a list, one dict per node, or a dict {node: dict})
-    and ``eprops`` (a list of element sets), and ``opt`` (``gravity``, ``loadsteps``).
+    and ``eprops`` (a list of element sets), and ``opt`` (``gravity``, ``loadsteps``, ``rls``: per element
+    ``{"def": [k...]}``, a list or a dict {element: ...}, released on the element's last beam as SPACAR Light
+    writes them, and read as elastic: :func:`read_dat`).
 
     The tables are written as the equivalent ``.dat`` model (user node i as X 2i-1, R 2i; each element as
     ``nbeams`` beams with ESTIFF/EM from a rectangle ``dim = [w, t]`` with ``w`` along ``orien``, J by Roark's
@@ -1672,7 +1682,7 @@ def spacar_light(nodes, elements, nprops, eprops, opt: dict | None = None, name:
     and ``rot_x/y/z`` [rad] the input (one, with its final value); ``force`` [N]; ``mass`` [kg] and
     ``mominertia`` (Ixx Ixy Ixz Iyy Iyz Izz) [kg m^2]. eprops: ``elems``, ``emod``, ``smod``, ``dens``,
     ``cshape`` ('rect'), ``dim``, ``orien``, ``nbeams``, ``flex`` (flexible deformations; none: rigid).
-    Anything else (moments, circular sections, releases, ...) is an error naming the table, entry and field.
+    Anything else (moments, circular sections, ...) is an error naming the table, entry and field.
     """
     errors: list[str] = []
     P = np.asarray(nodes, dtype=float).reshape(-1, 3)
@@ -1695,16 +1705,18 @@ def spacar_light(nodes, elements, nprops, eprops, opt: dict | None = None, name:
         lines.append(f"X {xn(i)} {_fmt(p[0])} {_fmt(p[1])} {_fmt(p[2])}")
     props: list[str] = []
     vis: list[str] = ["VISUALIZATION"]
-    _light_elements(P, E_, eprops, new_point, lines, props, vis, errors)
+    rls = opt.get("rls") or []
+    rls = [rls.get(i + 1, rls.get(str(i + 1), {})) or {} for i in range(len(E_))] if isinstance(rls, dict) else rls
+    _light_elements(P, E_, eprops, new_point, lines, props, vis, errors, [dict(x or {}) for x in rls])
     _light_nodes(nprops, props, errors)
     if "gravity" in opt:
         props.append("GRAVITY " + " ".join(_fmt(float(v)) for v in opt["gravity"]))
     if "loadsteps" in opt:
         props.append(f"ITERSTEP {int(opt['loadsteps'])}")
-    bad = sorted(set(opt) - {"gravity", "loadsteps", "filename", "silent", "showinputonly"})
+    bad = sorted(set(opt) - {"gravity", "loadsteps", "rls", "filename", "silent", "showinputonly"})
     if bad:
         errors.append(
-            f"opt: fields {bad} are not mapped (mapped: gravity, loadsteps; filename, silent, "
+            f"opt: fields {bad} are not mapped (mapped: gravity, loadsteps, rls; filename, silent, "
             "showinputonly are ignored)"
         )
     if errors:

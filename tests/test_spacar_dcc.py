@@ -342,3 +342,35 @@ def test_spacar_light_file_with_automatic_releases_is_the_native_pivot():
     # the same file without its releases (RLSE read as DYNE): the fixture's unreleased counts
     u = spacar_dcc(re.sub(r"^RLSE", "DYNE", imp.text, flags=re.M))
     assert (u.m, u.n, u.rank, u.over_constrained) == (41, 34, 34, 7)
+
+
+def test_spacar_light_tables_with_releases():
+    """SPACAR Light's tables of the cross-spring pivot with ``opt.rls`` releasing 7 deformations on each leaf's
+    last beam (those of the fixture above): the released deformations keep their stiffness, so the frequencies
+    equal those of the same tables without releases to 1e-9 at 0, 5 and 10 deg; the report lists them, and
+    SPACAR's D_cc is square and regular (without the releases: over-constrained by 7, as by hand above)."""
+    from flexopt.model.io import scene_from_dict
+    from flexopt.model.spacar import spacar_light
+
+    nodes = [[-0.02, -0.02, 0.011], [0.02, 0.02, 0.011], [0.02, -0.02, -0.011], [-0.02, 0.02, -0.011], [0, 0.03, 0]]
+    leaf = {"emod": 210e9, "smod": 79e9, "dens": 7800, "cshape": "rect", "dim": [0.02, 0.0003], "orien": [0, 0, 1]}
+    eprops = [
+        {**leaf, "elems": [1, 2], "nbeams": 2, "flex": [1, 2, 3, 4, 5, 6]},
+        {**leaf, "elems": [3, 4], "dim": [0.01, 0.01]},  # the rotor's rigid links (flex empty)
+    ]
+    nprops = {
+        1: {"fix": True},
+        3: {"fix": True},
+        5: {"rot_z": math.radians(10), "mass": 0.1, "mominertia": [2e-5, 0, 0, 2e-5, 0, 2e-5]},
+    }
+    args = (nodes, [[1, 2], [3, 4], [5, 2], [5, 4]], nprops, eprops)
+    rls = [{"def": [1, 4, 6]}, {"def": [1, 3, 5, 6]}]
+    released, plain = spacar_light(*args, {"rls": rls}), spacar_light(*args)
+    assert released.released == {"BEAM 2": [1, 4, 6], "BEAM 4": [1, 3, 5, 6]} and plain.released == {}
+    vals = np.array([0.0, 5.0, 10.0])
+    a = Analysis(scene_from_dict(released.scene)).frequency_curve(vals, mesh_error=False)
+    b = Analysis(scene_from_dict(plain.scene)).frequency_curve(vals, mesh_error=False)
+    np.testing.assert_allclose(a.modes_hz, b.modes_hz, rtol=1e-9)
+    d, u = spacar_dcc(released.text), spacar_dcc(plain.text)
+    assert d.m == d.n == d.rank and math.isfinite(d.condition_number)
+    assert u.over_constrained == 7
