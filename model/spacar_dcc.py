@@ -200,7 +200,7 @@ def spacar_dcc(text: str, singular_values: bool = True) -> SpacarDcc:
     SceneError
         When the file does not parse (the reader's line errors) or names a node it never declares.
     """
-    from .spacar import SpacarError, _parse
+    from .spacar_format import SpacarError, _parse
 
     r = _parse(text)
     if r.err.items:
