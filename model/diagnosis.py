@@ -158,7 +158,8 @@ def _scaled_svd(
 def _spacar(scene: Scene, spacar_text: str | None) -> dict:
     """SPACAR's own count and D_cc (:mod:`model.spacar_dcc`): of ``spacar_text`` (the imported file) or of the
     scene's SPACAR model with one beam element per member; what stops it, said."""
-    from .spacar_dcc import spacar_dcc, spacar_dcc_of_scene
+    from .spacar import spacar_dcc_of_scene
+    from .spacar_dcc import spacar_dcc
 
     try:
         if spacar_text is not None:

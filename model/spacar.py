@@ -51,13 +51,24 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from .errors import SceneError
+from .spacar_dcc import SpacarDcc, spacar_dcc, surplus_dynamic_rows
 from .spacar_format import _MODE, SpacarError, _parse, _Reader
 
-__all__ = ["NOMINAL_E", "NOMINAL_G", "SpacarError", "SpacarImport", "read_dat", "spacar_light", "write_dat"]
+__all__ = [
+    "NOMINAL_E",
+    "NOMINAL_G",
+    "SpacarError",
+    "SpacarImport",
+    "read_dat",
+    "spacar_dcc_of_scene",
+    "spacar_light",
+    "write_dat",
+]
 
 #: Nominal material constants of an imported element (the products EA, GJ, EIy, EIz are SPACAR's exactly).
 NOMINAL_E, NOMINAL_G = 210e9, 80e9
@@ -1168,8 +1179,6 @@ def _release_surplus(lines: list[str]) -> str:
     (rows rigid + DYNE, seed 002 eq. 9) has independent rows (:func:`model.spacar_dcc.surplus_dynamic_rows`);
     a released deformation keeps its ESTIFF stiffness (module docstring), so the model is the same. The second
     line says how many were released and SPACAR's D_cc afterwards."""
-    from .spacar_dcc import spacar_dcc, surplus_dynamic_rows
-
     text = "\n".join(lines) + "\n"
     try:
         d = spacar_dcc(text, singular_values=False)
@@ -1396,3 +1405,27 @@ def spacar_light(nodes, elements, nprops, eprops, opt: dict | None = None, name:
         raise SpacarError(errors)
     text = "\n".join(lines + props + ["END"] + vis + ["END", "HALT"]) + "\n"
     return read_dat(text, name)
+
+
+def spacar_dcc_of_scene(scene: Any) -> SpacarDcc:
+    """SPACAR's D_cc of a native scene: of the model :func:`model.spacar.write_dat` writes for it (loads and
+    gravity left out: they do not enter D_cc; a beam meshed 'auto' as one beam element; a stroke from the
+    reference: only which coordinate is the input enters D_cc).
+
+    Raises
+    ------
+    SceneError
+        When the scene has no SPACAR form (:func:`model.spacar.write_dat`'s errors, e.g. a drive axis that
+        is not a coordinate axis).
+    """
+    from .scene import Beam
+
+    elements = tuple(
+        e.model_copy(update={"segments": 1}) if isinstance(e, Beam) and e.segments == "auto" else e
+        for e in scene.elements
+    )
+    update: dict[str, Any] = {"loads": (), "gravity": None, "elements": elements}
+    st = scene.stroke
+    if st is not None and st.start != 0 and st.stop != 0:  # only which coordinate is the input matters here
+        update["stroke"] = st.model_copy(update={"start": 0.0})
+    return spacar_dcc(write_dat(scene.model_copy(update=update)))

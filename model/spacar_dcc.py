@@ -47,8 +47,9 @@ import numpy as np
 
 from .elements import _beam_deformations
 from .errors import SceneError
+from .spacar_format import SpacarError, _parse
 
-__all__ = ["SpacarDcc", "spacar_dcc", "spacar_dcc_of_scene", "surplus_dynamic_rows", "SPACAR_RANK_RTOL"]
+__all__ = ["SpacarDcc", "spacar_dcc", "surplus_dynamic_rows", "SPACAR_RANK_RTOL"]
 
 #: Rank threshold relative to the largest singular value: sqrt of double precision's machine epsilon.
 SPACAR_RANK_RTOL = float(np.sqrt(np.finfo(float).eps))
@@ -200,8 +201,6 @@ def spacar_dcc(text: str, singular_values: bool = True) -> SpacarDcc:
     SceneError
         When the file does not parse (the reader's line errors) or names a node it never declares.
     """
-    from .spacar_format import SpacarError, _parse
-
     r = _parse(text)
     if r.err.items:
         raise SpacarError(r.err.items)
@@ -357,28 +356,3 @@ def surplus_dynamic_rows(d: SpacarDcc) -> tuple[str, ...]:
     k = int(np.sum(diag > tol))
     keep = set(int(i) for i in piv[:k])
     return tuple(lab for i, lab in enumerate(labels) if i not in keep)
-
-
-def spacar_dcc_of_scene(scene: Any) -> SpacarDcc:
-    """SPACAR's D_cc of a native scene: of the model :func:`model.spacar.write_dat` writes for it (loads and
-    gravity left out: they do not enter D_cc; a beam meshed 'auto' as one beam element; a stroke from the
-    reference: only which coordinate is the input enters D_cc).
-
-    Raises
-    ------
-    SceneError
-        When the scene has no SPACAR form (:func:`model.spacar.write_dat`'s errors, e.g. a drive axis that
-        is not a coordinate axis).
-    """
-    from .scene import Beam
-    from .spacar import write_dat
-
-    elements = tuple(
-        e.model_copy(update={"segments": 1}) if isinstance(e, Beam) and e.segments == "auto" else e
-        for e in scene.elements
-    )
-    update: dict[str, Any] = {"loads": (), "gravity": None, "elements": elements}
-    st = scene.stroke
-    if st is not None and st.start != 0 and st.stop != 0:  # only which coordinate is the input matters here
-        update["stroke"] = st.model_copy(update={"start": 0.0})
-    return spacar_dcc(write_dat(scene.model_copy(update=update)))

@@ -12,7 +12,8 @@ import pytest
 from flexopt.model.curve import Analysis
 from flexopt.model.diagnosis import diagnose
 from flexopt.model.io import load_dat
-from flexopt.model.spacar_dcc import spacar_dcc, spacar_dcc_of_scene
+from flexopt.model.spacar import spacar_dcc_of_scene
+from flexopt.model.spacar_dcc import spacar_dcc
 from flexopt.model.templates import TEMPLATES, template
 
 DATA = Path(__file__).parent / "data" / "spacar"
