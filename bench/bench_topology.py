@@ -19,7 +19,8 @@ default search's best refined worst case over the best family's, with the zero-s
 multi-start from a scrambled Halton sequence: the global baseline on the leaders).
 
 Run from the repository root: ``python bench/bench_topology.py [--workers 2] [--repeats 1] [--runs today quick
-default] [--store DIR] [--baseline 8]``. Every figure is printed with ``uptime``'s load before and after; the
+default] [--store DIR] [--baseline 8] [--dask]``; ``--dask`` runs each search a second time, right after the
+pool's, on a Dask LocalCluster of the same number of single-threaded worker processes. Every figure is printed with ``uptime``'s load before and after; the
 machine is shared, so timings under load are upper bounds. Prints markdown tables for the README.
 
 Published reference for the worst/zero-stroke ratio: seed 000 quotes an optimised large-stroke hinge that
@@ -62,7 +63,53 @@ def _hz(r: dict) -> float:
     return ref["worst_hz"] if ref.get("worst_hz") is not None else r["worst_case_hz"]
 
 
-def _row(name: str, res: dict, wall: float, loads: tuple[str, str]) -> str:
+def _cpu(pids: list[int]) -> float:
+    """CPU seconds (user + system) the processes ``pids`` have used so far (psutil; 0 for a gone one)."""
+    import psutil
+
+    out = 0.0
+    for pid in pids:
+        try:
+            t = psutil.Process(pid).cpu_times()
+        except psutil.Error:
+            continue
+        out += t.user + t.system
+    return out
+
+
+def _search(spec: dict, workers: int, store: str | None, dask: bool) -> tuple[dict, float]:
+    """One search on a fresh executor (a process pool, or a Dask LocalCluster of ``workers`` single-threaded
+    worker processes with ``flexopt.optim._preload`` as their preload, as the pool's fork server has): the
+    result and the CPU seconds its workers used (load inflates them less than the wall time)."""
+    if not dask:
+        from flexopt.optim.batch import process_pool
+
+        ex = process_pool(workers)
+        try:
+            pids: set[int] = set()
+            res = run_topology_search(spec, executor=ex, store=store, progress=lambda e: pids.update(ex._processes))  # type: ignore[attr-defined]
+            return res, _cpu(sorted(pids))
+        finally:
+            ex.shutdown()
+    from distributed import Client, LocalCluster
+
+    with (
+        LocalCluster(
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=True,
+            preload=["flexopt.optim._preload"],
+            dashboard_address=None,
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        pids = list(client.run(os.getpid).values())
+        c0 = _cpu(pids)
+        res = run_topology_search(spec, executor=client.get_executor(), store=store)
+        return res, _cpu(pids) - c0
+
+
+def _row(name: str, res: dict, wall: float, loads: tuple[str, str], cpu: float = float("nan")) -> str:
     c, s = res["counts"], res["seconds"]
     best = res["best"]
     b = (
@@ -74,7 +121,7 @@ def _row(name: str, res: dict, wall: float, loads: tuple[str, str]) -> str:
         f"| {name} | {c['generated']} | {c['rejected']} | {c['generated'] - c['rejected'] - c['untraceable']} | "
         f"{c.get('first_pass', 0)} | {c.get('pruned', 0)} | {c.get('promoted', c['optimised'])} | {c['optimised']} | "
         f"{s.get('screen', 0):.0f} | {s.get('first_pass', 0):.0f} | {s.get('optimise', 0):.0f} | "
-        f"{s.get('refine', 0):.0f} | {wall:.0f} | {b} | {loads[0]} / {loads[1]} |"
+        f"{s.get('refine', 0):.0f} | {wall:.0f} | {cpu:.0f} | {b} | {loads[0]} / {loads[1]} |"
     )
 
 
@@ -120,26 +167,34 @@ def main() -> None:
         help="the default search's result JSON "
         "(from an earlier --json) for the family comparison, instead of running it here",
     )
+    ap.add_argument(
+        "--dask",
+        action="store_true",
+        help="also run each search on a Dask LocalCluster of --workers workers (interleaved)",
+    )
     a = ap.parse_args()
     results: dict[str, dict] = {}
     if a.default_result:
         results["default"] = json.loads(Path(a.default_result).read_text())
         results["default"] = results["default"].get("default", results["default"])
+    execs = ["pool", "dask"] if a.dask else ["pool"]
     rows: dict[str, list[str]] = {k: [] for k in a.runs}
     for _ in range(a.repeats):
         for name in a.runs:  # interleaved
-            l0, t0 = _load(), time.perf_counter()
-            res = run_topology_search(RUNS[name], workers=a.workers, store=a.store)
-            wall = time.perf_counter() - t0
-            rows[name].append(_row(name, res, wall, (l0, _load())))
-            results[name] = res
+            for how in execs:
+                l0, t0 = _load(), time.perf_counter()
+                res, cpu = _search(RUNS[name], a.workers, a.store, how == "dask")
+                wall = time.perf_counter() - t0
+                rows[name].append(_row(name if how == "pool" else f"{name} (dask)", res, wall, (l0, _load()), cpu))
+                results[name if how == "pool" else f"{name}-dask"] = res
     if not a.runs:
         print("(no search runs: --runs empty)")
     print(
         "| run | generated | rejected | survivors | first pass | pruned | full pass | optimised | screen [s] | "
-        "first pass [s] | full pass [s] | refine [s] | total [s] | best (worst / zero) | load before / after |"
+        "first pass [s] | full pass [s] | refine [s] | total [s] | workers' CPU [s] | best (worst / zero) | "
+        "load before / after |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name in a.runs:
         print("\n".join(rows[name]))
     for name in a.runs:

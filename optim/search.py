@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -67,7 +68,7 @@ from ..model.templates import TEMPLATES, start_value
 from ..model.threads import limited
 from .problem import Envelope, Family, Problem
 
-__all__ = ["run_case", "cases", "optimise", "summarise", "start_point"]
+__all__ = ["run_case", "cases", "optimise", "summarise", "start_point", "warm_point"]
 
 _STEP_BACKS = 4  # failed evaluations per round before the start is reported as failed
 _BOUND_TOL = 1e-6  # a scaled design variable this close to 0 or 1 is on its bound
@@ -595,12 +596,13 @@ def _curve_summary(curve, points: int) -> dict:
     return out
 
 
-def _verify(fam: _Family, x: np.ndarray, points: int) -> dict:
-    """The exact curve of design ``x`` on ``points`` stroke points: worst and zero-stroke frequency, stress."""
+def _verify(fam: _Family, x: np.ndarray, points: int, mesh_error: bool = True) -> dict:
+    """The exact curve of design ``x`` on ``points`` stroke points: worst and zero-stroke frequency, stress;
+    with ``mesh_error`` its mesh estimate (:func:`model.mesh.mesh_error`) too."""
     scene = fam.scene(x)
     an = Analysis(scene)
     grid = np.linspace(-fam.stroke, fam.stroke, points)
-    curve = an.frequency_curve(stroke=grid)
+    curve = an.frequency_curve(stroke=grid, mesh_error=mesh_error)
     mats = {m.name: m for m in scene.materials}
     allow = min(mats[e.material].allowable_stress for e in scene.elements)
     out = _curve_summary(curve, points)
@@ -794,14 +796,36 @@ def _provenance(prob: Problem, one_start: bool = False) -> dict:
     return {"flexopt": ver, "problem_sha256": hashlib.sha256(blob.encode()).hexdigest(), "solver": settings}
 
 
+def warm_point(fam: _Family, design: dict) -> np.ndarray:
+    """A design (template units) in the unit box, clipped into it; a parameter it lacks takes the value of the
+    one it inherits from (``length_s2`` from ``length``, ``thickness_s1l2`` from ``thickness``: the
+    ``topology-hinge`` template's per-stage and per-leaf parameters), else the template's default."""
+    d = TEMPLATES[fam.fam.template][1]
+    vals = []
+    for k in fam.names:
+        chain = [k, re.sub(r"l\d+$", "", k), k.split("_s")[0]]  # thickness_s2l1 -> thickness_s2 -> thickness
+        v = next((design[c] for c in chain if c in design), None)
+        if v is None:
+            v = next(d[c] for c in chain if c in d and (d[c] != 0 or c == chain[-1]))
+        vals.append(float(v))
+    return np.clip((np.array(vals) - fam.lo) / (fam.hi - fam.lo), 0, 1)
+
+
 def run_case(case: dict) -> dict:
-    """One start of one family: search, verify, refine (the unit of work of a batch; JSON in and out)."""
+    """One start of one family: search, verify, refine (the unit of work of a batch; JSON in and out).
+
+    ``case``: ``{"problem", "family", "start"}`` (:func:`cases`) and optionally ``"x0"``, a design (template
+    units) the start begins at instead of its own point (a warm start, :func:`warm_point`; a failing one steps
+    toward the template's design like a failing Halton start), and ``"mesh_estimate": false`` to leave the
+    verification's mesh estimate out (a topology search estimates it on its refined mesh instead)."""
     t0 = time.perf_counter()
     prob = Problem.model_validate(case["problem"])
     fi, si = int(case["family"]), int(case["start"])
     fam_spec = prob.families[fi]
     fam = _Family(prob, fam_spec)
-    x0 = start_point(fam, prob, fi, si)
+    warm = case.get("x0")
+    x0 = warm_point(fam, warm) if warm else start_point(fam, prob, fi, si)
+    estimate = bool(case.get("mesh_estimate", True))
     screening = None
     if prob.screen:
         x0, screening = _screen(fam, prob, fi, si, x0)
@@ -816,7 +840,7 @@ def run_case(case: dict) -> dict:
     verified: dict = {}
     searched = fam.evaluate(x)
     moved = None
-    if not searched.ok and si > 0:  # step back toward start 0 (the template's design) along the segment
+    if not searched.ok and (si > 0 or warm):  # step back toward the template's design along the segment
         xd = fam.default_x()
         for frac in _START_STEPS:
             ev = fam.evaluate(x0 + frac * (xd - x0))
@@ -858,7 +882,7 @@ def run_case(case: dict) -> dict:
             if run["failed"] or not searched.ok:
                 status, message = "failed", run["failed"] or searched.message
                 break
-            verified = _verify(fam, x, prob.verify_points)
+            verified = _verify(fam, x, prob.verify_points, estimate)
             if verified["status"] != "complete":
                 status, message = "failed", "; ".join(verified["failures"])
                 break

@@ -555,27 +555,49 @@ def run_topology_search(
         promoted = list(pending)
         first = spec.schedule == "multi-fidelity" and len(pending) > spec.promote_min
         if first:
-            probs = [candidate_problem(parse(records[i]["topology"]), spec, first_pass=True) for i in pending]
-            cheap_cases = [problem_cases(p)[0] for p in probs]
-
-            def cheap(k: int, rec: dict) -> None:
-                track.counts["first_pass"] += 1
-                track.offer(records[pending[k]]["topology"], _best_hz([rec]), "first pass")
-
-            res = batch("first pass", cheap_cases, "flexopt.optim.search:run_case", cheap)
+            # tier 1: every candidate without a designed crossing (or whose midpoint variant is no candidate),
+            # cold; tier 2: each designed-crossing variant warm-started at its midpoint variant's first-pass
+            # design (crossing 0.5), a point of its own design space: it starts where tier 1 ended
+            by_name = {records[i]["topology"]: i for i in pending}
+            base_of = {i: by_name.get(str(canonical(records[i]["topology"].replace("@", "")))) for i in pending}
+            tier2 = [i for i in pending if base_of[i] is not None and base_of[i] != i]
+            tier1 = [i for i in pending if i not in set(tier2)]
             score: dict[int, float] = {}
-            for i, r in zip(pending, res):
-                fs = _first_pass_score(r)
-                records[i]["first_pass"] = {
-                    "status": r.get("status", "failed"),
-                    "score_hz": fs,
-                    "worst_hz": (r.get("verified") or {}).get("worst_hz"),
-                    "stress_ratio": (r.get("verified") or {}).get("stress_ratio"),
-                    "design": r.get("design"),
-                    "message": r.get("message") or r.get("error"),
-                }
-                if fs is not None:
-                    score[i] = fs
+
+            def first_pass(phase: str, idx: list[int], warm: dict[int, dict]) -> None:
+                cs = []
+                for i in idx:
+                    c = problem_cases(candidate_problem(parse(records[i]["topology"]), spec, first_pass=True))[0]
+                    c["mesh_estimate"] = False  # ranked on the refined mesh, which estimates its own
+                    if i in warm:
+                        c["x0"] = warm[i]
+                    cs.append(c)
+
+                def cheap(k: int, rec: dict) -> None:
+                    track.counts["first_pass"] += 1
+                    track.offer(records[idx[k]]["topology"], _best_hz([rec]), "first pass")
+
+                for i, r in zip(idx, batch(phase, cs, "flexopt.optim.search:run_case", cheap)):
+                    fs = _first_pass_score(r)
+                    records[i]["first_pass"] = {
+                        "status": r.get("status", "failed"),
+                        "score_hz": fs,
+                        "worst_hz": (r.get("verified") or {}).get("worst_hz"),
+                        "stress_ratio": (r.get("verified") or {}).get("stress_ratio"),
+                        "design": r.get("design"),
+                        "message": r.get("message") or r.get("error"),
+                        "warm_start": i in warm,
+                    }
+                    if fs is not None:
+                        score[i] = fs
+
+            first_pass("first pass", tier1, {})
+            warm = {}
+            for i in tier2:
+                d = records[base_of[i]]["first_pass"]["design"]  # type: ignore[index]
+                if d:
+                    warm[i] = {**d, "crossing": 0.5}
+            first_pass("first pass", tier2, warm)
             if spec.prune:
                 by_name = {records[i]["topology"]: i for i in pending}
                 for i in pending:
@@ -613,6 +635,11 @@ def run_topology_search(
         owner: list[int] = []
         for i in promoted:
             cs = problem_cases(full_probs[i])
+            fp = records[i]["first_pass"]
+            for c in cs:
+                c["mesh_estimate"] = False  # the refined verification estimates it
+            if fp is not None and fp["design"]:
+                cs[0]["x0"] = fp["design"]  # start 0 where the first pass ended (per-stage values inherited)
             full_cases += cs
             owner += [i] * len(cs)
         results_of: dict[int, list[dict]] = {i: [] for i in promoted}
