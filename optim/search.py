@@ -816,8 +816,12 @@ def run_case(case: dict) -> dict:
 
     ``case``: ``{"problem", "family", "start"}`` (:func:`cases`) and optionally ``"x0"``, a design (template
     units) the start begins at instead of its own point (a warm start, :func:`warm_point`; a failing one steps
-    toward the template's design like a failing Halton start), and ``"mesh_estimate": false`` to leave the
-    verification's mesh estimate out (a topology search estimates it on its refined mesh instead)."""
+    toward the template's design like a failing Halton start), ``"stop_if_stationary": true`` to return a warm
+    start that already meets the first-order conditions (KKT residual within ``kkt_tolerance``, every
+    constraint within ``tolerance``) with status ``"stationary"``, unsearched and unverified (a topology
+    search's designed-crossing variant started at its midpoint variant's optimum), and ``"mesh_estimate":
+    false`` to leave the verification's mesh estimate out (a topology search estimates it on its refined mesh
+    instead)."""
     t0 = time.perf_counter()
     prob = Problem.model_validate(case["problem"])
     fi, si = int(case["family"]), int(case["start"])
@@ -855,8 +859,23 @@ def run_case(case: dict) -> dict:
     symmetric = fam.reduce_symmetric(searched)
     run: dict | None = None
     low = False
+    stationary = None
+    if searched.ok and warm and case.get("stop_if_stationary"):
+        ev0 = fam.evaluate(x)  # on the samples left by the mirror symmetry
+        stationary = _optimality(fam, ev0, prob.tolerance) if ev0.ok else None
+        if stationary and not (
+            stationary["kkt_residual"] <= prob.kkt_tolerance and stationary["max_violation"] <= prob.tolerance
+        ):
+            stationary = None
     if not searched.ok:
         status, message = "failed", f"the start design fails: {searched.message}"
+    elif stationary is not None:
+        status = "stationary"
+        message = (
+            f"the warm start meets the first-order conditions (KKT residual {stationary['kkt_residual']:.3g} "
+            f"within kkt_tolerance {prob.kkt_tolerance:g}, feasible): not searched, not verified"
+        )
+        searched = fam.evaluate(x)
     else:
         for rnd in range(prob.refine_rounds + 1):
             ev0 = fam.evaluate(x)
