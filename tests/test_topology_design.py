@@ -344,3 +344,69 @@ def test_a_guide_is_shape_optimised_like_a_hinge() -> None:
     ).frequency_curve()
     assert best["worst_case_hz"] >= float(np.min(start.parasitic_hz)) * (1 - 1e-3)
     assert "wire_length" in best["bound_origins"]
+
+
+def test_warm_start_inherits_the_shared_design() -> None:
+    """A full pass's warm start (issue 30 speed): the first pass's shared design mapped into the per-leaf space
+    (stage k's and each leaf's parameters inherit stage 1's, as the template's 0 defaults mean), a parameter
+    the design lacks at the template's default (crossing 0.5), and the same scene as the shared design."""
+    from flexopt.optim.search import _Family, warm_point
+
+    shared = {"length": 0.041, "thickness": 2.2e-4, "width": 0.006, "angle": 100.0}
+    spec = TopologySpec(dimensions="leaf")
+    prob = candidate_problem(parse("R:+-@|-+"), spec)
+    fam = _Family(prob, prob.families[0])
+    p = fam.params(warm_point(fam, shared))
+    for k in fam.names:
+        if k == "crossing":
+            assert p[k] == pytest.approx(0.5, abs=1e-12)
+        else:  # length_s2 -> length, thickness_s2l1 -> thickness, ...
+            assert p[k] == pytest.approx(shared[k.split("_s")[0]], rel=1e-12), k
+    a = template("topology-hinge", **{**p, "segments": 2})
+    b = template("topology-hinge", topology="R:+-@|-+", segments=2, body_mass=p["body_mass"], **shared)
+
+    def leaves(v, path=""):  # (path, value) of every leaf of the scene's JSON
+        if isinstance(v, dict):
+            return [x for k in sorted(v) for x in leaves(v[k], f"{path}.{k}")]
+        if isinstance(v, list):
+            return [x for i, e in enumerate(v) for x in leaves(e, f"{path}[{i}]")]
+        return [(path, v)]
+
+    la, lb = leaves(a.model_dump(mode="json")), leaves(b.model_dump(mode="json"))
+    assert [k for k, _ in la] == [k for k, _ in lb]
+    for (k, u), (_, v) in zip(la, lb):  # the same scene, to round-off of the unit-box round trip
+        assert u == pytest.approx(v, rel=1e-12, abs=1e-15) if isinstance(u, float) else u == v, k
+    # a per-stage value present in the design wins over stage 1's (thickness_s2l1 -> thickness_s2)
+    q = fam.params(warm_point(fam, {**shared, "thickness_s2": 3e-4}))
+    assert q["thickness_s2l1"] == pytest.approx(3e-4) and q["thickness_s1l1"] == pytest.approx(2.2e-4)
+
+
+@pytest.mark.slow
+def test_designed_crossing_warm_started_at_its_midpoint_variant() -> None:
+    """The first pass's second tier (issue 30 speed): a designed-crossing variant starts at its midpoint
+    variant's first-pass optimum with the crossing at 0.5, a point of its own design space. Where the
+    crossing's direction is stationary there (the double cross, its stacked stages symmetric about their
+    midpoints) the case stops at once, 'stationary', with the crossing at 0.5 (pruned by the schedule as the
+    midpoint variant); where it is not (an in-plane crossing after a stacked stage: the joint moves off the
+    middle) it searches on and ends at least as high as the midpoint variant (its optimum is a point of the
+    variant's space), with the crossing off the midpoint."""
+    from flexopt.optim.search import run_case
+
+    spec = TopologySpec(dimensions="shared")
+
+    def first(desc: str, x0: dict | None = None) -> dict:
+        c = cases(candidate_problem(parse(desc), spec, first_pass=True))[0]
+        if x0 is not None:
+            c.update(x0=x0, stop_if_stationary=True)
+        return run_case({**c, "mesh_estimate": False})
+
+    base = first("R:+-|-+")
+    assert base["status"] == "optimal"
+    var = first("R:+-|-+@", {**base["design"], "crossing": 0.5})
+    assert var["status"] == "stationary" and var["evaluations"] <= 2, var["message"]  # the start, and on one side
+    assert var["design"]["crossing"] == pytest.approx(0.5, abs=1e-12)
+    assert var["optimality"]["kkt_residual"] <= 1e-2
+    base = first("R:+-|x+-")
+    var = first("R:+-|x+-@", {**base["design"], "crossing": 0.5})
+    assert var["status"] == "optimal" and abs(var["design"]["crossing"] - 0.5) > 0.02
+    assert var["verified"]["worst_hz"] >= base["verified"]["worst_hz"] * (1 - 1e-3)
