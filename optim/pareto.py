@@ -122,7 +122,7 @@ def _stroke_si(prob: Problem) -> tuple[float, str, str]:
     params.update({k: 0.5 * (lo + hi) for k, (lo, hi) in fam.design.items()})
     params["stroke"] = stroke
     st = template(fam.template, **params).stroke
-    assert st is not None  # a family is a stroked template (search._Family refuses others)
+    assert st is not None  # a family is a stroked template (search.FamilyEvaluator refuses others)
     kind = st.kind
     if kind == "rotation":
         return math.radians(stroke), "N m/rad", "N m"
@@ -134,10 +134,10 @@ def drive_stiffness(problem: Problem | dict, design: dict[str, float]) -> tuple[
     exact gradient ``dK/dp`` per design parameter [K's unit per parameter unit]: ``dR/dp`` of the sample of the
     peak from :func:`model.design.point_sensitivity` (the implicit-function derivative of the reaction along the
     equilibrium's move), through the search's drive rows. One-sided where two samples tie for the peak."""
-    from .search import _Family
+    from .search import FamilyEvaluator
 
     prob = Problem.model_validate(problem).model_copy(update={"max_drive": 1.0})
-    fam = _Family(prob, prob.families[0])
+    fam = FamilyEvaluator(prob, prob.families[0])
     x = np.array([(float(design[k]) - lo) / (hi - lo) for k, lo, hi in zip(fam.names, fam.lo, fam.hi)])
     ev = fam.evaluate(x)
     if not ev.ok:
@@ -216,10 +216,10 @@ def _min_drive(prob: Problem, start: int) -> dict:
     """
     from scipy.optimize import minimize, nnls
 
-    from .search import _Family, _verify, start_point
+    from .search import FamilyEvaluator, start_point, verify
 
     p1 = prob.model_copy(update={"max_drive": 1.0})
-    fam = _Family(p1, p1.families[0])
+    fam = FamilyEvaluator(p1, p1.families[0])
     x0 = start_point(fam, p1, 0, start)
     ev = fam.evaluate(x0)
     names = fam.names
@@ -281,7 +281,7 @@ def _min_drive(prob: Problem, start: int) -> dict:
             active_bounds[k] = "lower" if x[j] <= tol else "upper"
     g = np.eye(nx + 1)[-1]
     kkt = float(nnls(np.array(cols).T, g)[1]) if cols else 1.0
-    verified = _verify(fam, x, prob.verify_points)
+    verified = verify(fam, x, prob.verify_points)
     searched = float(np.sqrt(z[-1] * r0))
     status, message = "optimal", ""
     if verified.get("status") != "complete" or "worst_hz" not in verified:
@@ -349,10 +349,10 @@ def evaluate_design(case: dict) -> dict:
     from ..model.curve import Analysis
     from ..model.errors import FlexoptError
     from ..model.templates import TEMPLATES, template
-    from .search import _Family
+    from .search import FamilyEvaluator
 
     prob = Problem.model_validate(case["problem"])
-    fam = _Family(prob, prob.families[0])
+    fam = FamilyEvaluator(prob, prob.families[0])
     x = np.asarray(case["x"], float)
     params = fam.params(x)
     s_si = _stroke_si(prob)[0]
@@ -391,14 +391,14 @@ def evaluate_design(case: dict) -> dict:
 
 
 def _envelope_positions(scene: dict) -> list[np.ndarray]:
-    """The points of :func:`optim.search._envelope_points` (nodes and leaf edges), without derivatives."""
-    from .search import _envelope_points
+    """The points of :func:`optim.search.envelope_points` (nodes and leaf edges), without derivatives."""
+    from .search import envelope_points
 
     empty = {
         "nodes": [{"position": [0.0, 0.0, 0.0]} for _ in scene["nodes"]],
         "elements": [{"y_axis": [0.0, 0.0, 0.0], "section": {"width": 0.0}} for _ in scene["elements"]],
     }
-    return [p for p, _, _ in _envelope_points(scene, (empty,))]
+    return [p for p, _, _ in envelope_points(scene, (empty,))]
 
 
 def _nsga(spec: ParetoSpec, run: Any, lo: np.ndarray, hi: np.ndarray) -> dict:
@@ -481,11 +481,11 @@ def pareto(
     there, per phase (the two optima, the levels, the check's generations)."""
     from ..model.threads import limited
     from .batch import run_cases
-    from .search import _Family
+    from .search import FamilyEvaluator
 
     spec = ParetoSpec.model_validate(spec)
     prob = spec.problem.model_copy(update={"max_drive": None})
-    _Family(prob, prob.families[0])  # fail fast, in the caller, on a bad family
+    FamilyEvaluator(prob, prob.families[0])  # fail fast, in the caller, on a bad family
     s_si, k_unit, _ = _stroke_si(prob)
     pj = prob.model_dump(mode="json")
     t0 = time.perf_counter()
@@ -627,10 +627,10 @@ def _stroke_front(spec: ParetoSpec, prob: Problem, run: Any, level_cases: Any, k
 
 def _check(spec: ParetoSpec, prob: Problem, front: list[dict], run: Any, s_si: float) -> dict:
     """NSGA-II's non-dominated points, verified on ``verify_points`` like the front's, against the front."""
-    from .search import _Family
+    from .search import FamilyEvaluator
 
     assert spec.check is not None
-    fam = _Family(prob, prob.families[0])
+    fam = FamilyEvaluator(prob, prob.families[0])
     t0 = time.perf_counter()
     res = _nsga(spec, run, fam.lo, fam.hi)
     pj = prob.model_dump(mode="json")

@@ -68,7 +68,17 @@ from ..model.templates import TEMPLATES, start_value
 from ..model.threads import limited
 from .problem import Envelope, Family, Problem
 
-__all__ = ["run_case", "cases", "optimise", "summarise", "start_point", "warm_point"]
+__all__ = [
+    "run_case",
+    "cases",
+    "optimise",
+    "summarise",
+    "start_point",
+    "warm_point",
+    "FamilyEvaluator",
+    "verify",
+    "envelope_points",
+]
 
 _STEP_BACKS = 4  # failed evaluations per round before the start is reported as failed
 _BOUND_TOL = 1e-6  # a scaled design variable this close to 0 or 1 is on its bound
@@ -113,7 +123,7 @@ def _bounds(fam: Family, prob: Problem) -> tuple[list[str], np.ndarray, np.ndarr
     return names, lo, hi
 
 
-class _Family:
+class FamilyEvaluator:
     """Evaluations of one family at scaled designs (cached on x)."""
 
     def __init__(self, prob: Problem, fam: Family) -> None:
@@ -218,7 +228,7 @@ class _Family:
         rows_f: list[tuple[float, np.ndarray, float, str]] = []
         rows_g: list[tuple[float, np.ndarray, float, str, str]] = []  # value, gradient, stroke, kind, label
         stroke = ds.scene.stroke
-        assert stroke is not None  # every family is a stroked template (_Family refuses others)
+        assert stroke is not None  # every family is a stroked template (FamilyEvaluator refuses others)
         unit = stroke.resolved_unit
         to_user = (lambda v: float(np.degrees(v))) if unit == "deg" else float
         pts: dict[float, tuple[float, float]] = {}
@@ -266,7 +276,7 @@ class _Family:
             pts[eq.stroke] = (float(hz[0]), float(np.max(ps.vm)))
 
         if prob.envelope is not None:
-            for pos, dpos, name in _envelope_points(ds.scene_dict, ds.dscene):
+            for pos, dpos, name in envelope_points(ds.scene_dict, ds.dscene):
                 if not isinstance(prob.envelope, Envelope):  # a sphere about the origin
                     R2 = prob.envelope**2
                     rows_g.append(
@@ -423,7 +433,7 @@ class _Family:
         return j if self.keep is None else j[self.keep]
 
 
-def _envelope_points(scene: dict, dscene: tuple[dict, ...]) -> list[tuple[np.ndarray, np.ndarray, str]]:
+def envelope_points(scene: dict, dscene: tuple[dict, ...]) -> list[tuple[np.ndarray, np.ndarray, str]]:
     """Points that must lie in the envelope, with their derivatives ``(np, 3)`` along the design: every scene
     node, and both edges of every rectangular leaf at its end nodes (node +- width/2 along the section's
     width direction ``y_axis``), so that the leaves' width counts. Rigid bodies are mass properties without a
@@ -457,7 +467,7 @@ def _envelope_points(scene: dict, dscene: tuple[dict, ...]) -> list[tuple[np.nda
     return out
 
 
-def start_point(fam: _Family, prob: Problem, family_index: int, start: int) -> np.ndarray:
+def start_point(fam: FamilyEvaluator, prob: Problem, family_index: int, start: int) -> np.ndarray:
     """Start ``start`` of a family in the unit box: 0 the template's defaults clipped into the bounds, k >= 1
     the k-th point of a scrambled Halton sequence seeded by ``(seed, family_index)`` (Owen scrambling,
     scipy.stats.qmc). Each start depends only on its own index, so adding starts keeps the earlier ones,
@@ -482,7 +492,7 @@ def _trust_constr_options(prob: Problem) -> dict:
     }
 
 
-def _solve(fam: _Family, prob: Problem, x: np.ndarray, t0: float, lo: np.ndarray, hi: np.ndarray) -> dict:
+def _solve(fam: FamilyEvaluator, prob: Problem, x: np.ndarray, t0: float, lo: np.ndarray, hi: np.ndarray) -> dict:
     """One solver run from ``(x, t0)`` inside the box ``[lo, hi]``; raises _EvaluationFailed."""
     n = len(x)
     z0 = np.concatenate([np.clip(x, lo, hi), [t0]])
@@ -529,7 +539,7 @@ def _solve(fam: _Family, prob: Problem, x: np.ndarray, t0: float, lo: np.ndarray
     }
 
 
-def _optimality(fam: _Family, ev: _Eval, tol: float) -> dict:
+def _optimality(fam: FamilyEvaluator, ev: _Eval, tol: float) -> dict:
     """First-order optimality at ``ev`` (all constraint rows, not only those passed to the solver):
     the KKT residual ``min_{mu >= 0} || grad f - J_A^T mu ||`` over the constraints and bounds active within
     ``tol`` (scipy.optimize.nnls; a scaled variable within ``tol`` of 0 or 1 is on its bound, which an
@@ -596,7 +606,7 @@ def _curve_summary(curve, points: int) -> dict:
     return out
 
 
-def _verify(fam: _Family, x: np.ndarray, points: int, mesh_error: bool = True) -> dict:
+def verify(fam: FamilyEvaluator, x: np.ndarray, points: int, mesh_error: bool = True) -> dict:
     """The exact curve of design ``x`` on ``points`` stroke points: worst and zero-stroke frequency, stress;
     with ``mesh_error`` its mesh estimate (:func:`model.mesh.mesh_error`) too."""
     scene = fam.scene(x)
@@ -626,7 +636,7 @@ def _verify(fam: _Family, x: np.ndarray, points: int, mesh_error: bool = True) -
     return out
 
 
-def _preview(fam: _Family, x: np.ndarray, points: int, tolerance: float) -> dict:
+def _preview(fam: FamilyEvaluator, x: np.ndarray, points: int, tolerance: float) -> dict:
     """The start design's curve on ``points`` stroke points, for comparison with the optimum (``initial`` of a
     case; plotted by ``flexopt optimise --plot``). Nothing is decided on it, so it is computed with method
     'auto' at the search's ``tolerance`` (hermite where its estimate meets it: a quarter to a fifth of the
@@ -646,7 +656,9 @@ def _preview(fam: _Family, x: np.ndarray, points: int, tolerance: float) -> dict
     }
 
 
-def _screen(fam: _Family, prob: Problem, family_index: int, start: int, x0: np.ndarray) -> tuple[np.ndarray, dict]:
+def _screen(
+    fam: FamilyEvaluator, prob: Problem, family_index: int, start: int, x0: np.ndarray
+) -> tuple[np.ndarray, dict]:
     """Fast first rung of the ladder: rank ``prob.screen`` candidates (the start point and its own slice of a
     seeded Latin hypercube) by their worst-case first parasitic frequency from ``model.methods`` with
     method 'auto' (each candidate's error estimate decides whether a Taylor estimate is good enough or the
@@ -672,7 +684,7 @@ def _screen(fam: _Family, prob: Problem, family_index: int, start: int, x0: np.n
     return best, {"candidates": len(cands), "scored": scored, "methods": methods, "best_estimate_hz": best_f}
 
 
-def _search(fam: _Family, prob: Problem, x: np.ndarray) -> dict:
+def _search(fam: FamilyEvaluator, prob: Problem, x: np.ndarray) -> dict:
     """One round of the search from the good design ``x``, stepping back after a failed evaluation.
 
     A failed evaluation stops the solver (it never sees a value there); the search resumes from the last
@@ -729,7 +741,7 @@ def _search(fam: _Family, prob: Problem, x: np.ndarray) -> dict:
         return out
 
 
-def _refine(fam: _Family, verified: dict, low: bool, stressed: bool, symmetric: bool) -> tuple[list[str], str]:
+def _refine(fam: FamilyEvaluator, verified: dict, low: bool, stressed: bool, symmetric: bool) -> tuple[list[str], str]:
     """What the verification found that the search did not see, added to the search; or why nothing can be."""
     added: list[str] = []
     why: list[str] = []
@@ -796,7 +808,7 @@ def _provenance(prob: Problem, one_start: bool = False) -> dict:
     return {"flexopt": ver, "problem_sha256": hashlib.sha256(blob.encode()).hexdigest(), "solver": settings}
 
 
-def warm_point(fam: _Family, design: dict) -> np.ndarray:
+def warm_point(fam: FamilyEvaluator, design: dict) -> np.ndarray:
     """A design (template units) in the unit box, clipped into it; a parameter it lacks takes the value of the
     one it inherits from (``length_s2`` from ``length``, ``thickness_s1l2`` from ``thickness``: the
     ``topology-hinge`` template's per-stage and per-leaf parameters), else the template's default."""
@@ -826,7 +838,7 @@ def run_case(case: dict) -> dict:
     prob = Problem.model_validate(case["problem"])
     fi, si = int(case["family"]), int(case["start"])
     fam_spec = prob.families[fi]
-    fam = _Family(prob, fam_spec)
+    fam = FamilyEvaluator(prob, fam_spec)
     warm = case.get("x0")
     x0 = warm_point(fam, warm) if warm else start_point(fam, prob, fi, si)
     estimate = bool(case.get("mesh_estimate", True))
@@ -901,7 +913,7 @@ def run_case(case: dict) -> dict:
             if run["failed"] or not searched.ok:
                 status, message = "failed", run["failed"] or searched.message
                 break
-            verified = _verify(fam, x, prob.verify_points, estimate)
+            verified = verify(fam, x, prob.verify_points, estimate)
             if verified["status"] != "complete":
                 status, message = "failed", "; ".join(verified["failures"])
                 break
@@ -986,7 +998,7 @@ def run_case(case: dict) -> dict:
 
 
 def _case_warnings(
-    fam: _Family, start: int, status: str, message: str, verified: dict, opt: dict | None
+    fam: FamilyEvaluator, start: int, status: str, message: str, verified: dict, opt: dict | None
 ) -> list[ResultWarning]:
     out: list[ResultWarning] = []
     name = fam.fam.template
@@ -1179,7 +1191,7 @@ def optimise(
 
     prob = Problem.model_validate(problem)
     for fam in prob.families:  # fail fast, in the caller, on a bad family
-        _Family(prob, fam)
+        FamilyEvaluator(prob, fam)
     kw: dict[str, Any] = {} if no_worker_timeout is None else {"no_worker_timeout": no_worker_timeout}
     results = run_cases(
         cases(prob),

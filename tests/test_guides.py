@@ -10,7 +10,7 @@ import pytest
 from flexopt.model import Analysis, template
 from flexopt.optim import Problem
 from flexopt.optim.guides import guide_problem, optimise_guides
-from flexopt.optim.search import _Family
+from flexopt.optim.search import FamilyEvaluator
 
 SEED_002 = "T:z--,z-+,z+0,y-0,y+0"  # seed 002 Figure 3a's guide
 SMALL = {"samples": 5, "starts": 1, "verify_points": 31}
@@ -28,7 +28,7 @@ def _exact(descriptor: str, design: dict, points: int = 31) -> tuple[float, floa
 
 def test_guide_problem_is_a_translation_problem():
     prob = guide_problem(SEED_002, **SMALL)
-    fam = _Family(prob, prob.families[0])
+    fam = FamilyEvaluator(prob, prob.families[0])
     assert fam.stroke == pytest.approx(0.002)  # metres: the template's stroke
     assert template("wire-guide-topology", **fam.params(fam.default_x())).stroke.kind == "translation"
 
@@ -50,7 +50,7 @@ def test_folded_sheet_constraint_jacobian_matches_finite_differences():
             "max_drive": 50.0,
         }
     )
-    fam = _Family(prob, prob.families[0])
+    fam = FamilyEvaluator(prob, prob.families[0])
     x = np.array([0.4, 0.5])
     ev = fam.evaluate(x)
     assert ev.ok, ev.message

@@ -8,7 +8,7 @@ import pytest
 from flexopt.model import Analysis, template
 from flexopt.model.errors import FlexoptError
 from flexopt.optim import Problem, cases, run_case
-from flexopt.optim.search import _Family
+from flexopt.optim.search import FamilyEvaluator
 from pydantic import ValidationError
 
 LEAF = {
@@ -54,7 +54,7 @@ def test_bad_problems_name_the_field(bad, words):
 def test_bad_families_get_a_clear_error(family, words):
     prob = Problem.model_validate({"families": [family]})
     with pytest.raises(FlexoptError, match=words):
-        _Family(prob, prob.families[0])
+        FamilyEvaluator(prob, prob.families[0])
 
 
 def test_epigraph_constraint_jacobian_matches_finite_differences():
@@ -76,7 +76,7 @@ def test_epigraph_constraint_jacobian_matches_finite_differences():
             "envelope": 0.06,
         }
     )
-    fam = _Family(prob, prob.families[0])
+    fam = FamilyEvaluator(prob, prob.families[0])
     x = np.array([0.4, 0.5, 0.3])
     ev = fam.evaluate(x)
     assert ev.ok, ev.message
@@ -274,7 +274,7 @@ def test_1_every_constraint_gradient_is_finite_at_zero_stress():
 
     for spec in (CARTWHEEL, LEAF):
         prob = Problem.model_validate(spec)
-        fam = _Family(prob, prob.families[0])
+        fam = FamilyEvaluator(prob, prob.families[0])
         assert np.any(fam.samples == 0.0)
         for x in (np.full(len(fam.names), 0.5), np.zeros(len(fam.names))):
             ev = fam.evaluate(x)
@@ -298,7 +298,7 @@ def test_1_every_constraint_gradient_is_finite_at_zero_stress():
 
 def test_1_select_refuses_a_nan_row_instead_of_dropping_rows():
     prob = Problem.model_validate(LEAF)
-    fam = _Family(prob, prob.families[0])
+    fam = FamilyEvaluator(prob, prob.families[0])
     ev = fam.evaluate(np.array([0.5]))
     ev.jac = ev.jac.copy()
     ev.jac[-1, 0] = np.nan
@@ -311,7 +311,7 @@ def test_2_refinement_never_reruns_the_same_problem(monkeypatch):
     be added, so the round stops with the reason (it used to rerun the identical problem every round)."""
     from flexopt.optim import search
 
-    real = search._verify
+    real = search.verify
 
     def overrun_at_a_sample(fam, x, points):
         v = real(fam, x, points)
@@ -319,7 +319,7 @@ def test_2_refinement_never_reruns_the_same_problem(monkeypatch):
             v.update(stress_ratio=1.2, stroke_at_max_stress=fam.stroke, member_at_max_stress="leaf")
         return v
 
-    monkeypatch.setattr(search, "_verify", overrun_at_a_sample)
+    monkeypatch.setattr(search, "verify", overrun_at_a_sample)
     r = run_case(cases({**LEAF, "refine_rounds": 3})[0])
     assert len(r["history"]) == 1 and r["status"] == "infeasible", r["history"]
     assert "sampled stroke 20" in r["message"]
@@ -330,7 +330,7 @@ def test_2_refinement_adds_an_unsampled_stroke_once():
     from flexopt.optim.search import _refine
 
     prob = Problem.model_validate(LEAF)
-    fam = _Family(prob, prob.families[0])
+    fam = FamilyEvaluator(prob, prob.families[0])
     v = {"worst_hz": 1.0, "stroke_at_worst": 7.0, "stroke_at_max_stress": 20.0, "member_at_max_stress": "leaf"}
     added, why = _refine(fam, v, low=True, stressed=False, symmetric=False)
     assert added and not why and {7.0, -7.0} <= set(fam.samples)
@@ -349,7 +349,7 @@ def test_3_stress_limits_are_smooth_rows_per_segment_end():
             "stroke": 30,
         }
     )
-    fam = _Family(prob, prob.families[0])
+    fam = FamilyEvaluator(prob, prob.families[0])
     x = np.array([0.5])
     ev = fam.evaluate(x)
     nb = Analysis(template("cross-spring-pivot")).structure.n_beams
@@ -419,14 +419,14 @@ def test_5_active_bounds_and_a_common_envelope_and_mass():
                 ],
             }
         )
-        _Family(p, p.families[0])
+        FamilyEvaluator(p, p.families[0])
 
 
 def test_6_adding_starts_keeps_the_earlier_ones():
     from flexopt.optim.search import start_point
 
     two, five = (Problem.model_validate({**CARTWHEEL, "starts": n}) for n in (2, 5))
-    fa, fb = _Family(two, two.families[0]), _Family(five, five.families[0])
+    fa, fb = FamilyEvaluator(two, two.families[0]), FamilyEvaluator(five, five.families[0])
     for k in range(2):
         np.testing.assert_array_equal(start_point(fa, two, 0, k), start_point(fb, five, 0, k))
     pts = np.array([start_point(fb, five, 0, k) for k in range(1, 5)])
@@ -441,16 +441,16 @@ def test_8_a_failed_evaluation_stops_the_solver_and_steps_back(monkeypatch):
     good design and ends below the failure, reported as not converged (the bound was not reached)."""
     from flexopt.optim import search
 
-    real = search._Family._evaluate
+    real = search.FamilyEvaluator._evaluate
 
     def fails_when_thick(self, x):
         if self.params(x)["thickness"] > 5.2e-4:
             raise FlexoptError("equilibrium lost at stroke 3 (patched for the test)")
         return real(self, x)
 
-    monkeypatch.setattr(search._Family, "_evaluate", fails_when_thick)
+    monkeypatch.setattr(search.FamilyEvaluator, "_evaluate", fails_when_thick)
     prob = Problem.model_validate(LEAF)
-    fam = _Family(prob, prob.families[0])
+    fam = FamilyEvaluator(prob, prob.families[0])
     assert fam.evaluate(np.array([0.1])).ok
     with pytest.raises(search._EvaluationFailed):
         fam.fun(np.array([0.9, 1.0]))
@@ -481,7 +481,7 @@ def test_cylinder_envelope_rows_match_finite_differences():
             "envelope": {"radius": 0.04, "half_height": 0.03},
         }
     )
-    fam = _Family(prob, prob.families[0])
+    fam = FamilyEvaluator(prob, prob.families[0])
     x = np.array([0.4, 0.3, 0.6])
     ev = fam.evaluate(x)
     env = ev.kinds == "envelope"
@@ -503,7 +503,7 @@ def test_kkt_residual_of_one_active_frequency_row_is_its_gradient_norm():
     from flexopt.optim.search import _optimality
 
     prob = Problem.model_validate(LEAF)
-    fam = _Family(prob, prob.families[0])
+    fam = FamilyEvaluator(prob, prob.families[0])
     ev = fam.evaluate(np.array([0.5]))
     nf = fam.n_frequency()
     act = np.flatnonzero(ev.con[:nf] - ev.con[:nf].min() <= 1e-3)
@@ -581,7 +581,7 @@ def test_the_verified_curves_own_warnings_reach_the_start():
     from flexopt.optim.search import _case_warnings
 
     prob = Problem.model_validate(LEAF)
-    fam = _Family(prob, prob.families[0])
+    fam = FamilyEvaluator(prob, prob.families[0])
     verified = {
         "stress_ratio": 0.5,
         "warnings": [
@@ -612,15 +612,15 @@ def test_a_failing_start_steps_toward_the_template_design(monkeypatch):
     from flexopt.optim import search
 
     prob = Problem.model_validate({**LEAF, "starts": 2})
-    x1 = search.start_point(_Family(prob, prob.families[0]), prob, 0, 1)
-    real = search._Family._evaluate
+    x1 = search.start_point(FamilyEvaluator(prob, prob.families[0]), prob, 0, 1)
+    real = search.FamilyEvaluator._evaluate
 
     def start_fails(self, x):
         if np.array_equal(x, x1):
             raise FlexoptError("equilibrium becomes unstable (patched for the test)")
         return real(self, x)
 
-    monkeypatch.setattr(search._Family, "_evaluate", start_fails)
+    monkeypatch.setattr(search.FamilyEvaluator, "_evaluate", start_fails)
     r = run_case(cases({**LEAF, "starts": 2})[1])
     assert r["start_moved"]["fraction_toward_defaults"] == 0.25 and "patched" in r["start_moved"]["reason"]
     assert r["status"] == "optimal", r["message"]

@@ -106,12 +106,12 @@ def test_design_parameters_are_template_parameters_and_traceable() -> None:
     """Every designed name is a parameter of topology-hinge and moves the scene (a non-zero derivative):
     a parameter the scene ignored would be a flat, degenerate direction for the solver."""
     from flexopt.model.design import trace_template
-    from flexopt.optim.search import _Family
+    from flexopt.optim.search import FamilyEvaluator
 
     spec = TopologySpec(dimensions="leaf", segments=2)
     for d in ("R:+-|-+", "R:x+-@|+-"):
         prob = candidate_problem(parse(d), spec)
-        fam = _Family(prob, prob.families[0])
+        fam = FamilyEvaluator(prob, prob.families[0])
         ds = trace_template("topology-hinge", fam.params(fam.default_x()), fam.names)
         for j, name in enumerate(fam.names):
             moved = any(np.any(np.asarray(n["position"]) != 0) for n in ds.dscene[j]["nodes"]) or any(
@@ -150,7 +150,7 @@ def test_bounds_say_where_they_come_from() -> None:
     bound is (40 - 6) / 4 = 8.5 mm; the smallest width is half of it, 4.25 mm (below 5 mm); per stage, the
     other stage at its smallest: (34 - 2 x 4.25) / 2 = 12.75 mm. The width's upper bound is the envelope's
     height, and the warning for an optimum there says so instead of 'widen them'."""
-    from flexopt.optim.search import _case_warnings, _Family
+    from flexopt.optim.search import FamilyEvaluator, _case_warnings
 
     t = parse("R:+-|-+")
     shared = design_space(t, TopologySpec(dimensions="shared"))
@@ -161,7 +161,7 @@ def test_bounds_say_where_they_come_from() -> None:
     assert "envelope's height" in origins["width"][1] and "envelope's radius" in origins["length"][1]
     assert "min_thickness" in origins["thickness_s2"][0]
     prob = candidate_problem(t, TopologySpec())
-    fam = _Family(prob, prob.families[0])
+    fam = FamilyEvaluator(prob, prob.families[0])
     opt = {"active_bounds": {"width": "upper", "angle": "lower"}, "active_kinds": [], "active": []}
     msgs = [w.message for w in _case_warnings(fam, 0, "optimal", "", {}, opt)]
     assert any("width is on its upper bound, which is the envelope's height" in m for m in msgs), msgs
@@ -173,7 +173,7 @@ def test_bounds_say_where_they_come_from() -> None:
     msgs = [
         w.message
         for w in _case_warnings(
-            _Family(plain, plain.families[0]),
+            FamilyEvaluator(plain, plain.families[0]),
             0,
             "optimal",
             "",
@@ -189,12 +189,12 @@ def test_validity_constraint_row_and_gradient() -> None:
     the design's length and width, and its gradient against central differences of that value through the
     problem's own scaling (a step of 1e-6 of the unit box; the row is smooth, so 1e-6 is far above the
     rounding)."""
-    from flexopt.optim.search import _Family
+    from flexopt.optim.search import FamilyEvaluator
 
     spec = TopologySpec(dimensions="shared", min_length_over_width=3.0, segments=2, samples=3, stroke=10.0)
     prob = candidate_problem(parse("R:+-@"), spec)
     assert [(r.numerator, r.denominator, r.minimum) for r in prob.families[0].ratios] == [("length", "width", 3.0)]
-    fam = _Family(prob, prob.families[0])
+    fam = FamilyEvaluator(prob, prob.families[0])
     x = np.full(len(fam.names), 0.5)
     ev = fam.evaluate(x)
     assert ev.ok, ev.message
@@ -350,12 +350,12 @@ def test_warm_start_inherits_the_shared_design() -> None:
     """A full pass's warm start (issue 30 speed): the first pass's shared design mapped into the per-leaf space
     (stage k's and each leaf's parameters inherit stage 1's, as the template's 0 defaults mean), a parameter
     the design lacks at the template's default (crossing 0.5), and the same scene as the shared design."""
-    from flexopt.optim.search import _Family, warm_point
+    from flexopt.optim.search import FamilyEvaluator, warm_point
 
     shared = {"length": 0.041, "thickness": 2.2e-4, "width": 0.006, "angle": 100.0}
     spec = TopologySpec(dimensions="leaf")
     prob = candidate_problem(parse("R:+-@|-+"), spec)
-    fam = _Family(prob, prob.families[0])
+    fam = FamilyEvaluator(prob, prob.families[0])
     p = fam.params(warm_point(fam, shared))
     for k in fam.names:
         if k == "crossing":

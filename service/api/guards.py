@@ -222,13 +222,13 @@ def nonfinite(obj: Any, loc: tuple = ()) -> tuple | None:
 
 def check_problem(spec: OptimisationProblem) -> None:
     """Everything the job's cases would check, done at submission (422 naming the field): finite numbers,
-    each family as the optimiser builds it (``optim.search._Family``), design parameters that are real
+    each family as the optimiser builds it (``optim.search.FamilyEvaluator``), design parameters that are real
     numbers, and the scene of every family at both corners of its design box (template, scene validation,
     model size)."""
     from ...model import TEMPLATES, template
     from ...model.errors import FlexoptError, SceneError
     from ...model.structure import compile_scene
-    from ...optim.search import _Family
+    from ...optim.search import FamilyEvaluator
 
     def bad(loc: tuple, msg: str) -> RequestValidationError:
         return RequestValidationError([{"loc": ("body", *loc), "type": "value_error", "msg": msg}])
@@ -238,7 +238,7 @@ def check_problem(spec: OptimisationProblem) -> None:
         raise bad(where, "must be a finite number (Infinity and NaN are not accepted)")
     for i, fam in enumerate(spec.families):
         try:
-            built = _Family(spec, fam)
+            built = FamilyEvaluator(spec, fam)
         except FlexoptError as exc:
             path = str(exc).split(":")[0].removeprefix("families[].").split(".")  # e.g. design.thickness
             raise bad(
