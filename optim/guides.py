@@ -20,7 +20,7 @@ from typing import Any
 
 from .problem import Problem
 
-__all__ = ["DEFAULT_DESIGN", "guide_problem", "optimise_guides"]
+__all__ = ["DEFAULT_DESIGN", "guide_problem", "optimise_guides", "run_guides"]
 
 DEFAULT_DESIGN: dict[str, tuple[float, float]] = {"wire_length": (0.03, 0.08), "wire_diameter": (5e-4, 1.5e-3)}
 
@@ -29,17 +29,51 @@ def guide_problem(
     descriptor: str,
     design: dict[str, tuple[float, float]] | None = None,
     fixed: dict[str, Any] | None = None,
+    origins: dict[str, tuple[str, str]] | None = None,
     **problem: Any,
 ) -> Problem:
     """The problem of one wire guide ``descriptor``: template ``wire-guide-topology`` with ``topology`` fixed,
-    the ``design`` box (default :data:`DEFAULT_DESIGN`), other ``fixed`` parameters and the remaining
-    :class:`optim.problem.Problem` fields (``stroke`` in metres, ``samples``, ...)."""
+    the ``design`` box (default :data:`DEFAULT_DESIGN`), other ``fixed`` parameters, where the bounds come
+    from (``origins``, :class:`optim.problem.Family`) and the remaining :class:`optim.problem.Problem` fields
+    (``stroke`` in metres, ``samples``, ...)."""
     fam = {
         "template": "wire-guide-topology",
         "design": {k: list(v) for k, v in (design or DEFAULT_DESIGN).items()},
         "fixed": {**(fixed or {}), "topology": descriptor},
+        "origins": {k: list(v) for k, v in (origins or {}).items()},
     }
     return Problem.model_validate({**problem, "families": [fam]})
+
+
+def run_guides(
+    problems: Sequence[Problem],
+    *,
+    executor: Any = None,
+    workers: int | None = None,
+    store: Any = None,
+    progress: Any = None,
+    cancel: Any = None,
+) -> list[list[dict]]:
+    """Every start of every guide problem (:func:`guide_problem`) as one case of :func:`optim.batch.run_cases`
+    (any executor, resumable through ``store``): per problem, its starts' records (:func:`optim.search.run_case`)."""
+    from .batch import run_cases
+    from .search import cases
+
+    batch = [c for p in problems for c in cases(p)]
+    results = run_cases(
+        batch,
+        "flexopt.optim.search:run_case",
+        executor=executor,
+        workers=workers,
+        store=store,
+        progress=progress,
+        cancel=cancel,
+    )
+    out, k = [], 0
+    for p in problems:
+        out.append(results[k : k + p.starts])
+        k += p.starts
+    return out
 
 
 def optimise_guides(
@@ -64,8 +98,6 @@ def optimise_guides(
     worst case, zero-stroke frequency and their ratio [Hz], stress ratio, design, KKT residual, active bounds
     and warnings; the ranking orders the optimal ones by verified worst case, highest first.
     """
-    from .batch import run_cases
-    from .search import cases
     from .topology.grammar import canonical_guide
 
     cond: dict[str, float | None] = {}
@@ -77,21 +109,9 @@ def optimise_guides(
         names = [str(canonical_guide(d)) for d in guides]
     names = list(dict.fromkeys(names))  # each guide once
     probs = [guide_problem(d, design, fixed, **(problem or {})) for d in names]
-    batch = [c for p in probs for c in cases(p)]
-    results = run_cases(
-        batch,
-        "flexopt.optim.search:run_case",
-        executor=executor,
-        workers=workers,
-        store=store,
-        progress=progress,
-        cancel=cancel,
-    )
+    per_guide = run_guides(probs, executor=executor, workers=workers, store=store, progress=progress, cancel=cancel)
     out = []
-    k = 0
-    for d, p in zip(names, probs):
-        rs = results[k : k + p.starts]
-        k += p.starts
+    for d, rs in zip(names, per_guide):
         ok = [r for r in rs if r.get("status") == "optimal" and (r.get("verified") or {}).get("worst_hz") is not None]
         rec: dict[str, Any] = {
             "topology": d,

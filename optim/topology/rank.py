@@ -849,16 +849,16 @@ GUIDE_ORIGINS = {
 
 
 def guide_problem(descriptor: str, spec: TopologySpec) -> Problem:
-    """The one-family problem of a guide (template ``wire-guide-topology``): its worst-case parasitic
-    frequency over +-``guide_stroke`` under the stress limit, wire side and length designed."""
-    fam = Family(
-        template="wire-guide-topology",
-        design=dict(GUIDE_DESIGN),
-        origins=dict(GUIDE_ORIGINS),
-        fixed={"topology": descriptor, "segments": spec.segments},
-    )
-    return Problem(
-        families=[fam],
+    """The one-family problem of a guide (template ``wire-guide-topology``, :func:`optim.guides.guide_problem`):
+    its worst-case parasitic frequency over +-``guide_stroke`` under the stress limit, wire side and length
+    designed in the search's box (:data:`GUIDE_DESIGN`)."""
+    from ..guides import guide_problem as problem_of
+
+    return problem_of(
+        descriptor,
+        GUIDE_DESIGN,
+        {"segments": spec.segments},
+        GUIDE_ORIGINS,
         stroke=spec.guide_stroke,
         samples=spec.samples,
         safety_factor=spec.safety_factor,
@@ -916,16 +916,12 @@ def _guide_search(
     t1 = time.perf_counter()
     chosen = ranked[: spec.optimise_guides]
     if chosen:
-        from ..batch import run_cases
-        from ..search import cases as problem_cases
+        from ..guides import run_guides
 
         probs = [guide_problem(r["topology"], spec) for r in chosen]
-        batch = [c for p in probs for c in problem_cases(p)]
-        res = run_cases(
-            batch, "flexopt.optim.search:run_case", executor=executor, workers=workers, store=store, cancel=cancel
-        )
-        for k, r in enumerate(chosen):
-            _fill(r, res[k * spec.starts : (k + 1) * spec.starts])
+        res = run_guides(probs, executor=executor, workers=workers, store=store, cancel=cancel)
+        for r, starts in zip(chosen, res):
+            _fill(r, starts)
             r["bound_origins"] = {n: list(v) for n, v in GUIDE_ORIGINS.items()}
             if r["status"] == "optimised":
                 r["status"] = "accepted"  # the screen's verdict; 'optimised' below says it was optimised too
