@@ -195,7 +195,9 @@ def dask_executor(address: str, **client_kwargs: object) -> cf.Executor:
 
     ``client_kwargs`` go to ``distributed.Client`` (e.g. ``timeout="10s"``). Shutting the executor down
     (``with dask_executor(addr) as ex: ...``) also closes its client; the cluster itself keeps running.
-    The workers need flexopt installed (they import ``optim.batch`` and the case function).
+    The workers need flexopt installed (they import ``optim.batch`` and the case function); started with
+    ``--nthreads 1 --preload flexopt.optim._preload`` they load CasADi and the case functions once at start,
+    as the local pool's workers do.
     """
     try:
         from distributed import Client
