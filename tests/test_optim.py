@@ -313,8 +313,8 @@ def test_2_refinement_never_reruns_the_same_problem(monkeypatch):
 
     real = search.verify
 
-    def overrun_at_a_sample(fam, x, points):
-        v = real(fam, x, points)
+    def overrun_at_a_sample(fam, x, points, *more):
+        v = real(fam, x, points, *more)
         if v.get("status") == "complete":
             v.update(stress_ratio=1.2, stroke_at_max_stress=fam.stroke, member_at_max_stress="leaf")
         return v
