@@ -104,11 +104,11 @@ def test_epigraph_gradients_with_a_payload_under_gravity_match_finite_difference
         "max_drive": 1.0,
     }
     prob = Problem.model_validate({**spec, "gravity": [0.0, -30.0, 0.0]})
-    fam = _Family(prob, prob.families[0])
+    fam = FamilyEvaluator(prob, prob.families[0])
     x = np.array([0.4, 0.5])
     ev = fam.evaluate(x)
     assert ev.ok, ev.message
-    bare = _Family(Problem.model_validate(spec), prob.families[0]).evaluate(x)
+    bare = FamilyEvaluator(Problem.model_validate(spec), prob.families[0]).evaluate(x)
     assert np.abs(ev.con - bare.con).max() > 1e-2
 
     def central(j: int, h: float) -> np.ndarray:
