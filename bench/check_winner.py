@@ -38,14 +38,13 @@ from pathlib import Path
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
-from scipy.optimize import NonlinearConstraint, differential_evolution, minimize  # noqa: E402
-
 from flexopt.model.curve import Analysis  # noqa: E402
 from flexopt.model.templates import template  # noqa: E402
 from flexopt.optim.search import optimise  # noqa: E402
 from flexopt.optim.topology import parse, run_topology_search  # noqa: E402
 from flexopt.optim.topology.rank import candidate_problem  # noqa: E402
 from flexopt.optim.topology.spec import TopologySpec  # noqa: E402
+from scipy.optimize import NonlinearConstraint, differential_evolution, minimize  # noqa: E402
 
 WINNER = "R:+-|-+|+-"
 # widened bounds for (c): the active side moved by these factors (length and width halved, thickness doubled)
@@ -138,11 +137,7 @@ class Hinge:
         try:
             scene, c = self.curve(self.design(z), self.samples)
             ok = c.status == "complete" and np.all(np.isfinite(c.parasitic_hz))
-            out = (
-                (float(np.min(c.parasitic_hz)), max(self.stress_ratio(scene, c) - 1.0, 0.0))
-                if ok
-                else (0.0, 1.0)
-            )
+            out = (float(np.min(c.parasitic_hz)), max(self.stress_ratio(scene, c) - 1.0, 0.0)) if ok else (0.0, 1.0)
             if ok:
                 out = (out[0], out[1] + self.envelope_violation(scene.model_dump(mode="json")))
         except Exception:  # noqa: BLE001 - a design the model cannot build or solve is infeasible, not a crash
@@ -227,8 +222,15 @@ def part_a(h: Hinge, claimed: dict, seed: int, popsize: int, maxiter: int, polis
         f"violation {ver['envelope']:.1e}; the search's optimum {claimed['worst_hz']:.3f} Hz: {gap:+.2%}"
     )
     say("    design: " + ", ".join(f"{k} {v:.4g}" for k, v in best.items()))
-    return {"de_hz": f_de, "nm_hz": f_nm, "curves": h.curves, "seconds": time.perf_counter() - t0, "verified": ver,
-            "design": best, "gap": gap}
+    return {
+        "de_hz": f_de,
+        "nm_hz": f_nm,
+        "curves": h.curves,
+        "seconds": time.perf_counter() - t0,
+        "verified": ver,
+        "design": best,
+        "gap": gap,
+    }
 
 
 def part_b(h: Hinge, design: dict, points: int) -> dict:
@@ -277,7 +279,9 @@ def part_b(h: Hinge, design: dict, points: int) -> dict:
 
 
 def part_c(problem: dict, active: dict, workers: int, base_hz: float) -> dict:
-    say(f"(c) the active bounds widened ({', '.join(f'{k} {v}' for k, v in active.items())}), re-optimised by optim.optimise")
+    say(
+        f"(c) the active bounds widened ({', '.join(f'{k} {v}' for k, v in active.items())}), re-optimised by optim.optimise"
+    )
     out = {}
     runs = [[k] for k in active] + ([list(active)] if len(active) > 1 else [])
     for keys in runs:
