@@ -318,7 +318,13 @@ def test_server_strings_render_as_text(url: str, browser: object, tmp_path: Path
         "id": attack,
         "status": attack,
         "error": attack,
-        "progress": {},
+        "progress": {
+            "done": attack,
+            "total": 2,
+            "phase": attack,
+            "counts": {"generated": attack, "screened": 1, "passed": attack},
+            "best": {"topology": attack, "worst_hz": attack, "phase": attack},
+        },
         "result": {
             "counts": {"generated": 1, "rejected": 0, "untraceable": 0, "optimised": 1, "failed": 0},
             "best": {"topology": attack},
@@ -332,6 +338,7 @@ def test_server_strings_render_as_text(url: str, browser: object, tmp_path: Path
                     "overconstraints": attack,
                     "status": attack,
                     "reason": attack,
+                    "refined": {"worst_hz": attack},
                     "scene": scene,
                 }
             ],
@@ -344,6 +351,9 @@ def test_server_strings_render_as_text(url: str, browser: object, tmp_path: Path
     assert attack in page.get_by_test_id("opt-progress").inner_text()
     assert attack in page.get_by_test_id("ranking").inner_text()
     assert attack in page.get_by_test_id("topo-progress").inner_text()
+    assert page.get_by_test_id("topo-phase").inner_text() == attack, "the progress's phase as text"
+    assert attack in page.get_by_test_id("topo-best").inner_text(), "the best so far's descriptor as text"
+    assert attack in page.get_by_test_id("topo-counts").inner_text(), "the progress's counts as text"
     assert attack in page.get_by_test_id("topo-ranking").inner_text()
     page.close()
 
@@ -460,6 +470,74 @@ def test_topology_search_from_the_page_shows_ranking_with_thumbnails(url: str, b
     assert table.locator("tr").nth(2).locator("svg.thumb line.leaf").count() == 2, "drawn from the template"
     page.locator("section", has=table).screenshot(path=str(shots / "web_topology.png"))
     assert page.evaluate("() => window.__csp") == [], "the page's Content-Security-Policy blocked something"
+    page.close()
+
+
+TOPO_WATCH = """
+window.__topo = [];
+document.addEventListener('DOMContentLoaded', () => {
+  const box = document.querySelector('#topo-progress');
+  const text = (id) => { const e = box.querySelector(`[data-testid=${id}]`); return e ? e.textContent : null; };
+  new MutationObserver(() => window.__topo.push({
+    status: text('topo-status'), phase: text('topo-phase'), cases: text('topo-cases'), best: text('topo-best'),
+    counts: Object.fromEntries([...box.querySelectorAll('[data-count]')].map((b) => [b.dataset.count, b.textContent])),
+    rows: document.querySelectorAll('#topo-ranking tr').length,
+  })).observe(box, { childList: true, subtree: true });
+});
+"""
+
+
+def test_topology_search_shows_its_progress_live_then_the_table(url: str, browser: object, shots: Path) -> None:
+    """Issue 30 item 2: a search submitted from the page shows, while it runs, what its job status carries
+    (phase, cases of the phase, counts screened / passed / optimised, the best so far with its descriptor and
+    worst case), then the ranking. Every rendering of the progress box is recorded as the page draws it."""
+    import json
+
+    page = browser.new_page(viewport={"width": 1400, "height": 1100})
+    page.add_init_script(TOPO_WATCH)
+    page.goto(f"{url}/")
+    page.wait_for_function("() => document.querySelector('#topo-spec').value.length > 0")
+    # two exact-constraint candidates (two full-pass cases, then two refinements) and one the filter rejects
+    tiny = {"topologies": ["R:+-", "R:x+-", "R:++"], "segments": 4, "samples": 5, "verify_points": 31, "starts": 1}
+    page.fill("#topo-spec", json.dumps(tiny))
+    page.get_by_test_id("topology").click()
+    page.wait_for_function(
+        "() => window.flexopt.topoJob && ['succeeded', 'failed', 'cancelled'].includes(window.flexopt.topoJob.status)",
+        timeout=180_000,
+    )
+    job = page.evaluate("() => window.flexopt.topoJob")
+    assert job["status"] == "succeeded", job.get("error")
+    seen = page.evaluate("() => window.__topo")
+    running = [s for s in seen if s["status"] == "running" and s["phase"]]
+    assert running, f"no progress was drawn while the search ran: {seen}"
+    phases = {s["phase"] for s in running}
+    assert phases <= {"screen", "first pass", "full pass", "refine", "generating and screening"}, phases
+    res = job["result"]
+    # the counts drawn while it ran end at the result's: 3 generated, 2 passed the filter
+    counted = [s["counts"] for s in running if s["counts"]]
+    assert counted and all(c["generated"] == "3" for c in counted), counted
+    assert any(c.get("screened") == "3" and c.get("passed") == "2" for c in counted), counted
+    assert all(s["rows"] <= 1 for s in running), "the ranking was drawn before the search ended"
+    # the best so far, with its descriptor and worst case, drawn while the search ran (after its first optimum)
+    bests = [s["best"] for s in running if s["best"]]
+    optimised = {c["topology"]: c for c in res["candidates"] if c["status"] == "optimised"}
+    assert set(optimised) == {"R:+-", "R:x+-"}, {c["topology"]: c["status"] for c in res["candidates"]}
+    assert bests, f"no best so far was drawn while the search ran: {running}"
+    for b in bests:
+        name = b.split("best so far: ")[1].split(",")[0]
+        hz = float(b.split("worst case ")[1].split(" Hz")[0])
+        # the progress's best is a candidate's verified worst case on the search mesh (4 digits drawn)
+        assert name in optimised and hz == pytest.approx(optimised[name]["worst_case_hz"], rel=1e-3), (b, optimised)
+    # then the table: the ranking first, every candidate a row, its refined worst case beside the search mesh's
+    table = page.get_by_test_id("topo-ranking")
+    assert table.locator("tr").count() == 4
+    first = table.locator("tr").nth(1).locator("td").all_inner_texts()
+    best = res["best"]
+    assert first[2] == best["topology"] == res["ranking"][0]
+    assert float(first[9]) == pytest.approx(best["refined"]["worst_hz"], rel=1e-3)
+    final = page.get_by_test_id("topo-progress").inner_text()
+    assert "succeeded" in final and f"best: {best['topology']}" in final, final
+    page.locator("section", has=table).screenshot(path=str(shots / "web_topology_progress.png"))
     page.close()
 
 

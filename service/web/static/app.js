@@ -766,25 +766,46 @@ function topoRows(result) { // the ranking first (best first), then every other 
 
 const fmtHz = (v) => (v == null ? "" : (+v).toPrecision(4));
 
+// a search's counts as its job status carries them (service.jobs: progress.counts), in the order of the schedule
+const TOPO_COUNTS = [["generated", "generated"], ["screened", "screened"], ["passed", "passed the filter"],
+  ["first_pass", "first pass"], ["optimised", "optimised"], ["verified", "verified"]];
+
+// The search's progress as the job's status carries it: the phase and its cases, the counts, the best so far
+// (descriptor and worst case); every server string through esc().
+function renderTopoProgress(job) {
+  const p = job.progress || {}, done = +p.done || 0, total = +p.total || 0;
+  const phase = p.phase != null ? String(p.phase) : (job.status === "running" ? "generating and screening" : "");
+  const cases = total ? `${done} of ${total} cases` : "";
+  let html = `search ${esc(job.id)}: <b data-testid="topo-status">${esc(job.status)}</b>` +
+    (phase ? `, phase <b data-testid="topo-phase">${esc(phase)}</b>` : "") +
+    (cases ? `: <span data-testid="topo-cases">${esc(cases)}</span>` : "") + `<div class="bar"><div></div></div>`;
+  const c = p.counts || {}, shown = TOPO_COUNTS.filter(([k]) => c[k] != null);
+  if (shown.length) html += `<div class="note" data-testid="topo-counts">` +
+    shown.map(([k, label]) => `${esc(label)} <b data-count="${esc(k)}">${esc(c[k])}</b>`).join(", ") + `</div>`;
+  if (p.best) html += `<div data-testid="topo-best">best so far: <code>${esc(p.best.topology)}</code>, worst case ` +
+    `<b>${esc(fmtHz(p.best.worst_hz))} Hz</b>${p.best.phase ? ` (${esc(p.best.phase)})` : ""}</div>`;
+  if (job.error) html += `<div class="error">${esc(job.error)}</div>`;
+  $("topo-progress").innerHTML = html;
+  $("topo-progress").querySelector(".bar > div").style.width = `${total ? Math.min(100, (100 * done) / total) : 0}%`;
+}
+
 function renderTopology(job) {
-  const p = job.progress || {}, done = p.done || 0, total = p.total || 0;
-  const what = total ? `${done} of ${total} optimisation cases` : (job.status === "running" ? "generating and screening" : "");
-  $("topo-progress").innerHTML = `search ${esc(job.id)}: <b>${esc(job.status)}</b>${what ? ", " + what : ""}` +
-    `<div class="bar"><div></div></div>` + (job.error ? `<div class="error">${esc(job.error)}</div>` : "");
-  $("topo-progress").querySelector(".bar > div").style.width = `${total ? (100 * done) / total : 0}%`;
+  renderTopoProgress(job);
   const t = $("topo-ranking");
   if (!job.result) { t.innerHTML = ""; return; }
   const r = job.result, n = r.counts;
-  $("topo-progress").insertAdjacentHTML("beforeend", `<div class="note">${+n.generated} generated, ${+n.rejected} rejected, ` +
-    `${+n.untraceable} untraceable, ${+n.optimised} optimised, ${+n.failed} failed; best: ${r.best ? esc(r.best.topology) : "none"}</div>`);
+  $("topo-progress").insertAdjacentHTML("beforeend", `<div class="note" data-testid="topo-summary">${+n.generated} generated, ` +
+    `${+n.rejected} rejected, ${+n.untraceable} untraceable, ${n.pruned != null ? `${+n.pruned} pruned, ` : ""}` +
+    `${+n.optimised} optimised, ${+n.failed} failed; best: ${r.best ? esc(r.best.topology) : "none"}</div>`);
   const rows = topoRows(r);
+  // the ranking is by the refined worst case (the verification mesh that meets the spec's tolerance) when there is one
   t.innerHTML = `<tr><th>rank</th><th>topology</th><th class="l">descriptor</th><th class="l">family</th><th>dof</th><th>overconstraints</th>` +
-    `<th class="l">status / reason</th><th>worst-case [Hz]</th><th>at stroke 0 [Hz]</th></tr>` +
+    `<th class="l">status / reason</th><th>worst-case [Hz]</th><th>at stroke 0 [Hz]</th><th>refined worst case [Hz]</th></tr>` +
     rows.map((c, i) => { const rank = r.ranking.indexOf(c.topology);
       return `<tr data-topology="${esc(c.topology)}"><td>${rank >= 0 ? rank + 1 : ""}</td><td class="thumbcell" id="thumb-${i}"></td>` +
         `<td class="l"><code>${esc(c.topology)}</code></td><td class="l">${esc(c.family || "-")}</td><td>${esc(c.dof ?? "")}</td>` +
         `<td>${esc(c.overconstraints ?? "")}</td><td class="l reason">${esc(c.status)}${c.reason ? ": " + esc(c.reason) : ""}</td>` +
-        `<td>${fmtHz(c.worst_case_hz)}</td><td>${fmtHz(c.zero_stroke_hz)}</td></tr>`; }).join("");
+        `<td>${fmtHz(c.worst_case_hz)}</td><td>${fmtHz(c.zero_stroke_hz)}</td><td>${esc(fmtHz((c.refined || {}).worst_hz))}</td></tr>`; }).join("");
   drawThumbnails(rows, r.spec.motion).catch((e) => status(`thumbnails: ${e.message}`, true));
 }
 
