@@ -10,6 +10,8 @@ the server) and accepts either the dicts of ``to_dict()`` / the HTTP API or obje
   stress utilisation (von Mises / allowable) with the limit marked; warnings and truncation in a text box.
 - :func:`shapes_figure`: the deflected structure in 3D (leaves as plates of their real width, bodies as
   boxes) with a mode shape overlaid at a stated scale; :func:`animate_mode` writes it as an animated GIF.
+- :func:`stroke_figure`: the deflected structure at a few stroke values side by side (e.g. -45, 0 and +45
+  deg), each panel titled with its first parasitic frequency, on common axes.
 - :func:`pareto_figure`: a Pareto front of worst-case parasitic frequency against drive stiffness
   (optim/pareto.py), its single-objective optima marked, with the NSGA-II check's points if it ran.
 - :func:`diagnosis_figure`: the exact-constraint diagnosis: self-stress as member colours with a colour bar,
@@ -19,6 +21,7 @@ the server) and accepts either the dicts of ``to_dict()`` / the HTTP API or obje
 from __future__ import annotations
 
 import io
+import re
 import textwrap
 from collections.abc import Sequence
 from typing import Any
@@ -30,6 +33,7 @@ __all__ = [
     "curve_figure",
     "curve_png",
     "shapes_figure",
+    "stroke_figure",
     "animate_mode",
     "diagnosis_figure",
     "figure_bytes",
@@ -43,6 +47,7 @@ PARASITIC_COLOR = "#c0392b"
 MODE_COLOR = "#e67e22"
 PLATE_COLOR = "#7f8c8d"
 BODY_COLOR = "#34495e"
+STAGE_COLORS = ("#2471a3", "#e67e22", "#27ae60", "#8e44ad", "#c0392b", "#7f8c8d")
 
 
 def _data(obj: Any) -> dict:
@@ -399,6 +404,53 @@ def shapes_figure(
             bbox=dict(boxstyle="round", fc="#fdecea", ec="#e0b4ae"),
         )
     fig.subplots_adjust(left=0.0, right=1.0, bottom=0.04, top=0.9)
+    return fig
+
+
+def _first_parasitic(d: dict) -> float | None:
+    hz = [m["hz"] for m in d.get("modes", []) if m.get("label") == "parasitic"]
+    return min(hz) if hz else None
+
+
+def stroke_figure(
+    shapes: Sequence[Any],
+    title: str = "",
+    view: tuple[float, float] = (28.0, -62.0),
+    size: tuple[float, float] = (8.4, 3.0),
+    bodies: bool = True,
+) -> Figure:
+    """The deflected structure at each of ``shapes`` (``model.shapes.shapes_along``'s answers, one per stroke
+    value) side by side on common axes, leaves as plates of their real width, bodies as boxes; each panel
+    titled with its stroke and, when its modes were computed, its first parasitic frequency; ``bodies=False``
+    leaves the body boxes out (they hide the leaves of a compact hinge)."""
+    ds = [_data(s) for s in shapes]
+    fig = Figure(figsize=size)
+    n = len(ds)
+    # a topology hinge's leaves are named s<stage>l<leaf>: one colour per stage, so the stages read apart
+    stages = sorted({m.split("l")[0] for m in ds[0]["members"] if re.fullmatch(r"s\d+l\d+", m)} if ds else [])
+    colour = {st: STAGE_COLORS[i % len(STAGE_COLORS)] for i, st in enumerate(stages)}
+    faces = {m: colour[m.split("l")[0]] for m in (ds[0]["members"] if ds else {}) if m.split("l")[0] in colour}
+    drawn: list[tuple[Any, list[np.ndarray]]] = []
+    for i, d in enumerate(ds):
+        ax = fig.add_subplot(1, n, i + 1, projection="3d")
+        ax.view_init(*view)
+        pos, rot = _moved(d, None, 0.0)
+        boxes = _body_poses(d, None, 0.0) if bodies else {}
+        drawn.append((ax, _draw_structure(ax, d, pos, rot, edge="0.35", lw=0.3, bodies=boxes, facecolors=faces)))
+        hz = _first_parasitic(d)
+        ax.set_title(
+            f"{d['stroke']:+.0f} {d.get('stroke_unit', '')}" + (f": first parasitic {hz:.4g} Hz" if hz else ""),
+            fontsize=8,
+            pad=0,
+        )
+    every = [p for _, pts in drawn for p in pts]
+    for ax, _ in drawn:
+        _equal_axes(ax, every)
+        ax.set_box_aspect(ax.get_box_aspect(), zoom=1.35)
+        ax.set_axis_off()
+    if title:
+        fig.suptitle(title, fontsize=9)
+    fig.subplots_adjust(left=0.0, right=1.0, bottom=0.0, top=0.84 if title else 0.95, wspace=0.0)
     return fig
 
 

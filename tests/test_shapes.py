@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from flexopt.model import Analysis, template
-from flexopt.model.shapes import shapes_at
+from flexopt.model.shapes import shapes_along, shapes_at
 from flexopt.service import plots
 from flexopt.service.cli.main import main
 
@@ -340,3 +340,21 @@ def test_modes_at_a_stroke_are_the_curves_modes_there_with_its_labels(name: str,
     d = shapes_at(an, stroke).to_dict()
     np.testing.assert_allclose([m["hz"] for m in d["modes"]], curve.modes_hz[i], rtol=1e-8)
     assert [m["label"] for m in d["modes"]] == list(curve.mode_labels[i])
+
+
+def test_stroke_figure_draws_each_stroke_with_its_first_parasitic_frequency() -> None:
+    """The docs' topology pictures (docs/draw_topology.py): one panel per stroke value, titled with the first
+    parasitic frequency of the exact curve at that stroke (computed here by the curve itself, not the shapes),
+    each stage of a topology hinge in its own colour."""
+    from matplotlib.colors import to_hex
+
+    scene = template("topology-hinge", topology="R:+-|-+", segments=2)
+    an = Analysis(scene)
+    strokes = [-20.0, 0.0, 20.0]
+    fig = plots.stroke_figure(shapes_along(an, strokes), "double cross")
+    curve = an.frequency_curve(np.array(strokes))
+    assert len(fig.axes) == 3 and fig._suptitle.get_text() == "double cross"
+    for ax, s, hz in zip(fig.axes, strokes, curve.parasitic_hz):
+        assert ax.get_title() == f"{s:+.0f} deg: first parasitic {hz:.4g} Hz"
+    faces = {to_hex(c) for col in fig.axes[0].collections for c in col.get_facecolors()}
+    assert {plots.STAGE_COLORS[0], plots.STAGE_COLORS[1]} <= faces, faces
