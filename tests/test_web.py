@@ -345,6 +345,21 @@ def test_server_strings_render_as_text(url: str, browser: object, tmp_path: Path
         },
     }
     page.evaluate("(job) => renderTopology(job)", topo)
+    front = {
+        "id": attack,
+        "status": attack,
+        "error": attack,
+        "progress": {"done": attack, "total": 3},
+        "partial": [{"worst_hz": 1.0, "status": attack}],
+        "result": {
+            "template": attack,
+            "against": "drive_stiffness",
+            "drive_stiffness_unit": attack,
+            "points": [{"drive_stiffness": 1.0, "worst_hz": 2.0, "design": {attack: 1e-4}, "stress_ratio": 0.5}],
+            "warnings": [{"kind": attack, "message": attack}],
+        },
+    }
+    page.evaluate("(job) => renderPareto(job)", front)
     page.wait_for_timeout(300)
     assert page.locator("img").count() == 0, "server text was parsed as markup"
     assert page.evaluate("() => window.__xss") is None, "server text ran as script"
@@ -355,6 +370,8 @@ def test_server_strings_render_as_text(url: str, browser: object, tmp_path: Path
     assert attack in page.get_by_test_id("topo-best").inner_text(), "the best so far's descriptor as text"
     assert attack in page.get_by_test_id("topo-counts").inner_text(), "the progress's counts as text"
     assert attack in page.get_by_test_id("topo-ranking").inner_text()
+    for part in ("pareto-progress", "pareto-points", "pareto-warnings"):
+        assert attack in page.get_by_test_id(part).inner_text(), part
     page.close()
 
 
@@ -538,6 +555,51 @@ def test_topology_search_shows_its_progress_live_then_the_table(url: str, browse
     final = page.get_by_test_id("topo-progress").inner_text()
     assert "succeeded" in final and f"best: {best['topology']}" in final, final
     page.locator("section", has=table).screenshot(path=str(shots / "web_topology_progress.png"))
+    page.close()
+
+
+def test_pareto_front_from_the_page_shows_progress_then_the_front(url: str, browser: object, shots: Path) -> None:
+    """Issue 30 item 5: a Pareto front submitted from the page shows its job's progress while it runs, then the
+    front: one plotted point and one table row per verified point of the result, ordered by drive stiffness."""
+    import json
+
+    page = browser.new_page(viewport={"width": 1400, "height": 1100})
+    page.add_init_script(CSP_WATCH)
+    page.goto(f"{url}/")
+    page.wait_for_function("() => document.querySelector('#pareto-spec').value.length > 0")
+    assert json.loads(page.input_value("#pareto-spec"))["format"] == "flexopt-pareto", "prefilled with the example"
+    tiny = {  # three points of a short pivot's front, no gradient-free check: seconds on 2 cores
+        "points": 3,
+        "problem": {
+            "families": [{"template": "cross-spring-pivot", "design": {"thickness": [2e-4, 4e-4]}}],
+            "stroke": 10,
+            "samples": 3,
+            "starts": 1,
+            "verify_points": 31,
+        },
+    }
+    page.fill("#pareto-spec", json.dumps(tiny))
+    page.get_by_test_id("pareto").click()
+    page.wait_for_function(
+        "() => window.flexopt.paretoJob && "
+        "['succeeded', 'failed', 'cancelled'].includes(window.flexopt.paretoJob.status)",
+        timeout=180_000,
+    )
+    job = page.evaluate("() => window.flexopt.paretoJob")
+    assert job["status"] == "succeeded", job.get("error")
+    pts = sorted(job["result"]["points"], key=lambda q: q["drive_stiffness"])
+    assert len(pts) >= 2
+    plotted = page.evaluate("() => document.querySelector('[data-testid=pareto-plot]').data[0]")
+    assert plotted["x"] == [q["drive_stiffness"] for q in pts] and plotted["y"] == [q["worst_hz"] for q in pts]
+    rows = page.get_by_test_id("pareto-points").locator("tr")
+    assert rows.count() == len(pts) + 1
+    for i, q in enumerate(pts):
+        cells = rows.nth(i + 1).locator("td").all_inner_texts()
+        assert float(cells[2]) == pytest.approx(q["worst_hz"], rel=1e-3)
+        assert cells[5].startswith("thickness ") and cells[5].endswith(" mm")
+    assert "succeeded" in page.get_by_test_id("pareto-progress").inner_text()
+    page.locator("section", has=page.get_by_test_id("pareto-plot")).screenshot(path=str(shots / "web_pareto.png"))
+    assert page.evaluate("() => window.__csp") == [], "the page's Content-Security-Policy blocked something"
     page.close()
 
 

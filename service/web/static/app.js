@@ -9,7 +9,7 @@ const esc = (t) => String(t).replace(/[&<>"']/g, (c) => ({ "&": "&amp;", "<": "&
 // plotly's titles, names and hover templates: tags are its only markup and it decodes &amp; &lt; &gt; (not &quot;)
 const escPlot = (t) => String(t).replace(/[&<>]/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;" })[c]);
 const state = { scene: null, fileScene: null, curve: null, shapes: null, templates: [], diagnosis: null, job: null,
-  topoJob: null, topoThumbs: {} };
+  topoJob: null, topoThumbs: {}, paretoJob: null };
 window.flexopt = state;
 
 // ------------------------------------------------------------------------------------------------- API
@@ -837,6 +837,72 @@ async function initTopology() {
   $("cancel-topo").onclick = async () => { if (state.topoJob) renderTopology(await api("DELETE", `/v1/topology-searches/${state.topoJob.id}`)); };
 }
 
+// ------------------------------------------------------------------------------------------- Pareto front
+// A front's job carries {done, total} of its current phase (the two optima, the levels, the check) and a summary
+// of every finished case (status, worst case); the front itself comes with the result.
+function renderPareto(job) {
+  const p = job.progress || {}, done = +p.done || 0, total = +p.total || 0;
+  const finished = (job.partial || []).filter((q) => q.worst_hz != null);
+  const best = finished.length ? Math.max(...finished.map((q) => +q.worst_hz)) : null;
+  $("pareto-progress").innerHTML = `front ${esc(job.id)}: <b data-testid="pareto-status">${esc(job.status)}</b>` +
+    (total ? `, <span data-testid="pareto-cases">${esc(`${done} of ${total} cases of this phase`)}</span>` : "") +
+    `<div class="bar"><div></div></div>` +
+    ((job.partial || []).length ? `<div class="note" data-testid="pareto-finished">${esc(`${job.partial.length} cases finished`)}` +
+      (best != null ? `, highest verified worst case so far <b>${esc(fmtHz(best))} Hz</b>` : "") + `</div>` : "") +
+    (job.error ? `<div class="error">${esc(job.error)}</div>` : "");
+  $("pareto-progress").querySelector(".bar > div").style.width = `${total ? Math.min(100, (100 * done) / total) : 0}%`;
+  const r = job.result, t = $("pareto-points"), ul = $("pareto-warnings");
+  ul.innerHTML = "";
+  if (!r) { t.innerHTML = ""; Plotly.purge($("pareto-plot")); return; }
+  const key = r.against === "stroke" ? "stroke" : "drive_stiffness";
+  const unit = key === "stroke" ? (r.stroke_unit || "") : (r.drive_stiffness_unit || "");
+  const xlabel = key === "stroke" ? `stroke (half range) [${unit}]` : `drive stiffness (peak drive / stroke) [${unit}]`;
+  const pts = (r.points || []).slice().sort((a, b) => a[key] - b[key]);
+  const designOf = (q) => designText(r.template, q.design); // each parameter with its unit (the template's)
+  const traces = [{ x: pts.map((q) => q[key]), y: pts.map((q) => q.worst_hz), name: "front (verified)", mode: "lines+markers",
+    line: { color: "#c0392b" }, marker: { size: 8 }, text: pts.map((q) => escPlot(designOf(q))),
+    hovertemplate: `%{x:.4g} ${escPlot(unit)}: %{y:.4g} Hz<br>%{text}<extra></extra>` }];
+  const chk = r.check || {};
+  if (chk.points && chk.points.length) traces.push({ x: chk.points.map((q) => q.drive_stiffness), y: chk.points.map((q) => q.worst_hz),
+    name: `NSGA-II check (${+chk.evaluations || 0} curves): ${chk.passed ? "passed" : "FAILED"}`, mode: "markers",
+    marker: { symbol: "x", color: "#999" }, hovertemplate: `%{x:.4g}: %{y:.4g} Hz<extra>NSGA-II</extra>` });
+  Plotly.newPlot("pareto-plot", traces, { title: { text: `${escPlot(r.template)}: Pareto front`, font: { size: 14 } },
+    margin: { t: 40, r: 10, l: 70, b: 45 }, xaxis: { title: { text: escPlot(xlabel) } },
+    yaxis: { title: { text: "worst-case first parasitic [Hz]" } }, hovermode: "closest" }, { responsive: true, displaylogo: false });
+  t.innerHTML = `<tr><th>point</th><th>${esc(xlabel)}</th><th>worst case [Hz]</th><th>at stroke 0 [Hz]</th><th>stress ratio</th>` +
+    `<th class="l">design</th></tr>` + pts.map((q, i) => `<tr><td>${i + 1}</td><td>${esc(trimmed(q[key], 4))}</td>` +
+    `<td>${esc(fmtHz(q.worst_hz))}</td><td>${esc(fmtHz(q.zero_stroke_hz))}</td>` +
+    `<td>${q.stress_ratio == null ? "-" : esc((+q.stress_ratio).toFixed(3))}</td><td class="l design">${esc(designOf(q))}</td></tr>`).join("");
+  for (const w of r.warnings || []) {
+    const li = document.createElement("li");
+    li.textContent = `[${w.kind}] ${w.message}`;
+    ul.append(li);
+  }
+}
+
+async function submitPareto() {
+  let spec;
+  try { spec = JSON.parse($("pareto-spec").value); } catch (e) { status(`Pareto spec is not valid JSON: ${e.message}`, true); return; }
+  const job = await busy("submitting Pareto front", () => api("POST", "/v1/pareto-fronts", spec));
+  state.paretoJob = job;
+  $("cancel-pareto").disabled = false;
+  pollPareto(job.id);
+}
+
+async function pollPareto(id) {
+  const job = await api("GET", `/v1/pareto-fronts/${id}`);
+  state.paretoJob = job;
+  renderPareto(job);
+  if (["queued", "running", "cancelling"].includes(job.status)) setTimeout(() => pollPareto(id), 1000);
+  else $("cancel-pareto").disabled = true;
+}
+
+async function initPareto() {
+  $("pareto-spec").value = JSON.stringify(await api("GET", "/v1/pareto-fronts/example"), null, 1);
+  $("pareto").onclick = () => submitPareto().catch(() => {});
+  $("cancel-pareto").onclick = async () => { if (state.paretoJob) renderPareto(await api("DELETE", `/v1/pareto-fronts/${state.paretoJob.id}`)); };
+}
+
 // ------------------------------------------------------------------------------------------- start
 async function init() {
   const [health, templates] = await Promise.all([api("GET", "/health"), api("GET", "/v1/templates")]);
@@ -877,6 +943,7 @@ async function init() {
   $("optimise").onclick = () => submitOptimisation().catch(() => {});
   $("cancel-opt").onclick = async () => { if (state.job) renderJob(await api("DELETE", `/v1/optimisations/${state.job.id}`)); };
   await initTopology();
+  await initPareto();
   if (q.get("template")) await computeCurve();
 }
 
