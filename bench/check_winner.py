@@ -29,6 +29,7 @@ the candidate; without it the candidate alone is searched here first with the de
 from __future__ import annotations
 
 import argparse
+import concurrent.futures as cf
 import json
 import os
 import subprocess
@@ -165,32 +166,76 @@ class Hinge:
         }
 
 
-def part_a(h: Hinge, claimed: dict, seed: int, popsize: int, maxiter: int, polish: int, points: int) -> dict:
+_WORKER: Hinge | None = None  # one per pool process (part a)
+
+
+def _start_worker(problem: dict) -> None:
+    global _WORKER
+    os.environ["OPENBLAS_NUM_THREADS"] = "1"
+    _WORKER = Hinge(problem)
+
+
+def _evaluate_in_worker(z: np.ndarray) -> tuple[float, float]:
+    assert _WORKER is not None
+    return _WORKER.evaluate(z)
+
+
+class Population:
+    """DE's objective and constraint, vectorised: the trial population's designs evaluated once each, in a
+    process pool, and cached (the constraint and the objective of one design share its curve)."""
+
+    def __init__(self, h: Hinge, pool: cf.Executor) -> None:
+        self.h, self.pool = h, pool
+
+    def _values(self, Z: np.ndarray) -> np.ndarray:
+        Z = np.atleast_2d(np.asarray(Z, float).T).reshape(-1, len(self.h.names))  # DE passes (N, S)
+        todo = [z for z in Z if z.tobytes() not in self.h._cache]
+        for z, v in zip(todo, self.pool.map(_evaluate_in_worker, todo)):
+            self.h._cache[z.tobytes()] = v
+            self.h.curves += 1
+        return np.array([self.h._cache[z.tobytes()] for z in Z])
+
+    def objective(self, Z: np.ndarray) -> np.ndarray:
+        return -self._values(Z)[:, 0]
+
+    def violation(self, Z: np.ndarray) -> np.ndarray:
+        return self._values(Z)[:, 1][None, :]
+
+
+def part_a(
+    h: Hinge, claimed: dict, seed: int, popsize: int, maxiter: int, polish: int, points: int, workers: int
+) -> dict:
     say(
         f"(a) differential evolution: {len(h.names)} design variables, popsize {popsize} (x {len(h.names)}), "
-        f"at most {maxiter} generations, seed {seed}; each design one exact curve on {len(h.samples)} samples"
+        f"at most {maxiter} generations, seed {seed}, {workers} processes; each design one exact curve on "
+        f"{len(h.samples)} samples"
     )
     t0 = time.perf_counter()
     gen = [0]
 
-    def callback(xk, convergence=0.0) -> None:  # noqa: ANN001 - scipy's signature
+    def callback(intermediate_result) -> None:  # noqa: ANN001 - scipy's OptimizeResult
         gen[0] += 1
-        f, v = h.evaluate(xk)
         if gen[0] % 5 == 0:
+            f, v = h._cache.get(np.asarray(intermediate_result.x, float).tobytes(), (float("nan"), float("nan")))
             say(f"    generation {gen[0]}: best {f:.3f} Hz (violation {v:.1e}), {h.curves} curves")
 
-    de = differential_evolution(
-        lambda z: -h.evaluate(z)[0],
-        [(0.0, 1.0)] * len(h.names),
-        constraints=NonlinearConstraint(lambda z: h.evaluate(z)[1], -np.inf, 0.0),
-        seed=seed,
-        popsize=popsize,
-        maxiter=maxiter,
-        tol=1e-6,
-        init="sobol",
-        polish=False,
-        callback=callback,
-    )
+    with cf.ProcessPoolExecutor(workers, initializer=_start_worker, initargs=(h.problem,)) as pool:
+        pop = Population(h, pool)
+        de = differential_evolution(
+            pop.objective,
+            [(0.0, 1.0)] * len(h.names),
+            constraints=NonlinearConstraint(pop.violation, -np.inf, 0.0),
+            seed=seed,
+            popsize=popsize,
+            maxiter=maxiter,
+            tol=1e-6,
+            init="sobol",
+            recombination=0.9,  # the design variables interact (the envelope's height couples the widths)
+            polish=False,
+            vectorized=True,
+            updating="deferred",
+            callback=callback,
+        )
     n_de, t_de = h.curves, time.perf_counter() - t0
     f_de, v_de = h.evaluate(de.x)
     say(f"    DE: {f_de:.3f} Hz, violation {v_de:.1e}, {n_de} exact curves, {t_de:.0f} s ({de.message})")
@@ -327,7 +372,7 @@ def main() -> None:
     ap.add_argument("--maxiter", type=int, default=30, help="DE generations at most")
     ap.add_argument("--polish", type=int, default=400, help="Nelder-Mead curves at most")
     ap.add_argument("--points", type=int, default=121, help="verification points over the stroke")
-    ap.add_argument("--workers", type=int, default=2, help="(c)'s optimiser processes")
+    ap.add_argument("--workers", type=int, default=2, help="processes of (a)'s population and (c)'s optimiser")
     ap.add_argument("--json", default=None, help="write every figure to this file")
     a = ap.parse_args()
     spec = TopologySpec.model_validate(
@@ -361,7 +406,7 @@ def main() -> None:
     if "c" in a.parts:
         out["c"] = part_c(problem, cand.get("active_bounds") or {}, a.workers, cand["worst_case_hz"])
     if "a" in a.parts:
-        out["a"] = part_a(h, claimed, a.seed, a.popsize, a.maxiter, a.polish, a.points)
+        out["a"] = part_a(h, claimed, a.seed, a.popsize, a.maxiter, a.polish, a.points, a.workers)
     if a.json:
         Path(a.json).write_text(json.dumps(out, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o)))
 
