@@ -1,7 +1,8 @@
 """Pictures of the topology search's winners beside the hand-made families (issue 30), for the docs page
 Optimisation and topology search: each design at its optimum, drawn at -stroke, 0 and +stroke (the deflected
-equilibria of the exact curve, leaves as plates of their real width, bodies as boxes), each panel titled with
-its first parasitic frequency, the figure with the design's worst case over the stroke.
+equilibria of the exact curve on the refined mesh the ranking used, leaves as plates of their real width, each
+stage its own colour), each panel titled with its first parasitic frequency, the figure with the design's worst
+case over the stroke.
 
 The designs come from search results (``flexopt topology SPEC.json --json``'s answer, or
 ``run_topology_search``'s dict): the default search's top ``--top`` (3) and the four hand-made families
@@ -47,14 +48,19 @@ def _figures(c: dict) -> tuple[float, float, str]:
 
 
 def draw(c: dict, stroke: float, label: str, path: Path) -> str:
-    scene = Scene.model_validate(c["scene"])
+    scene_dict = json.loads(json.dumps(c["scene"]))
+    segs = max((c.get("refined") or {}).get("segments_used") or [0])
+    for el in scene_dict["elements"] if segs else []:  # on the refined mesh, as the worst case in the title
+        if el.get("kind") == "beam":
+            el["segments"] = segs
+    scene = Scene.model_validate(scene_dict)
     shapes = shapes_along(Analysis(scene), [-stroke, 0.0, stroke])
     worst, zero, where = _figures(c)
     title = (
         f"{label} {c['topology']}: worst case {worst:.2f} Hz over +-{stroke:g} deg ({where}), "
         f"{zero:.2f} Hz at 0 ({worst / zero:.0%} kept)"
     )
-    fig = stroke_figure(shapes, title)
+    fig = stroke_figure(shapes, title, bodies=False)
     for dpi in (80, 70, 60):  # the smallest reduction that keeps the picture within its budget
         save(fig, str(path), dpi=dpi)
         if path.stat().st_size < LIMIT:

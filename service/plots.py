@@ -426,10 +426,11 @@ def stroke_figure(
     ds = [_data(s) for s in shapes]
     fig = Figure(figsize=size)
     n = len(ds)
-    # a topology hinge's leaves are named s<stage>l<leaf>: one colour per stage, so the stages read apart
-    stages = sorted({m.split("l")[0] for m in ds[0]["members"] if re.fullmatch(r"s\d+l\d+", m)} if ds else [])
-    colour = {st: STAGE_COLORS[i % len(STAGE_COLORS)] for i, st in enumerate(stages)}
-    faces = {m: colour[m.split("l")[0]] for m in (ds[0]["members"] if ds else {}) if m.split("l")[0] in colour}
+    # a topology hinge's leaves are named s<stage>l<leaf>[a|b] (the halves of an in-plane crossing): one colour
+    # per stage, so the stages read apart
+    stage = {m: g.group(1) for m in (ds[0]["members"] if ds else {}) if (g := re.fullmatch(r"(s\d+)l\d+[ab]?", m))}
+    colour = {st: STAGE_COLORS[i % len(STAGE_COLORS)] for i, st in enumerate(sorted(set(stage.values())))}
+    faces = {m: colour[st] for m, st in stage.items()}
     drawn: list[tuple[Any, list[np.ndarray]]] = []
     for i, d in enumerate(ds):
         ax = fig.add_subplot(1, n, i + 1, projection="3d")
