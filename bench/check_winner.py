@@ -203,7 +203,15 @@ class Population:
 
 
 def part_a(
-    h: Hinge, claimed: dict, seed: int, popsize: int, maxiter: int, polish: int, points: int, workers: int
+    h: Hinge,
+    claimed: dict,
+    seed: int,
+    popsize: int,
+    maxiter: int,
+    polish: int,
+    points: int,
+    workers: int,
+    budget: float = float("inf"),
 ) -> dict:
     say(
         f"(a) differential evolution: {len(h.names)} design variables, popsize {popsize} (x {len(h.names)}), "
@@ -215,9 +223,11 @@ def part_a(
 
     def callback(intermediate_result) -> None:  # noqa: ANN001 - scipy's OptimizeResult
         gen[0] += 1
-        if gen[0] % 5 == 0:
-            f, v = h._cache.get(np.asarray(intermediate_result.x, float).tobytes(), (float("nan"), float("nan")))
-            say(f"    generation {gen[0]}: best {f:.3f} Hz (violation {v:.1e}), {h.curves} curves")
+        f, v = h._cache.get(np.asarray(intermediate_result.x, float).tobytes(), (float("nan"), float("nan")))
+        say(f"    generation {gen[0]}: best {f:.3f} Hz (violation {v:.1e}), {h.curves} curves")
+        if time.perf_counter() - t0 > budget:
+            say(f"    the budget of {budget:.0f} s is spent: DE stops here")
+            raise StopIteration
 
     with cf.ProcessPoolExecutor(workers, initializer=_start_worker, initargs=(h.problem,)) as pool:
         pop = Population(h, pool)
@@ -371,6 +381,7 @@ def main() -> None:
     ap.add_argument("--popsize", type=int, default=8, help="DE population per design variable")
     ap.add_argument("--maxiter", type=int, default=30, help="DE generations at most")
     ap.add_argument("--polish", type=int, default=400, help="Nelder-Mead curves at most")
+    ap.add_argument("--budget", type=float, default=float("inf"), help="DE's wall-clock budget [s] (a shared machine)")
     ap.add_argument("--points", type=int, default=121, help="verification points over the stroke")
     ap.add_argument("--workers", type=int, default=2, help="processes of (a)'s population and (c)'s optimiser")
     ap.add_argument("--json", default=None, help="write every figure to this file")
@@ -406,7 +417,7 @@ def main() -> None:
     if "c" in a.parts:
         out["c"] = part_c(problem, cand.get("active_bounds") or {}, a.workers, cand["worst_case_hz"])
     if "a" in a.parts:
-        out["a"] = part_a(h, claimed, a.seed, a.popsize, a.maxiter, a.polish, a.points, a.workers)
+        out["a"] = part_a(h, claimed, a.seed, a.popsize, a.maxiter, a.polish, a.points, a.workers, a.budget)
     if a.json:
         Path(a.json).write_text(json.dumps(out, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o)))
 
