@@ -25,7 +25,8 @@ import asyncio
 import time
 import uuid
 from collections.abc import Awaitable, Callable
-from typing import Any, Literal, Self
+from dataclasses import dataclass, field
+from typing import Any, Generic, Literal, Self, TypeVar
 
 import httpx
 
@@ -52,6 +53,7 @@ __all__ = [
 ]
 
 _DONE = frozenset({"succeeded", "failed", "cancelled"})
+T = TypeVar("T")
 
 
 def _spec_json(spec: Any) -> dict[str, Any]:
@@ -180,6 +182,97 @@ def _curve_body(scene: Any, stroke: Any, method: str, tolerance: float | None) -
     return body
 
 
+@dataclass(frozen=True)
+class _Call(Generic[T]):
+    """One API call as data: the request (method, path, httpx keywords) and how its response is read. Built
+    once by :class:`_Calls` for both clients, which only send it (:meth:`Client._do`, :meth:`AsyncClient._do`)."""
+
+    method: str
+    path: str
+    read: Callable[[httpx.Response], T]
+    kw: dict[str, Any] = field(default_factory=dict)
+
+
+def _job(r: httpx.Response) -> Job:
+    return Job.model_validate(r.json())
+
+
+def _page(r: httpx.Response) -> JobPage:
+    return JobPage.model_validate(r.json())
+
+
+def _json(r: httpx.Response) -> Any:
+    return r.json()
+
+
+class _Calls:
+    """The request builders of the API, one per call, shared by :class:`Client` and :class:`AsyncClient`."""
+
+    @staticmethod
+    def health() -> _Call[Health]:
+        return _Call("GET", "/health", lambda r: Health.model_validate(r.json()))
+
+    @staticmethod
+    def templates() -> _Call[list[TemplateInfo]]:
+        return _Call("GET", "/v1/templates", lambda r: [TemplateInfo.model_validate(t) for t in r.json()])
+
+    @staticmethod
+    def template(name: str) -> _Call[TemplateInfo]:
+        return _Call("GET", f"/v1/templates/{name}", lambda r: TemplateInfo.model_validate(r.json()))
+
+    @staticmethod
+    def template_scene(name: str, params: dict[str, Any]) -> _Call[dict[str, Any]]:
+        return _Call("POST", f"/v1/templates/{name}/scene", _json, {"json": {"parameters": params}})
+
+    @staticmethod
+    def frequency_curve(
+        scene: Any, stroke: Any, method: str, tolerance: float | None, format: Format
+    ) -> _Call[FrequencyCurveOut | str | bytes]:
+        def read(r: httpx.Response) -> FrequencyCurveOut | str | bytes:
+            if format == "json":
+                return FrequencyCurveOut.model_validate_json(r.content)
+            return r.text if format == "csv" else r.content
+
+        body = _curve_body(scene, stroke, method, tolerance)
+        return _Call("POST", "/v1/frequency-curve", read, {"json": body, "headers": {"Accept": _ACCEPT[format]}})
+
+    @staticmethod
+    def diagnose(scene: Any, at_stroke: float | None, kinematic: bool | None) -> _Call[dict[str, Any]]:
+        body = {"scene": _scene_json(scene), "at_stroke": at_stroke, "kinematic": kinematic}
+        return _Call("POST", "/v1/diagnosis", _json, {"json": body})
+
+    @staticmethod
+    def modes(scene: Any, at_stroke: float, format: str, mode: int | None) -> _Call[dict[str, Any] | bytes]:
+        accept = {"json": "application/json", "png": "image/png", "gif": "image/gif"}[format]
+        return _Call(
+            "POST",
+            "/v1/modes",
+            lambda r: r.json() if format == "json" else r.content,
+            {
+                "json": {"scene": _scene_json(scene), "at_stroke": at_stroke, "mode": mode},
+                "headers": {"Accept": accept},
+            },
+        )
+
+    @staticmethod
+    def submit(collection: str, spec: Any, idempotency_key: str | None) -> _Call[Job]:
+        """A job submission; one idempotency key for all retries, so a retried submission returns the same job."""
+        key = idempotency_key or str(uuid.uuid4())
+        return _Call("POST", f"/v1/{collection}", _job, {"json": _spec_json(spec), "headers": {"Idempotency-Key": key}})
+
+    @staticmethod
+    def job(collection: str, job_id: str) -> _Call[Job]:
+        return _Call("GET", f"/v1/{collection}/{job_id}", _job)
+
+    @staticmethod
+    def jobs(collection: str, offset: int, limit: int) -> _Call[JobPage]:
+        return _Call("GET", f"/v1/{collection}", _page, {"params": {"offset": offset, "limit": limit}})
+
+    @staticmethod
+    def cancel(collection: str, job_id: str) -> _Call[Job]:
+        return _Call("DELETE", f"/v1/{collection}/{job_id}", _job)
+
+
 class _Base:
     def __init__(
         self, base_url: str, api_key: str | None, timeout: float, max_retries: int, backoff: float, api_key_header: str
@@ -238,21 +331,24 @@ class Client(_Base):
             return r
         raise AssertionError("unreachable")  # pragma: no cover
 
+    def _do(self, call: _Call[T]) -> T:
+        return call.read(self._request(call.method, call.path, **call.kw))
+
     def health(self) -> Health:
         """Liveness, version and the methods the server offers."""
-        return Health.model_validate(self._request("GET", "/health").json())
+        return self._do(_Calls.health())
 
     def templates(self) -> list[TemplateInfo]:
         """Every template with its parameters, defaults and bounds."""
-        return [TemplateInfo.model_validate(t) for t in self._request("GET", "/v1/templates").json()]
+        return self._do(_Calls.templates())
 
     def template(self, name: str) -> TemplateInfo:
         """One template."""
-        return TemplateInfo.model_validate(self._request("GET", f"/v1/templates/{name}").json())
+        return self._do(_Calls.template(name))
 
     def template_scene(self, name: str, **params: Any) -> dict[str, Any]:
         """The scene JSON of template ``name`` with parameters overridden."""
-        return self._request("POST", f"/v1/templates/{name}/scene", json={"parameters": params}).json()
+        return self._do(_Calls.template_scene(name, params))
 
     def frequency_curve(
         self,
@@ -263,23 +359,11 @@ class Client(_Base):
         format: Format = "json",
     ) -> FrequencyCurveOut | str | bytes:
         """The frequency curve: a FrequencyCurveOut (``format="json"``), CSV text or PNG bytes."""
-        r = self._request(
-            "POST",
-            "/v1/frequency-curve",
-            json=_curve_body(scene, stroke, method, tolerance),
-            headers={"Accept": _ACCEPT[format]},
-        )
-        return (
-            FrequencyCurveOut.model_validate_json(r.content)
-            if format == "json"
-            else (r.text if format == "csv" else r.content)
-        )
+        return self._do(_Calls.frequency_curve(scene, stroke, method, tolerance, format))
 
     def diagnose(self, scene: Any, at_stroke: float | None = None, kinematic: bool | None = None) -> dict[str, Any]:
         """The exact-constraint diagnosis (``model.constraints.ConstraintDiagnosis.to_dict`` form)."""
-        return self._request(
-            "POST", "/v1/diagnosis", json={"scene": _scene_json(scene), "at_stroke": at_stroke, "kinematic": kinematic}
-        ).json()
+        return self._do(_Calls.diagnose(scene, at_stroke, kinematic))
 
     def modes(
         self,
@@ -290,53 +374,36 @@ class Client(_Base):
     ) -> dict[str, Any] | bytes:
         """Deflected structure and mode shapes at ``at_stroke`` (``ModesOut`` dict, for
         ``flexopt.service.plots``), or a PNG 3D view / GIF animation of ``mode`` (0-based)."""
-        r = self._request(
-            "POST",
-            "/v1/modes",
-            json={"scene": _scene_json(scene), "at_stroke": at_stroke, "mode": mode},
-            headers={"Accept": {"json": "application/json", "png": "image/png", "gif": "image/gif"}[format]},
-        )
-        return r.json() if format == "json" else r.content
+        return self._do(_Calls.modes(scene, at_stroke, format, mode))
 
     def submit_optimisation(self, spec: Any, idempotency_key: str | None = None) -> JobHandle:
         """Submit an optimisation (an ``optim.Problem`` or its JSON); one idempotency key for all retries, so
         a retried submission returns the same job."""
-        key = idempotency_key or str(uuid.uuid4())
-        r = self._request("POST", "/v1/optimisations", json=_spec_json(spec), headers={"Idempotency-Key": key})
-        return JobHandle(self, Job.model_validate(r.json()))
+        return JobHandle(self, self._do(_Calls.submit("optimisations", spec, idempotency_key)))
 
     def submit_topology_search(self, spec: Any = None, idempotency_key: str | None = None) -> JobHandle:
         """Submit a topology search (a ``TopologySpec``, its JSON, or None for the defaults) as a job; retries
         and idempotency as :meth:`submit_optimisation`. ``.wait()`` returns ``run_topology_search``'s dict."""
-        key = idempotency_key or str(uuid.uuid4())
-        r = self._request(
-            "POST",
-            "/v1/topology-searches",
-            json=_spec_json(spec if spec is not None else {}),
-            headers={"Idempotency-Key": key},
+        return JobHandle(
+            self, self._do(_Calls.submit("topology-searches", spec if spec is not None else {}, idempotency_key))
         )
-        return JobHandle(self, Job.model_validate(r.json()))
 
     def topology_searches(self, offset: int = 0, limit: int = 20) -> JobPage:
         """A page of topology searches, newest first."""
-        return JobPage.model_validate(
-            self._request("GET", "/v1/topology-searches", params={"offset": offset, "limit": limit}).json()
-        )
+        return self._do(_Calls.jobs("topology-searches", offset, limit))
 
     def optimisation(self, job_id: str) -> Job:
         """The current state of a job."""
-        return Job.model_validate(self._request("GET", f"/v1/optimisations/{job_id}").json())
+        return self._do(_Calls.job("optimisations", job_id))
 
     def optimisations(self, offset: int = 0, limit: int = 20) -> JobPage:
         """A page of jobs, newest first."""
-        return JobPage.model_validate(
-            self._request("GET", "/v1/optimisations", params={"offset": offset, "limit": limit}).json()
-        )
+        return self._do(_Calls.jobs("optimisations", offset, limit))
 
     def cancel_optimisation(self, job_id: str) -> Job:
         """``DELETE``: an unfinished job is cancelled (queued: at once; running: after the cases in progress);
         a finished one is removed with its files. The job as it was answered."""
-        return Job.model_validate(self._request("DELETE", f"/v1/optimisations/{job_id}").json())
+        return self._do(_Calls.cancel("optimisations", job_id))
 
 
 class AsyncClient(_Base):
@@ -384,21 +451,24 @@ class AsyncClient(_Base):
             return r
         raise AssertionError("unreachable")  # pragma: no cover
 
+    async def _do(self, call: _Call[T]) -> T:
+        return call.read(await self._request(call.method, call.path, **call.kw))
+
     async def health(self) -> Health:
         """Liveness, version and the methods the server offers."""
-        return Health.model_validate((await self._request("GET", "/health")).json())
+        return await self._do(_Calls.health())
 
     async def templates(self) -> list[TemplateInfo]:
         """Every template with its parameters, defaults and bounds."""
-        return [TemplateInfo.model_validate(t) for t in (await self._request("GET", "/v1/templates")).json()]
+        return await self._do(_Calls.templates())
 
     async def template(self, name: str) -> TemplateInfo:
         """One template."""
-        return TemplateInfo.model_validate((await self._request("GET", f"/v1/templates/{name}")).json())
+        return await self._do(_Calls.template(name))
 
     async def template_scene(self, name: str, **params: Any) -> dict[str, Any]:
         """The scene JSON of template ``name`` with parameters overridden."""
-        return (await self._request("POST", f"/v1/templates/{name}/scene", json={"parameters": params})).json()
+        return await self._do(_Calls.template_scene(name, params))
 
     async def frequency_curve(
         self,
@@ -409,26 +479,13 @@ class AsyncClient(_Base):
         format: Format = "json",
     ) -> FrequencyCurveOut | str | bytes:
         """The frequency curve: a FrequencyCurveOut (``format="json"``), CSV text or PNG bytes."""
-        r = await self._request(
-            "POST",
-            "/v1/frequency-curve",
-            json=_curve_body(scene, stroke, method, tolerance),
-            headers={"Accept": _ACCEPT[format]},
-        )
-        return (
-            FrequencyCurveOut.model_validate_json(r.content)
-            if format == "json"
-            else (r.text if format == "csv" else r.content)
-        )
+        return await self._do(_Calls.frequency_curve(scene, stroke, method, tolerance, format))
 
     async def diagnose(
         self, scene: Any, at_stroke: float | None = None, kinematic: bool | None = None
     ) -> dict[str, Any]:
         """The exact-constraint diagnosis (``ConstraintDiagnosis.to_dict`` form)."""
-        r = await self._request(
-            "POST", "/v1/diagnosis", json={"scene": _scene_json(scene), "at_stroke": at_stroke, "kinematic": kinematic}
-        )
-        return r.json()
+        return await self._do(_Calls.diagnose(scene, at_stroke, kinematic))
 
     async def modes(
         self,
@@ -438,39 +495,38 @@ class AsyncClient(_Base):
         mode: int | None = None,
     ) -> dict[str, Any] | bytes:
         """Deflected structure and mode shapes; see :meth:`Client.modes`."""
-        r = await self._request(
-            "POST",
-            "/v1/modes",
-            json={"scene": _scene_json(scene), "at_stroke": at_stroke, "mode": mode},
-            headers={"Accept": {"json": "application/json", "png": "image/png", "gif": "image/gif"}[format]},
-        )
-        return r.json() if format == "json" else r.content
+        return await self._do(_Calls.modes(scene, at_stroke, format, mode))
 
     async def submit_optimisation(self, spec: Any, idempotency_key: str | None = None) -> AsyncJobHandle:
         """Submit an optimisation; see :meth:`Client.submit_optimisation`."""
-        key = idempotency_key or str(uuid.uuid4())
-        r = await self._request("POST", "/v1/optimisations", json=_spec_json(spec), headers={"Idempotency-Key": key})
-        return AsyncJobHandle(self, Job.model_validate(r.json()))
+        return AsyncJobHandle(self, await self._do(_Calls.submit("optimisations", spec, idempotency_key)))
 
     async def submit_topology_search(self, spec: Any = None, idempotency_key: str | None = None) -> AsyncJobHandle:
         """Submit a topology search; see :meth:`Client.submit_topology_search`."""
-        key = idempotency_key or str(uuid.uuid4())
-        r = await self._request(
-            "POST",
-            "/v1/topology-searches",
-            json=_spec_json(spec if spec is not None else {}),
-            headers={"Idempotency-Key": key},
+        return AsyncJobHandle(
+            self, await self._do(_Calls.submit("topology-searches", spec if spec is not None else {}, idempotency_key))
         )
-        return AsyncJobHandle(self, Job.model_validate(r.json()))
 
     async def optimisation(self, job_id: str) -> Job:
         """The current state of a job."""
-        return Job.model_validate((await self._request("GET", f"/v1/optimisations/{job_id}")).json())
+        return await self._do(_Calls.job("optimisations", job_id))
 
     async def cancel_optimisation(self, job_id: str) -> Job:
         """``DELETE``: an unfinished job is cancelled (queued: at once; running: after the cases in progress);
         a finished one is removed with its files. The job as it was answered."""
-        return Job.model_validate((await self._request("DELETE", f"/v1/optimisations/{job_id}")).json())
+        return await self._do(_Calls.cancel("optimisations", job_id))
+
+
+def _ended(job: Job, deadline: float | None, timeout: float | None) -> bool:
+    """Whether a polled job has its result; :class:`JobFailed` if it ended without one, ``TimeoutError`` past
+    the deadline (both handles' ``wait``)."""
+    if job.status in _DONE:
+        if job.status != "succeeded" or job.result is None:
+            raise JobFailed(job)
+        return True
+    if deadline is not None and time.monotonic() > deadline:
+        raise TimeoutError(f"job {job.id} still {job.status} after {timeout} s")
+    return False
 
 
 class JobHandle:
@@ -499,12 +555,9 @@ class JobHandle:
             job = self.status()
             if progress is not None:
                 progress(job)
-            if job.status in _DONE:
-                if job.status != "succeeded" or job.result is None:
-                    raise JobFailed(job)
+            if _ended(job, deadline, timeout):
+                assert job.result is not None  # checked by _ended
                 return job.result
-            if deadline is not None and time.monotonic() > deadline:
-                raise TimeoutError(f"job {self.id} still {job.status} after {timeout} s")
             time.sleep(poll)
 
 
@@ -536,10 +589,7 @@ class AsyncJobHandle:
                 out = progress(job)
                 if asyncio.iscoroutine(out):
                     await out
-            if job.status in _DONE:
-                if job.status != "succeeded" or job.result is None:
-                    raise JobFailed(job)
+            if _ended(job, deadline, timeout):
+                assert job.result is not None  # checked by _ended
                 return job.result
-            if deadline is not None and time.monotonic() > deadline:
-                raise TimeoutError(f"job {self.id} still {job.status} after {timeout} s")
             await asyncio.sleep(poll)
