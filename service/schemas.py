@@ -343,6 +343,12 @@ class Job(_Wire):
     attempts: int = Field(description="runs started (a server restart resumes a running job)")
     created: str
     updated: str
+    estimate: dict[str, Any] | None = Field(
+        default=None,
+        description="the cost estimate made at submission: 'seconds' (CPU seconds on one core, a budget: "
+        "every start spends its iteration budget; most jobs take less), 'cases', 'what' drives it, "
+        "'drivers' (the fields that reduce it, largest share first) and this server's 'limit'",
+    )
 
 
 class JobPage(_Wire):

@@ -278,16 +278,32 @@ def job_store(request: Request) -> Any:
 
 
 async def submit_job(
-    request: Request, response: Response, body: dict, idempotency_key: str | None, collection: str
+    request: Request,
+    response: Response,
+    body: dict,
+    idempotency_key: str | None,
+    collection: str,
+    estimate: dict | None = None,
 ) -> Job:
-    """Store a job (or find the one this idempotency key made), point Location at it, log a new one."""
+    """Store a job with its cost ``estimate`` (or find the one this idempotency key made), point Location at
+    it, log a new one."""
     job, created = await asyncio.to_thread(
-        job_store(request).submit, body, idempotency_key, request.state.owner, runtime(request).settings.max_active_jobs
+        job_store(request).submit,
+        body,
+        idempotency_key,
+        request.state.owner,
+        runtime(request).settings.max_active_jobs,
+        estimate,
     )
     response.headers["Location"] = f"/v1/{collection}/{job['id']}"
     if created:
         log.info(
             "job submitted",
-            extra={"event": "job.submitted", "job_id": job["id"], "request_id": request.state.request_id},
+            extra={
+                "event": "job.submitted",
+                "job_id": job["id"],
+                "request_id": request.state.request_id,
+                "estimate_seconds": (estimate or {}).get("seconds"),
+            },
         )
     return Job(**job)

@@ -55,6 +55,12 @@ class Settings(BaseSettings):
     max_job_cost: PositiveFloat = Field(
         3600.0, description="largest estimated cost of a frequency curve run as a job [s] (413 past it)"
     )
+    max_batch_cost: PositiveFloat = Field(
+        500_000.0,
+        description="largest estimated cost of an optimisation, topology-search or Pareto-front job [CPU s on "
+        "one core], estimated at submission as a budget (service.api.cost; 413 past it, naming the fields "
+        "to reduce); the default admits the default topology search (about 390,000 s)",
+    )
     cache_size: int = Field(256, ge=0, description="entries of the LRU response cache for identical requests (0 = off)")
     cache_bytes: int = Field(
         32_000_000,

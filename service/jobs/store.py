@@ -39,6 +39,7 @@ from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column
 __all__ = [
     "ACTIVE",
     "MAX_ATTEMPTS",
+    "JOB_AGING",
     "MAX_CRASHES",
     "STATUSES",
     "Job",
@@ -135,6 +136,8 @@ class Job(_Base):
     lease_until: Mapped[float | None] = mapped_column(Float, nullable=True)  # epoch seconds
     crashes: Mapped[int] = mapped_column(Integer, default=0)  # runs that crashed (graceful stops not counted)
     started: Mapped[float | None] = mapped_column(Float, nullable=True)  # epoch seconds of the latest claim
+    estimate: Mapped[str | None] = mapped_column(Text, nullable=True)  # the cost estimate at submission (JSON)
+    cost: Mapped[float | None] = mapped_column(Float, nullable=True)  # its seconds (the queue's order in a key)
 
     def to_dict(self) -> dict[str, Any]:
         kind = next((k for k in KINDS if f'"kind": "{k}"' in (self.spec or "")), "optimisation")
@@ -149,6 +152,7 @@ class Job(_Base):
             "attempts": self.attempts,
             "created": self.created,
             "updated": self.updated,
+            "estimate": json.loads(self.estimate) if self.estimate else None,
         }
 
 
@@ -162,7 +166,14 @@ _ADDED = {
     "lease_until": "FLOAT",
     "crashes": "INTEGER NOT NULL DEFAULT 0",
     "started": "FLOAT",
+    "estimate": "TEXT",
+    "cost": "FLOAT",
 }
+
+#: Seconds of estimate a queued job sheds for each second it has waited (the queue's order within one key:
+#: smallest ``cost - JOB_AGING x waited`` first): a small job overtakes a large one of the same key, and a
+#: job of estimate E is overtaken by newer jobs for at most E / JOB_AGING seconds, so none starves.
+JOB_AGING = 10.0
 
 
 def _now() -> str:
@@ -260,9 +271,15 @@ class JobStore:
 
     @_guarded
     def submit(
-        self, spec: dict, idempotency_key: str | None, owner: str = "", max_active: int | None = None
+        self,
+        spec: dict,
+        idempotency_key: str | None,
+        owner: str = "",
+        max_active: int | None = None,
+        estimate: dict | None = None,
     ) -> tuple[dict, bool]:
-        """Store a new queued job; with a known idempotency key (of this owner) return that job instead.
+        """Store a new queued job (with its cost ``estimate``, whose ``seconds`` order the owner's queue); with a
+        known idempotency key (of this owner) return that job instead.
 
         Returns ``(job, created)``. Raises :class:`KeyReused` when the key names a job with a different spec,
         and :class:`TooManyJobs` when the owner already has ``max_active`` unfinished jobs.
@@ -302,6 +319,8 @@ class JobStore:
                 created=now,
                 updated=now,
                 owner=owner,
+                estimate=json.dumps(estimate) if estimate is not None else None,
+                cost=float(estimate["seconds"]) if estimate is not None else None,
             )
             s.add(job)
             try:
@@ -440,14 +459,16 @@ class JobStore:
         """Claim the next queued job: running, one more attempt, a lease held by ``holder`` (the dispatcher)
         until the job process takes it over.
 
-        Fair share between owners (API keys): the oldest queued job of the owner with the fewest running jobs,
-        ties going to the owner served least recently, then to the oldest job. Before (issue 29 item 8), one
-        first-in-first-out queue: key B's small job waited 72 s behind key A's three.
+        Fair share between owners (API keys): the owner with the fewest running jobs, ties going to the owner
+        served least recently (before, issue 29 item 8, one first-in-first-out queue: key B's small job waited
+        72 s behind key A's three). Within that owner, the job with the smallest estimate less
+        :data:`JOB_AGING` x the seconds it has waited (shortest first, with aging: one huge job neither holds
+        the owner's small ones behind it nor waits for ever); jobs without an estimate count as 0 s.
         """
         while True:
             with Session(self.engine) as s:
                 queued = s.execute(
-                    select(Job.id, Job.owner, Job.attempts)
+                    select(Job.id, Job.owner, Job.attempts, Job.cost, Job.created)
                     .where(Job.status == "queued")
                     .order_by(Job.created, Job.id)
                     .limit(500)
@@ -467,8 +488,11 @@ class JobStore:
                         select(Job.owner, func.max(Job.started)).where(Job.owner.in_(owners)).group_by(Job.owner)
                     ).all()
                 )
-            job_id, _, attempts = min(queued, key=lambda q: (running.get(q.owner, 0), served.get(q.owner) or 0.0))
+            owner = min(queued, key=lambda q: (running.get(q.owner, 0), served.get(q.owner) or 0.0)).owner
             now = time.time()
+            mine = [q for q in queued if q.owner == owner]
+            ranks = [(q.cost or 0.0) - JOB_AGING * (now - datetime.fromisoformat(q.created).timestamp()) for q in mine]
+            job_id, _, attempts, _, _ = mine[ranks.index(min(ranks))]
             if self._set(
                 job_id,
                 (Job.status == "queued", Job.attempts == attempts),

@@ -102,12 +102,20 @@ def router(prefix: str) -> APIRouter:
             except TooCostly as exc:  # large models go to a job when the client accepts an asynchronous answer
                 if "respond-async" not in request.headers.get("prefer", "") or exc.seconds > rt.settings.max_job_cost:
                     raise HTTPException(413, str(exc)) from None
+                estimate = {
+                    "seconds": round(exc.seconds, 1),
+                    "cases": 1,
+                    "what": "one frequency curve",
+                    "drivers": ["stroke points", "segments"],
+                    "limit": rt.settings.max_job_cost,
+                }
                 job, _ = await asyncio.to_thread(
                     job_store(request).submit,
                     {**spec, "kind": "frequency-curve", "media": "application/json"},
                     None,
                     request.state.owner,
                     rt.settings.max_active_jobs,
+                    estimate,
                 )
                 return JSONResponse(
                     Job(**job).model_dump(mode="json"),

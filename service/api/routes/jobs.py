@@ -16,19 +16,31 @@ from pydantic import BaseModel
 from starlette.exceptions import HTTPException
 
 from ...schemas import Job, JobPage, Problem
+from ..cost import estimate_job
 from ..errors import ERRORS, JOBS, log
-from ..runtime import job_store, submit_job
+from ..runtime import job_store, runtime, submit_job
 
 __all__ = ["SUBMIT", "JobKind", "job_router"]
 
 #: the responses of a submission
-SUBMIT = {**ERRORS, **JOBS, 429: {"model": Problem, "description": "too many unfinished jobs of this API key"}}
+SUBMIT = {
+    **ERRORS,
+    **JOBS,
+    413: {
+        "model": Problem,
+        "description": "request body too large, or the job's estimated cost over this server's "
+        "max_batch_cost (the detail names the fields to reduce)",
+    },
+    429: {"model": Problem, "description": "too many unfinished jobs of this API key"},
+}
 
 
 @dataclass(frozen=True)
 class JobKind:
     """A job collection: its URL, the ``kind`` stored with its jobs, its spec model and its words.
 
+    A submission is checked, then its cost estimated (:mod:`..cost`): over ``max_batch_cost`` it is refused
+    (413, one line with the estimate, the limit and the fields to reduce), else stored with its estimate.
     ``kind`` None (optimisations): the spec is stored as it is, and reads, lists and cancels see jobs of every
     kind (a curve run as a job is read under ``/optimisations``). ``check`` runs in a worker thread before a
     job is stored (422s naming the field). ``names`` and ``summaries`` are the routes' function names (their
@@ -82,10 +94,18 @@ def job_router(prefix: str, k: JobKind) -> APIRouter:
     ) -> Job:
         if k.check is not None:
             await asyncio.to_thread(k.check, spec)  # fail now, not in the job
+        limit = runtime(request).settings.max_batch_cost
+        est = await asyncio.to_thread(estimate_job, k.kind or "optimisation", spec)
+        if est.seconds > limit:
+            raise HTTPException(
+                413,
+                f"estimated cost {est.seconds:,.0f} s ({est.what}) exceeds this server's limit of {limit:,.0f} s "
+                f"for a job; reduce {' or '.join(est.drivers[:2])}",
+            )
         body = spec.model_dump(mode="json")
         if k.kind is not None:
             body = {**body, "kind": k.kind}
-        return await submit_job(request, response, body, idempotency_key, k.collection)
+        return await submit_job(request, response, body, idempotency_key, k.collection, est.to_dict(limit))
 
     submit.__name__ = k.names["submit"]
     r.post(base, status_code=202, response_model=Job, summary=k.summaries["submit"], responses=SUBMIT)(
