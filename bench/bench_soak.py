@@ -7,14 +7,22 @@ requests it prints the resident memory (RSS, from ``/proc``) of the server proce
 Memory should level off: the response cache is bounded in bytes (``FLEXOPT_CACHE_BYTES``) and each worker
 process is replaced after ``runtime.WORKER_TASKS`` computations. Not a test: prints a table.
 
+``--fuzz``: the requests are the test fuzzer's instead (``tests/fuzz_requests.py``: every POST route's example
+and every template's scene, mutated structurally and semantically, each scene distinct; jobs it manages to
+submit are cancelled at once). ``--trace`` (with ``--fuzz``) runs the server in this process instead of a
+subprocess, and prints what the server's heap gained between the first sample and the last (tracemalloc
+snapshots diffed, by line) and the object counts by type that grew (gc), to find what is retained.
+
 Usage::
 
     python bench/bench_soak.py [--requests 400] [--every 40]
+    python bench/bench_soak.py --fuzz [--requests 3000] [--every 250] [--trace]
 """
 
 from __future__ import annotations
 
 import argparse
+import gc
 import os
 import socket
 import subprocess
@@ -52,11 +60,110 @@ def _children(pid: int) -> list[int]:
     return out
 
 
+def _types() -> dict[str, int]:
+    counts: dict[str, int] = {}
+    for o in gc.get_objects():
+        t = type(o).__qualname__
+        counts[t] = counts.get(t, 0) + 1
+    return counts
+
+
+def _fuzz(args: argparse.Namespace) -> None:
+    """Memory over a stream of the test fuzzer's requests (module docstring)."""
+    import threading
+    import tracemalloc
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from tests.fuzz_requests import bases, mutated
+
+    port = _free_port()
+    with tempfile.TemporaryDirectory() as data:
+        env = dict(os.environ, FLEXOPT_DATA_DIR=data, OPENBLAS_NUM_THREADS="1")
+        srv: subprocess.Popen | None = None
+        server = None
+        if args.trace:  # in this process: its heap can be snapshotted
+            import uvicorn
+            from flexopt.service.api.app import create_app
+            from flexopt.service.api.settings import Settings
+
+            os.environ.update(env)
+            server = uvicorn.Server(
+                uvicorn.Config(create_app(Settings()), host="127.0.0.1", port=port, log_level="warning", ws="none")
+            )
+            threading.Thread(target=server.run, daemon=True).start()
+            pid = os.getpid()
+        else:
+            srv = subprocess.Popen(
+                [sys.executable, "-m", "flexopt.service.cli", "serve", "--port", str(port), "--log-level", "warning"],
+                env=env,
+            )
+            pid = srv.pid
+        try:
+            with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=120) as c:
+                for _ in range(300):
+                    try:
+                        if c.get("/health").status_code == 200:
+                            break
+                    except httpx.TransportError:
+                        time.sleep(0.1)
+                bodies, scenes = bases(lambda p: c.get(p).json(), lambda p: c.post(p).json())
+                stream = mutated(bodies, scenes, c.get("/health").json()["methods"], seed=args.seed)
+                print(f"load: {os.getloadavg()[0]:.1f}  requests  seconds  server_MB  workers_MB  statuses")
+                start, seen, first = time.monotonic(), {}, None
+                for i in range(args.requests):
+                    method, path, body, headers = next(stream)
+                    try:
+                        r = c.request(method, path, json=body, headers=headers)
+                        status = r.status_code
+                        if status == 202 and "json" in r.headers.get("content-type", ""):
+                            c.delete(r.headers.get("location") or f"{path}/{r.json()['id']}")
+                    except httpx.TransportError as exc:
+                        status = type(exc).__name__
+                    except ValueError:  # a body nested too deeply to send: not a request
+                        continue
+                    seen[status] = seen.get(status, 0) + 1
+                    if (i + 1) % args.every == 0:
+                        workers = sum(_rss_mb(p) for p in _children(pid))
+                        print(
+                            f"{'':13}{i + 1:8d}  {time.monotonic() - start:7.0f}  {_rss_mb(pid):9.0f}  "
+                            f"{workers:10.0f}  {dict(sorted(seen.items(), key=str))}",
+                            flush=True,
+                        )
+                        if args.trace and first is None:
+                            gc.collect()
+                            tracemalloc.start(8)
+                            first = (tracemalloc.take_snapshot(), _types())
+                if args.trace and first is not None:
+                    gc.collect()
+                    last, types = tracemalloc.take_snapshot(), _types()
+                    skip = [
+                        tracemalloc.Filter(False, f"*{m}*") for m in ("httpx", "h11", "fuzz_requests", "tracemalloc")
+                    ]
+                    print("heap gained since the first sample, by line (top 25):")
+                    for d in last.filter_traces(skip).compare_to(first[0].filter_traces(skip), "lineno")[:25]:
+                        print(f"  {d.size_diff / 2**20:+8.2f} MB {d.count_diff:+8d} blocks  {d.traceback}")
+                    grew = sorted(((n - first[1].get(t, 0), t) for t, n in types.items()), reverse=True)[:15]
+                    print("objects by type that grew:", ", ".join(f"{t} {n:+d}" for n, t in grew))
+        finally:
+            if srv is not None:
+                srv.terminate()
+                srv.wait(30)
+            if server is not None:
+                server.should_exit = True
+                time.sleep(2)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--requests", type=int, default=400)
     ap.add_argument("--every", type=int, default=40)
+    ap.add_argument("--fuzz", action="store_true", help="the test fuzzer's requests over every POST route")
+    ap.add_argument("--trace", action="store_true", help="with --fuzz: the server in this process, heap diffed")
+    ap.add_argument("--seed", type=int, default=29)
     args = ap.parse_args()
+    if args.fuzz:
+        _fuzz(args)
+        return
     port = _free_port()
     with tempfile.TemporaryDirectory() as data:
         env = dict(os.environ, FLEXOPT_DATA_DIR=data, OPENBLAS_NUM_THREADS="1")
