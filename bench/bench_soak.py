@@ -60,6 +60,18 @@ def _children(pid: int) -> list[int]:
     return out
 
 
+def _wait(c: httpx.Client, seconds: float = 180.0) -> None:
+    """Until the server answers /health (a loaded machine starts it in tens of seconds)."""
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        try:
+            if c.get("/health").status_code == 200:
+                return
+        except httpx.TransportError:
+            time.sleep(0.2)
+    raise SystemExit(f"the server did not answer /health within {seconds:.0f} s")
+
+
 def _types() -> dict[str, int]:
     counts: dict[str, int] = {}
     for o in gc.get_objects():
@@ -100,12 +112,7 @@ def _fuzz(args: argparse.Namespace) -> None:
             pid = srv.pid
         try:
             with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=120) as c:
-                for _ in range(300):
-                    try:
-                        if c.get("/health").status_code == 200:
-                            break
-                    except httpx.TransportError:
-                        time.sleep(0.1)
+                _wait(c)
                 bodies, scenes = bases(lambda p: c.get(p).json(), lambda p: c.post(p).json())
                 stream = mutated(bodies, scenes, c.get("/health").json()["methods"], seed=args.seed)
                 print(f"load: {os.getloadavg()[0]:.1f}  requests  seconds  server_MB  workers_MB  statuses")
@@ -174,12 +181,7 @@ def main() -> None:
         try:
             url = f"http://127.0.0.1:{port}"
             with httpx.Client(base_url=url, timeout=120) as c:
-                for _ in range(200):
-                    try:
-                        if c.get("/health").status_code == 200:
-                            break
-                    except httpx.TransportError:
-                        time.sleep(0.1)
+                _wait(c)
                 base = c.post("/v1/templates/leaf-spring/scene").json()
                 base["stroke"]["points"] = 5
                 print(f"load: {os.getloadavg()[0]:.1f}  requests  seconds  server_MB  workers_MB  statuses")

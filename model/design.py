@@ -42,6 +42,7 @@ covered. Other scenes get a clear error.
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal, overload
@@ -618,10 +619,17 @@ def point_sensitivity(
     return PointSensitivity(dlam, dvm, vm, dvm2, dxis, dreac)
 
 
-_VM_JAC: dict[int, ca.Function] = {}
+#: the mapped von Mises Jacobians kept, one per beam count (least recently used dropped past it): a process
+#: that meets many distinct models (a topology search's pool worker) keeps at most this many (issue 29 item 2)
+VM_JAC_ENTRIES = 32
+_VM_JAC: OrderedDict[int, ca.Function] = OrderedDict()
 
 
 def _von_mises_jac(n: int) -> ca.Function:
-    if n not in _VM_JAC:
-        _VM_JAC[n] = _el.beam_von_mises_squared().map(n)
-    return _VM_JAC[n]
+    if n in _VM_JAC:
+        _VM_JAC.move_to_end(n)
+        return _VM_JAC[n]
+    fn = _VM_JAC[n] = _el.beam_von_mises_squared().map(n)
+    while len(_VM_JAC) > VM_JAC_ENTRIES:
+        _VM_JAC.popitem(last=False)
+    return fn

@@ -25,7 +25,8 @@ from .settings import Settings
 
 __all__ = ["WORKER_TASKS", "Runtime", "job_store", "runtime", "submit_job"]
 
-#: computations a worker process serves before it is replaced by a fresh one (bounds what it retains)
+#: computations a worker process serves before it is replaced by a fresh one (bounds what it retains): the
+#: default of the ``worker_tasks`` setting (FLEXOPT_WORKER_TASKS)
 WORKER_TASKS = 200
 
 
@@ -170,10 +171,10 @@ class Runtime:
             for p in procs:
                 p.kill()
         ctx = multiprocessing.get_context("spawn")  # never fork the threaded server
-        # A worker is replaced after WORKER_TASKS computations: the compiled kernels and caches of the
+        # A worker is replaced after worker_tasks computations: the compiled kernels and caches of the
         # distinct scenes it met go with it (issue 29 item 2: memory grew over a fuzzing run).
         self.pools[slot] = concurrent.futures.ProcessPoolExecutor(
-            1, mp_context=ctx, initializer=worker.warm_up, max_tasks_per_child=WORKER_TASKS
+            1, mp_context=ctx, initializer=worker.warm_up, max_tasks_per_child=self.settings.worker_tasks
         )
 
     def start(self) -> None:

@@ -68,6 +68,11 @@ class Settings(BaseSettings):
         description="bytes the LRU response cache may hold in all [bytes] (a response larger "
         "than an eighth of it is not cached): bounds the server's memory whatever the responses' size",
     )
+    worker_tasks: PositiveInt = Field(
+        200,
+        description="computations a worker process serves before it is replaced by a fresh one: bounds what a "
+        "worker retains of the distinct scenes it met (compiled functions, caches, its heap's fragmentation)",
+    )
     api_keys: str = Field("", description="comma-separated API keys; empty = no authentication")
     api_key_header: str = Field("X-API-Key", description="header carrying the API key")
     allowed_hosts: str = Field(
