@@ -15,7 +15,7 @@ snapshots diffed, by line) and the object counts by type that grew (gc), to find
 
 Usage::
 
-    python bench/bench_soak.py [--requests 400] [--every 40]
+    python bench/bench_soak.py [--requests 400] [--every 40] [--points 5] [--kinds json,shapes,png,modes,bad]
     python bench/bench_soak.py --fuzz [--requests 3000] [--every 250] [--trace]
 """
 
@@ -167,6 +167,8 @@ def main() -> None:
     ap.add_argument("--fuzz", action="store_true", help="the test fuzzer's requests over every POST route")
     ap.add_argument("--trace", action="store_true", help="with --fuzz: the server in this process, heap diffed")
     ap.add_argument("--seed", type=int, default=29)
+    ap.add_argument("--points", type=int, default=5, help="stroke points of each scene (large answers: 201)")
+    ap.add_argument("--kinds", default="json,shapes,png,modes,bad", help="the requests sent, in turn")
     args = ap.parse_args()
     if args.fuzz:
         _fuzz(args)
@@ -183,7 +185,8 @@ def main() -> None:
             with httpx.Client(base_url=url, timeout=120) as c:
                 _wait(c)
                 base = c.post("/v1/templates/leaf-spring/scene").json()
-                base["stroke"]["points"] = 5
+                base["stroke"]["points"] = args.points
+                kinds = args.kinds.split(",")
                 print(f"load: {os.getloadavg()[0]:.1f}  requests  seconds  server_MB  workers_MB  statuses")
                 start, seen = time.monotonic(), {}
                 for i in range(args.requests):
@@ -196,7 +199,7 @@ def main() -> None:
                             for e in base["elements"]
                         ],
                     }
-                    kind = i % 5
+                    kind = ("json", "shapes", "png", "modes", "bad").index(kinds[i % len(kinds)])
                     if kind == 0:
                         r = c.post("/v1/frequency-curve", json={"scene": scene})
                     elif kind == 1:
@@ -205,7 +208,7 @@ def main() -> None:
                         r = c.post("/v1/frequency-curve", json={"scene": scene}, headers={"Accept": "image/png"})
                     elif kind == 3:
                         r = c.post("/v1/modes", json={"scene": scene, "at_stroke": 0.0})
-                    elif i % 10 == 4:  # a large body (about 600 kB) of misspelt fields: a 422 listing 100 of them
+                    elif i % 2 == 0:  # a large body (about 600 kB) of misspelt fields: a 422 listing 100 of them
                         bad = {
                             **scene,
                             "nodes": [

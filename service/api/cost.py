@@ -76,6 +76,13 @@ class Estimate:
         return out
 
 
+def _n(k: int, word: str) -> str:
+    """``k`` and ``word``, plural unless ``k`` is 1 ("1 start", "4 starts"; "family" -> "families")."""
+    if k == 1:
+        return f"{k} {word}"
+    return f"{k} {word[:-1]}ies" if word.endswith("y") else f"{k} {word}s"
+
+
 def _c(name: str, cal: dict[str, float] | None) -> float:
     return (cal or CALIBRATION)[name]
 
@@ -180,9 +187,9 @@ def optimisation_estimate(spec: Any, cal: dict[str, float] | None = None) -> Est
     total, shares, dofs = _problem_cases(spec, spec.starts, cal)
     cases = len(spec.families) * spec.starts
     what = (
-        f"{cases} cases ({len(spec.families)} families x {spec.starts} starts; {max(dofs)} DOFs, "
-        f"{spec.samples} samples, {spec.max_iterations} iterations x {spec.refine_rounds + 1} rounds, "
-        f"{spec.verify_points} verification points)"
+        f"{_n(cases, 'case')} ({_n(len(spec.families), 'family')} x {_n(spec.starts, 'start')}; "
+        f"{max(dofs)} DOFs, {spec.samples} samples, {spec.max_iterations} iterations x "
+        f"{_n(spec.refine_rounds + 1, 'round')}, {spec.verify_points} verification points)"
     )
     return Estimate(total, cases, what, _drivers(shares, "starts"))
 
@@ -194,7 +201,7 @@ def pareto_estimate(spec: Any, cal: dict[str, float] | None = None) -> Estimate:
     prob = spec.problem
     total, shares, dofs = _problem_cases(prob, prob.starts * spec.points, cal)
     cases = spec.points * prob.starts
-    what = f"{cases} cases ({spec.points} points x {prob.starts} starts; {dofs[0]} DOFs)"
+    what = f"{_n(cases, 'case')} ({spec.points} points x {_n(prob.starts, 'start')}; {dofs[0]} DOFs)"
     if spec.check is not None:
         c = spec.check
         check = c.population * c.generations * curve_seconds(dofs[0], 2 * prob.samples - 1, cal)
@@ -225,7 +232,7 @@ def topology_estimate(spec: Any, cal: dict[str, float] | None = None) -> Estimat
         return Estimate(
             total,
             chosen * spec.starts,
-            f"{n_guides} guides screened, {chosen} x {spec.starts} starts optimised",
+            f"{_n(n_guides, 'guide')} screened, {chosen} x {_n(spec.starts, 'start')} optimised",
             _drivers(shares, "optimise_guides", "starts"),
         )
     first_dims = spec.dimensions if spec.first_pass_dimensions == "same" else spec.first_pass_dimensions
@@ -288,7 +295,7 @@ def topology_estimate(spec: Any, cal: dict[str, float] | None = None) -> Estimat
     what = (
         f"{n_all} candidates generated (all assumed to pass the screening): "
         + (f"a first pass of each, then {promoted} promoted" if two_pass else f"{promoted} optimised")
-        + f" x {spec.starts} starts"
+        + f" x {_n(spec.starts, 'start')}"
     )
     drivers = ["max_flexures or max_stages (or list topologies)", "starts", "max_iterations or samples"]
     if two_pass:
