@@ -507,9 +507,17 @@ class AsyncClient(_Base):
             self, await self._do(_Calls.submit("topology-searches", spec if spec is not None else {}, idempotency_key))
         )
 
+    async def topology_searches(self, offset: int = 0, limit: int = 20) -> JobPage:
+        """A page of topology searches, newest first."""
+        return await self._do(_Calls.jobs("topology-searches", offset, limit))
+
     async def optimisation(self, job_id: str) -> Job:
         """The current state of a job."""
         return await self._do(_Calls.job("optimisations", job_id))
+
+    async def optimisations(self, offset: int = 0, limit: int = 20) -> JobPage:
+        """A page of jobs, newest first."""
+        return await self._do(_Calls.jobs("optimisations", offset, limit))
 
     async def cancel_optimisation(self, job_id: str) -> Job:
         """``DELETE``: an unfinished job is cancelled (queued: at once; running: after the cases in progress);
