@@ -246,8 +246,10 @@ def test_job_cancelled(tmp_path: Path) -> None:
     try:
         with Client(srv.url, max_retries=0) as c:
             h = c.submit_optimisation(LONG)
-            queued = c.submit_optimisation(TINY)
             _until(lambda: h.status().status == "running")
+            # submitted once LONG runs: the queue runs the smallest estimate of a key first, so a TINY
+            # submitted beside LONG would start (and finish) before it
+            queued = c.submit_optimisation(TINY)
             assert queued.cancel().status == "cancelled", "a queued job is cancelled at once"
             h.cancel()
             with pytest.raises(JobFailed) as info:

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 from flexopt.model import Analysis, template
-from flexopt.model.elements import HERMITE_MASS, beam_mass_spec
+from flexopt.model.elements import BEAM_CONST, HERMITE_MASS, beam_mass_spec
 
 from . import references as ref
 from .helpers import HINGES
@@ -34,7 +34,7 @@ def test_beam_mass_of_a_rigid_motion_is_exact():
     state = np.concatenate(
         [[0, 0, 0], np.eye(3).ravel(order="F"), [0, 0, 0], [l, 0, 0], np.eye(3).ravel(order="F"), [0, 0, 0]]
     )
-    const = np.zeros(21)
+    const = np.zeros(BEAM_CONST)  # phi_y = phi_z = 0: no shear flexibility
     const[0] = l
     const[1:10] = np.eye(3).ravel(order="F")
     const[10:15] = [1.0, 1.0, 0.0, 0.0, 0.0]  # k1, k2, ky, kz, ct: ky = kz = ct = 0, no rotary inertia

@@ -257,13 +257,13 @@ def test_design_gradient_of_every_zone_against_finite_differences() -> None:
     of the unit box (about 1e-8 m): the truncation error (h^2 times the third derivative) is below 1e-9
     relative, the equilibrium's rounding below 1e-7 relative over 2h; tolerance 1e-5 relative (of the row's
     scale; measured at most 6e-7)."""
-    from flexopt.optim.search import _Family
+    from flexopt.optim.search import FamilyEvaluator
 
     spec = TopologySpec(
         dimensions="shared", taper=3, taper_symmetric=False, segments=3, samples=3, stroke=20.0, max_taper=3.0
     )
     prob = candidate_problem(parse("R:+-|-+"), spec)
-    fam = _Family(prob, prob.families[0])
+    fam = FamilyEvaluator(prob, prob.families[0])
     zones = [i for i, n in enumerate(fam.names) if "_z" in n]
     assert [fam.names[i] for i in zones] == ["thickness_z1", "thickness_z2", "thickness_z3"]
     x = np.full(len(fam.names), 0.5)
@@ -314,11 +314,11 @@ def test_every_zone_parameter_moves_its_zones(dimensions: str) -> None:
     zones it names and of no other beam (its exact derivative, traced with CasADi): a name the scene ignored
     would be a flat direction for the solver, one that moved another zone a wrong model."""
     from flexopt.model.design import trace_template
-    from flexopt.optim.search import _Family
+    from flexopt.optim.search import FamilyEvaluator
 
     spec = TopologySpec(dimensions=dimensions, taper=3, segments=3)
     prob = candidate_problem(parse("R:x+-|+-|-+"), spec)
-    fam = _Family(prob, prob.families[0])
+    fam = FamilyEvaluator(prob, prob.families[0])
     ds = trace_template("topology-hinge", fam.params(fam.default_x()), fam.names)
     names = [e["name"] for e in ds.scene_dict["elements"]]
     for j, name in enumerate(fam.names):
