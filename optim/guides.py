@@ -19,6 +19,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from .problem import Problem
+from .search import best_start, cases, no_optimum_reason
 
 __all__ = ["DEFAULT_DESIGN", "guide_problem", "optimise_guides", "run_guides"]
 
@@ -57,7 +58,6 @@ def run_guides(
     """Every start of every guide problem (:func:`guide_problem`) as one case of :func:`optim.batch.run_cases`
     (any executor, resumable through ``store``): per problem, its starts' records (:func:`optim.search.run_case`)."""
     from .batch import run_cases
-    from .search import cases
 
     batch = [c for p in problems for c in cases(p)]
     results = run_cases(
@@ -112,7 +112,6 @@ def optimise_guides(
     per_guide = run_guides(probs, executor=executor, workers=workers, store=store, progress=progress, cancel=cancel)
     out = []
     for d, rs in zip(names, per_guide):
-        ok = [r for r in rs if r.get("status") == "optimal" and (r.get("verified") or {}).get("worst_hz") is not None]
         rec: dict[str, Any] = {
             "topology": d,
             "condition_number": cond.get(d),
@@ -125,14 +124,10 @@ def optimise_guides(
                 for r in rs
             ],
         }
-        if not ok:
-            rec.update(
-                status="failed",
-                reason="no start reached a converged, verified, feasible optimum: "
-                + "; ".join(f"start {s['start']}: {s['status']} ({s['message']})" for s in rec["starts"]),
-            )
+        b = best_start(rs)
+        if b is None:
+            rec.update(status="failed", reason=no_optimum_reason(rs))
         else:
-            b = max(ok, key=lambda r: r["verified"]["worst_hz"])
             v = b["verified"]
             rec.update(
                 status="optimised",

@@ -1080,6 +1080,25 @@ def cases(problem: Problem | dict) -> list[dict]:
     return [{"problem": pj, "family": i, "start": k} for i in range(len(prob.families)) for k in range(prob.starts)]
 
 
+def optimal_starts(starts: list[dict]) -> list[dict]:
+    """The starts whose optimum is *optimal*: converged, verified (a worst case) and feasible."""
+    return [r for r in starts if r.get("status") == "optimal" and (r.get("verified") or {}).get("worst_hz") is not None]
+
+
+def best_start(starts: list[dict]) -> dict | None:
+    """The optimal start (:func:`optimal_starts`) with the highest verified worst case, or None."""
+    ok = optimal_starts(starts)
+    return max(ok, key=lambda r: r["verified"]["worst_hz"]) if ok else None
+
+
+def no_optimum_reason(starts: list[dict]) -> str:
+    """Why no start is optimal: each start's status and message, in one line."""
+    why = "; ".join(
+        f"start {r.get('start')}: {r.get('status', 'failed')} ({r.get('message') or r.get('error')})" for r in starts
+    )
+    return f"no start reached a converged, verified, feasible optimum: {why}"
+
+
 def summarise(prob: Problem, results: list[dict]) -> dict:
     """Best *optimal* start per family (converged, verified, feasible) and the ranking of families by verified
     worst-case frequency; every other start is listed with its status and message."""
@@ -1087,8 +1106,8 @@ def summarise(prob: Problem, results: list[dict]) -> dict:
     notes: list[dict] = []
     for i, fam in enumerate(prob.families):
         rs = [r for r in results if r.get("family_index") == i]
-        ok = [r for r in rs if r.get("status") == "optimal" and r["verified"].get("worst_hz") is not None]
-        best = max(ok, key=lambda r: r["verified"]["worst_hz"]) if ok else None
+        ok = optimal_starts(rs)
+        best = best_start(ok)
         table = [
             {
                 "start": r.get("start"),

@@ -58,6 +58,7 @@ from typing import Any
 
 from ...model.threads import limited
 from ..problem import Family, Problem, Ratio
+from ..search import best_start, no_optimum_reason
 from .grammar import Topology, canonical, design_parameters, enumerate_topologies, family_of, parse, zone_names
 from .spec import TopologySpec, example_spec
 
@@ -805,7 +806,6 @@ def _mark_same_designs(records: list[dict], tol: float = 1e-3) -> None:
 def _fill(rec: dict, starts: list[dict]) -> None:
     """A candidate's record from its starts' results: the best start that is optimal (converged, verified,
     feasible), else the reason none is."""
-    ok = [r for r in starts if r.get("status") == "optimal" and (r.get("verified") or {}).get("worst_hz") is not None]
     rec["starts"] = [
         {
             "start": r.get("start"),
@@ -816,11 +816,10 @@ def _fill(rec: dict, starts: list[dict]) -> None:
         }
         for r in starts
     ]
-    if not ok:
-        why = "; ".join(f"start {s['start']}: {s['status']} ({s['message']})" for s in rec["starts"])
-        rec.update(status="failed", reason=f"no start reached a converged, verified, feasible optimum: {why}")
+    b = best_start(starts)
+    if b is None:
+        rec.update(status="failed", reason=no_optimum_reason(starts))
         return
-    b = max(ok, key=lambda r: r["verified"]["worst_hz"])
     v = b["verified"]
     rec.update(
         status="optimised",
