@@ -145,6 +145,25 @@ class GeneralSection(_Strict):
     shear_z: NonNeg = Field(
         0.0, description="SPACAR's shear flexibility S_z = E Iz / (k G A) [m^2] of bending about local z (eps5, eps6)"
     )
+    Iw: NonNeg = Field(
+        0.0,
+        description="warping constant [m^6] (thin rectangle t^3 w^3 / 144; SPACAR's EIw / E); used only with "
+        "'warping' constrained at an end",
+    )
+    warping: Literal["free", "one_end", "both_ends"] = Field(
+        "free",
+        description="torsion assumption: free warping (St Venant, default) or warping constrained at one or both "
+        "ends of the member (Vlasov factor on GJ with this section's Iw, see model.sections)",
+    )
+
+    @model_validator(mode="after")
+    def _warping_constant(self) -> GeneralSection:
+        if self.warping != "free" and not self.Iw > 0:
+            raise ValueError(
+                f"warping '{self.warping}' needs the section's warping constant: give Iw > 0 (thin rectangle "
+                "t^3 w^3 / 144), or warping 'free'"
+            )
+        return self
 
 
 Section = Annotated[RectangularSection | GeneralSection, Field(discriminator="kind")]

@@ -34,7 +34,9 @@ class SectionProperties:
         Torsion-elongation coupling constant of seed 002 eq. 2, ``(Iy + Iz)/A``: the polar radius of
         gyration squared (Wagner effect; Meijaard, Brouwer and Jonker 2010, Multibody Syst. Dyn. 23:77-97).
     Iw
-        Warping constant (thin rectangle: t^3 w^3 / 144; Vlasov), 0 when unknown.
+        Warping constant (thin rectangle: t^3 w^3 / 144; Vlasov; a general section's ``Iw``), 0 when unknown.
+    warping
+        Where warping is constrained: "free", "one_end", "both_ends" (:func:`warping_factor`).
     cy, cz
         Largest fibre distances along local y and z (None when unknown: no bending stress).
     tau_per_torque
@@ -124,10 +126,11 @@ def section_properties(section: RectangularSection | GeneralSection) -> SectionP
         Iz=s.Iz,
         J=s.J,
         ct=(s.Iy + s.Iz) / s.A,
-        Iw=0.0,
+        Iw=s.Iw,
         cy=s.cy,
         cz=s.cz,
         tau_per_torque=s.torsion_stress_factor,
+        warping=s.warping,
         Sy=s.shear_y,
         Sz=s.shear_z,
     )

@@ -104,13 +104,13 @@ def _pair_nodes(r: _Reader) -> None:
             if xn not in X:
                 err.add(
                     ln,
-                    "BEAM",
+                    r.bkw(ne),
                     f"element {ne}: node {xn} is used as a translational node but never declared with 'X {xn} x y z'",
                 )
             if rn in X:
                 err.add(
                     ln,
-                    "BEAM",
+                    r.bkw(ne),
                     f"element {ne}: node {rn} is used as a rotational node but is declared as a "
                     "translational node (X); check the node order Xp Rp Xq Rq",
                 )
@@ -119,7 +119,7 @@ def _pair_nodes(r: _Reader) -> None:
             if x_of.setdefault(rn, xn) != xn:
                 err.add(
                     ln,
-                    "BEAM",
+                    r.bkw(ne),
                     f"element {ne}: rotational node {rn} belongs to two translational nodes "
                     f"({x_of[rn]} and {xn}); give each point its own rotational node",
                 )
@@ -127,16 +127,81 @@ def _pair_nodes(r: _Reader) -> None:
         for xn in (xp, xq):
             if xn not in X:
                 err.add(ln, "TRUSS", f"element {ne}: node {xn} is used but never declared with 'X {xn} x y z'")
+    w_at = _warping_nodes(r)
     if r_of:
         pairs = sorted(r_of.items())
-        if all(rn == x + 1 for x, rn in pairs) and all(x % 2 == 1 for x, _ in pairs):
+        if all(rn == x + 1 for x, rn in pairs) and all(x % 2 == 1 for x, _ in pairs) and not w_at:
             r.numbering = "X 2i-1, R 2i (two SPACAR nodes per point)"
         elif all(rn == x + 1 for x, rn in pairs) and all(x % 3 == 1 for x, _ in pairs):
-            r.numbering = "X 3i-2, R 3i-1 (three SPACAR nodes per point)"
+            w3 = all(w == x + 2 for w, x in w_at.items())
+            r.numbering = f"X 3i-2, R 3i-1{', W 3i' if w_at and w3 else ''} (three SPACAR nodes per point)"
         else:
             r.numbering = "X and R paired by the beams' connectivity"
     else:
         r.numbering = "translational nodes only"
+
+
+def _warping_nodes(r: _Reader) -> dict[int, int]:
+    """The warping (W) nodes of the BEAMW lines: each W node's X node (a W node is one point's warping
+    coordinate); a W node that is also an X or R node, or serves two points, is an error."""
+    w_at: dict[int, int] = {}
+    for ne, xp, _rp, xq, _rq, _oy, ln in r.beams:
+        if ne not in r.warp:
+            continue
+        wp, wq, _ = r.warp[ne]
+        for xn, wn in ((xp, wp), (xq, wq)):
+            if wn in r.X or wn in r.x_of:
+                r.err.add(
+                    ln,
+                    "BEAMW",
+                    f"element {ne}: node {wn} is used as a warping node but is also a "
+                    f"{'translational' if wn in r.X else 'rotational'} node; check the node order Xp Rp Wp Xq Rq Wq",
+                )
+                continue
+            if w_at.setdefault(wn, xn) != xn:
+                r.err.add(
+                    ln,
+                    "BEAMW",
+                    f"element {ne}: warping node {wn} belongs to two points (translational nodes {w_at[wn]} and "
+                    f"{xn}); a warping node is one point's warping coordinate: give each point its own",
+                )
+                continue
+            users = r.w_nodes.setdefault(wn, [])
+            if ne not in users:
+                users.append(ne)
+    return w_at
+
+
+def _warping_lines(r: _Reader) -> None:
+    """Lines other than FIX that name a warping node (a bimoment, a mass, an input on the warping coordinate):
+    one error each, and left out of what follows; FIX on a warping node: warping clamped there."""
+
+    def refused(kw: str, n: int, ln: int) -> bool:
+        if r.role(n) != "W":
+            return False
+        r.err.add(
+            ln,
+            kw,
+            f"node {n} is a warping node (BEAMW): {kw} on a warping coordinate is not mapped (flexopt takes "
+            f"warping per member, from its end conditions); only 'FIX {n}' (warping clamped there) is read",
+        )
+        return True
+
+    for table, kw in ((r.xf, "XF"), (r.delxf, "DELXF"), (r.xm, "XM")):
+        for n in [n for n, (_v, ln) in table.items() if refused(kw, n, ln)]:
+            del table[n]
+    r.inputs = [i for i in r.inputs if not refused("INPUTX", i[0], i[2])]
+    r.dynx = [i for i in r.dynx if not refused("DYNX", i[0], i[2])]
+    r.delinp = [i for i in r.delinp if not refused("DELINPX", i[0], i[3])]
+    keep = []
+    for n, ks, ln in r.fixes:
+        if r.role(n) != "W":
+            keep.append((n, ks, ln))
+        elif ks and ks != [1]:
+            r.err.add(ln, "FIX", f"node {n} is a warping node: it has one coordinate; write 'FIX {n}'")
+        else:
+            r.w_fixed.setdefault(n, ln)
+    r.fixes = keep
 
 
 def _hinge_joints(r: _Reader) -> None:
@@ -193,7 +258,7 @@ def _hinge_joints(r: _Reader) -> None:
         if rn not in r.hinged:
             err.add(
                 ln,
-                "BEAM",
+                r.bkw(ne),
                 f"element {ne}: translational node {xn} carries two rotational nodes ({r.r_of[xn]} and "
                 f"{rn}) that no HINGE joins: a joint between beams (spherical) that flexopt does not model; join "
                 "them with a HINGE or use one rotational node",
@@ -203,7 +268,7 @@ def _hinge_joints(r: _Reader) -> None:
 def _releases(r: _Reader) -> None:
     """RLSE lines checked: of an element that exists, not also DYNE; the released beam and truss deformations
     are reported (flexopt reads them as elastic with their ESTIFF stiffness: see the module docstring)."""
-    kinds = {b[0]: "BEAM" for b in r.beams} | {t[0]: "TRUSS" for t in r.trusses} | {h[0]: "HINGE" for h in r.hinges}
+    kinds = {b[0]: r.bkw(b[0]) for b in r.beams} | {t[0]: "TRUSS" for t in r.trusses} | {h[0]: "HINGE" for h in r.hinges}
     for ne, items in sorted(r.rlse.items()):
         for ks, ln in items:
             if ne not in kinds:
@@ -224,7 +289,7 @@ def _releases(r: _Reader) -> None:
 def _unique_elements(r: _Reader) -> None:
     seen_e: set[int] = set()
     for ne, ln, kw_e in sorted(
-        [(b[0], b[-1], "BEAM") for b in r.beams] + [(t[0], t[-1], "TRUSS") for t in r.trusses], key=lambda row: row[1]
+        [(b[0], b[-1], r.bkw(b[0])) for b in r.beams] + [(t[0], t[-1], "TRUSS") for t in r.trusses], key=lambda row: row[1]
     ):
         if ne in seen_e:
             r.err.add(ln, kw_e, f"element number {ne} is used twice; number elements uniquely")
@@ -243,7 +308,7 @@ def _beam_stiffness(r: _Reader, ne: int, ln: int, flex: list[int]) -> tuple[list
         )
         err.add(
             ln,
-            "BEAM",
+            r.bkw(ne),
             f"element {ne} has flexible deformations {flex} but no ESTIFF line{why}; add 'ESTIFF {ne} EA GJ EIy EIz'",
         )
         return None
@@ -254,19 +319,23 @@ def _beam_stiffness(r: _Reader, ne: int, ln: int, flex: list[int]) -> tuple[list
     if any(s < 0 for s in k[4:6]):
         err.add(kln, "ESTIFF", f"element {ne}: shear flexibilities Sy, Sz = {k[4:6]} must be 0 or positive")
         return None
-    if len(k) > 6 and abs(k[6]) > 0:
-        err.add(
-            kln,
-            "ESTIFF",
-            f"element {ne}: warping stiffness EIw = {k[6]} is not modelled per element; "
-            "set it to 0 (flexopt's rectangular sections take warping per member)",
+    if len(k) > 7:
+        err.add(kln, "ESTIFF", f"element {ne}: at most 7 numbers (EA GJ EIy EIz Sy Sz EIw), got {len(k)}")
+        return None
+    if len(k) > 6 and k[6] < 0:
+        err.add(kln, "ESTIFF", f"element {ne}: warping stiffness EIw = {k[6]} must be 0 or positive")
+        return None
+    if len(k) > 6 and k[6] > 0 and ne not in r.warp:
+        r.notes.append(
+            f"line {kln}: ESTIFF {ne}: EIw = {k[6]:g} on a BEAM (no warping nodes): SPACAR then has no warping "
+            "coordinate, so warping is free; EIw has no effect"
         )
     EA, GJ, EIy, EIz = k[:4]
     if min(EA, GJ, EIy, EIz) <= 0:
         err.add(kln, "ESTIFF", f"element {ne}: EA, GJ, EIy, EIz must be positive, got {k[:4]}")
         return None
     if ne not in em:
-        err.add(ln, "BEAM", f"element {ne} has no EM line: flexopt's beams carry their mass; add 'EM {ne} rhoA'")
+        err.add(ln, r.bkw(ne), f"element {ne} has no EM line: flexopt's beams carry their mass; add 'EM {ne} rhoA'")
         return None
     m, mln = em[ne]
     rhoA = m[0]
@@ -291,8 +360,17 @@ def _beam_stiffness(r: _Reader, ne: int, ln: int, flex: list[int]) -> tuple[list
                 break
         if len(m) >= 5 and abs(m[4]) > 0:
             err.add(mln, "EM", f"element {ne}: a product of inertia rhoIyz = {m[4]} is not modelled; set 0")
-        if len(m) >= 6 and abs(m[5]) > 0:
-            err.add(mln, "EM", f"element {ne}: warping inertia rhoIw = {m[5]} is not modelled; set it to 0")
+        if len(m) > 6:
+            err.add(mln, "EM", f"element {ne}: at most 6 numbers (rhoA rho(Iy+Iz) rhoIy rhoIz rhoIyz rhoIw)")
+            return None
+        if len(m) >= 6 and m[5] < 0:
+            err.add(mln, "EM", f"element {ne}: warping inertia rhoIw = {m[5]} must be 0 or positive")
+            return None
+        if len(m) >= 6 and m[5] > 0 and ne not in r.warp:
+            r.notes.append(
+                f"line {mln}: EM {ne}: rhoIw = {m[5]:g} on a BEAM (no warping nodes): no warping coordinate, so "
+                "no warping inertia; it has no effect"
+            )
     return k, m, mln
 
 
@@ -303,12 +381,12 @@ def _beam(r: _Reader, ne: int, xp: int, rp: int, xq: int, rq: int, oy: list[floa
         d = np.array(X[xq][0]) - np.array(X[xp][0])
         y = np.array(oy, dtype=float)
         if np.linalg.norm(d) == 0:
-            err.add(ln, "BEAM", f"element {ne} has zero length: nodes {xp} and {xq} coincide")
+            err.add(ln, r.bkw(ne), f"element {ne} has zero length: nodes {xp} and {xq} coincide")
             return
         if np.linalg.norm(y) == 0 or np.linalg.norm(np.cross(d / np.linalg.norm(d), y / np.linalg.norm(y))) < 1e-6:
             err.add(
                 ln,
-                "BEAM",
+                r.bkw(ne),
                 f"element {ne}: Oy = {tuple(oy)} is parallel to the beam's axis; give the section's "
                 "y direction across the beam",
             )
@@ -339,6 +417,8 @@ def _beam(r: _Reader, ne: int, xp: int, rp: int, xq: int, rq: int, oy: list[floa
         A = EA / E
         fibres = {}
     section = {"kind": "general", "A": A, "Iy": EIy / E, "Iz": EIz / E, "J": GJ / G, **fibres}
+    if ne in r.warp and len(k) > 6 and k[6] > 0:  # the end conditions follow from the W nodes (_warping)
+        section["Iw"] = k[6] / E
     if len(k) >= 6 and (k[4] > 0 or k[5] > 0):  # SPACAR's shear flexibilities E I / (k G A): Timoshenko bending
         section.update(shear_y=k[4], shear_z=k[5])
     mat = f"m{ne}"
@@ -482,7 +562,7 @@ def _bodies(r: _Reader) -> None:
         if r.x_of[rn] in r.carrier:
             r.err.add(
                 r.extra[rn][2],
-                "BEAM",
+                r.bkw(r.extra[rn][1]),
                 f"node {r.x_of[rn]} is part of a rigid body and carries a hinge: not "
                 "mapped; hinge a flexible element's node instead",
             )
@@ -649,10 +729,117 @@ def _merge(r: _Reader) -> None:
         | {x_of.get(n, n) for n, _, _ in r.inputs}
         | {x_of.get(n, n) for n, _, _ in r.fixes}
         | {x_of[rn] for rn in r.hinged}
+        | _warping_breaks(r)
     )
-    r.elements, merged = _merge_chains(r.elements, r.materials, r.X, special)
+    r.elements, merged, chains = _merge_chains(r.elements, r.materials, r.X, special)
+    r.chain_of = chains
+    for e in r.elements:
+        for name in chains.get(e["name"], [e["name"]]):
+            r.member_of[int(name[1:])] = e["name"]
     if merged:
         r.notes.append(f"{merged} chains of equal collinear beams read as members with segments (one member each)")
+
+
+def _warping_breaks(r: _Reader) -> set[int]:
+    """X nodes a member does not run through for warping's sake: where a BEAMW meets a BEAM, where BEAMW elements
+    meet with different warping nodes (each free there), and where the warping node is FIXed (warping clamped at
+    an interior point: two members, each clamped at that end; Vlasov's equation decouples there, theta' = 0)."""
+    at: dict[int, set[int | None]] = {}
+    for ne, xp, _rp, xq, _rq, _oy, _ln in r.beams:
+        for xn, end in ((xp, 0), (xq, 1)):
+            at.setdefault(xn, set()).add(r.warp[ne][end] if ne in r.warp else None)
+    out = set()
+    for xn, ws in at.items():
+        if len(ws) > 1:
+            out.add(xn)
+        elif ws != {None} and next(iter(ws)) in r.w_fixed:
+            out.add(xn)
+    return out
+
+
+def _warping(r: _Reader) -> None:
+    """Each member made of BEAMW elements gets its warping end conditions: clamped where its end's warping node is
+    FIXed, free where no other element uses it; a free warping node shared with another member's element is an
+    error (warping coupled across members, which a member's factor cannot represent). Warping inertia (EM's
+    rhoIw) is not modelled: its estimated effect on the torsion frequency is reported (an error above 1 %)."""
+    X = r.X
+    lines = {b[0]: b for b in r.beams}
+    for e in r.elements:
+        if e["kind"] != "beam":
+            continue
+        chain = [int(n[1:]) for n in r.chain_of.get(e["name"], [e["name"]])]
+        if not any(ne in r.warp for ne in chain):
+            continue
+        first, last = chain[0], chain[-1]
+        ends = [(r.warp[first][0], lines[first][1]), (r.warp[last][1], lines[last][3])]
+        clamped, bad = [], False
+        for wn, xn in ends:
+            if wn in r.w_fixed:
+                clamped.append(True)
+                continue
+            others = sorted(ne for ne in r.w_nodes.get(wn, []) if r.member_of.get(ne) != e["name"])
+            if others:
+                ln = r.warp[first][2] if wn == ends[0][0] else r.warp[last][2]
+                r.err.add(
+                    ln,
+                    "BEAMW",
+                    f"element {first if wn == ends[0][0] else last}: warping node {wn} (at node {xn}) is shared "
+                    f"with element(s) {others} of another member and not fixed: warping coupled across members at "
+                    f"a joint, which flexopt's per-member warping cannot represent; write 'FIX {wn}' (warping "
+                    "clamped there) or give each element its own warping node (free there)",
+                )
+                bad = True
+            clamped.append(False)
+        if bad:
+            continue
+        sec = e["section"]
+        L = float(np.linalg.norm(np.array(X[lines[last][3]][0]) - np.array(X[lines[first][1]][0])))
+        cond = {0: "free", 1: "one_end", 2: "both_ends"}[sum(clamped)]
+        where = ", ".join(
+            f"W {wn} at node {xn} {'fixed (clamped)' if c else 'free'}" for (wn, xn), c in zip(ends, clamped, strict=True)
+        )
+        label = f"member {e['name']} (BEAMW {', '.join(map(str, chain))})"
+        if "Iw" not in sec:
+            r.notes.append(f"{label}: {where}; EIw is 0 or not given, so no warping stiffness: free warping")
+        elif "eps2" in e.get("rigid", []):
+            r.notes.append(f"{label}: torsion rigid (no DYNE 2), so warping has no effect")
+        else:
+            sec["warping"] = cond
+            mat = next(m for m in r.materials if m["name"] == e["material"])
+            aL = math.sqrt(mat["G"] * sec["J"] / (mat["E"] * sec["Iw"])) * L
+            fac = {"free": 1.0, "one_end": aL / (aL - math.tanh(aL)), "both_ends": aL / (aL - 2 * math.tanh(aL / 2))}
+            r.notes.append(
+                f"{label}: {where}: warping '{cond}', read as flexopt's member-level Vlasov factor on GJ (static, "
+                f"prismatic bar under end torques: alpha L = {aL:.4g}, GJ x {fac[cond]:.6g}), not SPACAR's "
+                "element-level warping coordinates (docs: SPACAR models, for what that costs in a vibration)"
+            )
+        _warping_inertia(r, e, chain, L)
+
+
+def _warping_inertia(r: _Reader, e: dict, chain: list[int], L: float) -> None:
+    """EM's rhoIw of a BEAMW member: not modelled; its estimated effect on the first torsion frequency, the
+    warping kinetic energy against the rotary one for a twist varying as sin(pi x / L): rho Iw (pi/L)^2 /
+    (rho Ip), half of that on the frequency; a note, or an error when above 1 %."""
+    for ne in chain:
+        m, mln = r.em.get(ne, ([], 0))
+        if len(m) < 6 or m[5] <= 0:
+            continue
+        ratio = m[5] * (math.pi / L) ** 2 / m[1]
+        if ratio / 2 > 0.01:
+            r.err.add(
+                mln,
+                "EM",
+                f"element {ne}: warping inertia rhoIw = {m[5]:g} is not modelled and would change the torsion "
+                f"frequency of member {e['name']} by about {ratio / 2:.2%} (rho Iw (pi/L)^2 / (rho Ip) / 2): "
+                "flexopt has no warping inertia; model the part as several members, or set rhoIw 0 to accept that",
+            )
+        else:
+            r.notes.append(
+                f"line {mln}: EM {ne}: warping inertia rhoIw = {m[5]:g} not modelled (flexopt has none): it would "
+                f"lower the torsion frequency of member {e['name']} by about {ratio / 2:.2g} (relative; rho Iw "
+                "(pi/L)^2 / (rho Ip) / 2)"
+            )
+        return
 
 
 def _moment(r: _Reader, kw: str, n: int, vals: list[float], ln: int) -> list[float] | None:
@@ -800,11 +987,13 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
         _beam(r, *b)
     for t in r.trusses:
         _truss(r, *t)
+    _warping_lines(r)
     _bodies(r)
     _fixes(r)
     _inputs(r)
     _supports(r)
     _merge(r)
+    _warping(r)
     _loads(r)
     scene = _scene(r, name)
     if r.err.items:
@@ -838,10 +1027,13 @@ def read_dat(text: str, name: str = "spacar") -> SpacarImport:
     )
 
 
-def _merge_chains(elements: list[dict], materials: list[dict], X: dict, special: set[int]) -> tuple[list[dict], int]:
+def _merge_chains(
+    elements: list[dict], materials: list[dict], X: dict, special: set[int]
+) -> tuple[list[dict], int, dict[str, list[str]]]:
     """Beams that continue each other (same section, material, flexible set and Oy, collinear, equal lengths)
     through an interior X node that nothing else uses become one member with ``segments``: flexopt meshes a
-    member into equal segments at the same positions, so the model is the same, read as the user drew it."""
+    member into equal segments at the same positions, so the model is the same, read as the user drew it.
+    Returns the elements, the count of merged chains and each merged member's elements in order (by name)."""
     mats = {m["name"]: {k: v for k, v in m.items() if k != "name"} for m in materials}
     use: dict[str, list[int]] = {}
     for i, e in enumerate(elements):
@@ -884,6 +1076,7 @@ def _merge_chains(elements: list[dict], materials: list[dict], X: dict, special:
             nxt[first] = second
     starts = [i for i in nxt if i not in set(nxt.values())]
     out, gone, merged = [], set(), 0
+    chains: dict[str, list[str]] = {}
     for i in starts:
         chain = [i]
         while chain[-1] in nxt:
@@ -893,8 +1086,9 @@ def _merge_chains(elements: list[dict], materials: list[dict], X: dict, special:
         e["segments"] = len(chain)
         gone.update(chain)
         out.append(e)
+        chains[e["name"]] = [elements[k]["name"] for k in chain]
         merged += 1
-    return [e for k, e in enumerate(elements) if k not in gone] + out, merged
+    return [e for k, e in enumerate(elements) if k not in gone] + out, merged, chains
 
 
 def _fmt(x: float) -> str:

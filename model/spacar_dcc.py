@@ -207,7 +207,7 @@ def spacar_dcc(text: str, singular_values: bool = True) -> SpacarDcc:
     X: dict[int, np.ndarray] = {n: np.array(p, dtype=float) for n, (p, _) in r.X.items()}
     undeclared = [
         f"line {ln}: {kw}: node {xn} is used but never declared with 'X {xn} x y z'"
-        for kw, ends, ln in [("BEAM", (b[1], b[3]), b[-1]) for b in r.beams]
+        for kw, ends, ln in [(r.bkw(b[0]), (b[1], b[3]), b[-1]) for b in r.beams]
         + [("TRUSS", (t[1], t[2]), t[-1]) for t in r.trusses]
         for xn in ends
         if xn not in X
@@ -254,7 +254,7 @@ def spacar_dcc(text: str, singular_values: bool = True) -> SpacarDcc:
         ct = (k_[2] + k_[3]) / k_[0] if len(k_) >= 4 and k_[0] > 0 else 0.0
         idx = at(xp, rp, xq, rq)
         c = np.concatenate([[np.linalg.norm(d)], E0.ravel(order="F"), [ct]])
-        add("BEAM", ne, np.asarray(fns["beam"](x0[idx], c)), idx)
+        add(r.bkw(ne), ne, np.asarray(fns["beam"](x0[idx], c)), idx)
     for ne, xp, xq, _ln in r.trusses:
         idx = at(xp, xq)
         add("TRUSS", ne, np.asarray(fns["truss"](x0[idx], float(np.linalg.norm(X[xq] - X[xp])))), idx)

@@ -45,7 +45,9 @@ class _Reader:
 
     err: _Errors = field(default_factory=_Errors)
     X: dict[int, tuple[list[float], int]] = field(default_factory=dict)
-    beams: list[tuple] = field(default_factory=list)
+    beams: list[tuple] = field(default_factory=list)  # BEAM and BEAMW: (Ne, Xp, Rp, Xq, Rq, Oy, line)
+    #: BEAMW elements: Ne -> (Wp, Wq, line), their warping nodes
+    warp: dict[int, tuple[int, int, int]] = field(default_factory=dict)
     trusses: list[tuple] = field(default_factory=list)
     dyne: dict[int, set[int]] = field(default_factory=dict)
     estiff: dict[int, tuple[list[float], int]] = field(default_factory=dict)
@@ -77,6 +79,10 @@ class _Reader:
     #: a second R at an X (R -> (X, element, line)): a HINGE must join it
     extra: dict[int, tuple[int, int, int]] = field(default_factory=dict)
     numbering: str = ""
+    w_nodes: dict[int, list[int]] = field(default_factory=dict)  # W node -> the BEAMW elements using it
+    w_fixed: dict[int, int] = field(default_factory=dict)  # W node -> its FIX line
+    member_of: dict[int, str] = field(default_factory=dict)  # beam element -> the flexopt member it is part of
+    chain_of: dict[str, list[str]] = field(default_factory=dict)  # merged member -> its beam elements in order
     joints: list[dict] = field(default_factory=list)
     hinged: set[int] = field(default_factory=set)
     elements: list[dict] = field(default_factory=list)
@@ -155,7 +161,15 @@ class _Reader:
         return {k for ks, _ in self.rlse.get(ne, []) for k in ks}
 
     def role(self, n: int) -> str:
-        return "X" if n in self.X else ("R" if n in self.x_of else "?")
+        if n in self.X:
+            return "X"
+        if n in self.x_of:
+            return "R"
+        return "W" if n in self.w_nodes else "?"
+
+    def bkw(self, ne: int) -> str:
+        """The keyword of beam element ``ne``'s line: BEAMW (warping nodes) or BEAM."""
+        return "BEAMW" if ne in self.warp else "BEAM"
 
     def find(self, a: int) -> int:
         parent = self.parent
@@ -178,6 +192,14 @@ def _read_beam(r: _Reader) -> None:
     v = r.v
     if r.need(8, "BEAM Ne Xp Rp Xq Rq Oy_x Oy_y Oy_z"):
         r.beams.append((int(v[0]), int(v[1]), int(v[2]), int(v[3]), int(v[4]), v[5:8], r.ln))
+
+
+def _read_beamw(r: _Reader) -> None:
+    v = r.v
+    if r.need(10, "BEAMW Ne Xp Rp Wp Xq Rq Wq Oy_x Oy_y Oy_z"):
+        ne = int(v[0])
+        r.beams.append((ne, int(v[1]), int(v[2]), int(v[4]), int(v[5]), v[7:10], r.ln))
+        r.warp[ne] = (int(v[3]), int(v[6]), r.ln)
 
 
 def _read_truss(r: _Reader) -> None:
@@ -271,6 +293,7 @@ def _read_hinge(r: _Reader) -> None:
 _KEYWORDS = {
     "X": _read_x,
     "BEAM": _read_beam,
+    "BEAMW": _read_beamw,
     "TRUSS": _read_truss,
     "DYNE": _read_dyne,
     "RLSE": _read_rlse,
@@ -289,8 +312,6 @@ _KEYWORDS = {
 }
 #: Keywords known and refused, with why.
 _REFUSED = {
-    "BEAMW": "beams with warping nodes are not supported: flexopt takes warping per member (section 'warping' of a "
-    "rectangular section); use BEAM",
     "ESIG": "initial stresses are not supported; remove the line (or model the preload as a load)",
 }
 
@@ -330,7 +351,7 @@ def _parse(text: str) -> _Reader:
             r.err.add(
                 ln,
                 kw,
-                "unknown keyword (mapped: X BEAM TRUSS HINGE DYNE RLSE ESTIFF EM FIX INPUTX "
+                "unknown keyword (mapped: X BEAM BEAMW TRUSS HINGE DYNE RLSE ESTIFF EM FIX INPUTX "
                 "DELINPX DYNX XF DELXF XM GRAVITY ITERSTEP END HALT VISUALIZATION/CROSSDIM)",
             )
             continue

@@ -119,7 +119,7 @@ def scene_to_si(data: dict[str, Any]) -> dict[str, Any]:
 
     Converted: materials (E, G, allowable_stress: stress; density), node positions, bodies (mass,
     center_of_mass, inertia = mass length^2), beam sections (rectangle width and thickness; general A
-    [length^2], Iy, Iz, J [length^4], cy, cz [length], torsion_stress_factor [1/length^3]), truss areas and
+    [length^2], Iy, Iz, J [length^4], Iw [length^6], cy, cz [length], torsion_stress_factor [1/length^3]), truss areas and
     the start and stop of a translation stroke, gravity (length / s^2) and loads (forces: force; moments: force length; points:
     length; a table's stroke values with a translation stroke: length). Angles, counts and directions are
     unit-free. Malformed parts are copied unchanged for the schema to report. The block itself is kept (the Scene excludes it from
@@ -163,6 +163,7 @@ def scene_to_si(data: dict[str, Any]) -> dict[str, Any]:
             _scale(sec, "cy", L)
             _scale(sec, "cz", L)
             _scale(sec, "torsion_stress_factor", L**-3)
+            _scale(sec, "Iw", L**6)
     st = out.get("stroke")
     translation = isinstance(st, dict) and st.get("kind") == "translation"
     if isinstance(st, dict) and translation:

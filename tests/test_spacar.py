@@ -127,12 +127,12 @@ def test_truss_of_seed_002_is_diagnosed_as_the_paper_says():
             "lambda0, must be 0",
         ),
         (
-            "X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nBEAMW 2 1 2 5 3 4 6 0 1 0\n",
-            "line 4: BEAMW: beams with warping nodes are not supported",
+            "X 1 0 0 0\nX 4 1 0 0\nBEAMW 1 1 2 3 4 5 0 1 0\n",
+            "line 3: BEAMW: expected 'BEAMW Ne Xp Rp Wp Xq Rq Wq Oy_x Oy_y Oy_z' (10 numbers after the keyword), got 9",
         ),
         (
-            "X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nDYNE 1 1 2 3 4 5 6\nESTIFF 1 1 1 1 1 0 0 2\nEM 1 1\n",
-            "line 5: ESTIFF: element 1: warping stiffness EIw = 2.0 is not modelled",
+            "X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nDYNE 1 1 2 3 4 5 6\nESTIFF 1 1 1 1 1 0 0 -2\nEM 1 1\n",
+            "line 5: ESTIFF: element 1: warping stiffness EIw = -2.0 must be 0 or positive",
         ),
         (
             "X 1 0 0 0\nX 3 1 0 0\nBEAM 1 1 2 3 4 0 1 0\nDYNE 1 1 2 3 4 5 6\nESTIFF 1 1 1 1 1 -1 0\nEM 1 1\n",
