@@ -268,7 +268,9 @@ def _hinge_joints(r: _Reader) -> None:
 def _releases(r: _Reader) -> None:
     """RLSE lines checked: of an element that exists, not also DYNE; the released beam and truss deformations
     are reported (flexopt reads them as elastic with their ESTIFF stiffness: see the module docstring)."""
-    kinds = {b[0]: r.bkw(b[0]) for b in r.beams} | {t[0]: "TRUSS" for t in r.trusses} | {h[0]: "HINGE" for h in r.hinges}
+    kinds = (
+        {b[0]: r.bkw(b[0]) for b in r.beams} | {t[0]: "TRUSS" for t in r.trusses} | {h[0]: "HINGE" for h in r.hinges}
+    )
     for ne, items in sorted(r.rlse.items()):
         for ks, ln in items:
             if ne not in kinds:
@@ -289,7 +291,8 @@ def _releases(r: _Reader) -> None:
 def _unique_elements(r: _Reader) -> None:
     seen_e: set[int] = set()
     for ne, ln, kw_e in sorted(
-        [(b[0], b[-1], r.bkw(b[0])) for b in r.beams] + [(t[0], t[-1], "TRUSS") for t in r.trusses], key=lambda row: row[1]
+        [(b[0], b[-1], r.bkw(b[0])) for b in r.beams] + [(t[0], t[-1], "TRUSS") for t in r.trusses],
+        key=lambda row: row[1],
     ):
         if ne in seen_e:
             r.err.add(ln, kw_e, f"element number {ne} is used twice; number elements uniquely")
@@ -796,7 +799,8 @@ def _warping(r: _Reader) -> None:
         L = float(np.linalg.norm(np.array(X[lines[last][3]][0]) - np.array(X[lines[first][1]][0])))
         cond = {0: "free", 1: "one_end", 2: "both_ends"}[sum(clamped)]
         where = ", ".join(
-            f"W {wn} at node {xn} {'fixed (clamped)' if c else 'free'}" for (wn, xn), c in zip(ends, clamped, strict=True)
+            f"W {wn} at node {xn} {'fixed (clamped)' if c else 'free'}"
+            for (wn, xn), c in zip(ends, clamped, strict=True)
         )
         label = f"member {e['name']} (BEAMW {', '.join(map(str, chain))})"
         if "Iw" not in sec:
