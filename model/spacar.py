@@ -1428,6 +1428,7 @@ NPROPS_FIELDS = (
     "force",
     "mass",
     "mominertia",
+    "fix_w",
 )
 #: eprops fields mapped by :func:`spacar_light`.
 EPROPS_FIELDS = (
@@ -1444,6 +1445,8 @@ EPROPS_FIELDS = (
     "name",
     "hide",
     "opacity",
+    "enable_warping",
+    "cw",
 )
 
 
@@ -1457,10 +1460,15 @@ def _light_elements(
     vis: list[str],
     errors: list[str],
     rls: list[dict] | None = None,
-) -> None:
+    per_point: int = 2,
+) -> tuple[set[int], list[str]]:
     """SPACAR Light's elements and eprops as BEAM lines (``nbeams`` per element, interior points from
-    ``new_point``) with ESTIFF, EM, DYNE and CROSSDIM."""
-    xn = lambda i: 2 * i - 1
+    ``new_point``) with ESTIFF, EM, DYNE and CROSSDIM; BEAMW lines with EIw and rhoIw for a set with
+    ``enable_warping`` (``per_point`` 3: X, R, W), GJ times the both-ends warping factor for ``cw``. Returns the
+    user nodes a BEAMW ends at and notes for the report."""
+    xn = lambda i: per_point * i - per_point + 1
+    warped: set[int] = set()
+    notes: list[str] = []
     set_of: dict[int, dict] = {}
     for k, es in enumerate(eprops or [], start=1):
         bad = sorted(set(es) - set(EPROPS_FIELDS))
@@ -1489,16 +1497,34 @@ def _light_elements(
         A, Iy, Iz = w * t, w * t**3 / 12, t * w**3 / 12
         lo, hi = min(w, t), max(w, t)
         J = hi * lo**3 * (1 / 3 - 0.21 * (lo / hi) * (1 - lo**4 / (12 * hi**4)))
+        Iw = w**3 * t**3 / 144  # Vlasov, thin rectangle (as SPACAR Light's and flexopt's rectangles)
+        warp = bool(es.get("enable_warping", False))
+        GJ = G * J
+        if es.get("cw") and not warp:  # SPACAR Light: cw on a plain BEAM only (BEAMW models warping itself)
+            from .sections import rectangular_properties, warping_factor
+
+            L = float(np.linalg.norm(P[b - 1] - P[a - 1]))
+            f = float(warping_factor(Em, G, rectangular_properties(w, t), L, "both_ends"))
+            GJ *= f
+            notes.append(
+                f"eprops: element {e} with cw: GJ x {f:.6g}, the both-ends warping factor of the whole element "
+                f"(L = {L:g} m; flexopt's rectangle: J by Roark's series, Iw = t^3 w^3/144), written into ESTIFF"
+            )
         chain = [a] + [new_point(P[a - 1] + (P[b - 1] - P[a - 1]) * k / n) for k in range(1, n)] + [b]
+        if warp:
+            warped.update((a, b))
         for p_, q_ in itertools.pairwise(chain):
             ne += 1
-            lines.append(
-                f"BEAM {ne} {xn(p_)} {xn(p_) + 1} {xn(q_)} {xn(q_) + 1} {_fmt(orien[0])} {_fmt(orien[1])} "
-                f"{_fmt(orien[2])}"
-            )
+            y_ = f"{_fmt(orien[0])} {_fmt(orien[1])} {_fmt(orien[2])}"
+            if warp:
+                lines.append(f"BEAMW {ne} {xn(p_)} {xn(p_) + 1} {xn(p_) + 2} {xn(q_)} {xn(q_) + 1} {xn(q_) + 2} {y_}")
+            else:
+                lines.append(f"BEAM {ne} {xn(p_)} {xn(p_) + 1} {xn(q_)} {xn(q_) + 1} {y_}")
             props += [
-                f"ESTIFF {ne} {_fmt(Em * A)} {_fmt(G * J)} {_fmt(Em * Iy)} {_fmt(Em * Iz)} 0 0",
-                f"EM {ne} {_fmt(rho * A)} {_fmt(rho * (Iy + Iz))} {_fmt(rho * Iy)} {_fmt(rho * Iz)} 0",
+                f"ESTIFF {ne} {_fmt(Em * A)} {_fmt(GJ)} {_fmt(Em * Iy)} {_fmt(Em * Iz)} 0 0"
+                + (f" {_fmt(Em * Iw)}" if warp else ""),
+                f"EM {ne} {_fmt(rho * A)} {_fmt(rho * (Iy + Iz))} {_fmt(rho * Iy)} {_fmt(rho * Iz)} 0"
+                + (f" {_fmt(rho * Iw)}" if warp else ""),
             ]
             # SPACAR Light releases on the element's last beam only (spacarlight.m): DYNE the rest there
             rel = (
@@ -1510,11 +1536,15 @@ def _light_elements(
             if rel:
                 props.append(f"RLSE {ne} " + " ".join(map(str, rel)))
             vis.append(f"CROSSDIM {ne} {_fmt(w)} {_fmt(t)}")
+    return warped, notes
 
 
-def _light_nodes(nprops: list, props: list[str], errors: list[str]) -> None:
-    """SPACAR Light's nprops as FIX, INPUTX/DELINPX, XF and XM lines (user node i: X 2i-1, R 2i)."""
-    xn = lambda i: 2 * i - 1
+def _light_nodes(
+    nprops: list, props: list[str], errors: list[str], per_point: int = 2, warped: set[int] | None = None
+) -> None:
+    """SPACAR Light's nprops as FIX, INPUTX/DELINPX, XF and XM lines (user node i: X 2i-1, R 2i; with warping
+    X 3i-2, R 3i-1, W 3i, and ``fix_w`` as FIX of W 3i where a BEAMW ends at node i)."""
+    xn = lambda i: per_point * i - per_point + 1
     inputs = 0
     for i, npr in enumerate(nprops, start=1):
         if not npr:
@@ -1529,6 +1559,14 @@ def _light_nodes(nprops: list, props: list[str], errors: list[str]) -> None:
             props.append(f"FIX {X_}")
         if npr.get("fix_orien"):
             props.append(f"FIX {R_}")
+        if npr.get("fix_w"):
+            if i in (warped or set()):
+                props.append(f"FIX {R_ + 1}")
+            else:
+                errors.append(
+                    f"nprops({i}).fix_w: no element with enable_warping ends at node {i}, so it has no warping "
+                    "coordinate to fix; enable warping on its element set or remove fix_w"
+                )
         for k, ax in enumerate("xyz"):
             if npr.get(f"fix_{ax}"):
                 props.append(f"FIX {X_} {k + 1}")
@@ -1562,6 +1600,12 @@ def spacar_light(nodes, elements, nprops, eprops, opt: dict | None = None, name:
     and ``rot_x/y/z`` [rad] the input (one, with its final value); ``force`` [N]; ``mass`` [kg] and
     ``mominertia`` (Ixx Ixy Ixz Iyy Iyz Izz) [kg m^2]. eprops: ``elems``, ``emod``, ``smod``, ``dens``,
     ``cshape`` ('rect'), ``dim``, ``orien``, ``nbeams``, ``flex`` (flexible deformations; none: rigid).
+    Warping as SPACAR Light 2.01 "beamw" writes it: ``enable_warping`` (eprops) writes BEAMW elements with
+    ``EIw = E t^3 w^3 / 144`` and ``rhoIw`` (every point numbered X 3i-2, R 3i-1, W 3i) and ``fix_w`` (nprops)
+    FIXes node i's warping coordinate, read as :func:`read_dat` reads BEAMW (the member-level Vlasov factor);
+    ``cw`` (eprops, without ``enable_warping``) multiplies GJ of a plain BEAM by the both-ends factor of the
+    whole element, as SPACAR Light does (with flexopt's rectangle's J and Iw, so it equals a native
+    rectangular section with ``warping: both_ends``; a note in the report says so).
     Anything else (moments, circular sections, ...) is an error naming the table, entry and field.
     """
     errors: list[str] = []
@@ -1572,7 +1616,9 @@ def spacar_light(nodes, elements, nprops, eprops, opt: dict | None = None, name:
     nprops = list(nprops or [])
     opt = dict(opt or {})
     lines = [f"# {name}: SPACAR Light tables written as a .dat model by flexopt"]
-    xn = lambda i: 2 * i - 1
+    # SPACAR Light 2.01 "beamw" numbers a point as X 3i-2, R 3i-1, W 3i; without warping two nodes suffice
+    per_point = 3 if any(es.get("enable_warping") for es in eprops or []) else 2
+    xn = lambda i: per_point * i - per_point + 1
     count = len(P)
 
     def new_point(p: np.ndarray) -> int:
@@ -1587,8 +1633,10 @@ def spacar_light(nodes, elements, nprops, eprops, opt: dict | None = None, name:
     vis: list[str] = ["VISUALIZATION"]
     rls = opt.get("rls") or []
     rls = [rls.get(i + 1, rls.get(str(i + 1), {})) or {} for i in range(len(E_))] if isinstance(rls, dict) else rls
-    _light_elements(P, E_, eprops, new_point, lines, props, vis, errors, [dict(x or {}) for x in rls])
-    _light_nodes(nprops, props, errors)
+    warped, notes = _light_elements(
+        P, E_, eprops, new_point, lines, props, vis, errors, [dict(x or {}) for x in rls], per_point
+    )
+    _light_nodes(nprops, props, errors, per_point, warped)
     if "gravity" in opt:
         props.append("GRAVITY " + " ".join(_fmt(float(v)) for v in opt["gravity"]))
     if "loadsteps" in opt:
@@ -1602,7 +1650,9 @@ def spacar_light(nodes, elements, nprops, eprops, opt: dict | None = None, name:
     if errors:
         raise SpacarError(errors)
     text = "\n".join(lines + props + ["END"] + vis + ["END", "HALT"]) + "\n"
-    return read_dat(text, name)
+    imp = read_dat(text, name)
+    imp.notes.extend(notes)
+    return imp
 
 
 def spacar_dcc_of_scene(scene: Any) -> SpacarDcc:

@@ -13,13 +13,16 @@ against a SPACAR log**, none being available):
   rotational node a BEAM or HINGE names) its four Euler parameters ``lambda0..lambda3`` (reference
   ``(1, 0, 0, 0)``), with the rotation matrix ``R(lambda) = (lambda0^2 - v.v) I + 2 v v^T + 2 lambda0 [v]x``
   (``v = (lambda1, lambda2, lambda3)``; homogeneous of degree 2);
-- deformations ``e``: per BEAM the six of seed 002 eq. 2 in SI (eps1 elongation [m], eps2 torsion and
+- deformations ``e``: per BEAM (and BEAMW) the six of seed 002 eq. 2 in SI (eps1 elongation [m], eps2 torsion and
   eps3..eps6 bending, each ``l0`` times an angle [m]; ``c_t = (EIy + EIz)/EA`` from ESTIFF, 0 without);
   per TRUSS its elongation ``l - l0`` [m]; per HINGE (axis ``a``, at each node the triad ``(a, b, c)`` turned
   by its node's rotation) the relative rotation about ``a`` and about ``b`` and ``c``, each
   ``(t_i^p . t_j^q - t_j^p . t_i^q) / 2`` [rad]; per rotational node not wholly fixed, the normalisation
   ``lambda . lambda - 1``, a deformation that is always rigid (this module's reading of how SPACAR keeps four
   parameters for three rotations; a wholly fixed node's parameters are all known, so it adds no equation);
+- warping: a BEAMW's warping (W) nodes are left out, coordinates and deformations alike: SPACAR's definitions
+  of the BEAMW warping deformations are not known from a public source, and flexopt invents none (a note
+  says so);
 - partition (seed 002 eq. 4): ``x(o)`` the FIXed coordinates, ``x(m)`` the INPUTX and DYNX ones, ``x(c)`` the
   others; ``e(m)`` the DYNE deformations (a HINGE's with DYNE), ``e(c)`` the RLSE ones (left out of D_cc),
   ``e(o)`` the others: rigid (no DYNE) and the normalisations;
@@ -289,6 +292,12 @@ def spacar_dcc(text: str, singular_values: bool = True) -> SpacarDcc:
     n_dynamic = sum(1 for row in rows if row[1] == "dynamic")
     n_inputs = len({c for c in inputs if c in index and not (c[0] in used_r and c[1] == 1)})
     notes: list[str] = []
+    if r.warp:
+        notes.append(
+            f"BEAMW elements {sorted(r.warp)}: their six beam deformations on the X and R coordinates only; the "
+            "warping coordinates (W nodes) and any warping deformations are left out (SPACAR's BEAMW deformation "
+            "definitions are not public), so D_cc here may differ from SPACAR's by those rows and columns"
+        )
     unused = sorted(c for c in inputs if c not in index)
     if unused:
         notes.append(f"inputs on coordinates no element uses, left out: {unused}")
