@@ -833,9 +833,10 @@ def _warping_inertia(r: _Reader, e: dict, chain: list[int], L: float) -> None:
             r.err.add(
                 mln,
                 "EM",
-                f"element {ne}: warping inertia rhoIw = {m[5]:g} is not modelled and would change the torsion "
-                f"frequency of member {e['name']} by about {ratio / 2:.2%} (rho Iw (pi/L)^2 / (rho Ip) / 2): "
-                "flexopt has no warping inertia; model the part as several members, or set rhoIw 0 to accept that",
+                f"element {ne}: warping inertia rhoIw = {m[5]:g} is not modelled and would lower the torsion "
+                f"frequency of member {e['name']} by about {100 * ratio / 2:.2f} % (rho Iw (pi/L)^2 / (rho Ip) / 2): "
+                "flexopt has no warping inertia, so its torsion frequencies would read that much high; set rhoIw "
+                "to 0 to accept the model without it",
             )
         else:
             r.notes.append(

@@ -366,3 +366,62 @@ def stepped_guided_compliance(length: float, a: float, E: float, I1: float, I2: 
     gives L^3 / (12 E I), the clamped-guided beam."""
     f_ff, f_fm, f_mm = stepped_flexibilities(length, a, E, I1, I2)
     return f_ff - f_fm**2 / f_mm
+
+
+# Vlasov (non-uniform) torsion of a prismatic bar, for BEAMW's member-level mapping (tests/test_spacar_warping.py).
+IW_RECT = T**3 * W**3 / 144  # warping constant of the seed leaf, thin rectangle (Vlasov)
+
+
+def vlasov_twist(torque: float, gj: float, eiw: float, length: float, ends: str) -> float:
+    """End twist of a bar under end torque with warping clamped at one end ("one_end", the other free to warp)
+    or at both ("both_ends"), twist clamped at one end: T L / GJ (1 - tanh(aL)/(aL)) (Timoshenko and Gere,
+    Theory of Elastic Stability, sec. 5.4) and T L / GJ (1 - 2 tanh(aL/2)/(aL)) (the same equation, GJ theta'
+    - EIw theta''' = T, with theta' = 0 at both ends), a = sqrt(GJ / EIw)."""
+    aL = math.sqrt(gj / eiw) * length
+    t = math.tanh(aL) if ends == "one_end" else 2 * math.tanh(aL / 2)
+    return torque * length / gj * (1 - t / aL)
+
+
+def vlasov_torsion_hz(gj: float, eiw: float, rho_ip: float, length: float, tip_twist: str, warping: str) -> float:
+    """First torsional natural frequency [Hz] of a prismatic bar by Vlasov's equation without warping inertia,
+    EIw theta'''' - GJ theta'' = rho Ip omega^2 theta, solved exactly: theta = A cosh(p x) + B sinh(p x) +
+    C cos(q x) + D sin(q x) with p^2, -q^2 the roots of EIw s^2 - GJ s - rho Ip omega^2 = 0, and the first
+    omega at which the 4 x 4 boundary system is singular (scipy's brentq on its determinant, columns scaled).
+    Checked against a Hermite finite-element solution of the same equation (tests/test_spacar_warping.py).
+
+    At x = 0 twist and warping are clamped (theta = theta' = 0). At x = L: ``tip_twist`` "free" (torque
+    GJ theta' - EIw theta''' = 0) or "clamped" (theta = 0), and ``warping`` "both" (theta' = 0 there too) or
+    "base" (warping free at L: bimoment theta'' = 0). The scan starts at the St Venant frequency (warping only
+    stiffens) and steps by 0.1 % to the first sign change.
+    """
+    import numpy as np
+    from scipy.optimize import brentq
+
+    def det(om: float) -> float:
+        disc = math.sqrt(gj**2 + 4 * eiw * rho_ip * om**2)
+        p, q = math.sqrt((gj + disc) / (2 * eiw)), math.sqrt((disc - gj) / (2 * eiw))
+        # the cosh and sinh columns scaled by exp(-pL) (no overflow for a large alpha L; the determinant's sign
+        # and roots are unchanged by a positive column factor)
+        e = math.exp(-p * length)
+        ch, sh, c, s = (1 + e * e) / 2, (1 - e * e) / 2, math.cos(q * length), math.sin(q * length)
+        th = [ch, sh, c, s]
+        d1 = [p * sh, p * ch, -q * s, q * c]
+        d2 = [p**2 * ch, p**2 * sh, -(q**2) * c, -(q**2) * s]
+        d3 = [p**3 * sh, p**3 * ch, q**3 * s, -(q**3) * c]
+        torque = [gj * a - eiw * b for a, b in zip(d1, d3, strict=True)]
+        tip = {
+            ("free", "both"): [d1, d3],  # theta' = 0 and the torque GJ theta' - EIw theta''' = 0
+            ("free", "base"): [d2, torque],
+            ("clamped", "both"): [th, d1],
+            ("clamped", "base"): [th, d2],
+        }[(tip_twist, warping)]
+        M = np.array([[e, 0.0, 1.0, 0.0], [0.0, p * e, 0.0, q], *tip])
+        return float(np.linalg.det(M / np.abs(M).max(axis=0)))
+
+    f_sv = (0.25 if tip_twist == "free" else 0.5) / length * math.sqrt(gj / rho_ip)
+    grid = 2 * math.pi * f_sv * (1 + 1e-3 * np.arange(3000))
+    vals = [det(om) for om in grid]
+    for i in range(len(grid) - 1):
+        if vals[i] * vals[i + 1] < 0:
+            return brentq(det, grid[i], grid[i + 1], xtol=1e-12, rtol=1e-14) / (2 * math.pi)
+    raise ValueError("no root within 4 x the St Venant frequency")
