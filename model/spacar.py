@@ -1113,6 +1113,9 @@ class _Writer:
     center: dict[str, str] = field(default_factory=dict)  # body -> the node that carries its mass
     idx: dict[str, int] = field(default_factory=dict)
     share: dict[str, str] = field(default_factory=dict)  # a hinge's second node -> the node whose X it shares
+    beamw: bool = False  # members with constrained warping as BEAMW with warping nodes (three-node numbering)
+    extra_w: int = 0  # the last warping node number handed out beyond the points' 3i
+    w_fixed: set[int] = field(default_factory=set)
 
     def add_point(self, name: str, p: np.ndarray) -> None:
         self.pos[name] = p
@@ -1126,6 +1129,10 @@ class _Writer:
 
     def R(self, name: str) -> int:
         return self.xnum(self.idx[name]) + 1
+
+    def W(self, name: str) -> int:
+        """The warping node of point ``name`` (three-node numbering: 3i)."""
+        return self.xnum(self.idx[name]) + 2
 
 
 def _write_points(scene, w: _Writer) -> None:
@@ -1189,22 +1196,62 @@ def _write_elements(scene, w: _Writer, lines: list[str], props_lines: list[str],
             continue
         pr = section_properties(e.section)
         L = float(np.linalg.norm(w.pos[e.nodes[1]] - w.pos[e.nodes[0]]))
-        GJ = float(mat.G * pr.J * warping_factor(mat.E, mat.G, pr, L, pr.warping))
+        beamw = w.beamw and pr.warping != "free" and float(pr.Iw) > 0 and not {"torsion", "eps2"} & set(e.rigid)
+        factor = float(warping_factor(mat.E, mat.G, pr, L, pr.warping))
+        GJ = float(mat.G * pr.J * (1.0 if beamw else factor))
+        if pr.warping != "free" and not beamw:
+            lines.append(
+                f"# {e.name}: warping '{pr.warping}' written as GJ x {factor:.9g} (flexopt's member-level factor); "
+                "write_dat(..., warping='beamw') writes BEAMW with warping nodes instead"
+            )
+        ends = _warping_ends(scene, e, w, pr.warping) if beamw else {}
         for a, b in itertools.pairwise(chain):
             ne += 1
             y = e.y_axis
-            lines.append(f"BEAM {ne} {X(a)} {R(a)} {X(b)} {R(b)} {_fmt(y[0])} {_fmt(y[1])} {_fmt(y[2])}  # {e.name}")
+            oy = f"{_fmt(y[0])} {_fmt(y[1])} {_fmt(y[2])}"
+            if beamw:
+                wa, wb = ends.get(a, (w.W(a), False))[0], ends.get(b, (w.W(b), False))[0]
+                lines.append(f"BEAMW {ne} {X(a)} {R(a)} {wa} {X(b)} {R(b)} {wb} {oy}  # {e.name}")
+            else:
+                lines.append(f"BEAM {ne} {X(a)} {R(a)} {X(b)} {R(b)} {oy}  # {e.name}")
             rho = mat.density
             props_lines += [
                 f"ESTIFF {ne} {_fmt(mat.E * pr.A)} {_fmt(GJ)} {_fmt(mat.E * pr.Iy)} {_fmt(mat.E * pr.Iz)} "
-                f"{_fmt(pr.Sy)} {_fmt(pr.Sz)}",
-                f"EM {ne} {_fmt(rho * pr.A)} {_fmt(rho * (pr.Iy + pr.Iz))} {_fmt(rho * pr.Iy)} {_fmt(rho * pr.Iz)} 0",
+                f"{_fmt(pr.Sy)} {_fmt(pr.Sz)}" + (f" {_fmt(mat.E * float(pr.Iw))}" if beamw else ""),
+                f"EM {ne} {_fmt(rho * pr.A)} {_fmt(rho * (pr.Iy + pr.Iz))} {_fmt(rho * pr.Iy)} {_fmt(rho * pr.Iz)} 0"
+                + (" 0" if beamw else ""),
             ]
             if flex:
                 props_lines.append(f"DYNE {ne} " + " ".join(str(k) for k in flex))
             if e.section.kind == "rectangular":
                 vis.append(f"CROSSDIM {ne} {_fmt(e.section.width)} {_fmt(e.section.thickness)}")
+        for wn, fixed in sorted(set(ends.values())):
+            if fixed and wn not in w.w_fixed:
+                w.w_fixed.add(wn)
+                props_lines.append(f"FIX {wn}  # {e.name}: warping clamped")
     return ne
+
+
+def _warping_ends(scene, e, w: _Writer, warping: str) -> dict[str, tuple[int, bool]]:
+    """The warping nodes of member ``e``'s two end points and whether each is fixed: both for 'both_ends'; for
+    'one_end' (the factor does not say which end) the end whose node has the most supported rotations (a
+    clamp), else the first node. A free end shared with another member gets a warping node of its own (a
+    shared free one would couple the members' warping, which the reader refuses)."""
+    p, q = e.nodes
+    if warping == "both_ends":
+        clamped = {p, q}
+    else:
+        rot = {s.node: sum(d in ("rx", "ry", "rz") for d in s.dofs) for s in scene.supports if s.node is not None}
+        clamped = {q} if rot.get(q, 0) > rot.get(p, 0) else {p}
+    shared = {n for n in (p, q) if sum(n in f.nodes for f in scene.elements if f.kind == "beam") > 1}
+    out = {}
+    for n in (p, q):
+        if n in clamped or n not in shared:
+            out[n] = (w.W(n), n in clamped)
+        else:
+            w.extra_w += 1
+            out[n] = (w.extra_w, False)
+    return out
 
 
 def _write_bodies(scene, w: _Writer, lines: list[str], props_lines: list[str], ne: int) -> int:
@@ -1322,7 +1369,7 @@ def _write_loads(scene, w: _Writer, lines: list[str]) -> None:
         lines.append("GRAVITY " + " ".join(_fmt(v) for v in scene.gravity))
 
 
-def write_dat(scene, numbering: int = 2) -> str:
+def write_dat(scene, numbering: int = 2, warping: str = "factor") -> str:
     """A ``.dat`` text of ``scene`` (see the module docstring) that :func:`read_dat` reads back to the same model.
 
     Each scene node ``i`` (1-based, in order; then each beam's interior mesh nodes, then each body's centre of
@@ -1330,6 +1377,14 @@ def write_dat(scene, numbering: int = 2) -> str:
     written per segment with their stiffness (ESTIFF: E A, G J (times the member's warping factor), E Iy,
     E Iz) and mass (EM: rho A, rho (Iy + Iz), rho Iy, rho Iz); a rectangular section also as CROSSDIM. A rigid
     body is its centre-of-mass node with its mass and inertia (XM), joined to each of its nodes by a rigid beam.
+
+    Constrained warping (a section's ``warping`` 'one_end' or 'both_ends'): ``warping="factor"`` (default)
+    writes BEAM with GJ times the member's factor, so SPACAR computes flexopt's model; ``warping="beamw"``
+    writes BEAMW with warping nodes (three-node numbering, W 3i), EIw = E Iw and the warping nodes of the
+    clamped ends FIXed ('one_end': the end with the most supported rotations, else the first node), so a
+    SPACAR user's BEAMW file round-trips; SPACAR then models warping per element (its warping coordinates),
+    which differs from flexopt's factor in a vibration (docs: SPACAR models). rhoIw is written 0 (flexopt
+    has no warping inertia).
 
     Raises
     ------
@@ -1339,11 +1394,17 @@ def write_dat(scene, numbering: int = 2) -> str:
     """
     if numbering not in (2, 3):
         raise SceneError("numbering", f"numbering must be 2 or 3 SPACAR nodes per point, got {numbering}")
+    if warping not in ("factor", "beamw"):
+        raise SceneError("warping", f"warping must be 'factor' or 'beamw', got {warping!r}")
+    if warping == "beamw":
+        numbering = 3  # a warping node per point: X 3i-2, R 3i-1, W 3i
     lines = [f"# {scene.name}: written by flexopt (model.spacar.write_dat); SI units", ""]
     w = _Writer(
         numbering, {n.name: np.array(n.position, dtype=float) for n in scene.nodes}, [n.name for n in scene.nodes]
     )
+    w.beamw = warping == "beamw"
     _write_points(scene, w)
+    w.extra_w = w.xnum(len(w.order)) + 2
     for name in w.order:
         if name in w.share:
             continue  # its hinge partner's X
@@ -1406,7 +1467,7 @@ def _release_surplus(lines: list[str]) -> str:
         1,
         f"# SPACAR's D_cc (rows rigid + DYNE): {len(surplus)} dynamic deformations released (RLSE: calculated, "
         f"elastic with their ESTIFF stiffness), the surplus over the independent ones; D_cc now "
-        f"{d.m - len(surplus)} x {d.n}",
+        f"{d.m - len(surplus)} x {d.D_cc.shape[1]}",
     )
     return "\n".join(out) + "\n"
 
