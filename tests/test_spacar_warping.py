@@ -302,3 +302,33 @@ def test_spacar_light_warping_options(eprops, tip, ends):
 def test_spacar_light_fix_w_needs_a_warping_element():
     with pytest.raises(SceneError, match=r"nprops\(2\)\.fix_w: no element with enable_warping ends at node 2"):
         spacar_light([[0, 0, 0], [0.1, 0, 0]], [[1, 2]], [{"fix": True}, {"fix_w": True}], [LIGHT_SET])
+
+
+@pytest.mark.parametrize("mode", ["factor", "beamw"])
+@pytest.mark.parametrize("source", ["file", "leaf-spring", "cross-spring-pivot"])
+def test_export_of_constrained_warping_reads_back_the_same(mode, source):
+    """write_dat's two forms of constrained warping read back to the same frequencies to 1e-9: 'factor' (the
+    default: BEAM with GJ times the member factor, and a comment saying so; SPACAR then computes flexopt's model)
+    and 'beamw' (BEAMW with warping nodes, EIw, the clamped ends' W nodes FIXed: a BEAMW file round-trips; read
+    back as the same member factor). The BEAMW seed leaf file (both ends) and two templates with 'one_end'
+    (the W node at the clamped root fixed, the free end's own)."""
+    from flexopt.model.spacar import write_dat
+
+    if source == "file":
+        scene, _ = _scene(BEAMW)
+    else:
+        sc = template(source, points=3, warping="one_end")
+        scene = sc.model_copy(update={"stroke": sc.stroke.model_copy(update={"start": 0.0})})
+    text = write_dat(scene, warping=mode)
+    assert ("\nBEAMW " in text) == (mode == "beamw")  # (a body's rigid links are BEAM lines in either)
+    assert ("written as GJ x" in text) == (mode == "factor")
+    back = read_dat(text)
+    members = [e for e in back.scene["elements"] if e["kind"] == "beam"]
+    want = "both_ends" if source == "file" else "one_end"
+    if mode == "beamw":
+        assert {e["section"]["warping"] for e in members} == {want}
+    else:
+        assert all(e["section"].get("warping", "free") == "free" for e in members)  # GJ carries the factor
+    vals = scene.stroke.values()
+    back_scene = scene_from_dict(back.scene)
+    np.testing.assert_allclose(_curve(back_scene, vals).modes_hz, _curve(scene, vals).modes_hz, rtol=1e-9)
