@@ -10,14 +10,24 @@ so both numberings SPACAR Light writes (user node i as X 2i-1, R 2i, or X 3i-2, 
 Mapped keywords (reader and writer):
 
 - ``BEAM Ne Xp Rp Xq Rq Oy_x Oy_y Oy_z`` a spatial beam (Oy: the section's local y axis); ``TRUSS Ne Xp Xq``;
+- ``BEAMW Ne Xp Rp Wp Xq Rq Wq Oy_x Oy_y Oy_z`` the same beam with warping nodes (``W``; ``FIX W``: warping
+  clamped there): flexopt has no warping coordinate, so a member of BEAMW elements (a chain through shared,
+  unfixed warping nodes; a fixed interior one splits it) gets the general section's ``Iw = EIw / E`` and a
+  ``warping`` end condition (``FIX``ed end: clamped; an end's W node no other element uses: free), i.e. the
+  member-level Vlasov factor on GJ of :func:`model.sections.warping_factor` (static, prismatic: exact under end
+  torques), not SPACAR's element-level warping coordinates; the report says so per member. In a vibration
+  this reads low against Vlasov's exact solution (seed leaf: -0.55 % with both ends' warping clamped, -5.6 %
+  with the root's only, -13.5 % with the twist clamped at both ends; tests/test_spacar_warping.py);
 - ``DYNE Ne k...`` its dynamic deformations (1 elongation, 2 torsion, 3-4 bending about y, 5-6 about z) and
   ``RLSE Ne k...`` its released ones (calculated, e(c)), both flexible with the stiffness ESTIFF gives them
   (this reader's interpretation of RLSE, with its reasons on the docs' SPACAR page: being calculated says
   nothing about stiffness; SPACAR Light writes ESTIFF for the elements it releases); the others rigid; a beam
   with none flexible is rigid: the nodes it joins become one rigid body;
-- ``ESTIFF Ne EA GJ EIy EIz [Sy Sz [EIw]]`` (a truss: ``EA``; the shear flexibilities ``Sy = EIy / (k G A)``,
+- ``ESTIFF Ne EA GJ EIy EIz [Sy Sz [EIw]]`` (EIw: a BEAMW's warping stiffness; on a BEAM, with no warping
+  coordinate, it has no effect and the report says so) (a truss: ``EA``; the shear flexibilities ``Sy = EIy / (k G A)``,
   ``Sz`` as the general section's ``shear_y``, ``shear_z``: Timoshenko bending, model.elements) and ``EM Ne rhoA [rho(Iy+Iz) rhoIy rhoIz
-  [rhoIyz [rhoIw]]]``: each element gets a general section and its own material whose products are SPACAR's
+  [rhoIyz [rhoIw]]]`` (``rhoIw`` not modelled: its estimated effect on the torsion frequency, ``rho Iw
+  (pi/L)^2 / (rho Ip) / 2``, in the report, an error above 1 %): each element gets a general section and its own material whose products are SPACAR's
   numbers exactly (E nominal, A = EA / E, ...; with ``CROSSDIM Ne w t`` in the VISUALIZATION block, A = w t
   and the fibre distances for stresses, else stresses are not available);
 - ``FIX n [k...]`` (X node: coordinates 1-3 = x, y, z; R node: Euler parameters 2-4 = rx, ry, rz, all when
@@ -38,8 +48,8 @@ loads after it), and SPACAR Light's ``BEAMPROPS``/``CROSSTYPE RECT``/``CROSSDIM 
 :func:`write_dat` releases (RLSE) the dynamic deformations beyond a maximal independent set so the file's
 SPACAR D_cc has independent rows (:func:`model.spacar_dcc.surplus_dynamic_rows`).
 
-Not mapped (each an error naming the line, the keyword and why): ``BEAMW`` and warping stiffness (``EIw``),
-a released beam deformation or truss without ESTIFF (free), a locked ``HINGE`` or one with ESTIFF (a torsion
+Not mapped (each an error naming the line, the keyword and why): a free warping node shared by two members'
+elements (warping coupled across members), any line but FIX on a warping node, a released beam deformation or truss without ESTIFF (free), a locked ``HINGE`` or one with ESTIFF (a torsion
 spring), two R nodes at
 an X node without a HINGE (a spherical joint), a moment of neither 3 nor 4 values, ``ESIG``, several
 inputs with increments, and any keyword not listed. Lines of the
