@@ -332,3 +332,29 @@ def test_export_of_constrained_warping_reads_back_the_same(mode, source):
     vals = scene.stroke.values()
     back_scene = scene_from_dict(back.scene)
     np.testing.assert_allclose(_curve(back_scene, vals).modes_hz, _curve(scene, vals).modes_hz, rtol=1e-9)
+
+
+def test_general_section_warping_needs_its_constant_and_scales_with_units():
+    """A general section's constrained warping without Iw is refused in one line naming the fix (the factor
+    would silently be 1); Iw is a length^6 in a scene's units block (1 mm^6 = 1e-18 m^6)."""
+    from flexopt.model.units import scene_to_si
+
+    scene, _ = _scene(BEAMW)
+    d = scene.model_dump(mode="json")
+    d["elements"][0]["section"].pop("Iw")
+    with pytest.raises(SceneError, match=r"warping 'both_ends' needs the section's warping constant: give Iw > 0"):
+        scene_from_dict(d)
+    mm = {"units": {"length": "mm"}, "elements": [{"kind": "beam", "section": {"kind": "general", "Iw": 2.0}}]}
+    assert scene_to_si(mm)["elements"][0]["section"]["Iw"] == pytest.approx(2e-18, rel=1e-12)
+
+
+def test_spacar_dcc_of_beamw_leaves_the_warping_nodes_out():
+    """SPACAR's D_cc of the BEAMW leaf equals that of the same leaf written with BEAM (the six beam deformations
+    on X and R coordinates; the warping coordinates left out), and a note says so."""
+    from flexopt.model.spacar_dcc import spacar_dcc
+
+    plain = (DATA / "seed_leaf_3node.dat").read_text()
+    a, b = spacar_dcc(BEAMW), spacar_dcc(plain)
+    assert a.D_cc.shape == b.D_cc.shape and a.rank == b.rank and a.dof == b.dof
+    np.testing.assert_array_equal(a.D_cc, b.D_cc)
+    assert any("BEAMW elements [1, 2, 3, 4]" in n and "left out" in n for n in a.notes)
