@@ -207,6 +207,11 @@ class SpacarExportRequest(_Wire):
 
     scene: SceneDocument
     numbering: Literal[2, 3] = Field(2, description="SPACAR nodes per point: 2 (X 2i-1, R 2i) or 3 (X 3i-2, R 3i-1)")
+    warping: Literal["factor", "beamw"] = Field(
+        "factor",
+        description="constrained warping as BEAM with GJ times the member's Vlasov factor (factor) or as BEAMW "
+        "with warping nodes, EIw and the clamped ends' warping nodes fixed (beamw: three-node numbering)",
+    )
 
 
 class StateSpaceRequest(_Wire):

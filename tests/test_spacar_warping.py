@@ -358,3 +358,36 @@ def test_spacar_dcc_of_beamw_leaves_the_warping_nodes_out():
     assert a.D_cc.shape == b.D_cc.shape and a.rank == b.rank and a.dof == b.dof
     np.testing.assert_array_equal(a.D_cc, b.D_cc)
     assert any("BEAMW elements [1, 2, 3, 4]" in n and "left out" in n for n in a.notes)
+
+
+def test_cli_and_http_export_take_the_warping_form(tmp_path, capsys):
+    """``flexopt export --warping beamw`` and ``POST /v1/scenes/export`` with ``"warping": "beamw"`` write the
+    BEAMW form (warping nodes, EIw), the default the factor form; each reads back as the same member."""
+    import asyncio
+    import json
+
+    import httpx
+    from flexopt.service.api.app import create_app
+    from flexopt.service.cli.main import main
+
+    scene, _ = _scene(BEAMW)
+    path = tmp_path / "leaf.json"
+    path.write_text(scene.model_dump_json())
+    texts = {}
+    for mode in ("factor", "beamw"):
+        assert main(["export", str(path), "--warping", mode]) == 0
+        texts[mode] = capsys.readouterr().out
+
+    async def run():
+        async with httpx.AsyncClient(transport=httpx.ASGITransport(app=create_app()), base_url="http://127.0.0.1") as c:
+            body = {"scene": json.loads(scene.model_dump_json()), "warping": "beamw"}
+            return await c.post("/v1/scenes/export", json=body), await c.post(
+                "/v1/scenes/export", json={**body, "warping": "twisted"}
+            )
+
+    ok, bad = asyncio.run(run())
+    assert "\nBEAMW " not in texts["factor"] and "written as GJ x" in texts["factor"]
+    assert "\nBEAMW " in texts["beamw"] and ok.status_code == 200 and ok.text == texts["beamw"]
+    assert bad.status_code == 422 and "warping" in bad.text
+    members = [e for e in read_dat(texts["beamw"]).scene["elements"] if e["kind"] == "beam"]
+    assert {e["section"]["warping"] for e in members} == {"both_ends"}

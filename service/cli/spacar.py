@@ -28,6 +28,14 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         default=2,
         help="SPACAR nodes per point: 2 (X 2i-1, R 2i) or 3 (X 3i-2, R 3i-1, as SPACAR Light)",
     )
+    e.add_argument(
+        "--warping",
+        choices=["factor", "beamw"],
+        default="factor",
+        help="constrained warping as BEAM with GJ times the member's Vlasov factor (factor: SPACAR computes "
+        "flexopt's model) or as BEAMW with warping nodes, EIw and the clamped ends' warping nodes fixed (beamw: "
+        "three-node numbering; docs: SPACAR models)",
+    )
     e.set_defaults(func=_cmd_export)
     return i
 
@@ -61,5 +69,5 @@ def _cmd_import(args: argparse.Namespace) -> int:
 def _cmd_export(args: argparse.Namespace) -> int:
     from ...model.spacar import write_dat
 
-    sys.stdout.write(write_dat(scene_from_args(args), numbering=args.numbering))
+    sys.stdout.write(write_dat(scene_from_args(args), numbering=args.numbering, warping=args.warping))
     return 0

@@ -18,7 +18,7 @@ from ..guards import scene_from
 __all__ = ["router"]
 
 
-def _export(data: dict[str, Any], numbering: Any) -> str:
+def _export(data: dict[str, Any], numbering: Any, warping: str = "factor") -> str:
     """The scene's .dat text; numbers that break the section arithmetic (a zero area from subnormal sizes)
     are named (422), never a 500 (the fuzzer of issue 29 found one: ZeroDivisionError in the section)."""
     from ....model.errors import FlexoptError
@@ -26,7 +26,7 @@ def _export(data: dict[str, Any], numbering: Any) -> str:
 
     scene = scene_from(data)
     try:
-        return write_dat(scene, numbering=numbering)
+        return write_dat(scene, numbering=numbering, warping=warping)
     except FlexoptError:
         raise
     except Exception as exc:  # noqa: BLE001 - arithmetic on extreme numbers: named, never a 500
@@ -74,6 +74,6 @@ def router(prefix: str) -> APIRouter:
         summary="Write a scene as a SPACAR .dat model",
     )
     async def export_dat(req: SpacarExportRequest) -> PlainTextResponse:
-        return PlainTextResponse(await asyncio.to_thread(_export, req.scene, req.numbering))
+        return PlainTextResponse(await asyncio.to_thread(_export, req.scene, req.numbering, req.warping))
 
     return r
