@@ -325,3 +325,44 @@ def test_a_dask_cluster_survives_a_lost_worker_and_stops_when_it_has_none(tmp_pa
             assert time.perf_counter() - t0 < 30
     assert err.value.results[0]["id"] == case_id(tail[0]) and err.value.results[1] is None
     assert (tmp_path / f"{case_id(tail[0])}.json").exists() and not (tmp_path / f"{case_id(tail[1])}.json").exists()
+
+
+_FAULTS = """
+import resource, sys
+import numpy as np
+if sys.argv[1] == "1":
+    import flexopt.optim._preload  # noqa: F401
+n = (1 << 20) // 8  # a 1 MiB block, above glibc's fixed 128 KiB mmap threshold
+np.ones(n)  # a first one: glibc's dynamic threshold, when it is on, rises to it here
+f0 = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+for _ in range(200):
+    a = np.ones(n)
+    del a
+print(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0)
+"""
+
+
+@pytest.mark.skipif(
+    not sys.platform.startswith("linux") or __import__("platform").libc_ver()[0] != "glibc", reason="glibc's mallopt"
+)
+def test_the_worker_preload_undoes_the_dask_nannys_allocator_setting() -> None:
+    """A Dask nanny starts its workers with MALLOC_TRIM_THRESHOLD_=65536 (distributed.nanny.pre-spawn-environ),
+    which switches glibc's dynamic mmap threshold off: every freed 1 MiB block goes back to the system and the
+    next one faults its pages in again (a full-pass case took 1.5x the CPU: optim/_preload.py). The preload gives
+    the large-block reuse back. Counted in page faults, not timed: each of the 200 blocks faults in all of its
+    pages without the fix, and about none with it (the pages of a reused block are mapped already)."""
+    import os
+    import resource
+    import subprocess
+
+    env = {**os.environ, "MALLOC_TRIM_THRESHOLD_": "65536", "OPENBLAS_NUM_THREADS": "1"}
+    pages = (1 << 20) // resource.getpagesize()
+
+    def faults(preload: str) -> int:
+        out = subprocess.run(
+            [sys.executable, "-c", _FAULTS, preload], env=env, capture_output=True, text=True, check=True
+        )
+        return int(out.stdout.split()[-1])
+
+    assert faults("0") >= 200 * pages * 0.9, "the nanny's setting no longer costs faults: the test sees nothing"
+    assert faults("1") <= 200 * pages * 0.05
