@@ -351,12 +351,7 @@ def _jvp(
     with ``hessian=False`` only ``dg`` (the cheaper kernel), ``None`` for the others."""
     sys = fr.sys
     N = sys.N
-    a = fr.beam_in
-    da = np.zeros_like(a)
-    da[:, : _el.BEAM_STATE] = da_state
-    da[:, _el.BEAM_STATE : _el.BEAM_STATE + _el.BEAM_CONST] = dconst
-    spec = _el.beam_jvp_spec() if hessian else _el.beam_jvp_gradient_spec()
-    out = compiled(spec)(np.hstack([a, da]))
+    out = _jvp_kernel(fr, da_state, dconst, hessian)
     g = sys.reduce_vector(np.bincount(sys.beam_dofs.ravel(), out[:, :12].ravel(), minlength=N))
     if not hessian:
         return g, None, None
@@ -364,24 +359,55 @@ def _jvp(
     return g, sys.reduce_matrix(H), out[:, 156:162]
 
 
+def _jvp_kernel(fr: _Frame, da_state: np.ndarray, dconst: np.ndarray, hessian: bool) -> np.ndarray:
+    """The beam kernel's directional derivative along a change of the beam inputs, per beam: ``dg`` (12, at
+    ``sys.beam_dofs``), with ``hessian`` then ``dH`` (144, at ``sys.beam_flat``) and ``de`` (6)."""
+    a = fr.beam_in
+    da = np.zeros_like(a)
+    da[:, : _el.BEAM_STATE] = da_state
+    da[:, _el.BEAM_STATE : _el.BEAM_STATE + _el.BEAM_CONST] = dconst
+    spec = _el.beam_jvp_spec() if hessian else _el.beam_jvp_gradient_spec()
+    return compiled(spec)(np.hstack([a, da]))
+
+
 def _mass_derivative(fr: _Frame, psi: np.ndarray, d: StructureDerivative) -> np.ndarray:
     """``dM`` for master rotations ``psi`` (nm, 3) and the design change ``d`` (terms of System.mass)."""
-    sys, st = fr.sys, fr.st
-    s, N = sys.s, sys.N
-    m, Rm = fr.m, fr.Rm
+    sys = fr.sys
+    N = sys.N
+    blocks, masses, dJm = _mass_derivative_terms(fr, psi, d)
     out = np.zeros(N * N)
+    if blocks is not None:
+        out += np.bincount(sys.beam_flat, blocks.ravel(), minlength=N * N)
+    np.add.at(out, _mass_diag(sys) * (N + 1), masses)
+    np.add.at(out, sys.rot_flat, dJm.ravel())
+    out[(N - 1) * (N + 1)] = 0.0
+    return sys.reduce_matrix(out.reshape(N, N))
+
+
+def _mass_diag(sys: System) -> np.ndarray:
+    """Extended indices of every master's three translational DOFs, masters in order (System.mass's)."""
+    nm = len(sys.s.master_names)
+    return sys.pos[(6 * np.arange(nm)[:, None] + np.arange(3)).ravel()]
+
+
+def _mass_derivative_terms(
+    fr: _Frame, psi: np.ndarray, d: StructureDerivative
+) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
+    """The terms of ``dM`` (:func:`_mass_derivative`) before assembly: the beams' 12 x 12 blocks (nb, 144) at
+    ``sys.beam_flat`` (None without beams), the masters' translational masses (3 nm) on the diagonal at
+    :func:`_mass_diag` and their rotary inertias (nm, 3, 3) at ``sys.rot_flat``."""
+    sys, st = fr.sys, fr.st
+    s = sys.s
+    m, Rm = fr.m, fr.Rm
+    nm = len(s.master_names)
+    blocks = None
     if s.n_beams:  # the cubic consistent mass (model.elements.beam_mass_spec), differentiated by CasADi
-        nm = len(s.master_names)
         da = np.hstack(
             [_beam_inputs_change(fr, np.zeros((nm, 3)), psi, d.node_offset), d.beam_const, d.beam_mass[:, None]]
         )
         nc = _el.BEAM_STATE + _el.BEAM_CONST
         a = np.hstack([fr.beam_in[:, :nc], s.beam_mass[:, None]])
         blocks = compiled(_el.beam_mass_jvp_spec())(np.hstack([a, da]))
-        out += np.bincount(sys.beam_flat, blocks.ravel(), minlength=N * N)
-    nm = len(s.master_names)
-    diag = sys.pos[(6 * np.arange(nm)[:, None] + np.arange(3)).ravel()]
-    np.add.at(out, diag * (N + 1), np.repeat(d.master_mass, 3))
     dRn = skew(psi[m]) @ Rm
     dJn = (
         dRn @ s.node_rot_inertia @ Rm.transpose(0, 2, 1)
@@ -396,9 +422,7 @@ def _mass_derivative(fr: _Frame, psi: np.ndarray, d: StructureDerivative) -> np.
         + st.R @ d.master_inertia @ st.R.transpose(0, 2, 1)
         + st.R @ s.master_inertia @ dRb.transpose(0, 2, 1)
     )
-    np.add.at(out, sys.rot_flat, dJm.ravel())
-    out[(N - 1) * (N + 1)] = 0.0
-    return sys.reduce_matrix(out.reshape(N, N))
+    return blocks, np.repeat(d.master_mass, 3), dJm
 
 
 class _LoadFrame:
@@ -573,6 +597,24 @@ def point_sensitivity(
     vm2 = vm_out[0].full().T
     vm = np.sqrt(vm2)
     Jvm = vm_out[1].full().T.reshape(len(z), 13, 2).transpose(0, 2, 1)  # (nb, 2, 13): d(vm^2)/dz
+    pf = phi[dofs]
+    # Without loads, each eigenvalue derivative needs only the quadratic forms phi^T dK phi and phi^T dM phi of the
+    # tracked modes: summed entry by entry over the assembled terms (the element blocks at their flat indices in
+    # the extended numbering, with the modes carried there: y = E phi, reduce_matrix's congruence, zero on the
+    # DOFs free_block leaves out), instead of assembling, reducing and cutting two N x N matrices per direction
+    # (measured: half of a full-pass case of the 3-stage default spec). The same sums in another order.
+    quad = lf is None
+    if quad:
+        N = sys.N
+        Y = np.zeros((N, len(which)))
+        Y[dofs] = pf
+        if not sys.direct:
+            Y[n : n + 3] = sys.Qa @ Y[sys.block_pos]
+        r_, c_ = np.divmod(sys.beam_flat, N)
+        w_beam = Y[r_] * Y[c_]
+        w_diag = Y[_mass_diag(sys)] ** 2
+        r_, c_ = np.divmod(sys.rot_flat, N)
+        w_rot = Y[r_] * Y[c_]
     dlam = np.zeros((len(dstructs), len(which)))
     dvm2 = np.zeros((len(dstructs), s.n_beams, 2))
     dxis = np.zeros((len(dstructs), n))
@@ -592,20 +634,34 @@ def point_sensitivity(
         dxi = sla.lu_solve(lu, rhs, check_finite=False)
         v = sys.to_global(dxi).reshape(nm, 6)
         da_total = da_design + _beam_inputs_change(fr, v[:, :3], v[:, 3:], np.zeros_like(d.node_offset))
-        _, dH, de = _jvp(fr, da_total, d.beam_const)
-        if lf is not None:
+        if quad:
+            out = _jvp_kernel(fr, da_total, d.beam_const, True)
+            de = out[:, 156:162]
+            qK = out[:, 12:156].ravel() @ w_beam
+            blocks, masses, dJm = _mass_derivative_terms(fr, v[:, 3:], d)
+            qM = masses @ w_diag + dJm.ravel() @ w_rot
+            if blocks is not None:
+                qM = qM + blocks.ravel() @ w_beam
+            for g_ in groups:
+                if len(g_) == 1:
+                    i = g_[0]
+                    dlam[j, i] = qK[i] - lam[i] * qM[i]
+                else:
+                    lc = float(np.mean(lam[g_]))
+                    dlam[j, g_] = float(np.sum(qK[g_] - lc * qM[g_])) / len(g_)
+        else:
+            _, dH, de = _jvp(fr, da_total, d.beam_const)
             dH = dH + lf.jvp(da_total, v[:, 3:], d, gradient=False)
-        dM = _mass_derivative(fr, v[:, 3:], d)
-        dK, dMf = sys.free_block(dH, locked), sys.free_block(dM, locked)
-        pf = phi[dofs]
-        for g_ in groups:
-            P = pf[:, g_]
-            if len(g_) == 1:
-                i = g_[0]
-                dlam[j, i] = P[:, 0] @ (dK - lam[i] * dMf) @ P[:, 0]
-            else:
-                lc = float(np.mean(lam[g_]))
-                dlam[j, g_] = np.trace(P.T @ (dK - lc * dMf) @ P) / len(g_)
+            dM = _mass_derivative(fr, v[:, 3:], d)
+            dK, dMf = sys.free_block(dH, locked), sys.free_block(dM, locked)
+            for g_ in groups:
+                P = pf[:, g_]
+                if len(g_) == 1:
+                    i = g_[0]
+                    dlam[j, i] = P[:, 0] @ (dK - lam[i] * dMf) @ P[:, 0]
+                else:
+                    lc = float(np.mean(lam[g_]))
+                    dlam[j, g_] = np.trace(P.T @ (dK - lc * dMf) @ P) / len(g_)
         dS = _stiffness(d.beam_const[:, 10:14])
         e_m = ev.e_beam * s.beam_mask
         dsig = np.einsum("eij,ej->ei", dS, e_m) + np.einsum("eij,ej->ei", s.beam_stiff, de * s.beam_mask)
