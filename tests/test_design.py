@@ -194,3 +194,28 @@ def test_gradient_only_jvp_kernel_equals_the_full_kernel() -> None:
     a = np.hstack([sys_.beam_in, rng.standard_normal(sys_.beam_in.shape)])
     assert np.array_equal(grad(a), full(a)[:, :12])
     assert np.abs(grad(a)).max() > 0
+
+
+def test_the_scene_trace_is_kept_per_candidate_gives_a_fresh_traces_numbers_and_is_bounded() -> None:
+    """trace_template keeps the traced scene Jacobian per (template, fixed parameters, design names): another
+    design of the same candidate reuses it with exactly the numbers of a fresh trace (reference: the same call
+    after the store is emptied); a fixed parameter's other value is another trace; the store keeps the most
+    recent SCENE_JAC_ENTRIES."""
+    from flexopt.model import design
+
+    names = ["length", "thickness"]
+    base = {"length": 0.05, "thickness": 3e-4}
+    moved = {"length": 0.055, "thickness": 3.2e-4}
+    design._SCENE_JAC.clear()
+    trace_template("cross-spring-pivot", base, names)
+    kept = trace_template("cross-spring-pivot", moved, names)
+    assert len(design._SCENE_JAC) == 1, "another design of the same candidate: the same trace"
+    design._SCENE_JAC.clear()
+    fresh = trace_template("cross-spring-pivot", moved, names)
+    assert kept.dscene == fresh.dscene and kept.scene_dict == fresh.scene_dict
+    assert any(v != 0 for v in kept.dscene[0]["nodes"][-1]["position"]), "a derivative that is not all zeros"
+    trace_template("cross-spring-pivot", {**moved, "width": 0.012}, names)
+    assert len(design._SCENE_JAC) == 2, "another fixed width: another trace"
+    for i in range(design.SCENE_JAC_ENTRIES + 5):
+        trace_template("cross-spring-pivot", {**base, "width": 0.01 + 1e-4 * i}, names)
+    assert len(design._SCENE_JAC) == design.SCENE_JAC_ENTRIES
