@@ -358,6 +358,39 @@ def _beam_inputs_change(fr: _Frame, u: np.ndarray, psi: np.ndarray, dr0: np.ndar
     return out
 
 
+def _beam_inputs_change_many(fr: _Frame, u: np.ndarray, psi: np.ndarray, dr0: np.ndarray) -> np.ndarray:
+    """:func:`_beam_inputs_change` for D directions at once: ``u``, ``psi`` (D, nm, 3), ``dr0`` (D, nn, 3) ->
+    (D, nb, BEAM_STATE)."""
+    m, Rm, p, q, r = fr.m, fr.Rm, fr.p, fr.q, fr.r
+    pm = psi[:, m]
+    dr = np.empty(pm.shape)
+    dr[..., 0] = pm[..., 1] * r[:, 2] - pm[..., 2] * r[:, 1]
+    dr[..., 1] = pm[..., 2] * r[:, 0] - pm[..., 0] * r[:, 2]
+    dr[..., 2] = pm[..., 0] * r[:, 1] - pm[..., 1] * r[:, 0]
+    dr += np.einsum("nij,dnj->dni", Rm, dr0)
+    dx = u[:, m] + dr
+    dR = skew(pm) @ Rm
+    D = len(psi)
+    out = np.zeros((D, len(p), _el.BEAM_STATE))
+    out[..., 0:3], out[..., 12:15], out[..., 15:18], out[..., 27:30] = dx[:, p], dr[:, p], dx[:, q], dr[:, q]
+    out[..., 3:12] = dR[:, p].transpose(0, 1, 3, 2).reshape(D, -1, 9)
+    out[..., 18:27] = dR[:, q].transpose(0, 1, 3, 2).reshape(D, -1, 9)
+    return out
+
+
+def _jvp_kernel_many(fr: _Frame, da_state: np.ndarray, dconst: np.ndarray, hessian: bool) -> np.ndarray:
+    """:func:`_jvp_kernel` for D directions in one call: ``da_state`` (D, nb, BEAM_STATE), ``dconst`` (D, nb,
+    BEAM_CONST) -> (D, nb, outputs)."""
+    a = fr.beam_in
+    D, nb = da_state.shape[:2]
+    x = np.zeros((D, nb, 2 * a.shape[1]))
+    x[:, :, : a.shape[1]] = a
+    x[:, :, a.shape[1] : a.shape[1] + _el.BEAM_STATE] = da_state
+    x[:, :, a.shape[1] + _el.BEAM_STATE : a.shape[1] + _el.BEAM_STATE + _el.BEAM_CONST] = dconst
+    spec = _el.beam_jvp_spec() if hessian else _el.beam_jvp_gradient_spec()
+    return compiled(spec)(x.reshape(D * nb, -1)).reshape(D, nb, -1)
+
+
 @overload
 def _jvp(
     fr: _Frame, da_state: np.ndarray, dconst: np.ndarray, hessian: Literal[True] = ...
@@ -637,6 +670,8 @@ def point_sensitivity(
         w_diag = Y[_mass_diag(sys)] ** 2
         r_, c_ = np.divmod(sys.rot_flat, N)
         w_rot = Y[r_] * Y[c_]
+    if quad and len(dstructs):
+        return _directions_at_once(sys, eq, A, lu, lam, groups, act, fr, dstructs, vm, Jvm, (w_beam, w_diag, w_rot))
     dlam = np.zeros((len(dstructs), len(which)))
     dvm2 = np.zeros((len(dstructs), s.n_beams, 2))
     dxis = np.zeros((len(dstructs), n))
@@ -656,34 +691,19 @@ def point_sensitivity(
         dxi = sla.lu_solve(lu, rhs, check_finite=False)
         v = sys.to_global(dxi).reshape(nm, 6)
         da_total = da_design + _beam_inputs_change(fr, v[:, :3], v[:, 3:], np.zeros_like(d.node_offset))
-        if quad:
-            out = _jvp_kernel(fr, da_total, d.beam_const, True)
-            de = out[:, 156:162]
-            qK = out[:, 12:156].ravel() @ w_beam
-            blocks, masses, dJm = _mass_derivative_terms(fr, v[:, 3:], d)
-            qM = masses @ w_diag + dJm.ravel() @ w_rot
-            if blocks is not None:
-                qM = qM + blocks.ravel() @ w_beam
-            for g_ in groups:
-                if len(g_) == 1:
-                    i = g_[0]
-                    dlam[j, i] = qK[i] - lam[i] * qM[i]
-                else:
-                    lc = float(np.mean(lam[g_]))
-                    dlam[j, g_] = float(np.sum(qK[g_] - lc * qM[g_])) / len(g_)
-        else:
-            _, dH, de = _jvp(fr, da_total, d.beam_const)
+        _, dH, de = _jvp(fr, da_total, d.beam_const)
+        if lf is not None:
             dH = dH + lf.jvp(da_total, v[:, 3:], d, gradient=False)
-            dM = _mass_derivative(fr, v[:, 3:], d)
-            dK, dMf = sys.free_block(dH, locked), sys.free_block(dM, locked)
-            for g_ in groups:
-                P = pf[:, g_]
-                if len(g_) == 1:
-                    i = g_[0]
-                    dlam[j, i] = P[:, 0] @ (dK - lam[i] * dMf) @ P[:, 0]
-                else:
-                    lc = float(np.mean(lam[g_]))
-                    dlam[j, g_] = np.trace(P.T @ (dK - lc * dMf) @ P) / len(g_)
+        dM = _mass_derivative(fr, v[:, 3:], d)
+        dK, dMf = sys.free_block(dH, locked), sys.free_block(dM, locked)
+        for g_ in groups:
+            P = pf[:, g_]
+            if len(g_) == 1:
+                i = g_[0]
+                dlam[j, i] = P[:, 0] @ (dK - lam[i] * dMf) @ P[:, 0]
+            else:
+                lc = float(np.mean(lam[g_]))
+                dlam[j, g_] = np.trace(P.T @ (dK - lc * dMf) @ P) / len(g_)
         dS = _stiffness(d.beam_const[:, 10:14])
         e_m = ev.e_beam * s.beam_mask
         dsig = np.einsum("eij,ej->ei", dS, e_m) + np.einsum("eij,ej->ei", s.beam_stiff, de * s.beam_mask)
@@ -695,6 +715,105 @@ def point_sensitivity(
     with np.errstate(divide="ignore", invalid="ignore"):
         dvm = np.where(vm > 0, dvm2 / (2 * vm), np.nan)
     return PointSensitivity(dlam, dvm, vm, dvm2, dxis, dreac)
+
+
+def _directions_at_once(
+    sys: System,
+    eq: Equilibrium,
+    A: np.ndarray,
+    lu: tuple,
+    lam: np.ndarray,
+    groups: list[list[int]],
+    act: np.ndarray,
+    fr: _Frame,
+    dstructs: Sequence[StructureDerivative],
+    vm: np.ndarray,
+    Jvm: np.ndarray,
+    weights: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> PointSensitivity:
+    """:func:`point_sensitivity` of a scene without loads, every design direction at once: the same steps as its
+    loop (the implicit-function move, the element derivatives along the total input change, the eigenvalue
+    derivatives as quadratic forms with ``weights``: the products of the carried modes at the beams' flat
+    indices, the masters' translational diagonal and their rotation blocks), each a single batched kernel
+    call, solve or product over the D directions instead of D small ones (measured: a quarter of
+    point_sensitivity's time on the 3-stage hinges at 8 segments was the loop's per-call overhead)."""
+    s, st, ev = sys.s, eq.state, eq.ev
+    n, f, N = sys.n, sys.free, sys.N
+    nm, nb, D = len(s.master_names), s.n_beams, len(dstructs)
+    w_beam, w_diag, w_rot = weights
+    master_pos = np.stack([d.master_pos for d in dstructs])
+    dr0 = np.stack([d.node_offset for d in dstructs])
+    dconst = np.stack([d.beam_const for d in dstructs])
+    zero = np.zeros((D, nm, 3))
+    # prescribed master positions move with the reference (supports; a translation drive below)
+    da_design = _beam_inputs_change_many(fr, np.where(act[None, :, :3], 0.0, master_pos), zero, dr0)
+    og = _jvp_kernel_many(fr, da_design, dconst, hessian=False)[:, :, :12]
+    dofs = sys.beam_dofs.ravel()
+    ext = np.bincount((dofs[None, :] + N * np.arange(D)[:, None]).ravel(), og.reshape(D, -1).ravel(), minlength=D * N)
+    ext = ext.reshape(D, N)
+    dg = ext[:, :n].copy()
+    if not sys.direct:
+        dg[:, sys.block_pos] += ext[:, n : n + 3] @ sys.Qa  # reduce_vector, row by row
+    rhs = np.zeros((len(f) + 1, D))
+    rhs[: len(f)] = -dg[:, f].T
+    if s.drive_kind == "translation":
+        rhs[-1] = master_pos[:, s.drive_master] @ s.drive_axis
+    dxi = sla.lu_solve(lu, rhs, check_finite=False)  # (n, D)
+    v = sys.to_global(dxi).T.reshape(D, nm, 6)
+    psi = v[:, :, 3:]
+    da_total = da_design + _beam_inputs_change_many(fr, v[:, :, :3], psi, np.zeros_like(dr0))
+    out = _jvp_kernel_many(fr, da_total, dconst, hessian=True)
+    de = out[:, :, 156:162]
+    qK = out[:, :, 12:156].reshape(D, -1) @ w_beam
+    # dM's terms (_mass_derivative_terms), every direction at once
+    m, Rm = fr.m, fr.Rm
+    qM = np.repeat(np.stack([d.master_mass for d in dstructs]), 3, axis=1) @ w_diag
+    if nb:
+        nc = _el.BEAM_STATE + _el.BEAM_CONST
+        a = np.hstack([fr.beam_in[:, :nc], s.beam_mass[:, None]])
+        x = np.empty((D, nb, 2 * a.shape[1]))
+        x[:, :, : a.shape[1]] = a
+        x[:, :, a.shape[1] : a.shape[1] + _el.BEAM_STATE] = _beam_inputs_change_many(fr, zero, psi, dr0)
+        x[:, :, a.shape[1] + _el.BEAM_STATE : a.shape[1] + nc] = dconst
+        x[:, :, a.shape[1] + nc] = np.stack([d.beam_mass for d in dstructs])
+        blocks = compiled(_el.beam_mass_jvp_spec())(x.reshape(D * nb, -1))
+        qM = qM + blocks.reshape(D, -1) @ w_beam
+    dRn = skew(psi[:, m]) @ Rm
+    RmT = Rm.transpose(0, 2, 1)
+    dJn = (
+        dRn @ s.node_rot_inertia @ RmT
+        + Rm @ np.stack([d.node_rot_inertia for d in dstructs]) @ RmT
+        + Rm @ s.node_rot_inertia @ dRn.transpose(0, 1, 3, 2)
+    )
+    dJm = np.zeros((nm, D, 3, 3))
+    np.add.at(dJm, m, dJn.transpose(1, 0, 2, 3))
+    dJm = dJm.transpose(1, 0, 2, 3)
+    dRb = skew(psi) @ st.R
+    RT = st.R.transpose(0, 2, 1)
+    dJm = dJm + (
+        dRb @ s.master_inertia @ RT
+        + st.R @ np.stack([d.master_inertia for d in dstructs]) @ RT
+        + st.R @ s.master_inertia @ dRb.transpose(0, 1, 3, 2)
+    )
+    qM = qM + dJm.reshape(D, -1) @ w_rot
+    dlam = np.zeros((D, len(lam)))
+    for g_ in groups:
+        if len(g_) == 1:
+            i = g_[0]
+            dlam[:, i] = qK[:, i] - lam[i] * qM[:, i]
+        else:
+            lc = float(np.mean(lam[g_]))
+            dlam[:, g_] = (np.sum(qK[:, g_] - lc * qM[:, g_], axis=1) / len(g_))[:, None]
+    dS = _stiffness(dconst[:, :, 10:14].reshape(D * nb, 4)).reshape(D, nb, 6, 6)
+    e_m = ev.e_beam * s.beam_mask
+    dsig = np.einsum("deij,ej->dei", dS, e_m) + np.einsum("eij,dej->dei", s.beam_stiff, de * s.beam_mask)
+    dz = np.concatenate([dsig, np.stack([d.beam_stress for d in dstructs])], axis=2)
+    dvm2 = np.einsum("ekz,dez->dek", Jvm, dz)
+    # reaction = g at the drive DOF: its change at fixed state plus along the equilibrium's move
+    dreac = dg[:, sys.drive] + A[sys.drive] @ dxi
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dvm = np.where(vm > 0, dvm2 / (2 * vm), np.nan)
+    return PointSensitivity(dlam, dvm, vm, dvm2, dxi.T.copy(), dreac)
 
 
 #: the mapped von Mises Jacobians kept, one per beam count (least recently used dropped past it): a process
