@@ -69,6 +69,7 @@ __all__ = [
     "trace_template",
     "StructureDerivative",
     "structure_derivative",
+    "structure_derivatives",
     "PointSensitivity",
     "point_sensitivity",
 ]
@@ -241,12 +242,35 @@ def _segment_input(scene_dict: dict, ie: int, pos: dict, mats: dict) -> tuple[np
     return x, float(el.get("segments", 1)), sec.get("warping", "free")
 
 
-def structure_derivative(s: Structure, scene_dict: dict, dscene: dict) -> StructureDerivative:
-    """Derivative of the structure arrays of ``scene_dict`` along ``dscene`` (see :class:`DesignScene`)."""
-    _check_scope(s)
+def _segment_jacobians(s: Structure, scene_dict: dict) -> dict[int, np.ndarray]:
+    """Per beam element of ``scene_dict``: the Jacobian of its segments' formulas
+    (:func:`model.elements.beam_segment_design`) at the element's inputs, the same for every design direction."""
     pos = {n["name"]: np.asarray(n["position"], float) for n in scene_dict["nodes"]}
-    dpos = {n["name"]: np.asarray(d["position"], float) for n, d in zip(scene_dict["nodes"], dscene["nodes"])}
     mats = {m["name"]: m for m in scene_dict["materials"]}
+    out = {}
+    for ie in np.unique(s.beam_member):
+        x, n, warping = _segment_input(scene_dict, int(ie), pos, mats)
+        out[int(ie)] = np.asarray(_el.beam_segment_design(warping)(x, n)[1])
+    return out
+
+
+def structure_derivatives(s: Structure, scene_dict: dict, dscenes: Sequence[dict]) -> list[StructureDerivative]:
+    """:func:`structure_derivative` along each of ``dscenes`` (a :class:`DesignScene`'s ``dscene``), the segment
+    formulas' Jacobians evaluated once for all of them instead of once per direction."""
+    _check_scope(s)
+    jacobians = _segment_jacobians(s, scene_dict)
+    return [structure_derivative(s, scene_dict, d, jacobians) for d in dscenes]
+
+
+def structure_derivative(
+    s: Structure, scene_dict: dict, dscene: dict, jacobians: dict[int, np.ndarray] | None = None
+) -> StructureDerivative:
+    """Derivative of the structure arrays of ``scene_dict`` along ``dscene`` (see :class:`DesignScene`);
+    ``jacobians``: :func:`_segment_jacobians` of ``scene_dict`` when the caller has them."""
+    _check_scope(s)
+    if jacobians is None:
+        jacobians = _segment_jacobians(s, scene_dict)
+    dpos = {n["name"]: np.asarray(d["position"], float) for n, d in zip(scene_dict["nodes"], dscene["nodes"])}
     dmats = {m["name"]: d for m, d in zip(scene_dict["materials"], dscene["materials"])}
     el_index = {e["name"]: i for i, e in enumerate(scene_dict["elements"])}
     nb, nn, nm = s.n_beams, len(s.node_names), len(s.master_names)
@@ -280,7 +304,6 @@ def structure_derivative(s: Structure, scene_dict: dict, dscene: dict) -> Struct
     drot = np.zeros((nb, 3, 3))
     for ie in np.unique(s.beam_member):
         rows = np.flatnonzero(s.beam_member == ie)
-        x, n, warping = _segment_input(scene_dict, int(ie), pos, mats)
         el = dscene["elements"][ie]
         p, q = scene_dict["elements"][ie]["nodes"]
         dm = dmats[scene_dict["elements"][ie]["material"]]
@@ -292,8 +315,7 @@ def structure_derivative(s: Structure, scene_dict: dict, dscene: dict) -> Struct
                 [el["section"]["width"], el["section"]["thickness"], dm["E"], dm["G"], dm["density"]],
             ]
         ).astype(float)
-        _, J = _el.beam_segment_design(warping)(x, n)
-        d = np.asarray(J) @ dx
+        d = jacobians[int(ie)] @ dx
         dconst[rows, :15] = d[:15]
         dbmass[rows] = d[15]
         drot[rows] = d[16:25].reshape(3, 3, order="F")

@@ -61,7 +61,7 @@ from scipy.optimize import BFGS, Bounds, NonlinearConstraint, minimize, nnls
 from scipy.stats import qmc
 
 from ..model.curve import Analysis
-from ..model.design import point_sensitivity, structure_derivative, trace_template
+from ..model.design import point_sensitivity, structure_derivatives, trace_template
 from ..model.errors import FlexoptError
 from ..model.results import ResultWarning
 from ..model.templates import TEMPLATES, start_value
@@ -224,7 +224,7 @@ class FamilyEvaluator:
         an = Analysis(ds.scene)
         s = an.structure
         scale = self.hi - self.lo
-        dstructs = [structure_derivative(s, ds.scene_dict, d) for d in ds.dscene]
+        dstructs = structure_derivatives(s, ds.scene_dict, ds.dscene)
         rows_f: list[tuple[float, np.ndarray, float, str]] = []
         rows_g: list[tuple[float, np.ndarray, float, str, str]] = []  # value, gradient, stroke, kind, label
         stroke = ds.scene.stroke

@@ -219,3 +219,22 @@ def test_the_scene_trace_is_kept_per_candidate_gives_a_fresh_traces_numbers_and_
     for i in range(design.SCENE_JAC_ENTRIES + 5):
         trace_template("cross-spring-pivot", {**base, "width": 0.01 + 1e-4 * i}, names)
     assert len(design._SCENE_JAC) == design.SCENE_JAC_ENTRIES
+
+
+def test_structure_derivatives_of_every_direction_equal_each_directions_own() -> None:
+    """structure_derivatives evaluates the segment formulas' Jacobians once for all directions: the same numbers
+    as structure_derivative direction by direction (reference: that per-direction call)."""
+    from dataclasses import fields
+
+    from flexopt.model.design import structure_derivatives
+
+    ds = trace_template("cross-spring-pivot", {}, ["length", "thickness", "width", "body_mass"])
+    s = compile_scene(ds.scene)
+    together = structure_derivatives(s, ds.scene_dict, ds.dscene)
+    assert len(together) == 4
+    for d, one in zip(ds.dscene, together):
+        alone = structure_derivative(s, ds.scene_dict, d)
+        for f in fields(alone):
+            a, b = getattr(alone, f.name), getattr(one, f.name)
+            assert np.array_equal(a, b) if isinstance(a, np.ndarray) else a == b, f.name
+    assert np.abs(together[1].beam_const).max() > 0, "the thickness changes the beams' constants"
