@@ -106,6 +106,8 @@ class _Eval:
     strokes: np.ndarray | None = None  # stroke (user unit) of each constraint row; nan for the envelope
     kinds: np.ndarray | None = None  # "frequency", "stress", "drive", "envelope" per row
     labels: list[str] = field(default_factory=list)  # what each row bounds, for the report
+    hz: np.ndarray | None = None  # the frequency rows' frequencies [Hz] (unscaled)
+    peaks: dict[float, float] | None = None  # per stroke sample (user unit): the largest von Mises stress there
 
 
 def _bounds(fam: Family, prob: Problem) -> tuple[list[str], np.ndarray, np.ndarray]:
@@ -232,6 +234,7 @@ class FamilyEvaluator:
         unit = stroke.resolved_unit
         to_user = (lambda v: float(np.degrees(v))) if unit == "deg" else float
         pts: dict[float, tuple[float, float]] = {}
+        peaks: dict[float, float] = {}
         mats = {m.name: m for m in ds.scene.materials}
         allow = min(mats[e.material].allowable_stress for e in ds.scene.elements) / prob.safety_factor
         member = [s.member_names[i] for i in s.beam_member]
@@ -274,6 +277,7 @@ class FamilyEvaluator:
                     )
                 )
             pts[eq.stroke] = (float(hz[0]), float(np.max(ps.vm)))
+            peaks[su] = float(np.max(ps.vm))
 
         if prob.envelope is not None:
             for pos, dpos, name in envelope_points(ds.scene_dict, ds.dscene):
@@ -358,6 +362,8 @@ class FamilyEvaluator:
             strokes=np.array([r[2] for r in rows_f] + [r[2] for r in rows_g]),
             kinds=np.array(["frequency"] * nf + [r[3] for r in rows_g]),
             labels=[r[3] for r in rows_f] + [r[4] for r in rows_g],
+            hz=f,
+            peaks=peaks,
         )
 
     def n_frequency(self) -> int:
@@ -387,8 +393,40 @@ class FamilyEvaluator:
                     return False
                 used[j] = True
         self.samples = self.samples[self.samples >= 0]
-        self._last = self._good = None
+        self._last = self._good = self._restricted(ev)
         return True
+
+    def _restricted(self, ev: _Eval) -> _Eval | None:
+        """``ev`` restricted to the non-negative samples (with the rows of no sample: envelope, validity): what
+        an evaluation at ``ev.x`` on :meth:`reduce_symmetric`'s samples gives, without computing it again. The
+        walk to each side of zero starts at the same reference equilibrium, so the rows of the non-negative side
+        are the same numbers (measured bitwise on the 2- and 3-stage hinges at 4 and 8 segments); the worst case,
+        its stroke and the peak stress are taken over those rows and samples as that evaluation takes them.
+        None (evaluate again) for an evaluation without the per-row frequencies and per-sample peaks."""
+        if ev.strokes is None or ev.hz is None or ev.peaks is None or ev.kinds is None:
+            return None
+        keep = np.isnan(ev.strokes) | (ev.strokes >= 0)
+        nf = len(ev.hz)
+        hz = ev.hz[keep[:nf]]
+        strokes = ev.strokes[keep]
+        peaks = {s_: v for s_, v in ev.peaks.items() if s_ >= 0}
+        if not len(hz) or not peaks:
+            return None
+        k = int(np.argmin(hz))
+        return _Eval(
+            ev.x.copy(),
+            ev.con[keep],
+            ev.jac[keep],
+            float(hz.min()),
+            float(strokes[k]),
+            max(peaks.values()),
+            True,
+            strokes=strokes,
+            kinds=ev.kinds[keep],
+            labels=[lab for lab, kp in zip(ev.labels, keep) if kp],
+            hz=hz,
+            peaks=peaks,
+        )
 
     def select(self, ev: _Eval) -> None:
         """Choose the rows passed to the solver at the start of a round: each distinct row once. Rows equal to
