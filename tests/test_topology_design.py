@@ -410,3 +410,32 @@ def test_designed_crossing_warm_started_at_its_midpoint_variant() -> None:
     var = first("R:+-|x+-@", {**base["design"], "crossing": 0.5})
     assert var["status"] == "optimal" and abs(var["design"]["crossing"] - 0.5) > 0.02
     assert var["verified"]["worst_hz"] >= base["verified"]["worst_hz"] * (1 - 1e-3)
+
+
+@pytest.mark.parametrize("descriptor", ["R:+-|-+", "R:x+-|+-"])
+def test_a_mirror_symmetric_start_keeps_its_evaluation_on_the_non_negative_samples(descriptor: str) -> None:
+    """reduce_symmetric keeps the start's evaluation restricted to the samples >= 0 instead of evaluating the
+    start again (optim.search.FamilyEvaluator._restricted). Reference: that evaluation computed again on the
+    reduced samples; every row, its label and the worst case, its stroke and the peak stress must be the same
+    numbers (the walk to each side of zero starts at the same reference equilibrium)."""
+    from flexopt.optim.search import FamilyEvaluator
+
+    spec = TopologySpec(**{**example_spec("quick"), "samples": 5})
+    prob = candidate_problem(parse(descriptor), spec)
+    fam = FamilyEvaluator(prob, prob.families[0])
+    x = fam.default_x()
+    ev = fam.evaluate(x)
+    assert fam.reduce_symmetric(ev), "the start design is mirror symmetric in the stroke"
+    kept = fam.evaluate(x)
+    assert fam.evaluations == 1, "the reduced start is not evaluated again"
+    assert np.all(fam.samples >= 0) and len(kept.con) < len(ev.con)
+    fam._last = fam._good = None
+    again = fam.evaluate(x)
+    assert np.array_equal(kept.con, again.con) and np.array_equal(kept.jac, again.jac)
+    assert kept.labels == again.labels and list(kept.kinds) == list(again.kinds)
+    assert np.array_equal(kept.strokes, again.strokes, equal_nan=True)
+    assert (kept.worst_hz, kept.stroke_at_worst, kept.max_stress) == (
+        again.worst_hz,
+        again.stroke_at_worst,
+        again.max_stress,
+    )
