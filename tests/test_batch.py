@@ -342,6 +342,7 @@ print(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0)
 """
 
 
+@pytest.mark.slow  # a subprocess imports the preload (CasADi, scipy, the case functions): 3-9 s
 @pytest.mark.skipif(
     not sys.platform.startswith("linux") or __import__("platform").libc_ver()[0] != "glibc", reason="glibc's mallopt"
 )
