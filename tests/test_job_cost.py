@@ -21,7 +21,7 @@ pytest.importorskip("sqlalchemy")
 from flexopt.optim.pareto import ParetoSpec  # noqa: E402
 from flexopt.optim.pareto import example_spec as pareto_example  # noqa: E402
 from flexopt.optim.problem import Problem  # noqa: E402
-from flexopt.optim.topology.spec import TopologySpec  # noqa: E402
+from flexopt.optim.topology.spec import Schedule, TopologySpec, schedule_counts  # noqa: E402
 from flexopt.service.api.cost import estimate_job  # noqa: E402
 from flexopt.service.jobs.store import JOB_AGING, Job, JobStore  # noqa: E402
 
@@ -72,6 +72,43 @@ def test_estimate_scales_with_what_drives_it() -> None:
     assert _seconds("topology-search", {**two_only, "starts": 2}) == pytest.approx(
         2 * _seconds("topology-search", two_only) - 2 * 0.05, rel=1e-9
     )  # the two candidates' screening (0.05 s each, CALIBRATION) is not per start
+
+
+def test_schedule_counts_follow_the_spec_and_the_estimate_uses_them() -> None:
+    """The search's schedule (first pass, promoted, refined) is one function the search and the cost estimate
+    both call: its counts derived by hand from the rule in the spec's field descriptions (a first pass when
+    'multi-fidelity' and more survivors than promote_min; max(promote_min, ceil(promote x scored)) promoted,
+    capped by the scored), and the topology estimate's cases are the first pass plus promoted x starts for
+    every candidate the grammar generates (the bound: all assumed to pass the screening)."""
+    spec = TopologySpec()  # promote 0.04, promote_min 8, refine_segments 'auto'
+    assert schedule_counts(spec, 40) == Schedule(40, 8, 8)  # ceil(1.6) = 2 < 8
+    assert schedule_counts(spec, 300) == Schedule(300, 12, 12)  # ceil(12.0) = 12
+    assert schedule_counts(spec, 8) == Schedule(0, 8, 8)  # no more than promote_min: no first pass
+    assert schedule_counts(spec, 300, scored=100) == Schedule(300, 8, 8)  # ceil(4) < 8
+    assert schedule_counts(spec, 300, scored=5) == Schedule(300, 5, 5)  # fewer scored than promote_min
+    exhaustive = TopologySpec(schedule="exhaustive", refine_segments=None)
+    assert schedule_counts(exhaustive, 300) == Schedule(0, 300, 0)
+    from flexopt.optim.topology.grammar import enumerate_topologies
+
+    for fields in (
+        {"max_flexures": 4, "max_stages": 2, "dimensions": "shared"},
+        {"max_flexures": 4, "max_stages": 2, "dimensions": "shared", "promote": 0.25, "promote_min": 3, "starts": 3},
+        {"max_flexures": 3, "max_stages": 2, "schedule": "exhaustive", "starts": 2},
+    ):
+        ts = TopologySpec.model_validate(fields)
+        n = len(
+            enumerate_topologies(
+                ts.max_flexures,
+                ts.max_stages,
+                ts.planes,
+                ts.inplane,
+                ts.free_crossing,
+                ts.reinforcement,
+                prune=ts.prune,
+            )
+        )
+        plan = schedule_counts(ts, n)
+        assert estimate_job("topology-search", ts).cases == plan.first_pass + plan.promoted * ts.starts, fields
 
 
 def test_over_limit_refused_with_one_line_under_limit_accepted_with_its_estimate(tmp_path: Path) -> None:

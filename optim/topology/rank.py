@@ -60,7 +60,7 @@ from ...model.threads import limited
 from ..problem import Family, Problem, Ratio
 from ..search import best_start, no_optimum_reason
 from .grammar import Topology, canonical, design_parameters, enumerate_topologies, family_of, parse, zone_names
-from .spec import TopologySpec, example_spec
+from .spec import TopologySpec, example_spec, schedule_counts
 
 __all__ = [
     "TopologySpec",
@@ -556,7 +556,7 @@ def run_topology_search(
         # 2. first pass (multi-fidelity), pruning of the designed crossings that reduce to the midpoint
         t1 = time.perf_counter()
         promoted = list(pending)
-        first = spec.schedule == "multi-fidelity" and len(pending) > spec.promote_min
+        first = schedule_counts(spec, len(pending)).first_pass > 0
         if first:
             # tier 1: every candidate without a designed crossing (or whose midpoint variant is no candidate),
             # cold; tier 2: each designed-crossing variant warm-started at its midpoint variant's first-pass
@@ -621,7 +621,7 @@ def run_topology_search(
                     if i in score:
                         score[j] = max(score.get(j, -math.inf), score.pop(i))
             ranked_first = sorted(score, key=lambda i: -score[i])
-            n_full = max(spec.promote_min, math.ceil(spec.promote * len(ranked_first)))
+            n_full = schedule_counts(spec, len(pending), len(ranked_first)).promoted
             promoted = ranked_first[:n_full]
             for i in pending:
                 if records[i]["status"] == "pending" and i not in promoted:

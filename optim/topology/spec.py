@@ -3,13 +3,14 @@ the descriptors are checked by the grammar, loaded on first use)."""
 
 from __future__ import annotations
 
-from typing import Literal
+import math
+from typing import Literal, NamedTuple
 
 from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationInfo, field_validator
 
 from ..problem import Envelope
 
-__all__ = ["TopologySpec", "example_spec", "QUICK"]
+__all__ = ["TopologySpec", "example_spec", "QUICK", "Schedule", "schedule_counts"]
 
 
 class TopologySpec(BaseModel):
@@ -212,6 +213,29 @@ class TopologySpec(BaseModel):
                 except SceneError as exc:
                     raise ValueError(str(exc).removeprefix("template.topology: ")) from None
         return v
+
+
+class Schedule(NamedTuple):
+    """How many candidates each phase of a search's schedule takes (:func:`schedule_counts`)."""
+
+    first_pass: int  #: given the cheap first pass (0: the schedule skips it)
+    promoted: int  #: given the full pass (all ``starts``)
+    refined: int  #: at most this many optimised candidates get the refined verification (0: none)
+
+
+def schedule_counts(spec: TopologySpec, candidates: int, scored: int | None = None) -> Schedule:
+    """The schedule's counts (:mod:`.rank`, phases 2-4) for ``candidates`` survivors of the screening: a
+    first pass of every one when the schedule is 'multi-fidelity' and they are more than ``promote_min``;
+    then the best ``max(promote_min, ceil(promote x scored))`` of the ``scored`` ones (those whose first pass
+    gave a score and were not pruned; by default all of them, the bound a cost estimate uses) promoted, else
+    every one; the promoted verified on the refined mesh unless ``refine_segments`` is None. The one rule
+    the search (:func:`.rank.run_topology_search`) and the job's cost estimate (``service.api.cost``) follow."""
+    if spec.schedule != "multi-fidelity" or candidates <= spec.promote_min:
+        first, promoted = 0, candidates
+    else:
+        n = candidates if scored is None else scored
+        first, promoted = candidates, min(n, max(spec.promote_min, math.ceil(spec.promote * n)))
+    return Schedule(first, promoted, promoted if spec.refine_segments is not None else 0)
 
 
 #: The quick spec: today's 4-leaf, 2-stage space with shared dimensions (``flexopt topology --example quick``).

@@ -29,7 +29,6 @@ verification of the ranked candidates at the finest mesh 'auto' may reach.
 from __future__ import annotations
 
 import functools
-import math
 from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
@@ -248,9 +247,11 @@ def topology_estimate(spec: Any, cal: dict[str, float] | None = None) -> Estimat
         first_dims,
         spec.dimensions,
     )
+    from ...optim.topology.spec import schedule_counts
+
     n_all = sum(shapes.values())
-    two_pass = spec.schedule == "multi-fidelity" and n_all > spec.promote_min
-    promoted = min(n_all, max(spec.promote_min, math.ceil(spec.promote * n_all))) if two_pass else n_all
+    plan = schedule_counts(spec, n_all)  # the search's own rule: every candidate assumed scored (the bound)
+    two_pass, promoted = plan.first_pass > 0, plan.promoted
 
     def dofs(leaves: int, stages: int, segments: int) -> int:
         return 6 * (leaves * segments + stages)
@@ -291,7 +292,7 @@ def topology_estimate(spec: Any, cal: dict[str, float] | None = None) -> Estimat
     full.sort(reverse=True)  # the promoted are not known: the costliest, for a bound
     refine.sort(reverse=True)
     screen = n_all * _c("SCREEN_CANDIDATE", cal)
-    total = screen + first + sum(full[:promoted]) + sum(refine[:promoted])
+    total = screen + first + sum(full[:promoted]) + sum(refine[: plan.refined])
     what = (
         f"{n_all} candidates generated (all assumed to pass the screening): "
         + (f"a first pass of each, then {promoted} promoted" if two_pass else f"{promoted} optimised")
@@ -302,7 +303,7 @@ def topology_estimate(spec: Any, cal: dict[str, float] | None = None) -> Estimat
         drivers.insert(1, "promote or promote_min")
     if spec.refine_segments == "auto":
         drivers.append("refine_segments (a number instead of 'auto')")
-    return Estimate(total, promoted * spec.starts + (n_all if two_pass else 0), what, drivers)
+    return Estimate(total, promoted * spec.starts + plan.first_pass, what, drivers)
 
 
 @functools.lru_cache(maxsize=16)  # bounded: 16 specs' counts
