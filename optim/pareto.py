@@ -44,7 +44,22 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from .problem import Problem
 
-__all__ = ["ParetoCheck", "ParetoSpec", "dominates", "drive_stiffness", "evaluate_design", "pareto", "run_point"]
+__all__ = [
+    "PHASES",
+    "ParetoCheck",
+    "ParetoSpec",
+    "dominates",
+    "drive_stiffness",
+    "evaluate_design",
+    "pareto",
+    "run_point",
+]
+
+
+#: The phases of a front's computation, in order, as its progress events name them: the two single-objective
+#: optima, the epsilon-constraint levels between them (or, against stroke, one optimum per stroke), NSGA-II's
+#: generations and the verification of its non-dominated points.
+PHASES = ("optima", "levels", "strokes", "check", "check verification")
 
 
 class ParetoCheck(BaseModel):
@@ -423,6 +438,7 @@ def _nsga(spec: ParetoSpec, run: Any, lo: np.ndarray, hi: np.ndarray) -> dict:
         def _evaluate(self, X, out, *args, **kwargs):
             recs = run(
                 [{"problem": pj, "x": [float(v) for v in x], "points": points} for x in X],
+                "check",
                 "flexopt.optim.pareto:evaluate_design",
             )
             F, G = [], []
@@ -478,7 +494,9 @@ def pareto(
     and warnings. ``executor``: any ``concurrent.futures.Executor`` (default: a local process pool of
     ``workers``, shared by every phase); ``store``: a directory of finished cases, as
     :func:`optim.batch.run_cases`'s (a rerun resumes); ``progress`` and ``cancel`` (a ``threading.Event``) as
-    there, per phase (the two optima, the levels, the check's generations)."""
+    there, per phase, each event with its ``phase`` (:data:`PHASES`); an event's record is the case's point
+    (its ``kind``, ``level``, verified ``worst_hz`` and ``drive_stiffness``, or ``stroke``) or, in the check,
+    an evaluated design."""
     from ..model.threads import limited
     from .batch import run_cases
     from .search import FamilyEvaluator
@@ -492,8 +510,11 @@ def pareto(
     own = executor is None
     ex: cf.Executor = cf.ProcessPoolExecutor(max_workers=workers) if executor is None else executor
 
-    def run(cs: list[dict], fn: str = "flexopt.optim.pareto:run_point") -> list[dict]:
-        return run_cases(cs, fn, executor=ex, store=store, progress=progress, cancel=cancel)
+    def run(cs: list[dict], phase: str, fn: str = "flexopt.optim.pareto:run_point") -> list[dict]:
+        def told(event: dict) -> None:  # every event names its phase (PHASES: the job's status, the web page)
+            progress({**event, "phase": phase})
+
+        return run_cases(cs, fn, executor=ex, store=store, progress=told if progress else None, cancel=cancel)
 
     def level_cases(kind: str, level: float | None = None) -> list[dict]:
         return [
@@ -510,7 +531,7 @@ def pareto(
                 ex.shutdown()
     try:
         with limited():
-            ends = run(level_cases("max_frequency") + level_cases("min_drive"))
+            ends = run(level_cases("max_frequency") + level_cases("min_drive"), "optima")
             top = _best(ends[: prob.starts])
             bottom = _best(ends[prob.starts :], by_drive=True)
             notes: list[dict] = []
@@ -519,7 +540,7 @@ def pareto(
                 k_lo, k_hi = bottom["drive_stiffness"], top["drive_stiffness"]
                 levels = [k_lo + (k_hi - k_lo) * i / (spec.points - 1) for i in range(1, spec.points - 1)]
                 flat = [c for lv in levels for c in level_cases("epsilon", lv)]
-                recs = run(flat) if flat else []
+                recs = run(flat, "levels") if flat else []
                 for i in range(len(levels)):
                     points.append(_best(recs[i * prob.starts : (i + 1) * prob.starts]))
             else:
@@ -583,7 +604,7 @@ def _stroke_front(spec: ParetoSpec, prob: Problem, run: Any, level_cases: Any, k
     assert spec.strokes is not None
     lo, hi = spec.strokes
     levels = [lo + (hi - lo) * i / (spec.points - 1) for i in range(spec.points)]
-    recs = run([c for lv in levels for c in level_cases("stroke", lv)])
+    recs = run([c for lv in levels for c in level_cases("stroke", lv)], "strokes")
     points = [_best(recs[i * prob.starts : (i + 1) * prob.starts]) for i in range(len(levels))]
     for p, lv in zip(points, levels):
         p["stroke"] = lv
@@ -636,6 +657,7 @@ def _check(spec: ParetoSpec, prob: Problem, front: list[dict], run: Any, s_si: f
     pj = prob.model_dump(mode="json")
     ver = run(
         [{"problem": pj, "x": x, "points": prob.verify_points} for x in res["front_x"]],
+        "check verification",
         "flexopt.optim.pareto:evaluate_design",
     )
     tol = spec.check.tolerance

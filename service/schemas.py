@@ -333,10 +333,13 @@ class Job(_Wire):
         description="{'done': cases finished, 'total': cases} of the running batch; "
         "a topology search adds 'phase' (screen, first pass, full pass, refine), "
         "'counts' (generated, screened, passed, first_pass, optimised, verified) "
-        "and 'best' (the best verified worst case so far)"
+        "and 'best' (the best verified worst case so far); a Pareto front adds 'phase' "
+        "(optima, levels, strokes, check, check verification)"
     )
     partial: list[dict[str, Any]] = Field(
-        description="summary of every finished case (family, start, verified worst-case frequency, design)"
+        description="summary of every finished case (family, start, verified worst-case frequency, design; "
+        "a search's or a front's 'phase'; a front's point also 'kind', 'level' and its verified "
+        "'drive_stiffness' or 'stroke')"
     )
     result: dict[str, Any] | None = Field(
         description="optim.optimise's result once succeeded: per family the best "

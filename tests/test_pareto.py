@@ -68,10 +68,29 @@ def test_drive_stiffness_gradient_matches_finite_differences():
         assert grad[name] == pytest.approx(fd, rel=1e-4), name
 
 
+EVENTS: list[dict] = []  # the front's progress events (the fixture's run)
+
+
 @pytest.fixture(scope="module")
 def front() -> dict:
     with cf.ThreadPoolExecutor(2) as ex:  # any Executor; threads run the same worker code without start-up
-        return pareto(SPEC, executor=ex)
+        return pareto(SPEC, executor=ex, progress=EVENTS.append)
+
+
+@pytest.mark.slow
+def test_progress_names_each_phase_in_order(front):
+    """Every progress event names its phase: the two optima (one case each per start), the levels between them
+    (points - 2), then NSGA-II's generations and the verification of its points (when checked); a front point's
+    record carries its kind and verified drive stiffness, the numbers of the result's points."""
+    phases = [e["phase"] for e in EVENTS]
+    order = ["optima", "levels"] + (["check", "check verification"] if SPEC["check"] else [])
+    assert [p for i, p in enumerate(phases) if i == 0 or p != phases[i - 1]] == order
+    assert phases.count("optima") == 2 * PROBLEM["starts"] and phases.count("levels") == (SPEC["points"] - 2)
+    points = sorted(
+        (e["record"]["drive_stiffness"], e["record"]["kind"]) for e in EVENTS if e["phase"] in ("optima", "levels")
+    )
+    assert [k for k, _ in points] == sorted(p["drive_stiffness"] for p in front["points"])
+    assert points[0][1] == "min_drive" and points[-1][1] == "max_frequency"
 
 
 @pytest.mark.slow

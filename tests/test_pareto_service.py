@@ -58,6 +58,17 @@ def test_pareto_front_job_over_http(tmp_path: Path) -> None:
         assert len(pts) == 2 and pts[0]["worst_hz"] < pts[1]["worst_hz"]
         assert job["result"]["drive_stiffness_unit"] == "N m/rad"
         assert http.get("/v1/pareto-fronts").json()["total"] == 1
+        # the progress names the phase (the two optima are the whole front of 2 points), and each finished case's
+        # summary carries its kind and verified drive stiffness: the result's two ends
+        assert job["progress"]["phase"] == "optima", job["progress"]
+        ends = {"max_frequency": job["result"]["max_frequency"], "min_drive": job["result"]["min_drive_stiffness"]}
+        assert sorted(p["kind"] for p in job["partial"]) == sorted(ends)
+        for p in job["partial"]:
+            assert p["phase"] == "optima" and p["status"] == "optimal"
+            assert (p["drive_stiffness"], p["worst_hz"]) == (
+                ends[p["kind"]]["drive_stiffness"],
+                ends[p["kind"]]["worst_hz"],
+            )
         ids = {p["id"] for p in job["partial"]}
         assert len(ids) == 2 and {f"{i}.json" for i in ids} <= set(_cases(tmp_path)), "both optima, recorded"
         assert http.delete(f"/v1/pareto-fronts/{job_id}").json()["status"] == "succeeded"

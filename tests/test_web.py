@@ -599,6 +599,21 @@ def test_pareto_front_from_the_page_shows_progress_then_the_front(url: str, brow
         assert cells[5].startswith("thickness ") and cells[5].endswith(" mm")
     assert "succeeded" in page.get_by_test_id("pareto-progress").inner_text()
     page.locator("section", has=page.get_by_test_id("pareto-plot")).screenshot(path=str(shots / "web_pareto.png"))
+    # while it runs: the page draws the front so far from the job's partial summaries, each finished case with its
+    # phase and its verified drive stiffness (the same numbers as the result's points: one start per level)
+    partial = job["partial"]
+    assert {q["phase"] for q in partial} == {"optima", "levels"}, partial
+    assert sorted(q["drive_stiffness"] for q in partial) == [q["drive_stiffness"] for q in pts]
+    running = {**job, "status": "running", "result": None, "progress": {"phase": "levels", "done": 0, "total": 1}}
+    page.evaluate("(job) => renderPareto(job)", running)
+    assert page.get_by_test_id("pareto-phase").inner_text() == "levels"
+    drawn = page.evaluate("() => document.querySelector('[data-testid=pareto-plot]').data")
+    assert drawn[0]["name"] == "front so far (verified)" and len(drawn) == 1, "every finished point is on the front"
+    assert drawn[0]["x"] == [q["drive_stiffness"] for q in pts] and drawn[0]["y"] == [q["worst_hz"] for q in pts]
+    # the first two cases only (the two optima): the front so far is those two
+    page.evaluate("(job) => renderPareto(job)", {**running, "partial": [q for q in partial if q["phase"] == "optima"]})
+    ends = page.evaluate("() => document.querySelector('[data-testid=pareto-plot]').data[0]")
+    assert ends["x"] == [pts[0]["drive_stiffness"], pts[-1]["drive_stiffness"]]
     assert page.evaluate("() => window.__csp") == [], "the page's Content-Security-Policy blocked something"
     page.close()
 

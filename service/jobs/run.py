@@ -43,9 +43,14 @@ log = logging.getLogger("flexopt.service.jobs")
 RETRY = 75
 
 
-def _summary(case: dict) -> dict:
+#: What a Pareto front's case adds to its summary when it has it: the point's kind and level, its verified
+#: drive stiffness (or stroke), so that the page can draw the front while it runs
+_FRONT_FIELDS = ("kind", "level", "drive_stiffness", "stroke", "ok")
+
+
+def _summary(case: dict, phase: str | None = None) -> dict:
     v = case.get("verified", {})
-    return {
+    out = {
         "id": case.get("id"),
         "family": case.get("family"),
         "start": case.get("start"),
@@ -55,6 +60,10 @@ def _summary(case: dict) -> dict:
         "design": case.get("design"),
         "error": case.get("error"),
     }
+    out.update({k: case[k] for k in _FRONT_FIELDS if k in case})
+    if phase is not None:  # a topology search's or a front's phase the case belongs to
+        out["phase"] = phase
+    return out
 
 
 def _all_failed(result: dict) -> str | None:
@@ -128,7 +137,7 @@ def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
         }
         latest.update(shown)
         try:
-            partial.append(_summary(json.loads((cases / f"{event['id']}.json").read_text())))
+            partial.append(_summary(json.loads((cases / f"{event['id']}.json").read_text()), event.get("phase")))
         except (OSError, json.JSONDecodeError):
             pass
         try:  # best effort: a database busy for longer than its timeout must not fail the optimisation

@@ -838,13 +838,46 @@ async function initTopology() {
 }
 
 // ------------------------------------------------------------------------------------------- Pareto front
-// A front's job carries {done, total} of its current phase (the two optima, the levels, the check) and a summary
-// of every finished case (status, worst case); the front itself comes with the result.
+// A front's job carries its phase (optima, levels, strokes, check, check verification), {done, total} of it and a
+// summary of every finished case (status, worst case, and a front point's kind and verified drive stiffness or
+// stroke): while it runs the page draws the front so far from them; the front itself comes with the result.
+const FRONT_KINDS = ["max_frequency", "min_drive", "epsilon", "stroke"];
+
+// The front so far: the finished cases that are verified optimal front points (not the check's designs), x their
+// drive stiffness (or stroke), and the non-dominated ones among them (the least drive stiffness, or the longest
+// stroke, for a worst case) in order of x.
+function partialFront(job) {
+  const cases = (job.partial || []).filter((q) => FRONT_KINDS.includes(q.kind) && q.status === "optimal" &&
+    q.worst_hz != null && (q.kind === "stroke" ? q.stroke : q.drive_stiffness) != null);
+  const key = cases.some((q) => q.kind === "stroke") ? "stroke" : "drive_stiffness";
+  const pts = cases.map((q) => ({ x: +q[key], y: +q.worst_hz, q }));
+  const byBetterX = pts.slice().sort((a, b) => (key === "stroke" ? b.x - a.x : a.x - b.x));
+  const front = [];
+  let top = -Infinity;
+  for (const p of byBetterX) if (p.y > top) { front.push(p); top = p.y; }
+  return { key, points: pts, front: front.sort((a, b) => a.x - b.x) };
+}
+
+function renderPartialFront(job) {
+  const { key, points, front } = partialFront(job);
+  if (!points.length) { Plotly.purge($("pareto-plot")); return; }
+  const xlabel = key === "stroke" ? "stroke (half range)" : "drive stiffness (peak drive / stroke)";
+  const others = points.filter((p) => !front.includes(p));
+  const traces = [{ x: front.map((p) => p.x), y: front.map((p) => p.y), name: "front so far (verified)", mode: "lines+markers",
+    line: { color: "#c0392b", dash: "dot" }, marker: { size: 8 }, hovertemplate: `%{x:.4g}: %{y:.4g} Hz<extra></extra>` }];
+  if (others.length) traces.push({ x: others.map((p) => p.x), y: others.map((p) => p.y), name: "other finished starts",
+    mode: "markers", marker: { color: "#999" }, hovertemplate: `%{x:.4g}: %{y:.4g} Hz<extra></extra>` });
+  Plotly.react("pareto-plot", traces, { title: { text: "Pareto front so far", font: { size: 14 } },
+    margin: { t: 40, r: 10, l: 70, b: 45 }, xaxis: { title: { text: xlabel } },
+    yaxis: { title: { text: "worst-case first parasitic [Hz]" } }, hovermode: "closest" }, { responsive: true, displaylogo: false });
+}
+
 function renderPareto(job) {
   const p = job.progress || {}, done = +p.done || 0, total = +p.total || 0;
-  const finished = (job.partial || []).filter((q) => q.worst_hz != null);
-  const best = finished.length ? Math.max(...finished.map((q) => +q.worst_hz)) : null;
+  const optima = partialFront(job).points; // the check's designs are not verified optima: not counted here
+  const best = optima.length ? Math.max(...optima.map((q) => q.y)) : null;
   $("pareto-progress").innerHTML = `front ${esc(job.id)}: <b data-testid="pareto-status">${esc(job.status)}</b>` +
+    (p.phase != null ? `, phase <b data-testid="pareto-phase">${esc(p.phase)}</b>` : "") +
     (total ? `, <span data-testid="pareto-cases">${esc(`${done} of ${total} cases of this phase`)}</span>` : "") +
     `<div class="bar"><div></div></div>` +
     ((job.partial || []).length ? `<div class="note" data-testid="pareto-finished">${esc(`${job.partial.length} cases finished`)}` +
@@ -853,7 +886,7 @@ function renderPareto(job) {
   $("pareto-progress").querySelector(".bar > div").style.width = `${total ? Math.min(100, (100 * done) / total) : 0}%`;
   const r = job.result, t = $("pareto-points"), ul = $("pareto-warnings");
   ul.innerHTML = "";
-  if (!r) { t.innerHTML = ""; Plotly.purge($("pareto-plot")); return; }
+  if (!r) { t.innerHTML = ""; renderPartialFront(job); return; }
   const key = r.against === "stroke" ? "stroke" : "drive_stiffness";
   const unit = key === "stroke" ? (r.stroke_unit || "") : (r.drive_stiffness_unit || "");
   const xlabel = key === "stroke" ? `stroke (half range) [${unit}]` : `drive stiffness (peak drive / stroke) [${unit}]`;
