@@ -308,3 +308,18 @@ def test_costly_curve_runs_as_a_job_when_asked(tmp_path: Path) -> None:
         np.testing.assert_allclose(job.result["parasitic_hz"], direct.parasitic_hz, rtol=1e-9)
     finally:
         srv.__exit__()
+
+
+def test_family_form_recognises_every_form_of_a_family() -> None:
+    """The web page's family column (a topology search's ``family_form``): a family's own descriptor and its
+    mirror images by the grammar's canonical form, and the family's descriptor without its designed crossing
+    (the family at crossing 0.5) named so; the grammar's own ``family`` stays None there (its crossing is not
+    designed), and a topology of no family is None. Each expected name read off FAMILIES' table by hand."""
+    from flexopt.service.jobs.run import family_form
+
+    assert family_form("R:+-@") == family_form("R:-+@") == "cross-spring-pivot"
+    assert family_form("R:+-") == family_form("R:-+") == "cross-spring-pivot (crossing at the midpoint)"
+    assert family_form("R:-+2-") == family_form("R:+-2+") == "three-fold-cross-hinge (crossing at the midpoint)"
+    assert family_form("R:x+-") == "cartwheel-hinge"
+    assert family_form("R:+-|-+") == "double-cross-hinge"
+    assert family_form("R:++") is None and family_form("R:+-@|-+") is None  # a double cross with a designed crossing

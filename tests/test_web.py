@@ -549,6 +549,15 @@ def test_topology_search_shows_its_progress_live_then_the_table(url: str, browse
     table = page.get_by_test_id("topo-ranking")
     assert table.locator("tr").count() == 4
     first = table.locator("tr").nth(1).locator("td").all_inner_texts()
+    families = {
+        row.locator("td").nth(2).inner_text(): row.locator("td").nth(3).inner_text()
+        for row in table.locator("tr").all()[1:]
+    }  # the pivot at its midpoint (R:+-, the family's R:+-@ without '@') is named, the rejected R:++ is no family
+    assert families == {
+        "R:+-": "cross-spring-pivot (crossing at the midpoint)",
+        "R:x+-": "cartwheel-hinge",
+        "R:++": "-",
+    }, families
     best = res["best"]
     assert first[2] == best["topology"] == res["ranking"][0]
     assert float(first[9]) == pytest.approx(best["refined"]["worst_hz"], rel=1e-3)

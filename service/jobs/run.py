@@ -34,7 +34,7 @@ from . import worker
 from .store import HOST, JobStore, StoreUnavailable
 from .worker import finite
 
-__all__ = ["RETRY", "main", "run_job"]
+__all__ = ["RETRY", "family_form", "main", "run_job"]
 
 log = logging.getLogger("flexopt.service.jobs")
 
@@ -64,6 +64,32 @@ def _summary(case: dict, phase: str | None = None) -> dict:
     if phase is not None:  # a topology search's or a front's phase the case belongs to
         out["phase"] = phase
     return out
+
+
+def family_form(descriptor: str) -> str | None:
+    """The hand-made family a candidate is, in words, for the web page's table: the family's name when it is
+    that family up to symmetry (``optim.topology.grammar.family_of``), "<name> (crossing at the midpoint)" when
+    it is the family's descriptor without its designed crossing '@' (the family at crossing fraction 0.5, e.g.
+    ``R:+-`` of the cross-spring pivot ``R:+-@``), else None. Both forms compared as the grammar's canonical
+    descriptors, so a mirror image (``R:-+``) is recognised too."""
+    from ...optim.topology.grammar import FAMILIES, canonical, family_of
+
+    name = family_of(descriptor)
+    if name is not None:
+        return name
+    mine = str(canonical(descriptor))
+    for name, d in FAMILIES.items():
+        if "@" in d and str(canonical(d.replace("@", ""))) == mine:
+            return f"{name} (crossing at the midpoint)"
+    return None
+
+
+def _family_forms(result: dict) -> dict:
+    """A topology search's result with each candidate's ``family_form`` (:func:`family_form`)."""
+    for c in result.get("candidates", []):
+        if isinstance(c.get("topology"), str) and c["topology"].startswith("R:"):
+            c["family_form"] = family_form(c["topology"])
+    return result
 
 
 def _all_failed(result: dict) -> str | None:
@@ -162,7 +188,9 @@ def run_job(job_id: str, attempt: int, *, handle_signals: bool = True) -> int:
             from ...optim.topology import run_topology_search
 
             search = {k: v for k, v in spec.items() if k != "kind"}
-            result = run_topology_search(search, workers=workers, store=cases, progress=progress, cancel=cancel)
+            result = _family_forms(
+                run_topology_search(search, workers=workers, store=cases, progress=progress, cancel=cancel)
+            )
         elif spec.get("kind") == "pareto-front":  # its phases run on the same batch machinery and case store
             from ...optim.pareto import pareto
 

@@ -803,7 +803,7 @@ function renderTopology(job) {
     `<th class="l">status / reason</th><th>worst-case [Hz]</th><th>at stroke 0 [Hz]</th><th>refined worst case [Hz]</th></tr>` +
     rows.map((c, i) => { const rank = r.ranking.indexOf(c.topology);
       return `<tr data-topology="${esc(c.topology)}"><td>${rank >= 0 ? rank + 1 : ""}</td><td class="thumbcell" id="thumb-${i}"></td>` +
-        `<td class="l"><code>${esc(c.topology)}</code></td><td class="l">${esc(c.family || "-")}</td><td>${esc(c.dof ?? "")}</td>` +
+        `<td class="l"><code>${esc(c.topology)}</code></td><td class="l">${esc(c.family_form || c.family || "-")}</td><td>${esc(c.dof ?? "")}</td>` +
         `<td>${esc(c.overconstraints ?? "")}</td><td class="l reason">${esc(c.status)}${c.reason ? ": " + esc(c.reason) : ""}</td>` +
         `<td>${fmtHz(c.worst_case_hz)}</td><td>${fmtHz(c.zero_stroke_hz)}</td><td>${esc(fmtHz((c.refined || {}).worst_hz))}</td></tr>`; }).join("");
   drawThumbnails(rows, r.spec.motion).catch((e) => status(`thumbnails: ${e.message}`, true));
