@@ -2,7 +2,8 @@
 Optimisation and topology search: each design at its optimum, drawn at -stroke, 0 and +stroke (the deflected
 equilibria of the exact curve on the refined mesh the ranking used, leaves as plates of their real width, each
 stage its own colour), each panel titled with its first parasitic frequency, the figure with the design's worst
-case over the stroke.
+case over the stroke; the clamped leaf ends (the scene's supports) are marked as ground and a 10 mm x, y, z
+triad of the scene's axes stands at the origin (z the rotation axis).
 
 The designs come from search results (``flexopt topology SPEC.json --json``'s answer, or
 ``run_topology_search``'s dict): the default search's top ``--top`` (3) and the four hand-made families
@@ -36,6 +37,7 @@ from flexopt.optim.topology.spec import TopologySpec  # noqa: E402
 from flexopt.service.plots import save, stroke_figure  # noqa: E402
 
 LIMIT = 150_000  # bytes per picture (the docs' budget)
+AXES = 0.01  # the length of the x, y, z triad [m]
 
 
 def _figures(c: dict) -> tuple[float, float, str]:
@@ -60,7 +62,11 @@ def draw(c: dict, stroke: float, label: str, path: Path) -> str:
         f"{label} {c['topology']}: worst case {worst:.2f} Hz over +-{stroke:g} deg ({where}), "
         f"{zero:.2f} Hz at 0 ({worst / zero:.0%} kept)"
     )
-    fig = stroke_figure(shapes, title, bodies=False)
+    nodes_of = {b["name"]: b["nodes"] for b in scene_dict.get("bodies", [])}
+    ground = [  # the clamped leaf ends: a supported node, or every node of a supported body
+        n for sp in scene_dict.get("supports", []) for n in ([sp["node"]] if sp.get("node") else nodes_of[sp["body"]])
+    ]
+    fig = stroke_figure(shapes, title, bodies=False, ground=ground, axes=AXES)
     for dpi in (80, 70, 60):  # the smallest reduction that keeps the picture within its budget
         save(fig, str(path), dpi=dpi)
         if path.stat().st_size < LIMIT:

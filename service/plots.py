@@ -48,6 +48,8 @@ MODE_COLOR = "#e67e22"
 PLATE_COLOR = "#7f8c8d"
 BODY_COLOR = "#34495e"
 STAGE_COLORS = ("#2471a3", "#e67e22", "#27ae60", "#8e44ad", "#c0392b", "#7f8c8d")
+GROUND_COLOR = "#000000"  # stroke_figure's ground marks
+AXIS_COLORS = ("#c0392b", "#27ae60", "#2471a3")  # x, y, z of stroke_figure's triad
 
 
 def _data(obj: Any) -> dict:
@@ -418,11 +420,16 @@ def stroke_figure(
     view: tuple[float, float] = (28.0, -62.0),
     size: tuple[float, float] = (8.4, 3.0),
     bodies: bool = True,
+    ground: Sequence[str] = (),
+    axes: float | None = None,
 ) -> Figure:
     """The deflected structure at each of ``shapes`` (``model.shapes.shapes_along``'s answers, one per stroke
     value) side by side on common axes, leaves as plates of their real width, bodies as boxes; each panel
     titled with its stroke and, when its modes were computed, its first parasitic frequency; ``bodies=False``
-    leaves the body boxes out (they hide the leaves of a compact hinge)."""
+    leaves the body boxes out (they hide the leaves of a compact hinge). ``ground``: the clamped nodes (the
+    scene's supports), each marked with a black square (:data:`GROUND_COLOR`); ``axes``: the length [m] of an
+    x, y, z triad (the scene's axes; z the axis a hinge turns about) drawn at the origin over the structure, its
+    length said in the key line."""
     ds = [_data(s) for s in shapes]
     fig = Figure(figsize=size)
     n = len(ds)
@@ -437,7 +444,11 @@ def stroke_figure(
         ax.view_init(*view)
         pos, rot = _moved(d, None, 0.0)
         boxes = _body_poses(d, None, 0.0) if bodies else {}
-        drawn.append((ax, _draw_structure(ax, d, pos, rot, edge="0.35", lw=0.3, bodies=boxes, facecolors=faces)))
+        pts = _draw_structure(ax, d, pos, rot, edge="0.35", lw=0.3, bodies=boxes, facecolors=faces)
+        fixed = np.array([pos[n] for n in ground if n in pos]).reshape(-1, 3)
+        if len(fixed):
+            ax.scatter(*fixed.T, marker="s", s=22, c=GROUND_COLOR, depthshade=False, zorder=10)
+        drawn.append((ax, pts))
         hz = _first_parasitic(d)
         ax.set_title(
             f"{d['stroke']:+.0f} {d.get('stroke_unit', '')}" + (f": first parasitic {hz:.4g} Hz" if hz else ""),
@@ -445,12 +456,32 @@ def stroke_figure(
             pad=0,
         )
     every = [p for _, pts in drawn for p in pts]
-    for ax, _ in drawn:
+    if axes:
+        every.append(1.3 * axes * np.eye(3))
+    for i, (ax, _) in enumerate(drawn):
         _equal_axes(ax, every)
         ax.set_box_aspect(ax.get_box_aspect(), zoom=1.35)
         ax.set_axis_off()
+        if axes:  # on a transparent twin with the same view and limits, drawn over the leaves that would hide it
+            top = fig.add_subplot(1, n, i + 1, projection="3d")
+            top.view_init(*view)
+            top.set_xlim(ax.get_xlim())
+            top.set_ylim(ax.get_ylim())
+            top.set_zlim(ax.get_zlim())
+            top.set_box_aspect(ax.get_box_aspect(), zoom=1.35)
+            top.set_axis_off()
+            top.patch.set_alpha(0.0)
+            for k, (name, c) in enumerate(zip("xyz", AXIS_COLORS)):
+                tip = np.eye(3)[k] * axes
+                top.plot(*np.array([np.zeros(3), tip]).T, color=c, lw=1.3)
+                top.text(*(1.3 * tip), name, color=c, fontsize=7, ha="center", va="center")
     if title:
         fig.suptitle(title, fontsize=9)
+    key = (["black squares: ground (clamped)"] if ground else []) + (
+        [f"x, y, z: the scene's axes, {axes * 1e3:.3g} mm long (z: the rotation axis)"] if axes else []
+    )
+    if key:
+        fig.text(0.01, 0.01, "; ".join(key), fontsize=7, color="0.25")
     fig.subplots_adjust(left=0.0, right=1.0, bottom=0.0, top=0.84 if title else 0.95, wspace=0.0)
     return fig
 

@@ -358,3 +358,27 @@ def test_stroke_figure_draws_each_stroke_with_its_first_parasitic_frequency() ->
         assert ax.get_title() == f"{s:+.0f} deg: first parasitic {hz:.4g} Hz"
     faces = {to_hex(c) for col in fig.axes[0].collections for c in col.get_facecolors()}
     assert {plots.STAGE_COLORS[0], plots.STAGE_COLORS[1]} <= faces, faces
+
+
+def test_stroke_figure_marks_ground_and_draws_the_axes() -> None:
+    """The docs' topology pictures mark ground (a black square at each supported node, where the scene clamps
+    the leaves: those nodes do not move over the stroke) and draw the scene's x, y, z axes at the origin, 10 mm
+    long, on a twin of each panel with the same view and limits (drawn over the leaves)."""
+    from matplotlib.colors import to_hex
+
+    scene = template("topology-hinge", topology="R:+-|-+", segments=2)
+    clamped = [s.node for s in scene.supports]
+    at = {n.name: np.array(n.position) for n in scene.nodes}
+    fig = plots.stroke_figure(shapes_along(Analysis(scene), [-20.0, 20.0]), ground=clamped, axes=0.01)
+    panels, twins = fig.axes[:2], fig.axes[2:]
+    assert len(twins) == 2
+    for ax, twin in zip(panels, twins):
+        marks = [c for c in ax.collections if to_hex(c.get_facecolors()[0]) == plots.GROUND_COLOR]
+        assert len(marks) == 1
+        np.testing.assert_allclose(np.array(marks[0]._offsets3d).T, [at[n] for n in clamped], atol=1e-12)
+        assert (twin.get_xlim(), twin.get_zlim()) == (ax.get_xlim(), ax.get_zlim())
+        ends = [np.array(line.get_data_3d()).T for line in twin.lines]
+        for k, e in enumerate(ends):
+            np.testing.assert_allclose(e, [np.zeros(3), 0.01 * np.eye(3)[k]], atol=1e-15)
+        assert [line.get_color() for line in twin.lines] == list(plots.AXIS_COLORS)
+    assert "ground" in fig.texts[-1].get_text() and "10 mm" in fig.texts[-1].get_text()
