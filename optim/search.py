@@ -338,7 +338,10 @@ class FamilyEvaluator:
                         + (f" ({rt.reason})" if rt.reason else ""),
                     )
                 )
-        curve = an.frequency_curve(stroke=self.samples, visit=visit)
+        # the curve before its checks and provenance (model.checks.annotate_curve serialised and hashed the
+        # scene at every evaluation: 15 % of a first-pass case): only its status and failures are read here
+        with limited():  # one BLAS thread while it computes (model.threads)
+            curve, _ = an.exact_curve(self.samples, visit=visit)
         if curve.status != "complete":
             raise FlexoptError(curve.failures[0].message if curve.failures else "the stroke was not completed")
         f = np.array([r[0] for r in rows_f])
