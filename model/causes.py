@@ -209,6 +209,12 @@ def free_motions(structure: Structure) -> list[FreeMotion]:
     Dh = Dh[:, keep]
     if Dh.shape[1] == 0:
         return out
+    # the singular values alone decide the rank; the motions (V) only when some are null: a full-rank D_cc
+    # (every optimiser evaluation of an exactly constrained design) skips half the SVD's work
+    sv = np.linalg.svd(Dh, compute_uv=False)
+    rank = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
+    if rank == Dh.shape[1]:
+        return out
     _, sv, Vt = np.linalg.svd(Dh)
     rank = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
     null = Vt[rank:].T  # (n_kept, k) unit motions
