@@ -258,7 +258,7 @@ def stroke_symmetry(scene: Scene) -> StrokeSymmetry | None:
     # half-turn about u through c, u perpendicular to a (reverses rotations and translations along a): a
     # pair's midpoint lies on the axis and its difference is perpendicular to it
     axes += [m for m in mids if abs(m @ a) <= TOL * scale]
-    axes += [np.cross(a, d) for d in diffs]  # a pair about c itself: the axis is perpendicular to d and a
+    axes += list(np.cross(a, diffs))  # a pair about c itself: the axis is perpendicular to d and a
     for kind, vecs in (("reflection", normals), ("half-turn", axes)):
         seen: list[np.ndarray] = []
         for v in vecs:
