@@ -110,6 +110,21 @@ def _rebuild(obj, it):
     return obj
 
 
+def _rebuild_many(obj, rows, n: int) -> list:
+    """``n`` copies of ``obj`` with its numbers (:func:`_leaves` order) replaced: copy ``j`` takes column ``j`` of
+    the row each number draws from ``rows`` (the same as ``n`` calls of :func:`_rebuild`, one per column, in
+    one walk of the nested dictionary instead of ``n``)."""
+    if isinstance(obj, dict):
+        parts = [(k, _rebuild_many(v, rows, n)) for k, v in obj.items()]
+        return [{k: p[j] for k, p in parts} for j in range(n)]
+    if isinstance(obj, (list, tuple)):
+        items = [_rebuild_many(v, rows, n) for v in obj]
+        return [[p[j] for p in items] for j in range(n)]
+    if isinstance(obj, ca.SX) or (isinstance(obj, (int, float)) and not isinstance(obj, bool)):
+        return next(rows).tolist()
+    return [obj] * n
+
+
 def trace_template(name: str, params: dict, design: Sequence[str], extra: dict | None = None) -> DesignScene:
     """Evaluate template ``name`` at ``params`` and differentiate its scene with respect to ``design``.
 
@@ -135,7 +150,7 @@ def trace_template(name: str, params: dict, design: Sequence[str], extra: dict |
     jac = _scene_jacobian(name, fn, full, tuple(design))
     numeric = fn(full)
     J = jac(values).full()
-    dscene = tuple(_rebuild(numeric, iter(J[:, j])) for j in range(len(design)))
+    dscene = tuple(_rebuild_many(numeric, iter(J), len(design))) if len(design) else ()
     if extra:
         from .io import scene_from_dict
 
