@@ -363,18 +363,23 @@ def _band_order(P: np.ndarray) -> tuple[np.ndarray, int, int]:
     np.fill_diagonal(S, False)
     nbrs = [np.flatnonzero(row) for row in S]
     deg = np.array([len(a) for a in nbrs])
+    # each node's neighbours in increasing (degree, index), sorted once: a breadth-first sweep filters them
+    # (keeping the order) instead of sorting them again at every visit of every sweep
+    ranked = [a[np.lexsort((a, deg[a]))].tolist() for a in nbrs]
 
     def levels(root: int, allowed: np.ndarray) -> list[list[int]]:
-        seen = {root}
+        ok = allowed.tolist()
+        seen = [False] * m
+        seen[root] = True
         out, front = [], [root]
         while front:
             out.append(front)
             nxt = []
             for v in front:
-                for w in sorted(nbrs[v][allowed[nbrs[v]]], key=lambda u: (deg[u], u)):
-                    if w not in seen:
-                        seen.add(w)
-                        nxt.append(int(w))
+                for w in ranked[v]:
+                    if ok[w] and not seen[w]:
+                        seen[w] = True
+                        nxt.append(w)
             front = nxt
         return out
 
