@@ -456,9 +456,17 @@ def jacobian_rows(s: Structure, X: np.ndarray, R: np.ndarray, rows: list[tuple[i
             ]
         )
         De_j = np.asarray(compiled(joint_spec()[0])(a))[:, 162:234].reshape(-1, 12, 6)
-    for i, (kind, el, k) in enumerate(rows):
-        nodes = (s.beam_nodes, s.truss_nodes, s.joint_nodes)[kind][el]
-        dofs = (6 * m[nodes][:, None] + blocks).ravel()
-        vals = De_b[el, :, k] if kind == 0 else (De_t[el] if kind == 1 else De_j[el, :, k])
-        np.add.at(D[i], dofs, vals)
+    # every row's 12 entries scattered in one np.add.at per kind (a row whose two nodes share a master adds twice
+    # into its columns, in the same order as one call per row: the same sums)
+    if not rows:
+        return D
+    rk = np.array(rows, dtype=np.int64).reshape(-1, 3)
+    for kind, nodes_of in enumerate((s.beam_nodes, s.truss_nodes, s.joint_nodes)):
+        sel = np.flatnonzero(rk[:, 0] == kind)
+        if not len(sel):
+            continue
+        el, k = rk[sel, 1], rk[sel, 2]
+        dofs = (6 * m[nodes_of[el]][:, :, None] + blocks).reshape(len(sel), 12)
+        vals = De_b[el, :, k] if kind == 0 else (De_t[el] if kind == 1 else De_j[el, :, k])  # type: ignore[index]
+        np.add.at(D, (np.repeat(sel, 12).reshape(-1, 12), dofs), vals)
     return D
