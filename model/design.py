@@ -274,32 +274,59 @@ def structure_derivatives(s: Structure, scene_dict: dict, dscenes: Sequence[dict
     formulas' Jacobians evaluated once for all of them instead of once per direction."""
     _check_scope(s)
     jacobians = _segment_jacobians(s, scene_dict)
-    return [structure_derivative(s, scene_dict, d, jacobians) for d in dscenes]
+    plan = _node_plan(s, scene_dict)
+    return [structure_derivative(s, scene_dict, d, jacobians, plan) for d in dscenes]
 
 
-def structure_derivative(
-    s: Structure, scene_dict: dict, dscene: dict, jacobians: dict[int, np.ndarray] | None = None
-) -> StructureDerivative:
-    """Derivative of the structure arrays of ``scene_dict`` along ``dscene`` (see :class:`DesignScene`);
-    ``jacobians``: :func:`_segment_jacobians` of ``scene_dict`` when the caller has them."""
-    _check_scope(s)
-    if jacobians is None:
-        jacobians = _segment_jacobians(s, scene_dict)
-    dpos = {n["name"]: np.asarray(d["position"], float) for n, d in zip(scene_dict["nodes"], dscene["nodes"])}
-    dmats = {m["name"]: d for m, d in zip(scene_dict["materials"], dscene["materials"])}
+def _node_plan(s: Structure, scene_dict: dict) -> tuple[np.ndarray, ...]:
+    """Where each structure node's position derivative comes from, the same for every design direction: the
+    nodes that are scene nodes (``at``, their scene index ``src``) and the interior mesh nodes ``element#i``
+    (``mid``) at ``p + (q - p) i / n`` (scene indices ``a``, ``b``; ``i`` and ``n`` as floats)."""
+    index = {n["name"]: j for j, n in enumerate(scene_dict["nodes"])}
     el_index = {e["name"]: i for i, e in enumerate(scene_dict["elements"])}
-    nb, nn, nm = s.n_beams, len(s.node_names), len(s.master_names)
-
-    # node positions: scene nodes, then interior mesh nodes "element#i" at p + (q - p) i / n
-    dnode = np.zeros((nn, 3))
+    at, src, mid, a, b, i, n = [], [], [], [], [], [], []
     for k, name in enumerate(s.node_names):
-        if name in dpos:
-            dnode[k] = dpos[name]
+        if name in index:
+            at.append(k)
+            src.append(index[name])
         else:
             el_name, seg = name.rsplit("#", 1)
             el = scene_dict["elements"][el_index[el_name]]
-            a, b = el["nodes"]
-            dnode[k] = dpos[a] + (dpos[b] - dpos[a]) * int(seg) / int(el["segments"])
+            mid.append(k)
+            a.append(index[el["nodes"][0]])
+            b.append(index[el["nodes"][1]])
+            i.append(float(int(seg)))
+            n.append(float(int(el["segments"])))
+    ints = [np.array(v, dtype=np.int64) for v in (at, src, mid, a, b)]
+    return (*ints, np.array(i, dtype=float)[:, None], np.array(n, dtype=float)[:, None])
+
+
+def structure_derivative(
+    s: Structure,
+    scene_dict: dict,
+    dscene: dict,
+    jacobians: dict[int, np.ndarray] | None = None,
+    plan: tuple[np.ndarray, ...] | None = None,
+) -> StructureDerivative:
+    """Derivative of the structure arrays of ``scene_dict`` along ``dscene`` (see :class:`DesignScene`);
+    ``jacobians``: :func:`_segment_jacobians` and ``plan``: :func:`_node_plan` of ``scene_dict`` when the caller
+    has them."""
+    _check_scope(s)
+    if jacobians is None:
+        jacobians = _segment_jacobians(s, scene_dict)
+    if plan is None:
+        plan = _node_plan(s, scene_dict)
+    dpos = {n["name"]: np.asarray(d["position"], float) for n, d in zip(scene_dict["nodes"], dscene["nodes"])}
+    dmats = {m["name"]: d for m, d in zip(scene_dict["materials"], dscene["materials"])}
+    nb, nn, nm = s.n_beams, len(s.node_names), len(s.master_names)
+
+    # node positions: scene nodes, then interior mesh nodes "element#i" at p + (q - p) i / n (the same
+    # arithmetic, row by row, as one node at a time)
+    dnode = np.zeros((nn, 3))
+    at, src, mid, ia, ib, seg, nseg = plan
+    P = np.array([d["position"] for d in dscene["nodes"]], dtype=float).reshape(-1, 3)
+    dnode[at] = P[src]
+    dnode[mid] = P[ia] + (P[ib] - P[ia]) * seg / nseg
     bodies = scene_dict.get("bodies", []) or []
     dbodies = dscene.get("bodies", []) or []
     dmaster = np.zeros((nm, 3))
