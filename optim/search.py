@@ -338,8 +338,9 @@ class FamilyEvaluator:
                         + (f" ({rt.reason})" if rt.reason else ""),
                     )
                 )
-        # the curve before its checks and provenance (model.checks.annotate_curve serialised and hashed the
-        # scene at every evaluation: 15 % of a first-pass case): only its status and failures are read here
+        # the curve before its checks and provenance (model.checks.annotate_curve ran the scene and stress checks
+        # and hashed the scene at every evaluation: about 5 % of a first-pass case, measured): only its status
+        # and failures are read here
         with limited():  # one BLAS thread while it computes (model.threads)
             curve, _ = an.exact_curve(self.samples, visit=visit)
         if curve.status != "complete":
