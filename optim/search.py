@@ -58,7 +58,6 @@ from typing import Any
 
 import numpy as np
 from scipy.optimize import BFGS, Bounds, NonlinearConstraint, minimize, nnls
-from scipy.stats import qmc
 
 from ..model.curve import Analysis
 from ..model.design import point_sensitivity, structure_derivatives, trace_template
@@ -516,6 +515,8 @@ def start_point(fam: FamilyEvaluator, prob: Problem, family_index: int, start: i
     and the sequence fills the box evenly however many starts are drawn."""
     if start == 0:
         return fam.default_x()
+    from scipy.stats import qmc  # here, not at the top: 0.8 s of this module's import in every job process
+
     seq = qmc.Halton(d=len(fam.names), scramble=True, seed=np.random.default_rng([prob.seed, family_index]))
     seq.fast_forward(start - 1)
     return seq.random(1)[0]
@@ -706,6 +707,8 @@ def _screen(
     method 'auto' (each candidate's error estimate decides whether a Taylor estimate is good enough or the
     exact curve is needed). Candidates whose curve cannot be computed are skipped. Returns the best point
     and a record of the screening."""
+    from scipy.stats import qmc
+
     from ..model.methods import frequency_curve as fast_curve
 
     sampler = qmc.LatinHypercube(d=len(fam.names), seed=np.random.default_rng([prob.seed, family_index, start, 1]))
