@@ -125,7 +125,8 @@ def _row(name: str, res: dict, wall: float, loads: tuple[str, str], cpu: float =
         f"| {name} | {c['generated']} | {c['rejected']} | {c['generated'] - c['rejected'] - c['untraceable']} | "
         f"{c.get('first_pass', 0)} | {c.get('pruned', 0)} | {c.get('promoted', c['optimised'])} | {c['optimised']} | "
         f"{s.get('screen', 0):.0f} | {s.get('first_pass', 0):.0f} | {s.get('optimise', 0):.0f} | "
-        f"{s.get('refine', 0):.0f} | {wall:.0f} | {cpu:.0f} | {b} | {loads[0]} / {loads[1]} |"
+        f"{s.get('refine', 0):.0f} | {s.get('total', float('nan')):.1f} | {wall:.0f} | {cpu:.0f} | {b} | "
+        f"{loads[0]} / {loads[1]} |"
     )
 
 
@@ -195,10 +196,11 @@ def main() -> None:
         print("(no search runs: --runs empty)")
     print(
         "| run | generated | rejected | survivors | first pass | pruned | full pass | optimised | screen [s] | "
-        "first pass [s] | full pass [s] | refine [s] | total [s] | workers' CPU [s] | best (worst / zero) | "
+        "first pass [s] | full pass [s] | refine [s] | search [s] | wall with the executor's start [s] | "
+        "workers' CPU [s] | best (worst / zero) | "
         "load before / after |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name in a.runs:
         print("\n".join(rows[name]))
     for name in a.runs:
