@@ -16,6 +16,7 @@ from flexopt.model import template
 
 __all__ = [
     "HINGES",
+    "SEED_LEAF_LIGHT_SET",
     "COARSE_MESH",
     "coarse",
     "DELETE",
@@ -209,3 +210,18 @@ def scale_units(data: Mapping[str, Any], length: float, mass: float) -> dict[str
             if st.get(k) is not None:
                 st[k] *= L
     return out
+
+
+#: SPACAR Light's element set of the seed leaf (eprops: steel, a 40 x 0.5 mm rectangle, 4 beams, every
+#: deformation flexible): the leaf-spring template written as a SPACAR Light script would (tests/test_spacar*.py)
+SEED_LEAF_LIGHT_SET: dict[str, Any] = {
+    "elems": [1],
+    "emod": 210e9,
+    "smod": 79e9,
+    "dens": 7800,
+    "cshape": "rect",
+    "dim": [0.04, 0.0005],
+    "orien": [0, 1, 0],
+    "nbeams": 4,
+    "flex": [1, 2, 3, 4, 5, 6],
+}

@@ -13,6 +13,8 @@ from flexopt.model.io import load_dat, scene_from_dict
 from flexopt.model.spacar import read_dat, write_dat
 from flexopt.model.templates import template
 
+from tests.helpers import SEED_LEAF_LIGHT_SET
+
 DATA = Path(__file__).parent / "data" / "spacar"
 
 
@@ -294,19 +296,7 @@ def test_spacar_light_tables_port_line_by_line():
     scene = load_scene(DATA / "seed_leaf_light.yaml")
     ref = _curve(template("leaf-spring", segments=4), [0.0, 11.25, 22.5, 33.75, 45.0])
     np.testing.assert_allclose(_curve(scene, scene.stroke.values()).modes_hz, ref.modes_hz, rtol=1e-9)
-    eprops = [
-        {
-            "elems": [1],
-            "emod": 210e9,
-            "smod": 79e9,
-            "dens": 7800,
-            "cshape": "rect",
-            "dim": [0.04, 0.0005],
-            "orien": [0, 1, 0],
-            "nbeams": 4,
-            "flex": [1, 2, 3, 4, 5, 6],
-        }
-    ]
+    eprops = [dict(SEED_LEAF_LIGHT_SET)]
     imp = spacar_light(
         np.array([[0, 0, 0], [0.1, 0, 0]]), np.array([[1, 2]]), {1: {"fix": True}, 2: {"rot_y": np.pi / 4}}, eprops
     )

@@ -21,6 +21,7 @@ from flexopt.model.statics import reference_equilibrium
 from flexopt.model.templates import template
 
 from tests import references as ref
+from tests.helpers import SEED_LEAF_LIGHT_SET
 
 DATA = Path(__file__).parent / "data" / "spacar"
 BEAMW = (DATA / "seed_leaf_beamw_3node.dat").read_text()
@@ -267,17 +268,7 @@ def test_eiw_on_a_plain_beam_has_no_effect():
     np.testing.assert_allclose(_curve(scene, [0.0]).modes_hz, _curve(native, [0.0]).modes_hz, rtol=1e-9)
 
 
-LIGHT_SET = {
-    "elems": [1],
-    "emod": 210e9,
-    "smod": 79e9,
-    "dens": 7800,
-    "cshape": "rect",
-    "dim": [0.04, 0.0005],
-    "orien": [0, 1, 0],
-    "nbeams": 4,
-    "flex": [1, 2, 3, 4, 5, 6],
-}
+LIGHT_SET = SEED_LEAF_LIGHT_SET
 
 
 @pytest.mark.parametrize(
