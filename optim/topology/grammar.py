@@ -53,6 +53,7 @@ smallest descriptor string over these maps; the enumeration keeps one descriptor
 from __future__ import annotations
 
 import itertools
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from ...model.templates import guide_layout, topology_layout
@@ -65,6 +66,7 @@ __all__ = [
     "canonical",
     "family_of",
     "enumerate_topologies",
+    "candidate_topologies",
     "FAMILIES",
     "design_parameters",
     "DIMENSIONS",
@@ -366,6 +368,27 @@ def enumerate_topologies(
 # ---------------------------------------------------------------------------------------------- guides
 #: Every place of a wire: nine vertical (z) and nine lateral (y).
 GUIDE_PLACES: tuple[str, ...] = tuple(d + i + j for d in "zy" for i in "-0+" for j in "-0+")
+
+
+def candidate_topologies(
+    topologies: Sequence[str] | None,
+    max_flexures: int,
+    max_stages: int,
+    planes: str = "+-",
+    inplane: bool = True,
+    free_crossing: bool = True,
+    reinforce: bool = False,
+    prune: bool = False,
+) -> list[Topology]:
+    """A search's candidates: the given descriptors, one per canonical form in their first order, or else every
+    topology :func:`enumerate_topologies` generates (the search ranks these; the job's cost estimate counts them)."""
+    if topologies is not None:
+        seen: dict[str, Topology] = {}
+        for d in topologies:
+            c = canonical(d)
+            seen.setdefault(str(c), c)
+        return list(seen.values())
+    return enumerate_topologies(max_flexures, max_stages, planes, inplane, free_crossing, reinforce, prune=prune)
 
 
 @dataclass(frozen=True)

@@ -59,7 +59,7 @@ from typing import Any
 from ...model.threads import limited
 from ..problem import Family, Problem, Ratio
 from ..search import best_start, no_optimum_reason
-from .grammar import Topology, canonical, design_parameters, enumerate_topologies, family_of, parse, zone_names
+from .grammar import Topology, candidate_topologies, canonical, design_parameters, family_of, parse, zone_names
 from .spec import TopologySpec, example_spec, schedule_counts
 
 __all__ = [
@@ -280,13 +280,8 @@ def family_problem(name: str, descriptor: str, spec: TopologySpec) -> dict:
 
 
 def _candidates(spec: TopologySpec) -> list[Topology]:
-    if spec.topologies is not None:
-        seen: dict[str, Topology] = {}
-        for d in spec.topologies:
-            c = canonical(d)
-            seen.setdefault(str(c), c)
-        return list(seen.values())
-    return enumerate_topologies(
+    return candidate_topologies(
+        spec.topologies,
         spec.max_flexures,
         spec.max_stages,
         spec.planes,

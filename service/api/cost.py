@@ -332,14 +332,11 @@ def _candidate_shapes(
     dims: str,
 ) -> Counter[tuple[int, int, int, int]]:
     """How many candidates of each (leaves, stages, design parameters of the first pass, of the full pass)."""
-    from ...optim.topology.grammar import canonical, design_parameters, enumerate_topologies
+    from ...optim.topology.grammar import candidate_topologies, design_parameters
 
-    if topologies is not None:
-        tops = list({str(canonical(d)): canonical(d) for d in topologies}.values())
-    else:
-        tops = enumerate_topologies(
-            max_flexures, max_stages, planes, inplane, free_crossing, reinforcement, prune=prune
-        )
+    tops = candidate_topologies(
+        topologies, max_flexures, max_stages, planes, inplane, free_crossing, reinforcement, prune=prune
+    )
     return Counter(
         (t.flexures, len(t.stages), len(design_parameters(t, first_dims)), len(design_parameters(t, dims)))
         for t in tops
