@@ -6,13 +6,15 @@ One BLAS thread is set first (model.threads), before numpy loads its BLAS.
 A Dask worker started with this module as its preload (``dask worker ADDRESS --nthreads 1 --preload
 flexopt.optim._preload``, or ``LocalCluster(preload=[...])``) gets the same, and :func:`malloc_defaults`
 undoes the allocator setting Dask's nanny gives its workers (``MALLOC_TRIM_THRESHOLD_=65536``, Dask's
-``distributed.nanny.pre-spawn-environ``)."""
+``distributed.nanny.pre-spawn-environ``); its ``dask_setup`` (:func:`optim.dask_preload.dask_setup`) slows the
+worker's polling and removes its statistical profiler."""
 
 from __future__ import annotations
 
 import os
 
 from ..model.threads import limit_process
+from .dask_preload import dask_setup  # noqa: F401  (Dask calls a preload's dask_setup on its worker)
 
 #: glibc's mallopt parameters (malloc.h) and the values set in place of Dask's: the largest mmap threshold
 #: glibc's own dynamic threshold reaches on a 64-bit machine (DEFAULT_MMAP_THRESHOLD_MAX, 32 MiB) and, as that

@@ -5,7 +5,9 @@ executor (:func:`dask_executor`) for scale-out. Workers receive a JSON string an
 the case function (``"module:function"``), never pickled CasADi objects; each worker imports the function
 itself and builds (or loads from the disk cache, ``model/kernels.py``, ``$FLEXOPT_CACHE_DIR``) its compiled
 kernels. Nothing here imports a scheduler at import time: ``distributed`` loads only in
-:func:`dask_executor`.
+:func:`dask_executor` and :func:`dask_local_cluster`. On an executor that reports its worker threads
+(``slots()``, as :func:`dask_executor`'s does) one task per thread is in flight and short cases travel in
+chunks (:func:`_chunk_size`); each case keeps its own record, store file and progress event.
 
 Store layout (``store=DIR``): one file ``DIR/<case id>.json`` per finished case, written as the case
 completes (temporary file, ``fsync``, atomic rename), so a crash never leaves a half-written record and an
@@ -28,6 +30,7 @@ import concurrent.futures as cf
 import hashlib
 import importlib
 import json
+import math
 import multiprocessing
 import os
 import sys
@@ -37,13 +40,26 @@ import time
 from collections import deque
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
-__all__ = ["BatchCancelled", "NoWorkers", "case_id", "case_seed", "dask_executor", "process_pool", "run_cases"]
+__all__ = [
+    "BatchCancelled",
+    "NoWorkers",
+    "case_id",
+    "case_seed",
+    "dask_executor",
+    "dask_local_cluster",
+    "process_pool",
+    "run_cases",
+]
 
 _FAILURE_KEYS = frozenset({"id", "error", "kind"})
 _POLL = 0.2  # seconds between looks at the cancel event while cases run
 _WORKER_POLL = 1.0  # seconds between asks for the executor's worker count (an RPC to a Dask scheduler)
 NO_WORKER_TIMEOUT = 60.0  # default: seconds a batch waits for a cluster without workers before it stops
+_CHUNK_SECONDS = 1.0  # work per task on a chunking executor (_chunk_size): a task's ~7 ms is then under 1 %
+_CHUNK_MAX = 32  # cases per task at most (progress, cancel and a lost worker's rerun stay fine-grained)
+_CHUNK_WINDOW = 16  # finished cases whose median time sizes the next chunk
 
 
 class BatchCancelled(Exception):
@@ -129,13 +145,15 @@ def _message(exc: BaseException) -> str:
     return str(exc) or type(exc).__name__
 
 
-def _call(fn: str, case_json: str) -> str:
-    """Worker side: import ``fn``, run it on the case, return JSON (a failure record if it raised)."""
+def _run_one(fn: str, case_json: str) -> dict:
+    """Worker side: import ``fn``, run it on one case; the envelope ``{"ok", "result" | "error", "kind",
+    "seconds"}`` (``"setup": True`` when ``fn`` cannot be imported; ``seconds``: the case's own wall time)."""
     mod, name = _split(fn)
     try:
         func = getattr(importlib.import_module(mod), name)
     except (ImportError, AttributeError) as exc:
-        return json.dumps({"ok": False, "setup": True, "error": _message(exc), "kind": type(exc).__name__})
+        return {"ok": False, "setup": True, "error": _message(exc), "kind": type(exc).__name__}
+    t0 = time.perf_counter()
     try:
         from ..model.threads import limited  # lazily: flexopt.model loads CasADi
 
@@ -144,14 +162,51 @@ def _call(fn: str, case_json: str) -> str:
         if not isinstance(out, dict):
             raise TypeError(f"{fn} returned a {type(out).__name__}: a case function must return a dict")
         try:
-            return json.dumps({"ok": True, "result": out})  # NaN is kept (Python's JSON reads it back)
+            json.dumps(out)  # NaN is kept (Python's JSON reads it back)
         except (TypeError, ValueError) as exc:
             raise type(exc)(
                 f"the result of {fn} is not JSON ({exc}): return floats, lists and dicts "
                 "(numpy values through float() or .tolist())"
             ) from None
+        return {"ok": True, "result": out, "seconds": time.perf_counter() - t0}
     except Exception as exc:  # noqa: BLE001 - every failure of a case becomes its record: type and message
-        return json.dumps({"ok": False, "error": _message(exc), "kind": type(exc).__name__})
+        return {"ok": False, "error": _message(exc), "kind": type(exc).__name__, "seconds": time.perf_counter() - t0}
+
+
+def _call(fn: str, case_json: str) -> str:
+    """Worker side: one case, its envelope (:func:`_run_one`) as JSON."""
+    return json.dumps(_run_one(fn, case_json))
+
+
+def _call_many(fn: str, cases_json: list[str]) -> str:
+    """Worker side: several cases in turn (one task on a cluster: see :func:`_chunk_size`), their envelopes as a
+    JSON list; it stops after a case whose function cannot be imported (every other case would fail alike)."""
+    out = []
+    for c in cases_json:
+        out.append(_run_one(fn, c))
+        if out[-1].get("setup"):
+            break
+    return json.dumps(out)
+
+
+def _chunk_size(seconds: list[float], waiting: int, slots: int) -> int:
+    """Cases per task on an executor that runs many tasks cheaply only in few messages (a Dask cluster).
+
+    One Dask task costs the cluster a few ms of CPU in its scheduler, nanny and worker event loops, and a round
+    trip before a worker starts the next: measured (``python bench/bench_dask_overhead.py``, 400 cases of 50 ms
+    on 2 single-threaded workers, ideal 10 s), one task per case took 15.2 s on a LocalCluster against 12.5 s
+    in chunks and 10.5 s on the process pool (10.7 s in chunks on ``dask_local_cluster``). A topology
+    search's first pass has hundreds of 0.1-0.3 s cases. So cases are sent in chunks of about
+    :data:`_CHUNK_SECONDS` of work, the size from the median time of the last finished cases (1 until one has
+    finished: nothing is known), at most :data:`_CHUNK_MAX`, and at most ``waiting / (2 slots)`` so that the
+    last cases still spread over
+    every worker thread instead of queueing behind one."""
+    if not seconds:
+        return 1
+    recent = sorted(seconds[-_CHUNK_WINDOW:])
+    median = recent[len(recent) // 2]
+    size = int(_CHUNK_SECONDS / max(median, 1e-3))
+    return max(1, min(size, _CHUNK_MAX, waiting // (2 * max(slots, 1))))
 
 
 def _cpu_count() -> int:
@@ -212,6 +267,10 @@ def dask_executor(address: str, **client_kwargs: object) -> cf.Executor:
             """Workers the scheduler knows now (run_cases stops a batch left without any)."""
             return len(self._client.scheduler_info(n_workers=-1).get("workers", {}))
 
+        def slots(self) -> int:
+            """Worker threads the scheduler knows now (run_cases keeps two tasks per thread in flight)."""
+            return sum(self._client.nthreads().values())
+
         # ClientExecutor.shutdown waits for (or cancels) the futures but leaves the client connected
         def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
             try:
@@ -227,6 +286,33 @@ def dask_executor(address: str, **client_kwargs: object) -> cf.Executor:
             "start one with `dask scheduler` and workers with `dask worker ADDRESS`"
         ) from exc
     return _OwningClientExecutor(client)
+
+
+def dask_local_cluster(workers: int | None = None, **cluster_kwargs: Any) -> Any:
+    """A Dask ``LocalCluster`` on this machine, set up as flexopt's cases run best on it: ``workers``
+    single-threaded worker processes (default: the CPUs this process may use), each preloaded with
+    ``optim._preload`` (CasADi and the case functions imported once, glibc's large-block reuse, one BLAS
+    thread), the scheduler and the nannies with ``optim.dask_preload`` (Dask's polling slowed, the workers'
+    profiler off), no dashboard. ``cluster_kwargs`` go to ``LocalCluster`` and win. Use it with
+    :func:`dask_executor` on its ``scheduler_address``; close it (``with``) when done."""
+    try:
+        from distributed import LocalCluster
+    except ImportError as exc:  # pragma: no cover - depends on the installation
+        raise ValueError(
+            "a local Dask cluster needs the 'distributed' package: pip install 'flexopt[cluster]'"
+        ) from exc
+    if workers is not None and workers < 1:
+        raise ValueError(f"workers must be at least 1, got {workers}")
+    options: dict[str, Any] = {
+        "n_workers": workers or _cpu_count(),
+        "threads_per_worker": 1,
+        "processes": True,
+        "preload": ["flexopt.optim._preload"],
+        "preload_nanny": ["flexopt.optim.dask_preload"],
+        "scheduler_kwargs": {"preload": ["flexopt.optim.dask_preload"]},
+        "dashboard_address": None,
+    }
+    return LocalCluster(**{**options, **cluster_kwargs})
 
 
 def _write(store: Path, cid: str, record: dict) -> None:
@@ -372,14 +458,20 @@ def run_cases(
     n_workers = min(workers or _cpu_count(), len(todo))
     ex: cf.Executor = _default_executor(n_workers) if executor is None else executor
     # Own pool: keep exactly one case per worker in flight, so a cancel stops every case not yet started
-    # (a process pool hands queued calls to its workers early and cannot take them back). A foreign
-    # executor gets every case at once: a Dask scheduler places them, and cancels queued or running ones.
+    # (a process pool hands queued calls to its workers early and cannot take them back). An executor that
+    # reports its worker threads (``slots()``, as dask_executor's does) gets one task per thread in flight,
+    # each a chunk of cases (_chunk_size): the next task goes to the first thread free, as on the pool (a
+    # Dask scheduler given more queues them on workers, and at a batch's end one worker's queue waits while
+    # the other worker idles); any other executor gets every case at once.
     limit = n_workers if own else None
+    slots_of = None if own else getattr(ex, "slots", None)
     queue = deque(todo.items())
-    running: dict[cf.Future, str] = {}
+    running: dict[cf.Future, list[str]] = {}
+    seconds: list[float] = []  # the finished cases' own times, which size the chunks
     stopped = False
     count = None if own else getattr(ex, "worker_count", None)
     looked, idle_since = time.monotonic(), None
+    n_slots, slots_looked = 1, -math.inf
 
     def starved() -> bool:
         """True once the executor has had no workers for ``no_worker_timeout`` seconds."""
@@ -397,15 +489,34 @@ def run_cases(
     def cancelled() -> bool:
         return cancel is not None and cancel.is_set()
 
-    def fill() -> None:
-        while queue and (limit is None or len(running) < limit) and not cancelled():
-            cid, idx = queue.popleft()
-            running[ex.submit(_call, fn, json.dumps(cases[idx[0]]))] = cid
+    def slots() -> int:
+        nonlocal n_slots, slots_looked
+        now = time.monotonic()
+        if slots_of is not None and now - slots_looked >= _WORKER_POLL:
+            n_slots, slots_looked = max(int(slots_of()), 1), now
+        return n_slots
 
-    def finish(f: cf.Future, cid: str) -> None:
+    def fill() -> None:
+        while queue and not cancelled():
+            if slots_of is None:
+                if limit is not None and len(running) >= limit:
+                    return
+                cid, idx = queue.popleft()
+                running[ex.submit(_call, fn, json.dumps(cases[idx[0]]))] = [cid]
+                continue
+            n = slots()
+            if len(running) >= n:
+                return
+            size = _chunk_size(seconds, len(queue), n)
+            group = [queue.popleft() for _ in range(min(size, len(queue)))]
+            blobs = [json.dumps(cases[idx[0]]) for _, idx in group]
+            running[ex.submit(_call_many, fn, blobs)] = [cid for cid, _ in group]
+
+    def finish(f: cf.Future, cids: list[str]) -> None:
         nonlocal done
+        lost: dict[str, str] | None = None
         try:
-            out = json.loads(f.result())
+            raw = json.loads(f.result())
         except cf.CancelledError:
             return  # cancelled by someone else (e.g. the executor shut down): not finished, not stored
         except cf.BrokenExecutor as exc:
@@ -414,24 +525,34 @@ def run_cases(
                 "starts the batch without an `if __name__ == '__main__':` guard); finished cases are in the "
                 "store: rerun to resume"
             ) from exc
-        except Exception as exc:  # noqa: BLE001 - the executor could not run this case: report, do not store
-            record = {"id": cid, "error": _message(exc), "kind": type(exc).__name__}
+        except Exception as exc:  # noqa: BLE001 - the executor could not run these cases: report, do not store
+            outs: list[dict | None] = [None] * len(cids)
+            lost = {"error": _message(exc), "kind": type(exc).__name__}
         else:
-            if out.get("setup"):
-                raise ValueError(
-                    f"cannot import {fn!r} on a worker ({out['kind']}: {out['error']}): check the "
-                    "name, and that the workers have flexopt (and the module) installed"
-                )
-            if out["ok"]:
-                record = dict(out["result"], id=cid)
+            outs = list(raw) if isinstance(raw, list) else [raw]
+        for cid, out in zip(cids, outs + [None] * (len(cids) - len(outs))):
+            if out is None:
+                if lost is None:  # after a setup failure in its chunk: not run (the batch stops below)
+                    continue
+                record = {"id": cid, **lost}
             else:
-                record = {"id": cid, "error": out["error"], "kind": out["kind"]}
-            if root is not None:
-                _write(root, cid, record)
-        for i in todo[cid]:
-            results[i] = record
-            done += 1
-        report(cid, "failed" if _is_failure(record) else "done", record)
+                if out.get("setup"):
+                    raise ValueError(
+                        f"cannot import {fn!r} on a worker ({out['kind']}: {out['error']}): check the "
+                        "name, and that the workers have flexopt (and the module) installed"
+                    )
+                if "seconds" in out:
+                    seconds.append(float(out["seconds"]))
+                if out["ok"]:
+                    record = dict(out["result"], id=cid)
+                else:
+                    record = {"id": cid, "error": out["error"], "kind": out["kind"]}
+                if root is not None:
+                    _write(root, cid, record)
+            for i in todo[cid]:
+                results[i] = record
+                done += 1
+            report(cid, "failed" if _is_failure(record) else "done", record)
 
     try:
         fill()

@@ -177,6 +177,114 @@ def test_a_case_the_executor_lost_is_reported_not_stored(tmp_path: Path, marks: 
     assert "seed" in again[0] and again[1] == out[1] and _runs(marks) == 2, "only the lost case ran again"
 
 
+class _Slots(cf.ThreadPoolExecutor):
+    """A thread pool that reports its threads as a Dask executor does (``slots()``), records how many cases each
+    task carried and the most tasks it ever had in flight, and loses the tasks listed in ``lose`` (by order)."""
+
+    def __init__(self, threads: int = 2, lose: tuple[int, ...] = ()) -> None:
+        super().__init__(threads)
+        self.threads, self.lose = threads, lose
+        self.sizes: list[int] = []
+        self.in_flight = self.most = 0
+        self.lock = threading.Lock()
+
+    def slots(self) -> int:
+        return self.threads
+
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> cf.Future:
+        self.sizes.append(len(args[1]) if isinstance(args[1], list) else 1)
+        if len(self.sizes) - 1 in self.lose:
+            f: cf.Future = cf.Future()
+            f.set_exception(OSError("connection to worker tcp://10.0.0.7:40000 lost"))
+            return f
+        with self.lock:
+            self.in_flight += 1
+            self.most = max(self.most, self.in_flight)
+        fut = super().submit(fn, *args, **kwargs)
+        fut.add_done_callback(lambda _: self._done())
+        return fut
+
+    def _done(self) -> None:
+        with self.lock:
+            self.in_flight -= 1
+
+
+def test_chunk_size_rule_by_hand() -> None:
+    """optim.batch._chunk_size: about 1 s of work per task (_CHUNK_SECONDS) from the median of the last 16
+    finished cases, at most 32 cases, and at most waiting / (2 slots) so the last cases spread over every
+    thread. Each expected size below is that rule worked by hand."""
+    from flexopt.optim.batch import _chunk_size
+
+    assert _chunk_size([], 100, 2) == 1, "nothing finished yet: nothing is known"
+    assert _chunk_size([0.1], 100, 2) == 10  # 1 s / 0.1 s
+    assert _chunk_size([0.3, 0.1, 0.2], 100, 2) == 5  # median 0.2 s
+    assert _chunk_size([0.001], 100, 2) == 25  # 1000 by time, 32 at most, 100 // 4 = 25 by the tail
+    assert _chunk_size([0.001], 1000, 2) == 32
+    assert _chunk_size([0.01], 3, 2) == 1, "3 waiting on 2 threads: one each, not a chunk"
+    assert _chunk_size([2.0], 100, 2) == 1, "a case longer than the target goes alone"
+    assert _chunk_size([5.0] * 16 + [0.1] * 17, 100, 1) == 10, "the last 16 cases size it, not the first"
+
+
+def test_an_executor_with_slots_gets_chunks_one_per_thread_and_the_same_records(tmp_path: Path) -> None:
+    """Short cases on an executor that reports its threads (as dask_executor's does) travel in chunks, one task
+    per thread in flight; every case still gets its own record, progress event and store file, in order."""
+    cases = [{"base_seed": 3, "k": k} for k in range(60)]
+    with cf.ThreadPoolExecutor(2) as ex:
+        plain = run_cases(cases, SEEDED, executor=ex)  # no slots(): one case per task, every case at once
+    events: list[dict] = []
+    with _Slots(2) as ex:
+        out = run_cases(cases, SEEDED, executor=ex, store=tmp_path, progress=events.append)
+    assert out == plain
+    assert ex.sizes[0] == 1 and max(ex.sizes) > 1 and sum(ex.sizes) == len(cases), ex.sizes
+    assert len(ex.sizes) < len(cases) / 2, "the short cases went in chunks"
+    assert ex.most <= 2, "one task per thread in flight"
+    assert [e["done"] for e in events] == list(range(1, 61)) and {e["status"] for e in events} == {"done"}
+    assert sorted(p.name for p in tmp_path.glob("*.json")) == sorted(f"{r['id']}.json" for r in out)
+
+
+def test_a_lost_chunk_reports_each_of_its_cases_and_stores_none(tmp_path: Path, marks: Path) -> None:
+    """A chunk the executor could not run (a lost Dask worker): each of its cases gets the failure record, none
+    is stored, and a rerun runs exactly those again."""
+    cases = [{"base_seed": 5, "k": k, "marker_dir": str(marks)} for k in range(40)]
+    with _Slots(2, lose=(3,)) as ex:
+        out = run_cases(cases, SEEDED, executor=ex, store=tmp_path)
+    lost_n = ex.sizes[3]
+    assert lost_n > 1, ex.sizes
+    lost = [r for r in out if r.get("kind") == "OSError"]
+    assert len(lost) == lost_n and all(r["error"] == "connection to worker tcp://10.0.0.7:40000 lost" for r in lost)
+    assert len(list(tmp_path.glob("*.json"))) == 40 - lost_n and _runs(marks) == 40 - lost_n
+    with _Slots(2) as ex:
+        again = run_cases(cases, SEEDED, executor=ex, store=tmp_path)
+    assert _runs(marks) == 40 and all("seed" in r for r in again)
+
+
+def test_a_chunk_whose_function_cannot_be_imported_stops_the_batch() -> None:
+    with _Slots(2) as ex, pytest.raises(ValueError, match="cannot import 'tests.batch_cases:nope'"):
+        run_cases([{"base_seed": 0, "k": k} for k in range(5)], "tests.batch_cases:nope", executor=ex)
+
+
+def test_the_dask_preload_slows_the_polling_and_removes_the_profiler() -> None:
+    """optim.dask_preload.dask_setup on a server's periodic callbacks (tornado's, as Dask's servers keep them):
+    Dask's default periods (tick 20 ms, monitor 500 ms, memory monitor 100 ms) become 1 s, 2 s and 1 s, one
+    configured slower is kept, the profiler's two callbacks are stopped and removed, the others untouched."""
+    from flexopt.optim.dask_preload import dask_setup
+    from tornado.ioloop import PeriodicCallback
+
+    class Server:
+        def __init__(self) -> None:
+            ms = {"tick": 20, "monitor": 10_000, "memory_monitor": 100, "profile": 10, "profile-cycle": 1000}
+            self.periodic_callbacks = {k: PeriodicCallback(lambda: None, v) for k, v in ms.items()}
+            self.periodic_callbacks["heartbeat"] = PeriodicCallback(lambda: None, 500)
+
+    srv = Server()
+    prof = srv.periodic_callbacks["profile"]
+    dask_setup(srv)
+    got = {k: pc.callback_time for k, pc in srv.periodic_callbacks.items()}
+    assert got == {"tick": 1000.0, "monitor": 10_000, "memory_monitor": 1000.0, "heartbeat": 500}
+    assert not prof.is_running()
+    dask_setup(object())  # not a Dask server (no periodic callbacks): nothing to do, no error
+
+
 def test_case_ids_and_seeds_are_deterministic_across_workers() -> None:
     a, b = {"x": 1, "y": [1, 2]}, {"y": [1, 2], "x": 1}
     assert case_id(a) == case_id(b) and case_seed(a, 7) == case_seed(b, 7), "key order does not matter"
@@ -269,6 +377,31 @@ def test_dask_local_cluster_gives_the_pool_results() -> None:
         deadline.cancel()
     assert time.perf_counter() - t0 < 120
     assert out == pool, "a Dask cluster computes exactly what the local process pool does"
+
+
+@pytest.mark.slow  # a real cluster whose workers import the preload (CasADi, scipy, the case functions)
+def test_flexopts_local_cluster_is_quiet_and_gives_the_pool_results() -> None:
+    """optim.batch.dask_local_cluster: single-threaded workers, every server's polling slowed by
+    optim.dask_preload (the scheduler's, the nannies' and the workers'), no worker profiler; flexopt's executor
+    on it reports its threads (so cases travel in chunks) and computes exactly what the process pool does."""
+    pytest.importorskip("distributed")
+    from flexopt.optim.batch import dask_executor, dask_local_cluster
+
+    def periods(dask_worker: Any = None, dask_scheduler: Any = None) -> dict:
+        server = dask_worker if dask_worker is not None else dask_scheduler
+        return {k: pc.callback_time for k, pc in server.periodic_callbacks.items()}
+
+    cases = [{"base_seed": 9, "k": k} for k in range(12)]
+    pool = run_cases(cases, SEEDED, workers=2)
+    with dask_local_cluster(2) as cluster, dask_executor(cluster.scheduler_address, timeout="30s") as ex:
+        assert ex.slots() == 2 and ex.worker_count() == 2
+        servers = [*ex._client.run(periods).values(), *ex._client.run(periods, nanny=True).values()]
+        servers.append(ex._client.run_on_scheduler(periods))
+        for pcs in servers:
+            assert pcs["tick"] >= 1000 and pcs["monitor"] >= 2000 and pcs.get("memory_monitor", 1000) >= 1000, pcs
+            assert "profile" not in pcs and "profile-cycle" not in pcs
+        out = run_cases(cases, SEEDED, executor=ex)
+    assert out == pool
 
 
 def test_an_unreachable_scheduler_says_how_to_fix_it() -> None:
