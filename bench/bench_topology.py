@@ -20,7 +20,8 @@ multi-start from a scrambled Halton sequence: the global baseline on the leaders
 
 Run from the repository root: ``python bench/bench_topology.py [--workers 2] [--repeats 1] [--runs today quick
 default] [--store DIR] [--baseline 8] [--dask]``; ``--dask`` runs each search a second time, right after the
-pool's, on a Dask LocalCluster of the same number of single-threaded worker processes. Every figure is printed with ``uptime``'s load before and after; the
+pool's, on flexopt's Dask LocalCluster (``optim.batch.dask_local_cluster``) of the same number of single-threaded
+worker processes. Every figure is printed with ``uptime``'s load before and after; the
 machine is shared, so timings under load are upper bounds. Prints markdown tables for the README.
 
 Published reference for the worst/zero-stroke ratio: seed 000 quotes an optimised large-stroke hinge that
@@ -78,10 +79,10 @@ def _cpu(pids: list[int]) -> float:
 
 
 def _search(spec: dict, workers: int, store: str | None, dask: bool) -> tuple[dict, float]:
-    """One search on a fresh executor (a process pool, or a Dask LocalCluster of ``workers`` single-threaded
-    worker processes with ``flexopt.optim._preload`` as their preload, as the pool's fork server has, and
-    without the workers' profiler): the result and the CPU seconds its workers used (load inflates them less
-    than the wall time; a Dask worker's include its event loop and heartbeats, which grow with the wall time)."""
+    """One search on a fresh executor (a process pool, or ``optim.batch.dask_local_cluster``: ``workers``
+    single-threaded worker processes preloaded as the pool's fork server is, Dask's polling slowed): the result
+    and the CPU seconds its workers used (load inflates them less than the wall time; a Dask worker's include
+    its event loop and heartbeats, which grow with the wall time)."""
     if not dask:
         from flexopt.optim.batch import process_pool
 
@@ -92,24 +93,14 @@ def _search(spec: dict, workers: int, store: str | None, dask: bool) -> tuple[di
             return res, _cpu(sorted(pids))
         finally:
             ex.shutdown()
-    import dask
-    from distributed import Client, LocalCluster
+    from flexopt.optim.batch import dask_executor, dask_local_cluster
 
-    with (
-        # the workers' statistical profiler samples the case's thread every 10 ms: measured 12 % more CPU per case
-        dask.config.set({"distributed.worker.profile.enabled": False}),
-        LocalCluster(
-            n_workers=workers,
-            threads_per_worker=1,
-            processes=True,
-            preload=["flexopt.optim._preload"],
-            dashboard_address=None,
-        ) as cluster,
-        Client(cluster) as client,
-    ):
-        pids = list(client.run(os.getpid).values())
+    # as a user runs it: flexopt's local cluster (its preloads slow Dask's polling and turn the workers'
+    # profiler off) and flexopt's executor on it (chunks of short cases); no Dask configuration set here
+    with dask_local_cluster(workers) as cluster, dask_executor(cluster.scheduler_address) as ex:
+        pids = list(ex._client.run(os.getpid).values())  # type: ignore[attr-defined]
         c0 = _cpu(pids)
-        res = run_topology_search(spec, executor=client.get_executor(), store=store)
+        res = run_topology_search(spec, executor=ex, store=store)
         return res, _cpu(pids) - c0
 
 
