@@ -112,6 +112,20 @@ def run_fresh(code: str, pythonpath: Path | str, env: Mapping[str, str] | None =
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+def cpu_seconds(pids: Sequence[int]) -> float:
+    """CPU seconds (user + system) the processes ``pids`` have used so far (psutil; 0 for one that is gone)."""
+    import psutil
+
+    out = 0.0
+    for pid in pids:
+        try:
+            t = psutil.Process(pid).cpu_times()
+        except psutil.Error:
+            continue
+        out += t.user + t.system
+    return out
+
+
 def load_line(when: str) -> str:
     """``load average L <when>; N CPUs``: the 1-minute load ``uptime`` shows, for a table's header."""
     return f"load average {os.getloadavg()[0]:.2f} {when}; {os.cpu_count()} CPUs"

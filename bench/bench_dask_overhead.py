@@ -28,6 +28,7 @@ import subprocess
 import time
 
 import psutil
+from _common import cpu_seconds
 
 
 def burn(case: dict) -> dict:
@@ -38,17 +39,6 @@ def burn(case: dict) -> dict:
         for i in range(500):
             x += i
     return {"k": case["k"], "x": x}
-
-
-def _cpu(pids: list[int]) -> float:
-    out = 0.0
-    for pid in pids:
-        try:
-            t = psutil.Process(pid).cpu_times()
-        except psutil.Error:
-            continue
-        out += t.user + t.system
-    return out
 
 
 def _load() -> str:
@@ -71,9 +61,9 @@ def _one(how: str, cases: list[dict]) -> tuple[float, float, float]:
         try:
             run_cases(cases[:2], fn, executor=ex)  # the workers are started (as a cluster is) before the clock
             pids = list(ex._processes)  # type: ignore[attr-defined]
-            c0, m0, t0 = _cpu(pids), _cpu([me.pid]), time.perf_counter()
+            c0, m0, t0 = cpu_seconds(pids), cpu_seconds([me.pid]), time.perf_counter()
             run_cases(cases, fn, executor=ex)
-            return time.perf_counter() - t0, _cpu(pids) - c0, _cpu([me.pid]) - m0
+            return time.perf_counter() - t0, cpu_seconds(pids) - c0, cpu_seconds([me.pid]) - m0
         finally:
             ex.shutdown()
     if how in ("quiet cluster", "flexopt cluster"):
@@ -89,9 +79,9 @@ def _one(how: str, cases: list[dict]) -> tuple[float, float, float]:
             client = ex._client  # type: ignore[attr-defined]
         try:
             pids = list(client.run(os.getpid).values())
-            c0, m0, t0 = _cpu(pids), _cpu([me.pid]), time.perf_counter()
+            c0, m0, t0 = cpu_seconds(pids), cpu_seconds([me.pid]), time.perf_counter()
             run_cases(cases, fn, executor=ex)
-            return time.perf_counter() - t0, _cpu(pids) - c0, _cpu([me.pid]) - m0
+            return time.perf_counter() - t0, cpu_seconds(pids) - c0, cpu_seconds([me.pid]) - m0
         finally:
             ex.shutdown()
             client.close()

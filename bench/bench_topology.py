@@ -39,6 +39,7 @@ from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
+from _common import cpu_seconds  # noqa: E402
 from flexopt.optim.topology import FAMILIES, run_topology_search  # noqa: E402
 from flexopt.optim.topology.spec import QUICK, TopologySpec  # noqa: E402
 
@@ -64,20 +65,6 @@ def _hz(r: dict) -> float:
     return ref["worst_hz"] if ref.get("worst_hz") is not None else r["worst_case_hz"]
 
 
-def _cpu(pids: list[int]) -> float:
-    """CPU seconds (user + system) the processes ``pids`` have used so far (psutil; 0 for a gone one)."""
-    import psutil
-
-    out = 0.0
-    for pid in pids:
-        try:
-            t = psutil.Process(pid).cpu_times()
-        except psutil.Error:
-            continue
-        out += t.user + t.system
-    return out
-
-
 def _search(spec: dict, workers: int, store: str | None, dask: bool) -> tuple[dict, float]:
     """One search on a fresh executor (a process pool, or ``optim.batch.dask_local_cluster``: ``workers``
     single-threaded worker processes preloaded as the pool's fork server is, Dask's polling slowed): the result
@@ -90,7 +77,7 @@ def _search(spec: dict, workers: int, store: str | None, dask: bool) -> tuple[di
         try:
             pids: set[int] = set()
             res = run_topology_search(spec, executor=ex, store=store, progress=lambda e: pids.update(ex._processes))  # type: ignore[attr-defined]
-            return res, _cpu(sorted(pids))
+            return res, cpu_seconds(sorted(pids))
         finally:
             ex.shutdown()
     from flexopt.optim.batch import dask_executor, dask_local_cluster
@@ -99,9 +86,9 @@ def _search(spec: dict, workers: int, store: str | None, dask: bool) -> tuple[di
     # profiler off) and flexopt's executor on it (chunks of short cases); no Dask configuration set here
     with dask_local_cluster(workers) as cluster, dask_executor(cluster.scheduler_address) as ex:
         pids = list(ex._client.run(os.getpid).values())  # type: ignore[attr-defined]
-        c0 = _cpu(pids)
+        c0 = cpu_seconds(pids)
         res = run_topology_search(spec, executor=ex, store=store)
-        return res, _cpu(pids) - c0
+        return res, cpu_seconds(pids) - c0
 
 
 def _row(name: str, res: dict, wall: float, loads: tuple[str, str], cpu: float = float("nan")) -> str:

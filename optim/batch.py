@@ -189,24 +189,40 @@ def _call_many(fn: str, cases_json: list[str]) -> str:
     return json.dumps(out)
 
 
-def _chunk_size(seconds: list[float], waiting: int, slots: int) -> int:
-    """Cases per task on an executor that runs many tasks cheaply only in few messages (a Dask cluster).
+def _median(seconds: list[float]) -> float | None:
+    """The median time of the last :data:`_CHUNK_WINDOW` finished cases (None before the first)."""
+    if not seconds:
+        return None
+    recent = sorted(seconds[-_CHUNK_WINDOW:])
+    return recent[len(recent) // 2]
+
+
+def _chunk_size(median: float | None, waiting: int, slots: int) -> int:
+    """Cases per task on an executor that reports its worker threads (a Dask cluster: :func:`dask_executor`).
 
     One Dask task costs the cluster a few ms of CPU in its scheduler, nanny and worker event loops, and a round
     trip before a worker starts the next: measured (``python bench/bench_dask_overhead.py``, 400 cases of 50 ms
     on 2 single-threaded workers, ideal 10 s), one task per case took 15.2 s on a LocalCluster against 12.5 s
     in chunks and 10.5 s on the process pool (10.7 s in chunks on ``dask_local_cluster``). A topology
     search's first pass has hundreds of 0.1-0.3 s cases. So cases are sent in chunks of about
-    :data:`_CHUNK_SECONDS` of work, the size from the median time of the last finished cases (1 until one has
-    finished: nothing is known), at most :data:`_CHUNK_MAX`, and at most ``waiting / (2 slots)`` so that the
-    last cases still spread over
-    every worker thread instead of queueing behind one."""
-    if not seconds:
+    :data:`_CHUNK_SECONDS` of work, the size from ``median``, the median time of the last finished cases (1
+    until one has finished: nothing is known), at most :data:`_CHUNK_MAX`, and at most ``waiting / (2 slots)``
+    so that the last cases still spread over every worker thread instead of queueing behind one."""
+    if median is None:
         return 1
-    recent = sorted(seconds[-_CHUNK_WINDOW:])
-    median = recent[len(recent) // 2]
     size = int(_CHUNK_SECONDS / max(median, 1e-3))
     return max(1, min(size, _CHUNK_MAX, waiting // (2 * max(slots, 1))))
+
+
+def _in_flight(median: float | None, slots: int) -> int:
+    """Tasks in flight on an executor that reports its worker threads: one per thread, the next task going to
+    the first thread free as on the pool (a Dask scheduler queues what it is given on its workers, and at a
+    batch's end one worker's queue waits while another idles: measured, two per thread made the quick
+    search's full pass of 1-5 s cases slower than the pool's). With short cases (median under
+    :data:`_CHUNK_SECONDS`) two per thread: a thread then starts its next task without waiting for a round
+    trip through the scheduler and the client, and a task waiting behind another holds at most about a
+    second of work (``python bench/bench_topology.py --runs quick default --dask``, docs/pages/optimisation.md)."""
+    return slots * (2 if median is not None and median < _CHUNK_SECONDS else 1)
 
 
 def _cpu_count() -> int:
@@ -459,10 +475,8 @@ def run_cases(
     ex: cf.Executor = _default_executor(n_workers) if executor is None else executor
     # Own pool: keep exactly one case per worker in flight, so a cancel stops every case not yet started
     # (a process pool hands queued calls to its workers early and cannot take them back). An executor that
-    # reports its worker threads (``slots()``, as dask_executor's does) gets one task per thread in flight,
-    # each a chunk of cases (_chunk_size): the next task goes to the first thread free, as on the pool (a
-    # Dask scheduler given more queues them on workers, and at a batch's end one worker's queue waits while
-    # the other worker idles); any other executor gets every case at once.
+    # reports its worker threads (``slots()``, as dask_executor's does) gets one or two tasks per thread in
+    # flight (_in_flight), each a chunk of cases (_chunk_size); any other executor gets every case at once.
     limit = n_workers if own else None
     slots_of = None if own else getattr(ex, "slots", None)
     queue = deque(todo.items())
@@ -504,10 +518,10 @@ def run_cases(
                 cid, idx = queue.popleft()
                 running[ex.submit(_call, fn, json.dumps(cases[idx[0]]))] = [cid]
                 continue
-            n = slots()
-            if len(running) >= n:
+            n, median = slots(), _median(seconds)
+            if len(running) >= _in_flight(median, n):
                 return
-            size = _chunk_size(seconds, len(queue), n)
+            size = _chunk_size(median, len(queue), n)
             group = [queue.popleft() for _ in range(min(size, len(queue)))]
             blobs = [json.dumps(cases[idx[0]]) for _, idx in group]
             running[ex.submit(_call_many, fn, blobs)] = [cid for cid, _ in group]
