@@ -202,8 +202,8 @@ def _chunk_size(median: float | None, waiting: int, slots: int) -> int:
 
     One Dask task costs the cluster a few ms of CPU in its scheduler, nanny and worker event loops, and a round
     trip before a worker starts the next: measured (``python bench/bench_dask_overhead.py``, 400 cases of 50 ms
-    on 2 single-threaded workers, ideal 10 s), one task per case took 15.2 s on a LocalCluster against 12.5 s
-    in chunks and 10.5 s on the process pool (10.7 s in chunks on ``dask_local_cluster``). A topology
+    on 2 single-threaded workers, ideal 10 s, 27 Nov 2026), one task per case took 14.5 s on a LocalCluster
+    against 12.3 s in chunks and 10.4 s on the process pool (10.5 s in chunks on ``dask_local_cluster``). A topology
     search's first pass has hundreds of 0.1-0.3 s cases. So cases are sent in chunks of about
     :data:`_CHUNK_SECONDS` of work, the size from ``median``, the median time of the last finished cases (1
     until one has finished: nothing is known), at most :data:`_CHUNK_MAX`, and at most ``waiting / (2 slots)``

@@ -6,10 +6,10 @@ check that its event loop is not blocked (``tick``), every 500 ms to sample its 
 disk (``monitor``), and every worker and nanny every 100 ms to read its memory (``memory_monitor``); a
 worker samples its running task's stack every 10 ms (``profile``). On a machine whose cores all run cases,
 each wake-up takes a core from a case. Measured on this 2-core machine (``python bench/bench_dask_overhead.py``:
-400 cases of 50 ms of CPU on 2 single-threaded workers, ideal 10 s, interleaved medians): 15.2 s on a
-LocalCluster as Dask makes it, 13.5 s with this preload, one task per case either way; with flexopt's executor
-(short cases in chunks, ``optim.batch.run_cases``) 12.5 s without the preload and 10.7 s with it, against
-10.5 s on the local process pool.
+400 cases of 50 ms of CPU on 2 single-threaded workers, ideal 10 s, interleaved medians, 27 Nov 2026): 14.5 s
+on a LocalCluster as Dask makes it, 13.4 s with this preload, one task per case either way; with flexopt's
+executor (short cases in chunks, ``optim.batch.run_cases``) 12.3 s without the preload and 10.5 s with it,
+against 10.4 s on the local process pool.
 
 :func:`dask_setup` (the hook Dask calls on a preload) slows them to :data:`INTERVALS` (never faster than
 configured) and removes the worker's profiler. What stays: the event loop's watchdog still reports a loop
