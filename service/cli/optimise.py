@@ -11,7 +11,15 @@ import sys
 from pathlib import Path
 from typing import Any
 
-__all__ = ["add_parser", "plot_result"]
+__all__ = ["SCHEDULER_HELP", "add_parser", "plot_result"]
+
+#: The ``--scheduler`` option's help, for every subcommand that runs a batch on Dask: how to start a cluster whose
+#: servers and workers are set up for flexopt's cases (docs/pages/optimisation.md, Batch).
+SCHEDULER_HELP = (
+    "run on a Dask cluster, e.g. tcp://host:8786; start it for flexopt with `dask scheduler --preload "
+    "flexopt.optim.dask_preload` and `dask worker ADDRESS --nthreads 1 --preload flexopt.optim._preload "
+    "--preload-nanny flexopt.optim.dask_preload`"
+)
 
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
@@ -19,7 +27,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     o = subparsers.add_parser("optimise", help="optimise hinge families for the worst-case parasitic frequency")
     o.add_argument("spec", help="problem JSON (format flexopt-problem, see optim/problem.py)")
     o.add_argument("--workers", type=int, default=None, help="local worker processes (default: CPU count)")
-    o.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://host:8786")
+    o.add_argument("--scheduler", metavar="ADDRESS", help=SCHEDULER_HELP)
     o.add_argument("--store", metavar="DIR", help="write each finished case here; rerun to resume")
     o.add_argument(
         "--no-worker-timeout",

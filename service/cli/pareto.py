@@ -10,6 +10,8 @@ import json
 import sys
 from typing import Any
 
+from .optimise import SCHEDULER_HELP
+
 __all__ = ["add_parser"]
 
 
@@ -19,7 +21,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     o.add_argument("spec", nargs="?", help="front spec JSON (format flexopt-pareto; see --example)")
     o.add_argument("--example", action="store_true", help="print a small spec and exit")
     o.add_argument("--workers", type=int, default=None, help="local worker processes (default: CPU count)")
-    o.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://host:8786")
+    o.add_argument("--scheduler", metavar="ADDRESS", help=SCHEDULER_HELP)
     o.add_argument("--store", metavar="DIR", help="write each finished case here; rerun to resume")
     o.add_argument("--json", action="store_true", help="print the whole result as JSON")
     o.add_argument("--plot", metavar="FILE.png", help="the front: worst case against drive stiffness")

@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from .optimise import design_text
+from .optimise import SCHEDULER_HELP, design_text
 
 __all__ = ["add_parser", "plot_ranking"]
 
@@ -30,7 +30,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         "dimensions) or, with 'quick', the quick one (4 leaves, 2 stages, shared dimensions) and exit",
     )
     o.add_argument("--workers", type=int, default=None, help="local worker processes (default: CPU count)")
-    o.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://host:8786")
+    o.add_argument("--scheduler", metavar="ADDRESS", help=SCHEDULER_HELP)
     o.add_argument("--store", metavar="DIR", help="write each finished case here; rerun to resume")
     o.add_argument("--json", action="store_true", help="print the whole result as JSON")
     o.add_argument("--plot", metavar="FILE.png", help="bar chart of the ranking (worst case and zero stroke)")
