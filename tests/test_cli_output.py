@@ -203,3 +203,10 @@ def test_topology_table_shows_a_design_once_with_its_crossing_variants() -> None
     assert "also R:+-@, R:-+@" in text and "thickness=0.3 mm" in text and "length=40 mm" in text, text
     ranked = [ln.split()[1] for ln in text.splitlines()[2:] if re.match(r"\s+\d+\s", ln)]
     assert ranked == ["R:+-", "R:++"], ranked
+    # the family in words (grammar.family_form), not "-": R:+- is the cross-spring pivot R:+-@ crossing at 0.5
+    rows = {ln.split()[1]: ln for ln in text.splitlines()[2:] if re.match(r"\s+\d+\s", ln)}
+    assert "cross-spring-pivot (crossing at the midpoint)" in rows["R:+-"], text
+    assert rows["R:++"].split()[2] == "-", text
+    header = text.splitlines()[1]
+    end = header.index("worst [Hz]") + len("worst [Hz]")  # the numbers are right-aligned under their heading
+    assert rows["R:+-"].index("80.00") + len("80.00") == end == rows["R:++"].index("60.00") + len("60.00"), text

@@ -315,7 +315,7 @@ def test_family_form_recognises_every_form_of_a_family() -> None:
     mirror images by the grammar's canonical form, and the family's descriptor without its designed crossing
     (the family at crossing 0.5) named so; the grammar's own ``family`` stays None there (its crossing is not
     designed), and a topology of no family is None. Each expected name read off FAMILIES' table by hand."""
-    from flexopt.service.jobs.run import family_form
+    from flexopt.optim.topology.grammar import family_form
 
     assert family_form("R:+-@") == family_form("R:-+@") == "cross-spring-pivot"
     assert family_form("R:+-") == family_form("R:-+") == "cross-spring-pivot (crossing at the midpoint)"

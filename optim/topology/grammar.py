@@ -64,6 +64,7 @@ __all__ = [
     "Topology",
     "parse",
     "canonical",
+    "family_form",
     "family_of",
     "enumerate_topologies",
     "candidate_topologies",
@@ -204,6 +205,23 @@ _FAMILY_OF = {str(canonical(d)): name for name, d in FAMILIES.items()}
 def family_of(t: Topology | str) -> str | None:
     """The hand-made family a topology is (up to symmetry), or None."""
     return _FAMILY_OF.get(str(canonical(t)))
+
+
+def family_form(descriptor: str) -> str | None:
+    """The hand-made family a candidate is, in words, for the web page's and the command line's tables.
+
+    The family's name when it is that family up to symmetry (:func:`family_of`); "<name> (crossing at the
+    midpoint)" when it is the family's descriptor without its designed crossing '@' (the family at crossing
+    fraction 0.5, e.g. ``R:+-`` of the cross-spring pivot ``R:+-@``); else None. Both forms are compared as the
+    grammar's canonical descriptors, so a mirror image (``R:-+``) is recognised too."""
+    name = family_of(descriptor)
+    if name is not None:
+        return name
+    mine = str(canonical(descriptor))
+    for name, d in FAMILIES.items():
+        if "@" in d and str(canonical(d.replace("@", ""))) == mine:
+            return f"{name} (crossing at the midpoint)"
+    return None
 
 
 #: How a topology's dimensions are designed: one set for every stage (today's), one per stage, or one per

@@ -99,8 +99,17 @@ def table(result: dict) -> str:
         f"(screen {sec['screen']:.1f} s, first pass {sec.get('first_pass', 0.0):.1f} s, optimisation "
         f"{sec['optimise']:.1f} s, refined verification {sec.get('refine', 0.0):.1f} s)"
     )
+    from ...optim.topology.grammar import family_form
+
+    # the family in words (optim.topology.grammar.family_form: "R:+-" is the cross-spring pivot crossing at the
+    # midpoint), in a column as wide as its longest entry
+    families = {
+        r["topology"]: (family_form(r["topology"]) if r["topology"].startswith("R:") else r["family"]) or "-"
+        for r in result["candidates"]
+    }
+    fw = max([len("family"), *(len(f) for f in families.values())])
     columns = (
-        "rank  topology          family                   dof  self-stress  worst [Hz]  zero [Hz]  worst/zero  "
+        f"rank  topology          {'family':<{fw}} dof  self-stress  worst [Hz]  zero [Hz]  worst/zero  "
         "stress  mesh error  KKT      design (bound: origin)"
     )
     lines = [head, columns]
@@ -151,7 +160,7 @@ def table(result: dict) -> str:
         kkt_text = "-" if kkt is None else f"{kkt:.1e}"
         me = f"{ref['mesh_error']:.1e}" if ref.get("mesh_error") is not None else "-"
         lines.append(
-            f"{i:>4}  {name:<17} {r['family'] or '-':<24} {r['dof']:>3}  {r['overconstraints']:>11}  "
+            f"{i:>4}  {name:<17} {families[name]:<{fw}} {r['dof']:>3}  {r['overconstraints']:>11}  "
             f"{worst:>10.2f} {zero:>10.2f}  {ratio:>10.3f}  {stress_text:>6}  {me:>10}  "
             f"{kkt_text}  {design}"
         )
@@ -162,7 +171,7 @@ def table(result: dict) -> str:
         )
     for r in result["candidates"]:
         if r["status"] in ("failed", "untraceable"):
-            lines.append(f"   -  {r['topology']:<17} {r['family'] or '-':<24} {r['status']}: {r['reason']}")
+            lines.append(f"   -  {r['topology']:<17} {families[r['topology']]:<{fw}} {r['status']}: {r['reason']}")
     rej = [r for r in result["candidates"] if r["status"] == "rejected"]
     if rej:
         lines.append("rejected by the exact-constraint filter:")

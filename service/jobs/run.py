@@ -34,7 +34,7 @@ from . import worker
 from .store import HOST, JobStore, StoreUnavailable
 from .worker import finite
 
-__all__ = ["RETRY", "family_form", "main", "run_job"]
+__all__ = ["RETRY", "main", "run_job"]
 
 log = logging.getLogger("flexopt.service.jobs")
 
@@ -66,26 +66,10 @@ def _summary(case: dict, phase: str | None = None) -> dict:
     return out
 
 
-def family_form(descriptor: str) -> str | None:
-    """The hand-made family a candidate is, in words, for the web page's table: the family's name when it is
-    that family up to symmetry (``optim.topology.grammar.family_of``), "<name> (crossing at the midpoint)" when
-    it is the family's descriptor without its designed crossing '@' (the family at crossing fraction 0.5, e.g.
-    ``R:+-`` of the cross-spring pivot ``R:+-@``), else None. Both forms compared as the grammar's canonical
-    descriptors, so a mirror image (``R:-+``) is recognised too."""
-    from ...optim.topology.grammar import FAMILIES, canonical, family_of
-
-    name = family_of(descriptor)
-    if name is not None:
-        return name
-    mine = str(canonical(descriptor))
-    for name, d in FAMILIES.items():
-        if "@" in d and str(canonical(d.replace("@", ""))) == mine:
-            return f"{name} (crossing at the midpoint)"
-    return None
-
-
 def _family_forms(result: dict) -> dict:
-    """A topology search's result with each candidate's ``family_form`` (:func:`family_form`)."""
+    """A topology search's result with each candidate's ``family_form`` (``optim.topology.grammar.family_form``)."""
+    from ...optim.topology.grammar import family_form
+
     for c in result.get("candidates", []):
         if isinstance(c.get("topology"), str) and c["topology"].startswith("R:"):
             c["family_form"] = family_form(c["topology"])
