@@ -38,7 +38,6 @@ def test_ruff_lint() -> None:
     assert run.returncode == 0, run.stdout[-4000:] + run.stderr[-2000:]
 
 
-@pytest.mark.slow
 def _mypy_home() -> Path:
     """A folder per checkout for mypy's staged tree and its incremental cache, beside the compiled kernels
     (``$FLEXOPT_CACHE_DIR`` or ``~/.cache/flexopt``): a rerun checks only what changed (mypy validates every
@@ -51,6 +50,7 @@ def _mypy_home() -> Path:
     return base / "mypy" / hashlib.sha1(str(ROOT).encode()).hexdigest()[:12]
 
 
+@pytest.mark.slow
 def test_mypy() -> None:
     cmd = _tool("mypy")
     tmp_path = _mypy_home()
