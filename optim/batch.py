@@ -6,8 +6,9 @@ the case function (``"module:function"``), never pickled CasADi objects; each wo
 itself and builds (or loads from the disk cache, ``model/kernels.py``, ``$FLEXOPT_CACHE_DIR``) its compiled
 kernels. Nothing here imports a scheduler at import time: ``distributed`` loads only in
 :func:`dask_executor` and :func:`dask_local_cluster`. On an executor that reports its worker threads
-(``slots()``, as :func:`dask_executor`'s does) one task per thread is in flight and short cases travel in
-chunks (:func:`_chunk_size`); each case keeps its own record, store file and progress event.
+(``slots()``, as :func:`dask_executor`'s does) one or two tasks per thread are in flight (:func:`_in_flight`)
+and short cases travel in chunks (:func:`_chunk_size`); each case keeps its own record, store file and progress
+event.
 
 Store layout (``store=DIR``): one file ``DIR/<case id>.json`` per finished case, written as the case
 completes (temporary file, ``fsync``, atomic rename), so a crash never leaves a half-written record and an
@@ -145,14 +146,19 @@ def _message(exc: BaseException) -> str:
     return str(exc) or type(exc).__name__
 
 
-def _run_one(fn: str, case_json: str) -> dict:
-    """Worker side: import ``fn``, run it on one case; the envelope ``{"ok", "result" | "error", "kind",
-    "seconds"}`` (``"setup": True`` when ``fn`` cannot be imported; ``seconds``: the case's own wall time)."""
+def _import_fn(fn: str) -> Callable[[dict], Any] | str:
+    """Worker side: the case function ``fn`` names, or, when it cannot be imported, the failure envelope (JSON,
+    ``"setup": True``) that stops the batch."""
     mod, name = _split(fn)
     try:
-        func = getattr(importlib.import_module(mod), name)
+        return getattr(importlib.import_module(mod), name)
     except (ImportError, AttributeError) as exc:
-        return {"ok": False, "setup": True, "error": _message(exc), "kind": type(exc).__name__}
+        return json.dumps({"ok": False, "setup": True, "error": _message(exc), "kind": type(exc).__name__})
+
+
+def _run_one(func: Callable[[dict], Any], fn: str, case_json: str) -> str:
+    """Worker side: ``func`` (named ``fn``) on one case; the envelope ``{"ok", "result" | "error", "kind",
+    "seconds"}`` as JSON, the result serialised once (``seconds``: the case's own wall time)."""
     t0 = time.perf_counter()
     try:
         from ..model.threads import limited  # lazily: flexopt.model loads CasADi
@@ -161,32 +167,32 @@ def _run_one(fn: str, case_json: str) -> dict:
             out = func(json.loads(case_json))
         if not isinstance(out, dict):
             raise TypeError(f"{fn} returned a {type(out).__name__}: a case function must return a dict")
-        try:
-            json.dumps(out)  # NaN is kept (Python's JSON reads it back)
+        try:  # NaN is kept (Python's JSON reads it back)
+            return json.dumps({"ok": True, "result": out, "seconds": time.perf_counter() - t0})
         except (TypeError, ValueError) as exc:
             raise type(exc)(
                 f"the result of {fn} is not JSON ({exc}): return floats, lists and dicts "
                 "(numpy values through float() or .tolist())"
             ) from None
-        return {"ok": True, "result": out, "seconds": time.perf_counter() - t0}
     except Exception as exc:  # noqa: BLE001 - every failure of a case becomes its record: type and message
-        return {"ok": False, "error": _message(exc), "kind": type(exc).__name__, "seconds": time.perf_counter() - t0}
+        return json.dumps(
+            {"ok": False, "error": _message(exc), "kind": type(exc).__name__, "seconds": time.perf_counter() - t0}
+        )
 
 
 def _call(fn: str, case_json: str) -> str:
-    """Worker side: one case, its envelope (:func:`_run_one`) as JSON."""
-    return json.dumps(_run_one(fn, case_json))
+    """Worker side: import ``fn``, run it on one case, its envelope (:func:`_run_one`) as JSON."""
+    func = _import_fn(fn)
+    return func if isinstance(func, str) else _run_one(func, fn, case_json)
 
 
 def _call_many(fn: str, cases_json: list[str]) -> str:
     """Worker side: several cases in turn (one task on a cluster: see :func:`_chunk_size`), their envelopes as a
-    JSON list; it stops after a case whose function cannot be imported (every other case would fail alike)."""
-    out = []
-    for c in cases_json:
-        out.append(_run_one(fn, c))
-        if out[-1].get("setup"):
-            break
-    return json.dumps(out)
+    JSON list; only the import's failure when ``fn`` cannot be imported (every case would fail alike)."""
+    func = _import_fn(fn)
+    if isinstance(func, str):
+        return f"[{func}]"
+    return "[" + ",".join(_run_one(func, fn, c) for c in cases_json) + "]"
 
 
 def _median(seconds: list[float]) -> float | None:
@@ -284,7 +290,7 @@ def dask_executor(address: str, **client_kwargs: object) -> cf.Executor:
             return len(self._client.scheduler_info(n_workers=-1).get("workers", {}))
 
         def slots(self) -> int:
-            """Worker threads the scheduler knows now (run_cases keeps two tasks per thread in flight)."""
+            """Worker threads the scheduler knows now (run_cases keeps one or two tasks per thread in flight)."""
             return sum(self._client.nthreads().values())
 
         # ClientExecutor.shutdown waits for (or cancels) the futures but leaves the client connected
@@ -528,7 +534,6 @@ def run_cases(
 
     def finish(f: cf.Future, cids: list[str]) -> None:
         nonlocal done
-        lost: dict[str, str] | None = None
         try:
             raw = json.loads(f.result())
         except cf.CancelledError:
@@ -540,29 +545,22 @@ def run_cases(
                 "store: rerun to resume"
             ) from exc
         except Exception as exc:  # noqa: BLE001 - the executor could not run these cases: report, do not store
-            outs: list[dict | None] = [None] * len(cids)
-            lost = {"error": _message(exc), "kind": type(exc).__name__}
-        else:
-            outs = list(raw) if isinstance(raw, list) else [raw]
-        for cid, out in zip(cids, outs + [None] * (len(cids) - len(outs))):
-            if out is None:
-                if lost is None:  # after a setup failure in its chunk: not run (the batch stops below)
-                    continue
-                record = {"id": cid, **lost}
+            raw = [{"ok": False, "error": _message(exc), "kind": type(exc).__name__, "lost": True}] * len(cids)
+        # a chunk whose function could not be imported holds that one envelope: it stops the batch here
+        for cid, out in zip(cids, raw if isinstance(raw, list) else [raw]):
+            if out.get("setup"):
+                raise ValueError(
+                    f"cannot import {fn!r} on a worker ({out['kind']}: {out['error']}): check the "
+                    "name, and that the workers have flexopt (and the module) installed"
+                )
+            if "seconds" in out:
+                seconds.append(float(out["seconds"]))
+            if out["ok"]:
+                record = dict(out["result"], id=cid)
             else:
-                if out.get("setup"):
-                    raise ValueError(
-                        f"cannot import {fn!r} on a worker ({out['kind']}: {out['error']}): check the "
-                        "name, and that the workers have flexopt (and the module) installed"
-                    )
-                if "seconds" in out:
-                    seconds.append(float(out["seconds"]))
-                if out["ok"]:
-                    record = dict(out["result"], id=cid)
-                else:
-                    record = {"id": cid, "error": out["error"], "kind": out["kind"]}
-                if root is not None:
-                    _write(root, cid, record)
+                record = {"id": cid, "error": out["error"], "kind": out["kind"]}
+            if root is not None and not out.get("lost"):
+                _write(root, cid, record)
             for i in todo[cid]:
                 results[i] = record
                 done += 1
