@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .constraints import RANK_RTOL, columns, jacobian_rows
+from .constraints import columns, jacobian_rows, numerical_rank
 from .errors import MassUnderflowError, SceneError
 from .scene import Beam, RectangularSection
 from .structure import Structure
@@ -212,11 +212,11 @@ def free_motions(structure: Structure) -> list[FreeMotion]:
     # the singular values alone decide the rank; the motions (V) only when some are null: a full-rank D_cc
     # (every optimiser evaluation of an exactly constrained design) skips half the SVD's work
     sv = np.linalg.svd(Dh, compute_uv=False)
-    rank = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
+    rank = numerical_rank(sv)
     if rank == Dh.shape[1]:
         return out
     _, sv, Vt = np.linalg.svd(Dh)
-    rank = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
+    rank = numerical_rank(sv)
     null = Vt[rank:].T  # (n_kept, k) unit motions
     if null.shape[1] == 0:
         return out

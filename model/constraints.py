@@ -67,12 +67,19 @@ __all__ = [
     "deformation_label",
     "RANK_RTOL",
     "NEAR_RTOL",
+    "numerical_rank",
     "DEFORMATION_NAMES",
 ]
 
 RANK_RTOL = 1e-8
 NEAR_RTOL = 1e-4
 _AXES = ("x", "y", "z", "rx", "ry", "rz")
+
+
+def numerical_rank(sv: np.ndarray) -> int:
+    """The rank the singular values ``sv`` (largest first) give: how many exceed ``RANK_RTOL`` times the
+    largest (0 for none, or for a zero matrix)."""
+    return int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
 
 
 def kinematic_rigid_set(element: Beam | Truss) -> tuple[str, ...]:

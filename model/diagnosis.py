@@ -14,6 +14,7 @@ from .constraints import (
     ConstraintDiagnosis,
     columns,
     jacobian_rows,
+    numerical_rank,
     partition,
     sign_fix,
     split_label,
@@ -151,7 +152,7 @@ def _scaled_svd(
     c = np.where(trans, Lc, 1.0)
     Dh = D * c / Lc
     U, sv, Vt = np.linalg.svd(Dh)
-    rank = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
+    rank = numerical_rank(sv)
     return Lc, Dh, U, sv, Vt.T, rank
 
 
