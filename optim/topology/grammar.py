@@ -53,8 +53,9 @@ smallest descriptor string over these maps; the enumeration keeps one descriptor
 from __future__ import annotations
 
 import itertools
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 from ...model.templates import guide_layout, topology_layout
 
@@ -369,44 +370,42 @@ def enumerate_topologies(
     """
     if not set(planes) <= set("+-0") or not planes:
         raise ValueError(f"planes must be a non-empty subset of '+-0', got {planes!r}")
-    seen: dict[str, Topology] = {}
     per_k = {
         k: _stage_patterns(k, planes, inplane, free_crossing, reinforce, prune) for k in range(1, max_flexures + 1)
     }
-    for s in range(1, max_stages + 1):
-        for sizes in itertools.product(range(1, max_flexures + 1), repeat=s):
-            if sum(sizes) > max_flexures:
-                continue
-            for stages in itertools.product(*(per_k[k] for k in sizes)):
-                c = canonical(Topology(tuple(stages)))
-                seen.setdefault(str(c), c)
-    return sorted(seen.values(), key=lambda t: (t.flexures, len(t.stages), str(t)))
+    tops = (
+        Topology(tuple(stages))
+        for s in range(1, max_stages + 1)
+        for sizes in itertools.product(range(1, max_flexures + 1), repeat=s)
+        if sum(sizes) <= max_flexures
+        for stages in itertools.product(*(per_k[k] for k in sizes))
+    )
+    return sorted(_one_per_form(tops), key=lambda t: (t.flexures, len(t.stages), str(t)))
+
+
+def _one_per_form(tops: Iterable[Topology | str]) -> list[Topology]:
+    """The canonical forms of ``tops``, each once, in the order of its first member."""
+    seen: dict[str, Topology] = {}
+    for t in tops:
+        c = canonical(t)
+        seen.setdefault(str(c), c)
+    return list(seen.values())
+
+
+def candidate_topologies(
+    topologies: Sequence[str] | None, max_flexures: int, max_stages: int, **options: Any
+) -> list[Topology]:
+    """A search's candidates: the given descriptors, one per canonical form in their first order, or else every
+    topology ``enumerate_topologies(max_flexures, max_stages, **options)`` generates (the search ranks these;
+    the job's cost estimate counts them)."""
+    if topologies is not None:
+        return _one_per_form(topologies)
+    return enumerate_topologies(max_flexures, max_stages, **options)
 
 
 # ---------------------------------------------------------------------------------------------- guides
 #: Every place of a wire: nine vertical (z) and nine lateral (y).
 GUIDE_PLACES: tuple[str, ...] = tuple(d + i + j for d in "zy" for i in "-0+" for j in "-0+")
-
-
-def candidate_topologies(
-    topologies: Sequence[str] | None,
-    max_flexures: int,
-    max_stages: int,
-    planes: str = "+-",
-    inplane: bool = True,
-    free_crossing: bool = True,
-    reinforce: bool = False,
-    prune: bool = False,
-) -> list[Topology]:
-    """A search's candidates: the given descriptors, one per canonical form in their first order, or else every
-    topology :func:`enumerate_topologies` generates (the search ranks these; the job's cost estimate counts them)."""
-    if topologies is not None:
-        seen: dict[str, Topology] = {}
-        for d in topologies:
-            c = canonical(d)
-            seen.setdefault(str(c), c)
-        return list(seen.values())
-    return enumerate_topologies(max_flexures, max_stages, planes, inplane, free_crossing, reinforce, prune=prune)
 
 
 @dataclass(frozen=True)

@@ -284,10 +284,10 @@ def _candidates(spec: TopologySpec) -> list[Topology]:
         spec.topologies,
         spec.max_flexures,
         spec.max_stages,
-        spec.planes,
-        spec.inplane,
-        spec.free_crossing,
-        spec.reinforcement,
+        planes=spec.planes,
+        inplane=spec.inplane,
+        free_crossing=spec.free_crossing,
+        reinforce=spec.reinforcement,
         prune=spec.prune,
     )
 

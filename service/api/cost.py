@@ -335,7 +335,14 @@ def _candidate_shapes(
     from ...optim.topology.grammar import candidate_topologies, design_parameters
 
     tops = candidate_topologies(
-        topologies, max_flexures, max_stages, planes, inplane, free_crossing, reinforcement, prune=prune
+        topologies,
+        max_flexures,
+        max_stages,
+        planes=planes,
+        inplane=inplane,
+        free_crossing=free_crossing,
+        reinforce=reinforcement,
+        prune=prune,
     )
     return Counter(
         (t.flexures, len(t.stages), len(design_parameters(t, first_dims)), len(design_parameters(t, dims)))
