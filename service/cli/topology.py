@@ -99,24 +99,11 @@ def table(result: dict) -> str:
         f"(screen {sec['screen']:.1f} s, first pass {sec.get('first_pass', 0.0):.1f} s, optimisation "
         f"{sec['optimise']:.1f} s, refined verification {sec.get('refine', 0.0):.1f} s)"
     )
-    from ...optim.topology.grammar import family_form
-
-    # the family in words (optim.topology.grammar.family_form: "R:+-" is the cross-spring pivot crossing at the
-    # midpoint), in a column as wide as its longest entry
-    families = {
-        r["topology"]: (family_form(r["topology"]) if r["topology"].startswith("R:") else r["family"]) or "-"
-        for r in result["candidates"]
-    }
-    fw = max([len("family"), *(len(f) for f in families.values())])
-    columns = (
-        f"rank  topology          {'family':<{fw}} dof  self-stress  worst [Hz]  zero [Hz]  worst/zero  "
-        "stress  mesh error  KKT      design (bound: origin)"
-    )
-    lines = [head, columns]
+    lines = [head]
     by_name = {r["topology"]: r for r in result["candidates"]}
     if result["spec"]["motion"] == "translation":
         lines[0] += f", {c['accepted']} accepted (guides: screened, not optimised)"
-        lines[1] = "rank  guide                          self-stress  condition number of D_cc"
+        lines.append("rank  guide                          self-stress  condition number of D_cc")
         lines += [
             f"{i:>4}  {n:<30} {by_name[n]['overconstraints']:>11}  {by_name[n]['condition_number']:.4g}"
             for i, n in enumerate(result["ranking"][:50], start=1)
@@ -130,6 +117,8 @@ def table(result: dict) -> str:
             if len(rej) > 50:
                 lines.append(f"      ... {len(rej) - 50} more (--json lists every candidate)")
         return "\n".join(lines)
+    from ...optim.topology.grammar import family_form
+
     # a designed crossing ('@') whose optimum crosses at the midpoint is the design of the topology without '@':
     # shown once, on that topology's row, with its '@' variants named
     variants: dict[str, list[str]] = {}
@@ -138,6 +127,15 @@ def table(result: dict) -> str:
         if base and base in result["ranking"]:
             variants.setdefault(base, []).append(name)
     shown = [n for n in result["ranking"] if not any(n in v for v in variants.values())]
+    unfinished = [r["topology"] for r in result["candidates"] if r["status"] in ("failed", "untraceable")]
+    # the family in words (optim.topology.grammar.family_form: "R:+-" is the cross-spring pivot crossing at the
+    # midpoint), for the rows printed with it, in a column as wide as its longest entry there
+    families = {n: family_form(n) or "-" for n in shown + unfinished}
+    fw = max([len("family"), *(len(f) for f in families.values())])
+    lines.append(
+        f"rank  topology          {'family':<{fw}} dof  self-stress  worst [Hz]  zero [Hz]  worst/zero  "
+        "stress  mesh error  KKT      design (bound: origin)"
+    )
     for i, name in enumerate(shown, start=1):
         r = by_name[name]
         design = design_text(r["design"], r["family"] or "topology-hinge")
